@@ -1,0 +1,1 @@
+"""Navigation for unicycle robots (ltl-planning.md §6): grid planner, DWA, plan executor. Pure."""

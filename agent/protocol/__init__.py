@@ -1,0 +1,1 @@
+"""Messages, codec and key expressions (architecture.md §2). Stdlib + msgpack only."""

@@ -1,0 +1,210 @@
+"""Typed model of a scenario file (architecture.md §5, scenarios.md).
+
+Every value is immutable; lengths are in metres, angles in radians, times in seconds, rates in Hz.
+The loader (``agent.scenario.loader``) is the only place that builds these from TOML and it
+validates everything, so code that receives a ``Scenario`` can trust it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+RobotKind = Literal["unicycle", "omni"]
+
+
+@dataclass(frozen=True)
+class RectObstacle:
+    """Axis-aligned rectangular static obstacle [m]."""
+
+    xmin: float
+    ymin: float
+    xmax: float
+    ymax: float
+    name: str = ""
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
+
+
+@dataclass(frozen=True)
+class DiscObstacle:
+    """Circular static obstacle: centre [m] and radius [m]."""
+
+    center: tuple[float, float]
+    radius: float
+    name: str = ""
+
+    def contains(self, x: float, y: float) -> bool:
+        return math.hypot(x - self.center[0], y - self.center[1]) <= self.radius
+
+
+Obstacle = RectObstacle | DiscObstacle
+
+
+@dataclass(frozen=True)
+class Arena:
+    """The rectangular workspace [xmin, xmax] × [ymin, ymax] [m], walled on its border."""
+
+    xmin: float = -3.5
+    xmax: float = 3.5
+    ymin: float = -3.5
+    ymax: float = 3.5
+    obstacles: tuple[Obstacle, ...] = ()
+
+    @property
+    def width(self) -> float:
+        return self.xmax - self.xmin
+
+    @property
+    def height(self) -> float:
+        return self.ymax - self.ymin
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
+
+
+@dataclass(frozen=True)
+class Region:
+    """A region of interest for LTL robots: a disc (centre [m], radius [m]).
+
+    ``labels`` are the atomic propositions that hold while a robot is inside; by default just the
+    region's own name. A generic proposition may label several regions (ltl-planning.md §3).
+    """
+
+    name: str
+    center: tuple[float, float]
+    radius: float = 0.25
+    labels: frozenset[str] = frozenset()
+
+    def __post_init__(self) -> None:
+        if not self.labels:
+            object.__setattr__(self, "labels", frozenset({self.name}))
+
+    def contains(self, x: float, y: float) -> bool:
+        return math.hypot(x - self.center[0], y - self.center[1]) <= self.radius
+
+
+@dataclass(frozen=True)
+class UnicycleLimits:
+    """Velocity and acceleration limits of a unicycle (Kobuki defaults, ltl-planning.md §6)."""
+
+    max_v: float = 0.3  # [m/s]
+    max_omega: float = 1.0  # [rad/s]
+    acc_v: float = 1.0  # [m/s²]
+    acc_omega: float = 2.0  # [rad/s²]
+
+
+@dataclass(frozen=True)
+class OmniLimits:
+    """Saturation of an omnidirectional robot (stl-funnel.md §10.1, scenarios.md)."""
+
+    max_lin: float = 0.2  # [m/s], bound on ‖(vx, vy)‖
+    max_ang: float = 6.28  # [rad/s], bound on |ω|
+    acc_lin: float = 2.0  # [m/s²], low-level velocity tracking (simulator)
+    acc_ang: float = 20.0  # [rad/s²]
+
+
+@dataclass(frozen=True)
+class Robot:
+    """One robot of the fleet.
+
+    Exactly one of ``ltl`` (an LTL formula in Spot syntax) and ``stl`` (a non-empty sequence of
+    STL sub-task strings, executed in order: stl-funnel.md §9) is set.
+    ``phase_start_times`` forces the activation times of sub-tasks 2..m (stl-funnel.md §9 item 4).
+    """
+
+    id: int
+    kind: RobotKind
+    pose: tuple[float, float, float]  # (x [m], y [m], θ [rad])
+    radius: float = 0.2  # [m]
+    ltl: str | None = None
+    stl: tuple[str, ...] = ()
+    phase_start_times: tuple[float, ...] | None = None
+    rho_opt: tuple[float | None, ...] = ()  # per sub-task override of ρ_opt (stl-funnel.md §3)
+    unicycle: UnicycleLimits = field(default_factory=UnicycleLimits)
+    omni: OmniLimits = field(default_factory=OmniLimits)
+
+    @property
+    def is_ltl(self) -> bool:
+        return self.ltl is not None
+
+    @property
+    def is_stl(self) -> bool:
+        return bool(self.stl)
+
+
+@dataclass(frozen=True)
+class LtlParams:
+    """Parameters of the LTL planner (ltl-planning.md §5) and the LTL control loop."""
+
+    suffix_weight: float = 10.0  # β in cost = prefix + β·suffix (P_MAS_TG default)
+    control_rate: float = 5.0  # [Hz]
+
+
+@dataclass(frozen=True)
+class StlParams:
+    """Parameters of the STL agents (stl-funnel.md §10.1 and §15); scenario-wide."""
+
+    eta: float = 10.0  # LSE sharpness η
+    n_stage1: int = 2  # K = N_i, stage-1 repairs before stage 2/3
+    delta: float = 0.02  # δ, r decrement / stage-3 margin
+    zeta_l: float = 0.2  # ζ_l, lower margin after a stage-1/2 repair
+    r1: float = 0.6  # [m] R1, full-repulsion radius
+    r_sense: float = 0.7  # [m] R, collision-avoidance sensing radius
+    beta: float = 2.0  # β_i, collision weight in eq. (6)
+    control_rate: float = 100.0  # [Hz]
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """Simulator settings (architecture.md §3)."""
+
+    physics_rate: float = 1000.0  # [Hz] pymunk steps
+    mocap_rate: float = 100.0  # [Hz] pose frames (and the lockstep tick)
+    disturbance: float = 0.0  # [m/s] bound on ‖w_i‖, additive velocity disturbance
+    mocap_noise: float = 0.0  # [m] standard deviation of position noise (heading: same in rad)
+    seed: int = 0
+    watchdog: float = 0.5  # [s] a robot with no fresh command for this long is stopped
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One fully specified run (architecture.md §5)."""
+
+    name: str
+    fleet: str
+    duration: float  # [s]
+    arena: Arena
+    regions: tuple[Region, ...]
+    robots: tuple[Robot, ...]
+    ltl: LtlParams = field(default_factory=LtlParams)
+    stl: StlParams = field(default_factory=StlParams)
+    sim: SimParams = field(default_factory=SimParams)
+    description: str = ""
+    source: Path | None = None
+
+    def robot(self, robot_id: int) -> Robot:
+        """The robot with this id; ``KeyError`` naming the known ids otherwise."""
+        for robot in self.robots:
+            if robot.id == robot_id:
+                return robot
+        known = ", ".join(str(r.id) for r in self.robots)
+        raise KeyError(f"scenario {self.name!r} has no robot {robot_id} (robots: {known})")
+
+    def region(self, name: str) -> Region:
+        for region in self.regions:
+            if region.name == name:
+                return region
+        raise KeyError(f"scenario {self.name!r} has no region {name!r}")
+
+    @property
+    def robot_ids(self) -> tuple[int, ...]:
+        return tuple(sorted(r.id for r in self.robots))
+
+    @property
+    def propositions(self) -> frozenset[str]:
+        """Every atomic proposition some region carries."""
+        return frozenset().union(*(r.labels for r in self.regions)) if self.regions else frozenset()

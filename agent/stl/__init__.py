@@ -1,0 +1,1 @@
+"""STL core (stl-funnel.md): task language, robustness, funnels, repair. Pure."""
