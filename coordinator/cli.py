@@ -1,0 +1,65 @@
+"""The ``tlfleet`` command line: one sub-command per module in ``coordinator.commands``.
+
+Each command module exposes ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
+Modules are imported only when their command runs, so ``tlfleet agent`` never pays for the
+coordinator's viewers, and a broken optional dependency cannot take the whole CLI down.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from agent.errors import TlfleetError
+
+# command name -> (module, one-line help). Kept here so `tlfleet --help` lists them without imports.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "check": ("coordinator.commands.check", "validate a scenario file and summarise it"),
+    "translate": ("coordinator.commands.translate", "translate an LTL formula to a Büchi automaton"),
+    "plan": ("coordinator.commands.plan", "compute the optimal prefix–suffix plan of each LTL robot"),
+    "monitor": ("coordinator.commands.monitor", "STL robustness of a recorded trajectory"),
+}
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+    parser = argparse.ArgumentParser(
+        prog="tlfleet", description="Robot fleets under LTL and STL tasks."
+    )
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers = {}
+    for name, (_module, help_text) in COMMANDS.items():
+        subparsers[name] = sub.add_parser(name, help=help_text, description=help_text)
+    return parser, subparsers
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser, subparsers = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Let the chosen command declare its own arguments before the full parse.
+    chosen = next((a for a in argv if not a.startswith("-")), None)
+    module = None
+    if chosen in COMMANDS:
+        module = importlib.import_module(COMMANDS[chosen][0])
+        module.add_arguments(subparsers[chosen])
+    args = parser.parse_args(argv)
+    if module is None:
+        parser.print_help()
+        return 2
+    logging.basicConfig(
+        level=logging.WARNING - 10 * args.verbose, format="%(levelname)s %(name)s: %(message)s"
+    )
+    try:
+        return int(module.run(args) or 0)
+    except TlfleetError as exc:
+        print(f"tlfleet {args.command}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
