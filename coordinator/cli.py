@@ -18,8 +18,8 @@ from agent.errors import TlfleetError
 # command name -> (module, one-line help). Kept here so `tlfleet --help` lists them without imports.
 COMMANDS: dict[str, tuple[str, str]] = {
     "check": ("coordinator.commands.check", "validate a scenario file and summarise it"),
-    "translate": ("coordinator.commands.translate", "translate an LTL formula to a Büchi automaton"),
-    "plan": ("coordinator.commands.plan", "compute the optimal prefix–suffix plan of each LTL robot"),
+    "translate": ("coordinator.commands.translate", "LTL formula to Büchi automaton"),
+    "plan": ("coordinator.commands.plan", "optimal prefix–suffix plans of the LTL robots"),
     "monitor": ("coordinator.commands.monitor", "STL robustness of a recorded trajectory"),
 }
 

@@ -1,0 +1,439 @@
+"""Validating loader for scenario TOML files (architecture.md §5).
+
+``load_scenario(path)`` reads a file and returns a ``Scenario``; ``parse_scenario(data, source)``
+does the same for an already-decoded TOML table. Every problem is a ``ScenarioError`` that names
+the file, the field path (``robots[2].pose``) and what was expected. Unknown keys are errors, so a
+typo never silently falls back to a default.
+
+File layout (every section but ``robots`` is optional)::
+
+    name = "scenario1"            # fleet defaults to the name; used in Zenoh keys
+    duration = 90.0               # [s]
+    [arena]   xmin/xmax/ymin/ymax [m], [[arena.obstacles]] shape = "rect"|"disc"
+    [ltl]     suffix_weight, control_rate               (LtlParams)
+    [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate   (StlParams)
+    [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog  (SimParams)
+    [[regions]] name, center = [x, y], radius, labels = [...]
+    [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
+                ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+import tomllib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from agent.errors import FormulaSyntaxError, ScenarioError
+from agent.scenario.model import (
+    Arena,
+    DiscObstacle,
+    LtlParams,
+    OmniLimits,
+    RectObstacle,
+    Region,
+    Robot,
+    Scenario,
+    SimParams,
+    StlParams,
+    UnicycleLimits,
+)
+
+ATOM_RE = re.compile(r"[a-z_][a-z0-9_]*\Z")
+FLEET_RE = re.compile(r"[A-Za-z0-9_-]+\Z")
+RESERVED_ATOMS = frozenset({"true", "false", "xor"})
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; ``ScenarioError`` on any problem."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ScenarioError(str(path), "", "no such file") from None
+    except IsADirectoryError:
+        raise ScenarioError(str(path), "", "is a directory, expected a .toml file") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not UTF-8 text ({exc.reason})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    return parse_scenario(data, source=str(path))
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate a decoded TOML table and build the ``Scenario``."""
+    top = _Table(data, "", source)
+    name = top.string("name")
+    if not name:
+        raise ScenarioError(source, "name", "expected a non-empty string")
+    fleet = top.string("fleet", default=name)
+    if not FLEET_RE.match(fleet):
+        raise ScenarioError(
+            source, "fleet", f"{fleet!r} is not usable in a key expression: "
+                             "use letters, digits, _ and -")
+    duration = top.number("duration", positive=True)
+    description = top.string("description", default="")
+    arena = _arena(top.table("arena", required=False))
+    ltl = _params(top.table("ltl", required=False), LtlParams)
+    stl = _params(top.table("stl", required=False), StlParams)
+    sim = _params(top.table("sim", required=False), SimParams)
+    if stl.r1 >= stl.r_sense:
+        raise ScenarioError(source, "stl.r1",
+                            f"must be below stl.r_sense = {stl.r_sense}, got {stl.r1}")
+    regions = tuple(_region(t, arena) for t in top.array_of_tables("regions", required=False))
+    _unique(source, "regions", [(r.name, i) for i, r in enumerate(regions)], "region name")
+    robots = tuple(_robot(t, arena) for t in top.array_of_tables("robots"))
+    if not robots:
+        raise ScenarioError(source, "robots", "expected at least one [[robots]] table")
+    _unique(source, "robots", [(r.id, i) for i, r in enumerate(robots)], "robot id")
+    top.finish()
+
+    scenario = Scenario(
+        name=name,
+        fleet=fleet,
+        duration=duration,
+        arena=arena,
+        regions=regions,
+        robots=robots,
+        ltl=ltl,
+        stl=stl,
+        sim=sim,
+        description=description,
+        source=Path(source) if source and not source.startswith("<") else None,
+    )
+    _check_start_poses(scenario, source)
+    for index, robot in enumerate(robots):
+        where = f"robots[{index}]"
+        if robot.ltl is not None:
+            _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
+        for k, text in enumerate(robot.stl):
+            _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
+    return scenario
+
+
+# --------------------------------------------------------------------------- sections
+
+
+def _arena(table: _Table | None) -> Arena:
+    if table is None:
+        return Arena()
+    defaults = Arena()
+    xmin = table.number("xmin", default=defaults.xmin)
+    xmax = table.number("xmax", default=defaults.xmax)
+    ymin = table.number("ymin", default=defaults.ymin)
+    ymax = table.number("ymax", default=defaults.ymax)
+    if xmin >= xmax:
+        table.fail("xmax", f"must exceed xmin = {xmin}, got {xmax}")
+    if ymin >= ymax:
+        table.fail("ymax", f"must exceed ymin = {ymin}, got {ymax}")
+    obstacles = tuple(_obstacle(t) for t in table.array_of_tables("obstacles", required=False))
+    table.finish()
+    return Arena(xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax, obstacles=obstacles)
+
+
+def _obstacle(table: _Table) -> RectObstacle | DiscObstacle:
+    shape = table.choice("shape", ("rect", "disc"))
+    name = table.string("name", default="")
+    if shape == "rect":
+        xmin, xmax = table.number("xmin"), table.number("xmax")
+        ymin, ymax = table.number("ymin"), table.number("ymax")
+        if xmin >= xmax or ymin >= ymax:
+            table.fail("", f"empty rectangle: expected xmin < xmax and ymin < ymax, got "
+                           f"x [{xmin}, {xmax}], y [{ymin}, {ymax}]")
+        table.finish()
+        return RectObstacle(xmin=xmin, ymin=ymin, xmax=xmax, ymax=ymax, name=name)
+    center = table.vector("center", 2)
+    radius = table.number("radius", positive=True)
+    table.finish()
+    return DiscObstacle(center=(center[0], center[1]), radius=radius, name=name)
+
+
+def _region(table: _Table, arena: Arena) -> Region:
+    name = table.string("name")
+    _check_atom(table, "name", name)
+    center = table.vector("center", 2)
+    if not arena.contains(*center):
+        table.fail("center", f"{list(center)} lies outside the arena "
+                             f"[{arena.xmin}, {arena.xmax}] × [{arena.ymin}, {arena.ymax}]")
+    radius = table.number("radius", default=Region.__dataclass_fields__["radius"].default,
+                          positive=True)
+    labels_raw = table.list_of("labels", str, "string", default=[name])
+    for k, label in enumerate(labels_raw):
+        _check_atom(table, f"labels[{k}]", label)
+    table.finish()
+    return Region(name=name, center=(center[0], center[1]), radius=radius,
+                  labels=frozenset(labels_raw))
+
+
+def _robot(table: _Table, arena: Arena) -> Robot:
+    robot_id = table.integer("id")
+    if robot_id < 1:
+        table.fail("id", f"expected a positive integer, got {robot_id}")
+    kind = table.choice("kind", ("unicycle", "omni"))
+    pose = table.vector("pose", 3)
+    if not arena.contains(pose[0], pose[1]):
+        table.fail("pose", f"position ({pose[0]}, {pose[1]}) lies outside the arena "
+                           f"[{arena.xmin}, {arena.xmax}] × [{arena.ymin}, {arena.ymax}]")
+    radius = table.number("radius", default=0.2, positive=True)
+    ltl = table.string("ltl", default=None)
+    stl_value = table.raw("stl")
+    if isinstance(stl_value, str):
+        stl: tuple[str, ...] = (stl_value,)
+    else:
+        stl = tuple(table.list_of("stl", str, "string", default=[]))
+    if ltl is not None and stl:
+        table.fail("stl", "a robot has either an `ltl` or an `stl` task, not both")
+    if ltl is None and not stl:
+        table.fail("", "expected a task: `ltl = \"...\"` (unicycle) or `stl = [\"...\"]` (omni)")
+    if ltl is not None and kind != "unicycle":
+        table.fail("ltl", f"LTL tasks run on unicycle robots (navigation stack), got kind {kind!r}")
+    if stl and kind != "omni":
+        table.fail("stl", f"STL tasks run on omni robots (funnel control), got kind {kind!r}")
+    for k, text in enumerate(stl):
+        if not text.strip():
+            table.fail(f"stl[{k}]", "expected a non-empty STL formula")
+    if ltl is not None and not ltl.strip():
+        table.fail("ltl", "expected a non-empty LTL formula")
+
+    phase_start_times = None
+    if table.has("phase_start_times"):
+        phase_start_times = tuple(table.list_of("phase_start_times", (int, float), "number"))
+        if len(phase_start_times) != max(len(stl) - 1, 0):
+            table.fail("phase_start_times", f"expected {max(len(stl) - 1, 0)} times (one per "
+                       f"sub-task after the first), got {len(phase_start_times)}")
+        if any(b < a for a, b in itertools.pairwise(phase_start_times)):
+            table.fail("phase_start_times", f"expected non-decreasing times, got "
+                                            f"{list(phase_start_times)}")
+        phase_start_times = tuple(float(t) for t in phase_start_times)
+    rho_opt: tuple[float | None, ...] = ()
+    if table.has("rho_opt"):
+        values = table.list_of("rho_opt", (int, float), "number")
+        if len(values) != len(stl):
+            table.fail("rho_opt", f"expected one value per STL sub-task ({len(stl)}), "
+                                  f"got {len(values)}")
+        rho_opt = tuple(float(v) for v in values)
+
+    limits_table = table.table("limits", required=False)
+    unicycle, omni = UnicycleLimits(), OmniLimits()
+    if limits_table is not None:
+        if kind == "unicycle":
+            unicycle = _params(limits_table, UnicycleLimits)
+        else:
+            omni = _params(limits_table, OmniLimits)
+    table.finish()
+    return Robot(id=robot_id, kind=kind, pose=(pose[0], pose[1], pose[2]), radius=radius,
+                 ltl=ltl, stl=stl, phase_start_times=phase_start_times, rho_opt=rho_opt,
+                 unicycle=unicycle, omni=omni)
+
+
+def _params(table: _Table | None, cls: type) -> Any:
+    """Build a flat dataclass of numbers from a table; every field optional, all positive
+    except those whose default is 0 (disturbance, noise, seed), which must be ≥ 0."""
+    if table is None:
+        return cls()
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        if not table.has(f.name):
+            continue
+        if isinstance(f.default, bool):
+            values[f.name] = table.boolean(f.name)
+        elif isinstance(f.default, int):
+            values[f.name] = table.integer(f.name)
+        else:
+            values[f.name] = table.number(f.name)
+        if f.default == 0 and values[f.name] < 0:
+            table.fail(f.name, f"expected a number ≥ 0, got {values[f.name]}")
+        if f.default != 0 and values[f.name] <= 0:
+            table.fail(f.name, f"expected a positive number, got {values[f.name]}")
+    table.finish()
+    return cls(**values)
+
+
+# --------------------------------------------------------------------------- cross checks
+
+
+def _check_start_poses(scenario: Scenario, source: str) -> None:
+    robots = scenario.robots
+    index = {r.id: i for i, r in enumerate(robots)}
+    for i, a in enumerate(robots):
+        for b in robots[i + 1:]:
+            gap = math.hypot(a.pose[0] - b.pose[0], a.pose[1] - b.pose[1])
+            if gap < a.radius + b.radius:
+                raise ScenarioError(
+                    source, f"robots[{index[b.id]}].pose",
+                    f"robot {b.id} starts {gap:.3f} m from robot {a.id}, closer than their radii "
+                    f"allow ({a.radius + b.radius:.3f} m)")
+
+
+def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> None:
+    """Parse the LTL task and check every proposition it uses is carried by some region."""
+    from agent.ltl.parser import atoms, parse
+
+    try:
+        formula = parse(text)
+    except FormulaSyntaxError as exc:
+        raise ScenarioError(source, where, f"LTL syntax error at column {exc.column}: "
+                                           f"{exc.reason} in {text!r}") from None
+    carried = scenario.propositions
+    for atom in sorted(atoms(formula)):
+        if atom not in carried:
+            known = ", ".join(sorted(carried)) or "none"
+            raise ScenarioError(source, where, f"proposition {atom!r} is carried by no region "
+                                               f"(region labels: {known})")
+
+
+def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str) -> None:
+    """Parse an STL sub-task and check the robots it names exist (filled in by the STL core)."""
+    del text, robot_ids, source, where
+
+
+def _check_atom(table: _Table, key: str, name: str) -> None:
+    if not ATOM_RE.match(name) or name in RESERVED_ATOMS:
+        table.fail(key, f"{name!r} is not a valid proposition name: expected lower-case letters, "
+                        f"digits and _ starting with a letter or _ (and not true/false)")
+
+
+def _unique(source: str, field: str, items: list[tuple[Any, int]], what: str) -> None:
+    seen: dict[Any, int] = {}
+    for value, index in items:
+        if value in seen:
+            raise ScenarioError(source, f"{field}[{index}]",
+                                f"duplicate {what} {value!r} (first at {field}[{seen[value]}])")
+        seen[value] = index
+
+
+# --------------------------------------------------------------------------- table access
+
+
+_MISSING = object()
+
+
+class _Table:
+    """Typed, path-aware access to one TOML table; ``finish()`` rejects unread keys."""
+
+    def __init__(self, data: dict[str, Any], path: str, source: str):
+        self.data = data
+        self.path = path
+        self.source = source
+        self.read: set[str] = set()
+
+    def where(self, key: str) -> str:
+        if not key:
+            return self.path
+        if key.startswith("["):
+            return f"{self.path}{key}"
+        return f"{self.path}.{key}" if self.path else key
+
+    def fail(self, key: str, reason: str) -> None:
+        raise ScenarioError(self.source, self.where(key), reason)
+
+    def has(self, key: str) -> bool:
+        self.read.add(key)
+        return key in self.data
+
+    def raw(self, key: str) -> Any:
+        self.read.add(key)
+        return self.data.get(key)
+
+    def _get(self, key: str, default: Any, expected: str) -> Any:
+        self.read.add(key)
+        if key in self.data:
+            return self.data[key]
+        if default is _MISSING:
+            self.fail(key, f"missing, expected {expected}")
+        return default
+
+    def string(self, key: str, default: Any = _MISSING) -> Any:
+        value = self._get(key, default, "a string")
+        if value is not default and not isinstance(value, str):
+            self.fail(key, f"expected a string, got {_show(value)}")
+        return value
+
+    def boolean(self, key: str, default: Any = _MISSING) -> Any:
+        value = self._get(key, default, "true or false")
+        if value is not default and not isinstance(value, bool):
+            self.fail(key, f"expected true or false, got {_show(value)}")
+        return value
+
+    def integer(self, key: str, default: Any = _MISSING) -> Any:
+        value = self._get(key, default, "an integer")
+        if value is not default and (isinstance(value, bool) or not isinstance(value, int)):
+            self.fail(key, f"expected an integer, got {_show(value)}")
+        return value
+
+    def number(self, key: str, default: Any = _MISSING, positive: bool = False) -> Any:
+        value = self._get(key, default, "a number")
+        if value is default:
+            return value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.fail(key, f"expected a number, got {_show(value)}")
+        if not math.isfinite(value):
+            self.fail(key, f"expected a finite number, got {value}")
+        if positive and value <= 0:
+            self.fail(key, f"expected a positive number, got {value}")
+        return float(value)
+
+    def choice(self, key: str, options: tuple[str, ...]) -> str:
+        value = self.string(key)
+        if value not in options:
+            self.fail(key, f"expected one of {', '.join(repr(o) for o in options)}, "
+                           f"got {value!r}")
+        return value
+
+    def vector(self, key: str, size: int) -> tuple[float, ...]:
+        value = self._get(key, _MISSING, f"a list of {size} numbers")
+        if (not isinstance(value, list) or len(value) != size
+                or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)):
+            self.fail(key, f"expected a list of {size} numbers, got {_show(value)}")
+        if not all(math.isfinite(v) for v in value):
+            self.fail(key, f"expected finite numbers, got {value}")
+        return tuple(float(v) for v in value)
+
+    def list_of(self, key: str, kind: type | tuple[type, ...], name: str,
+                default: Any = _MISSING) -> list[Any]:
+        value = self._get(key, default, f"a list of {name}s")
+        if value is default:
+            return value
+        if not isinstance(value, list):
+            self.fail(key, f"expected a list of {name}s, got {_show(value)}")
+        for k, item in enumerate(value):
+            if isinstance(item, bool) or not isinstance(item, kind):
+                self.fail(f"{key}[{k}]", f"expected a {name}, got {_show(item)}")
+        return value
+
+    def table(self, key: str, required: bool = True) -> _Table | None:
+        value = self._get(key, _MISSING if required else None, "a table")
+        if value is None:
+            return None
+        if not isinstance(value, dict):
+            self.fail(key, f"expected a table ([{self.where(key)}]), got {_show(value)}")
+        return _Table(value, self.where(key), self.source)
+
+    def array_of_tables(self, key: str, required: bool = True) -> list[_Table]:
+        value = self._get(key, _MISSING if required else [], "an array of tables")
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            self.fail(key, f"expected an array of tables ([[{self.where(key)}]]), "
+                           f"got {_show(value)}")
+        return [_Table(v, f"{self.where(key)}[{i}]", self.source) for i, v in enumerate(value)]
+
+    def finish(self) -> None:
+        unknown = sorted(set(self.data) - self.read)
+        if unknown:
+            key = unknown[0]
+            allowed = ", ".join(sorted(self.read)) or "none"
+            self.fail(key, f"unknown key {key!r} (allowed here: {allowed})")
+
+
+def _show(value: Any) -> str:
+    kinds: dict[type, str] = {str: "string", bool: "boolean", int: "integer", float: "number",
+                              list: "list", dict: "table"}
+    text = repr(value)
+    if len(text) > 40:
+        text = text[:37] + "..."
+    return f"{kinds.get(type(value), type(value).__name__)} {text}"
+
