@@ -1,0 +1,175 @@
+"""Scenario loader: the paper's files load; every kind of bad input gets a pinned, specific error."""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from agent.errors import ScenarioError
+from agent.scenario import Scenario, load_scenario, parse_scenario
+
+BASE: dict[str, Any] = {
+    "name": "mini",
+    "duration": 10.0,
+    "regions": [{"name": "a1", "center": [1.0, 1.0]}, {"name": "a2", "center": [-1.0, 1.0]}],
+    "robots": [
+        {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "stl": ["G[0,5] (dist(p1, [1,1]) <= 0.1)"]},
+        {"id": 2, "kind": "omni", "pose": [1.0, -1.0, 0.0],
+         "stl": ["G[0,5] (x2 >= 0)", "F[6,8] (y2 >= 0)"], "phase_start_times": [6.0]},
+    ],
+}
+
+
+def mutated(path: str, value: Any) -> dict[str, Any]:
+    """BASE with the value at a dotted path (``robots.1.kind``) replaced; DELETE removes it."""
+    data = copy.deepcopy(BASE)
+    *parents, last = path.split(".")
+    node: Any = data
+    for key in parents:
+        node = node[int(key)] if isinstance(node, list) else node.setdefault(key, {})
+    key_or_index: Any = int(last) if isinstance(node, list) else last
+    if value is DELETE:
+        del node[key_or_index]
+    else:
+        node[key_or_index] = value
+    return data
+
+
+DELETE = object()
+
+BAD = [
+    ("name", DELETE, "name", "missing, expected a string"),
+    ("name", "", "name", "expected a non-empty string"),
+    ("fleet", "my fleet", "fleet", "'my fleet' is not usable in a key expression"),
+    ("duration", -1, "duration", "expected a positive number, got -1"),
+    ("duration", "90", "duration", "expected a number, got string '90'"),
+    ("duration", True, "duration", "expected a number, got boolean True"),
+    ("durationn", 3, "durationn", "unknown key 'durationn' \\(allowed here: .*duration"),
+    ("arena.xmax", -4.0, "arena.xmax", "must exceed xmin = -3.5, got -4.0"),
+    ("arena.obstacles", [{"shape": "triangle"}], "arena.obstacles[0].shape",
+     "expected one of 'rect', 'disc', got 'triangle'"),
+    ("arena.obstacles", [{"shape": "rect", "xmin": 1, "xmax": 0, "ymin": 0, "ymax": 1}],
+     "arena.obstacles[0]", "empty rectangle"),
+    ("arena.obstacles", [{"shape": "disc", "center": [0, 0]}], "arena.obstacles[0].radius",
+     "missing, expected a number"),
+    ("stl.r1", 0.8, "stl.r1", "must be below stl.r_sense = 0.7, got 0.8"),
+    ("stl.eta", 0, "stl.eta", "expected a positive number, got 0"),
+    ("stl.n_stage1", 2.5, "stl.n_stage1", "expected an integer, got number 2.5"),
+    ("stl.gamma", 1.0, "stl.gamma", "unknown key 'gamma'"),
+    ("sim.seed", -1, "sim.seed", "expected a number ≥ 0, got -1"),
+    ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
+    ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
+    ("regions.0.name", "true", "regions[0].name", "'true' is not a valid proposition name"),
+    ("regions.1.name", "a1", "regions[1]", "duplicate region name 'a1' \\(first at regions\\[0\\]\\)"),
+    ("regions.0.center", [9.0, 0.0], "regions[0].center", "lies outside the arena"),
+    ("regions.0.center", [1.0, "x"], "regions[0].center", "expected a list of 2 numbers"),
+    ("regions.0.radius", -0.1, "regions[0].radius", "expected a positive number, got -0.1"),
+    ("regions.0.labels", ["a1", 3], "regions[0].labels[1]", "expected a string, got integer 3"),
+    ("regions.0.shape", "disc", "regions[0].shape", "unknown key 'shape'"),
+    ("regions", {"name": "a1"}, "regions", "expected an array of tables"),
+    ("robots", [], "robots", "expected at least one \\[\\[robots\\]\\] table"),
+    ("robots", DELETE, "robots", "missing, expected an array of tables"),
+    ("robots.0.id", 0, "robots[0].id", "expected a positive integer, got 0"),
+    ("robots.1.id", 1, "robots[1]", "duplicate robot id 1 \\(first at robots\\[0\\]\\)"),
+    ("robots.1.kind", "tank", "robots[1].kind", "expected one of 'unicycle', 'omni', got 'tank'"),
+    ("robots.0.pose", [0.0, 0.0], "robots[0].pose", "expected a list of 3 numbers, got list"),
+    ("robots.0.pose", [0.0, math.nan, 0.0], "robots[0].pose", "expected finite numbers"),
+    ("robots.0.pose", [5.0, 0.0, 0.0], "robots[0].pose", r"position \(5.0, 0.0\) lies outside"),
+    ("robots.1.pose", [0.3, 0.0, 0.0], "robots[1].pose",
+     "robot 2 starts 0.300 m from robot 1, closer than their radii allow"),
+    ("robots.0.stl", DELETE, "robots[0]", "expected a task"),
+    ("robots.0.stl", ["  "], "robots[0].stl[0]", "expected a non-empty STL formula"),
+    ("robots.0.stl", [1], "robots[0].stl[0]", "expected a string, got integer 1"),
+    ("robots.0.ltl", "F a1", "robots[0].stl", "either an `ltl` or an `stl` task, not both"),
+    ("robots.0.kind", "unicycle", "robots[0].stl", "STL tasks run on omni robots"),
+    ("robots.1.phase_start_times", [6.0, 7.0], "robots[1].phase_start_times",
+     "expected 1 times \\(one per sub-task after the first\\), got 2"),
+    ("robots.1.rho_opt", [0.1], "robots[1].rho_opt", "expected one value per STL sub-task \\(2\\)"),
+    ("robots.0.limits", {"max_v": 1.0}, "robots[0].limits.max_v", "unknown key 'max_v'"),
+    ("robots.0.limits", {"max_lin": -1.0}, "robots[0].limits.max_lin", "expected a positive"),
+    ("robots.0.colour", "red", "robots[0].colour", "unknown key 'colour'"),
+]
+
+
+@pytest.mark.parametrize(("path", "value", "field", "message"), BAD,
+                         ids=[f"{b[0]}={b[1]!r}"[:50] for b in BAD])
+def test_bad_scenarios_are_rejected_with_file_field_and_reason(path, value, field, message):
+    with pytest.raises(ScenarioError, match=message) as info:
+        parse_scenario(mutated(path, value), source="bad.toml")
+    assert info.value.file == "bad.toml"
+    assert info.value.field == field
+    assert str(info.value).startswith(f"bad.toml: {field}")
+
+
+def test_base_scenario_is_valid_and_typed():
+    scenario = parse_scenario(copy.deepcopy(BASE), source="base.toml")
+    assert scenario.fleet == "mini"
+    assert scenario.robot(2).phase_start_times == (6.0,)
+    assert scenario.robot(1).omni.max_lin == pytest.approx(0.2)
+    assert scenario.region("a1").labels == frozenset({"a1"})
+    assert scenario.propositions == frozenset({"a1", "a2"})
+    with pytest.raises(KeyError, match=r"has no robot 7 \(robots: 1, 2\)"):
+        scenario.robot(7)
+
+
+def test_a_single_stl_string_is_a_one_element_task_list():
+    scenario = parse_scenario(mutated("robots.0.stl", "G[0,5] (x1 >= 0)"))
+    assert scenario.robot(1).stl == ("G[0,5] (x1 >= 0)",)
+
+
+@pytest.mark.parametrize("number", [1, 2, 3])
+def test_the_paper_scenarios_load(scenarios_dir: Path, number: int):
+    scenario = load_scenario(scenarios_dir / f"scenario{number}.toml")
+    assert isinstance(scenario, Scenario)
+    assert scenario.name == f"scenario{number}"
+    assert all(r.radius == pytest.approx(0.2) for r in scenario.robots)
+    assert (scenario.arena.xmin, scenario.arena.xmax) == (-3.5, 3.5)
+
+
+def test_scenario1_matches_the_design_table(scenarios_dir: Path):
+    s = load_scenario(scenarios_dir / "scenario1.toml")
+    assert s.duration == 90.0
+    assert [r.kind for r in s.robots] == ["unicycle"] * 2 + ["omni"] * 3
+    assert s.robot(1).ltl == "G F a11 & G F a12"
+    assert s.robot(3).stl[1] == "F[57,58] (dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7)"
+    assert s.robot(4).pose == (0.5, 0.0, 0.0)
+    assert s.region("a12").center == (-2.0, 2.5)
+    assert (s.stl.delta, s.stl.zeta_l, s.stl.r1, s.stl.r_sense, s.stl.beta) == (
+        0.02, 0.2, 0.6, 0.7, 2.0)
+
+
+def test_missing_file(tmp_path: Path):
+    with pytest.raises(ScenarioError, match=re.escape(f"{tmp_path / 'nope.toml'}: no such file")):
+        load_scenario(tmp_path / "nope.toml")
+
+
+def test_toml_syntax_error_names_file_and_line(tmp_path: Path):
+    path = tmp_path / "broken.toml"
+    path.write_text('name = "x"\nduration = \n')
+    with pytest.raises(ScenarioError, match=r"broken.toml: not valid TOML: .*line 2"):
+        load_scenario(path)
+
+
+def test_ltl_task_errors_name_the_robot_field(tmp_path: Path):
+    data = mutated("robots.0", {"id": 1, "kind": "unicycle", "pose": [0.0, 0.0, 0.0],
+                                "ltl": "G F (a1 &"})
+    with pytest.raises(ScenarioError, match=r"robots\[0\].ltl: LTL syntax error at column"):
+        parse_scenario(data, source="s.toml")
+    data["robots"][0]["ltl"] = "G F a1 & G F a13"
+    with pytest.raises(ScenarioError,
+                       match=r"robots\[0\].ltl: proposition 'a13' is carried by no region "
+                             r"\(region labels: a1, a2\)"):
+        parse_scenario(data, source="s.toml")
+    data["robots"][0]["ltl"] = "G F a1 & G F a2"
+    assert parse_scenario(data).robot(1).ltl == "G F a1 & G F a2"
+
+
+def test_ltl_on_omni_robot_is_rejected():
+    data = mutated("robots.0", {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "ltl": "F a1"})
+    with pytest.raises(ScenarioError, match=r"robots\[0\].ltl: LTL tasks run on unicycle robots"):
+        parse_scenario(data, source="s.toml")
