@@ -1,4 +1,4 @@
-"""Scenario loader: the paper's files load; every kind of bad input gets a pinned, specific error."""
+"""Scenario loader: the paper's files load; each kind of bad input gets a pinned, specific error."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ BASE: dict[str, Any] = {
     "duration": 10.0,
     "regions": [{"name": "a1", "center": [1.0, 1.0]}, {"name": "a2", "center": [-1.0, 1.0]}],
     "robots": [
-        {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "stl": ["G[0,5] (dist(p1, [1,1]) <= 0.1)"]},
+        {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0],
+         "stl": ["G[0,5] (dist(p1, [1,1]) <= 0.1)"]},
         {"id": 2, "kind": "omni", "pose": [1.0, -1.0, 0.0],
          "stl": ["G[0,5] (x2 >= 0)", "F[6,8] (y2 >= 0)"], "phase_start_times": [6.0]},
     ],
@@ -65,7 +66,8 @@ BAD = [
     ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
     ("regions.0.name", "true", "regions[0].name", "'true' is not a valid proposition name"),
-    ("regions.1.name", "a1", "regions[1]", "duplicate region name 'a1' \\(first at regions\\[0\\]\\)"),
+    ("regions.1.name", "a1", "regions[1]",
+     "duplicate region name 'a1' \\(first at regions\\[0\\]\\)"),
     ("regions.0.center", [9.0, 0.0], "regions[0].center", "lies outside the arena"),
     ("regions.0.center", [1.0, "x"], "regions[0].center", "expected a list of 2 numbers"),
     ("regions.0.radius", -0.1, "regions[0].radius", "expected a positive number, got -0.1"),
