@@ -1,1 +1,4 @@
-"""LTL planning core (ltl-planning.md §1–§5): parser, Büchi translation, product, prefix–suffix plans. Pure."""
+"""LTL planning core (ltl-planning.md §1–§5): parser, Büchi translation, product, plans.
+
+Pure code: stdlib, numpy and networkx only (architecture.md §4).
+"""

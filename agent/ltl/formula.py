@@ -1,0 +1,175 @@
+"""Immutable LTL formula trees (ltl-planning.md §1; style.md §2).
+
+Every node is a frozen dataclass with tuple children, so formulas are hashable, shareable and
+safe to cache on. Semantics (printing, evaluation on lasso words, translation to automata) are
+functions over the tree in sibling modules that ``match`` on these node types.
+
+The parser builds binary ``And``/``Or`` nodes (left-nested, as written); the rewriter in
+``agent.ltl.rewrite`` may build n-ary ones. ``str(f)`` prints Spot syntax.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class Formula:
+    """Base class of every LTL node."""
+
+    __slots__ = ()
+
+    def __str__(self) -> str:
+        from agent.ltl.printer import to_string
+
+        return to_string(self)
+
+
+@dataclass(frozen=True, slots=True)
+class Const(Formula):
+    """``true`` or ``false``."""
+
+    value: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Atom(Formula):
+    """An atomic proposition: holds at step k iff ``name`` ∈ σk."""
+
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class Not(Formula):
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Next(Formula):
+    """``X arg``."""
+
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Finally(Formula):
+    """``F arg`` (eventually, alias ``<>``)."""
+
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Globally(Formula):
+    """``G arg`` (always, alias ``[]``)."""
+
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class And(Formula):
+    """Conjunction of two or more operands."""
+
+    args: tuple[Formula, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Or(Formula):
+    """Disjunction of two or more operands."""
+
+    args: tuple[Formula, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Binary(Formula):
+    """Base of the binary operators other than ``&`` and ``|``."""
+
+    left: Formula
+    right: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Implies(Binary):
+    """``left -> right``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Equiv(Binary):
+    """``left <-> right``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Xor(Binary):
+    """``left xor right``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Until(Binary):
+    """``left U right`` (strong until)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Release(Binary):
+    """``left R right`` (weak release, alias ``V``): ``right`` holds until and including the
+    first ``left``, or forever."""
+
+
+@dataclass(frozen=True, slots=True)
+class WeakUntil(Binary):
+    """``left W right`` = ``(left U right) | G left``."""
+
+
+@dataclass(frozen=True, slots=True)
+class StrongRelease(Binary):
+    """``left M right`` = ``right U (left & right)``."""
+
+
+TRUE = Const(True)
+FALSE = Const(False)
+
+
+def conj(*args: Formula) -> Formula:
+    """Left-nested binary conjunction, as the parser builds it (``true`` when empty)."""
+    if not args:
+        return TRUE
+    result = args[0]
+    for arg in args[1:]:
+        result = And((result, arg))
+    return result
+
+
+def disj(*args: Formula) -> Formula:
+    """Left-nested binary disjunction, as the parser builds it (``false`` when empty)."""
+    if not args:
+        return FALSE
+    result = args[0]
+    for arg in args[1:]:
+        result = Or((result, arg))
+    return result
+
+
+def children(f: Formula) -> tuple[Formula, ...]:
+    """The direct operands of ``f``."""
+    match f:
+        case Const() | Atom():
+            return ()
+        case Not(a) | Next(a) | Finally(a) | Globally(a):
+            return (a,)
+        case And(args) | Or(args):
+            return args
+        case Binary(left, right):
+            return (left, right)
+    raise TypeError(f"not an LTL formula: {f!r}")
+
+
+def atoms(f: Formula) -> frozenset[str]:
+    """The atomic propositions occurring in ``f``."""
+    if isinstance(f, Atom):
+        return frozenset((f.name,))
+    result: frozenset[str] = frozenset()
+    for child in children(f):
+        result |= atoms(child)
+    return result
+
+
+def size(f: Formula) -> int:
+    """Number of nodes of ``f``."""
+    return 1 + sum(size(child) for child in children(f))
