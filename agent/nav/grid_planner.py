@@ -1,0 +1,267 @@
+"""Global planner: A* on the inflated occupancy grid, then line-of-sight smoothing.
+
+This is the ``global_planner`` of the paper's ``move_base`` stack (paper §III-A, ltl-planning.md
+§6): a shortest path on the 8-connected grid of free cells, turned into a few waypoints that the
+DWA local planner follows. It also gives the LTL transition system its edge weights
+(ltl-planning.md §3) through ``path_length_function``.
+
+Search: A* with the octile heuristic ``h = max(Δx, Δy) + (√2 − 1)·min(Δx, Δy)`` [cells], which
+is exact on an empty 8-connected grid, so on the paper's obstacle-free arena the search expands
+little more than the path itself. Moves cost 1 (straight) and √2 (diagonal) cells; a diagonal
+move may not cut the corner of a blocked cell. The loop runs on flat indices of a grid padded by
+one blocked cell, so neighbours need no bounds checks.
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from agent.nav.errors import NoPathError
+from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_scenario
+from agent.nav.polyline import polyline_length
+from agent.scenario.model import Scenario
+
+log = logging.getLogger(__name__)
+
+SQRT2 = math.sqrt(2.0)
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class GridPath:
+    """A planned path.
+
+    ``cells`` (M, 2) int ``(ix, iy)`` is the raw 8-connected cell path; ``waypoints`` (W, 2) [m]
+    the smoothed polyline from ``start`` to the goal point actually reached (``goal``, or the
+    nearest free cell centre when the requested goal is blocked). ``grid_length`` [m] is the octile
+    length of the cell path, ``length`` [m] the length of the smoothed polyline.
+    """
+
+    start: Point
+    goal: Point
+    cells: np.ndarray
+    waypoints: np.ndarray
+    grid_length: float
+    length: float
+    start_snapped: bool
+    goal_snapped: bool
+
+
+def nearest_free_cell(grid: OccupancyGrid, point: Sequence[float]) -> tuple[int, int] | None:
+    """The free cell ``(ix, iy)`` whose centre is nearest to ``point`` [m]; None if none is free."""
+    free_iy, free_ix = np.nonzero(~grid.blocked)
+    if len(free_ix) == 0:
+        return None
+    centres = grid.center_of(np.stack([free_ix, free_iy], axis=-1))
+    k = int(np.argmin(np.sum((centres - np.asarray(point[:2], dtype=float)) ** 2, axis=1)))
+    return int(free_ix[k]), int(free_iy[k])
+
+
+def astar_cells(
+    blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
+) -> tuple[list[tuple[int, int]], float] | None:
+    """Shortest 8-connected path between two free cells ``(ix, iy)`` of ``blocked`` (ny, nx).
+
+    Returns the cells from start to goal and the path length [cells] (moves of 1 and √2), or
+    None when the goal cannot be reached. No corner cutting past blocked cells.
+    """
+    _ny, nx = blocked.shape
+    width = nx + 2
+    free = (~np.pad(np.asarray(blocked, dtype=bool), 1, constant_values=True)).ravel().tolist()
+    s = (start[1] + 1) * width + start[0] + 1
+    g_idx = (goal[1] + 1) * width + goal[0] + 1
+    if not (free[s] and free[g_idx]):
+        return None
+    gx, gy = goal[0] + 1, goal[1] + 1
+    # (flat offset, dx, dy, cost, the two orthogonal offsets a diagonal must not cut)
+    moves = [
+        (1, 1, 0, 1.0, 0, 0),
+        (-1, -1, 0, 1.0, 0, 0),
+        (width, 0, 1, 1.0, 0, 0),
+        (-width, 0, -1, 1.0, 0, 0),
+        (width + 1, 1, 1, SQRT2, 1, width),
+        (width - 1, -1, 1, SQRT2, -1, width),
+        (-width + 1, 1, -1, SQRT2, 1, -width),
+        (-width - 1, -1, -1, SQRT2, -1, -width),
+    ]
+    n = len(free)
+    inf = math.inf
+    g = [inf] * n
+    parent = [-1] * n
+    closed = bytearray(n)
+    k = SQRT2 - 1.0
+    sy, sx = divmod(s, width)
+    dx0, dy0 = abs(sx - gx), abs(sy - gy)
+    h0 = max(dx0, dy0) + k * min(dx0, dy0)
+    g[s] = 0.0
+    heap = [(h0, h0, s, sx, sy)]
+    push, pop = heapq.heappush, heapq.heappop
+    found = False
+    while heap:
+        _, _, u, ux, uy = pop(heap)
+        if closed[u]:
+            continue
+        if u == g_idx:
+            found = True
+            break
+        closed[u] = 1
+        gu = g[u]
+        for du, ddx, ddy, cost, o1, o2 in moves:
+            v = u + du
+            if not free[v] or closed[v]:
+                continue
+            if o1 and not (free[u + o1] and free[u + o2]):
+                continue
+            ng = gu + cost
+            if ng < g[v]:
+                g[v] = ng
+                parent[v] = u
+                vx, vy = ux + ddx, uy + ddy
+                dx = vx - gx if vx > gx else gx - vx
+                dy = vy - gy if vy > gy else gy - vy
+                h = dx + k * dy if dx > dy else dy + k * dx
+                push(heap, (ng + h, h, v, vx, vy))
+    if not found:
+        return None
+    cells = []
+    u = g_idx
+    while u != -1:
+        uy, ux = divmod(u, width)
+        cells.append((ux - 1, uy - 1))
+        u = parent[u]
+    cells.reverse()
+    return cells, g[g_idx]
+
+
+def line_of_sight(grid: OccupancyGrid, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether the segments from ``a`` (2,) to each ``b`` (K, 2) [m] stay in free c-space; (K,).
+
+    Samples every segment at spacing ≤ res/2 (the same number of samples for all, set by the
+    longest) and looks the samples up in ``grid.blocked``; vectorised over all K segments.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float).reshape(-1, 2)
+    longest = float(np.max(np.linalg.norm(b - a, axis=1))) if len(b) else 0.0
+    n = max(2, math.ceil(longest / (grid.resolution / 2.0)) + 1)
+    s = np.linspace(0.0, 1.0, n)
+    pts = a[None, None, :] + s[None, :, None] * (b - a)[:, None, :]  # (K, n, 2)
+    return np.all(grid.is_free(pts), axis=1)
+
+
+def smooth_path(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
+    """Line-of-sight shortcutting of a polyline (M, 2) [m] → waypoints (W, 2), W ≤ M.
+
+    Greedy: from the current waypoint, jump to the farthest later point visible in free c-space
+    (all candidates tested at once with ``line_of_sight``). Endpoints are kept.
+    """
+    pts = np.asarray(points, dtype=float)
+    if len(pts) <= 2:
+        return pts.copy()
+    out = [0]
+    i = 0
+    last = len(pts) - 1
+    while i < last:
+        visible = line_of_sight(grid, pts[i], pts[i + 1 :])
+        # The next point is always kept, even if sampling clips a blocked corner.
+        visible[0] = True
+        j = i + 1 + int(np.flatnonzero(visible)[-1])
+        out.append(j)
+        i = j
+    return pts[out]
+
+
+def plan_path(
+    grid: OccupancyGrid, start: Sequence[float], goal: Sequence[float], smooth: bool = True
+) -> GridPath:
+    """Shortest collision-free path from ``start`` to ``goal`` (world points [m]; extra pose
+    components such as θ are ignored).
+
+    A start or goal in blocked c-space (inside an inflated obstacle, or off the grid) is moved
+    to the nearest free cell; the path then begins at the true start and ends at that cell's
+    centre, and ``start_snapped``/``goal_snapped`` say so. Raises ``NoPathError`` (naming start
+    and goal) when no free cell exists or the goal's free component is not the start's.
+    """
+    p0 = (float(start[0]), float(start[1]))
+    p1 = (float(goal[0]), float(goal[1]))
+    start_free = bool(grid.is_free(np.array(p0)))
+    goal_free = bool(grid.is_free(np.array(p1)))
+    c0 = tuple(int(v) for v in grid.cell_of(np.array(p0))) if start_free else None
+    c1 = tuple(int(v) for v in grid.cell_of(np.array(p1))) if goal_free else None
+    if c0 is None:
+        c0 = nearest_free_cell(grid, p0)
+    if c1 is None:
+        c1 = nearest_free_cell(grid, p1)
+    if c0 is None or c1 is None:
+        raise NoPathError(p0, p1, "the grid has no free cell")
+    result = astar_cells(grid.blocked, c0, c1)
+    if result is None:
+        raise NoPathError(p0, p1, "the goal is not reachable from the start in free space")
+    cells, length_cells = result
+    cell_arr = np.asarray(cells, dtype=np.int64)
+    centres = grid.center_of(cell_arr)
+    end = np.array(p1) if goal_free else centres[-1]
+    head = [np.array(p0)] if start_free else [np.array(p0), centres[0]]
+    raw = np.vstack([*head, centres[1:-1], end[None, :]])
+    keep = np.ones(len(raw), dtype=bool)
+    keep[1:] = np.any(np.diff(raw, axis=0) != 0.0, axis=1)
+    raw = raw[keep]
+    # A blocked start sees nothing, so smoothing keeps the escape leg to the first free cell.
+    waypoints = smooth_path(grid, raw) if smooth else raw
+    return GridPath(
+        start=p0,
+        goal=(float(end[0]), float(end[1])),
+        cells=cell_arr,
+        waypoints=waypoints,
+        grid_length=length_cells * grid.resolution,
+        length=polyline_length(waypoints),
+        start_snapped=not start_free,
+        goal_snapped=not goal_free,
+    )
+
+
+def path_length_function(
+    scenario_or_grid: Scenario | OccupancyGrid,
+    robot_radius: float | None = None,
+    margin: float = DEFAULT_MARGIN,
+    resolution: float = DEFAULT_RESOLUTION,
+) -> Callable[[Sequence[float], Sequence[float]], float]:
+    """Edge weights for the LTL transition system (ltl-planning.md §3): ``distance(p, q)`` [m].
+
+    ``distance(p, q)`` is the length of the smoothed global-planner path from p to q (points or
+    poses; only x, y are used), which equals ``‖p − q‖`` when the straight segment is free, as on
+    the paper's obstacle-free arena. Results are cached per unordered pair (rounded to 1 mm) in
+    the returned closure. Raises ``NoPathError`` when q cannot be reached from p.
+    """
+    if isinstance(scenario_or_grid, OccupancyGrid):
+        grid = scenario_or_grid
+        if robot_radius is not None:
+            grid = grid.inflated(robot_radius + margin)
+    else:
+        grid = grid_from_scenario(scenario_or_grid, robot_radius, margin, resolution)
+    cache: dict[tuple[Point, Point], float] = {}
+
+    def distance(p: Sequence[float], q: Sequence[float]) -> float:
+        a = (round(float(p[0]), 3), round(float(p[1]), 3))
+        b = (round(float(q[0]), 3), round(float(q[1]), 3))
+        key = (a, b) if a <= b else (b, a)
+        if key not in cache:
+            if a == b:
+                cache[key] = 0.0
+            elif (
+                grid.is_free(np.array(a))
+                and grid.is_free(np.array(b))
+                and bool(line_of_sight(grid, np.array(a), np.array([b]))[0])
+            ):
+                cache[key] = math.dist(a, b)
+            else:
+                cache[key] = plan_path(grid, key[0], key[1]).length
+            log.debug("distance %s -> %s = %.3f m", key[0], key[1], cache[key])
+        return cache[key]
+
+    return distance
