@@ -1,0 +1,61 @@
+"""Collision-avoidance velocity ū_col,i of paper §III-B (stl-funnel.md §6.2)::
+
+    D(z_i, z_j) = (z_i − z_j)/‖z_i − z_j‖
+    ū_col,i = Σ_{j: d_ij < R1} u_max·D + Σ_{j: R1 ≤ d_ij ≤ R} k·(R − d_ij)/(d_ij³·R)·D,
+    k = u_max·R·R1³/(R − R1)            (continuous at d = R1, zero at d = R)
+
+z in m, velocities in m/s. All robots within R count (LTL ones included); the angular entry is 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class CollisionParams:
+    """Collision-avoidance constants (scenario values of stl-funnel.md §10.1)."""
+
+    r1: float = 0.6  # [m] R1, full-repulsion radius
+    r_sense: float = 0.7  # [m] R, sensing radius (R > R1)
+    beta: float = 2.0  # β_i ≥ 0, weight of ū_col in eq. (6)
+    umax_lin: float = 0.2  # [m/s] u_max,i
+
+    @property
+    def gain(self) -> float:
+        """k_i = u_max·R·R1³/(R − R1)."""
+        return self.umax_lin * self.r_sense * self.r1**3 / (self.r_sense - self.r1)
+
+
+def repulsion_magnitude(d: float, params: CollisionParams) -> float:
+    """|ū_col| contributed by one neighbour at distance d [m]: u_max below R1, the k-branch on
+    [R1, R], 0 beyond R."""
+    if d < params.r1:
+        return params.umax_lin
+    if d <= params.r_sense:
+        return params.gain * (params.r_sense - d) / (d**3 * params.r_sense)
+    return 0.0
+
+
+def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[tuple[float, float]],
+                       params: CollisionParams) -> tuple[float, float, float]:
+    """ū_col,i = (v_x, v_y, 0) [m/s] from the positions of the other robots (any number; those
+    beyond R contribute nothing). Coincident positions (d = 0) have no direction and are skipped."""
+    xi, yi = z_i
+    r1, big_r, umax = params.r1, params.r_sense, params.umax_lin
+    k = params.gain
+    r2 = big_r * big_r
+    vx = vy = 0.0
+    for xj, yj in neighbours:
+        dx = xi - xj
+        dy = yi - yj
+        d2 = dx * dx + dy * dy
+        if d2 > r2 or d2 == 0.0:
+            continue
+        d = math.sqrt(d2)
+        mag = umax if d < r1 else k * (big_r - d) / (d2 * d * big_r)
+        vx += mag * dx / d
+        vy += mag * dy / d
+    return vx, vy, 0.0

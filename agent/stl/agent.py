@@ -1,0 +1,464 @@
+"""One STL agent as a pure, message-driven step function (stl-funnel.md §6–§9, §12; paper Alg. 2).
+
+    state, out = agent.step(state, StepInput(t, poses, inbox))
+
+``poses[j]`` is robot j's (x [m], y [m], θ [rad]) (numpy array or tuple) for every robot the agent
+can see (LTL robots included, for collision avoidance); ``inbox`` the messages delivered to this
+agent. ``out.u`` is the world-frame command (v_x [m/s], v_y [m/s], ω [rad/s]) of eq. (6),
+``out.messages`` the outgoing messages (each carries its ``receiver``) and ``out.log`` one
+:class:`LogRecord`. The state is a small frozen dataclass; the agent object only holds the
+immutable configuration (compiled sub-tasks of every STL robot, parameters).
+
+Order of operations in one step (§12):
+
+1. inbox: peer status, collaboration request / update / release (§7.5);
+2. sequencer: activate the next sub-task when due (§9), initialising its funnel (§5);
+3. own robustness ρ^ψ and ∂ρ^ψ/∂x_i, running ρ^φ over the samples in [a, b];
+4. completion (§8): F when a ≤ t ≤ b and r < ρ < ρ_max (or failed at t > b), G at t ≥ b;
+5. control: follower → funnel of the requester, no detection (Alg. 2 line 5);
+   own F with ρ > r → hold (u_nom = 0); otherwise ζ, critical event → stage (§7.4) →
+   repair R1–R10 (§7.3) → ζ again; ε; u_nom (§6.1);
+6. u = saturate(β·ū_col + ū_nom) over all robots within R (§6.2, eq. (6)); log.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+from agent.control.collision import CollisionParams, collision_velocity
+from agent.control.mixing import mix
+from agent.control.saturation import saturate
+from agent.stl.control_law import ControlParams, nominal_velocity
+from agent.stl.funnel import Funnel, FunnelParams, epsilon
+from agent.stl.messages import (
+    CollabRelease,
+    CollabRequest,
+    CollabUpdate,
+    Message,
+    StatusAnnounce,
+)
+from agent.stl.sequencer import build_sequence, check_phase_start_times
+from agent.stl.task import Task
+
+logger = logging.getLogger(__name__)
+
+NO_REPAIR = 0
+
+
+@dataclass(frozen=True)
+class ProtocolParams:
+    """Collaboration options (stl-funnel.md §7, §15); defaults are the documented [OUR CHOICE]s."""
+
+    stage2_entry_repair: bool = True  # run R1–R10 (stage 2) on entering stage 2 (paper Alg. 2)
+    stage2_repeat_broadcast: bool = True  # later events while c_i = i: stage-3 repair + update
+    reset_ce_on_release: bool = False  # keep ce when a follower re-initialises
+    release_on_window_end: bool = True  # release followers when the window ends unsatisfied
+    first_come_follow: bool = True  # ignore further requests while following
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """Immutable configuration of STL agent ``robot_id``.
+
+    ``subtasks``: its own sequence (§9); ``library``: every STL robot's sub-tasks by (robot, index)
+    (a follower adopts ψ_j from here); ``peers``: the STL robots that receive status announcements.
+    """
+
+    robot_id: int
+    subtasks: tuple[Task, ...]
+    library: Mapping[tuple[int, int], Task] = field(compare=False)
+    peers: tuple[int, ...] = ()
+    phase_start_times: tuple[float, ...] | None = None
+    funnel: FunnelParams = field(default_factory=FunnelParams)
+    control: ControlParams = field(default_factory=ControlParams)
+    collision: CollisionParams = field(default_factory=CollisionParams)
+    protocol: ProtocolParams = field(default_factory=ProtocolParams)
+
+
+@dataclass(frozen=True, slots=True)
+class SubTaskOutcome:
+    """Result of one sub-task (§8): r̄ (final r), ρ^φ over the agent's samples in [a, b], repairs."""
+
+    index: int
+    t_done: float  # [s]
+    satisfied: bool  # completion by the satisfaction rule (F, or G with r < ρ < ρ_max at b)
+    final_r: float
+    rho_phi: float
+    events: tuple[int, int, int]  # critical events handled by stage 1, 2, 3
+
+
+@dataclass(frozen=True, slots=True)
+class AgentState:
+    """Per-agent mutable-by-replacement state (small on purpose)."""
+
+    k: int = 0  # index of the current sub-task (len(subtasks) when all are done)
+    active: bool = False  # sub-task k activated (funnel initialised)
+    funnel: Funnel | None = None
+    ce: int = 0  # critical-event counter (Alg. 2)
+    c: int = 0  # 0 own task | i requesting collaboration | −1 done (paper encoding)
+    stage: int = 0  # stage of the last repair on this sub-task (0 = none yet)
+    events: tuple[int, int, int] = (0, 0, 0)
+    follow: int | None = None  # requester being followed
+    follow_subtask: int = -1
+    follow_funnel: Funnel | None = None
+    peers: Mapping[int, StatusAnnounce] = field(default_factory=dict)  # replaced, never mutated
+    rho_phi: float = math.nan  # running min (G) / max (F) of ρ^ψ over samples in [a, b]
+    t_done: float = -math.inf  # [s] completion time of sub-task k − 1
+    outcomes: tuple[SubTaskOutcome, ...] = ()
+    announced: tuple[int, int, bool] | None = None  # last (c, k, active) sent to peers
+
+
+@dataclass(frozen=True, slots=True)
+class StepInput:
+    t: float  # [s] absolute mission time
+    poses: Mapping[int, object]  # id -> (x, y, θ)
+    inbox: Sequence[Message] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class LogRecord:
+    """(t, ρ, ρ_max, ρ_max − γ(t), r, stage, ce, c_i, follow) of §8, plus the sub-task index and the
+    stage of a repair done in this step (0 = none). NaN fields when the agent is idle."""
+
+    t: float
+    rho: float
+    rho_max: float
+    lower: float
+    r: float
+    stage: int
+    ce: int
+    c: int
+    follow: int | None
+    subtask: int
+    repair: int = NO_REPAIR
+
+
+@dataclass(frozen=True, slots=True)
+class StepOutput:
+    u: tuple[float, float, float]  # world frame (v_x [m/s], v_y [m/s], ω [rad/s])
+    messages: tuple[Message, ...]
+    log: LogRecord
+
+
+def stage2_enabled(robot_id: int, task: Task, c: int,
+                   peers: Mapping[int, StatusAnnounce]) -> bool:
+    """Stage-2 enabling rule (stl-funnel.md §7.4, authors' ``detectStageTwo``).
+
+    True iff someone can help (V_i ≠ {i}), c_i ≠ i, and every v ∈ V_i∖{i} is done (c_v = −1, or its
+    whole sequence is done) or works on its own task (c_v = 0) with a relevant deadline (b_v for F,
+    a_v for G) later than b_i. A peer whose status is unknown blocks stage 2.
+    """
+    others = [v for v in task.v_ctrl if v != robot_id]
+    if not others or c == robot_id:
+        return False
+    for v in others:
+        status = peers.get(v)
+        if status is None:
+            return False
+        if status.all_done or status.c == -1:
+            continue
+        if status.c == 0 and status.kind is not None and status.relevant_deadline > task.b:
+            continue
+        return False
+    return True
+
+
+def choose_stage(ce: int, n_stage1: int, c: int, robot_id: int, stage2_ok: bool) -> int:
+    """Alg. 2 lines 7–17: 1 while ce ≤ N_i; then 2 (entry if enabled, or repeat while c_i = i);
+    else 3."""
+    if ce <= n_stage1:
+        return 1
+    if c == robot_id or stage2_ok:
+        return 2
+    return 3
+
+
+class StlAgent:
+    """The step function of one STL agent bound to its immutable :class:`AgentConfig`."""
+
+    __slots__ = ("cfg",)
+
+    def __init__(self, config: AgentConfig):
+        self.cfg = config
+
+    @property
+    def robot_id(self) -> int:
+        return self.cfg.robot_id
+
+    def initial_state(self) -> AgentState:
+        return AgentState()
+
+    # ----------------------------------------------------------------- helpers
+
+    def _activation_time(self, state: AgentState) -> float:
+        if state.k == 0:
+            return -math.inf
+        forced = self.cfg.phase_start_times
+        if forced is not None:
+            return max(state.t_done, forced[state.k - 1])
+        return state.t_done
+
+    def _status(self, state: AgentState) -> list[Message]:
+        key = (state.c, state.k, state.active)
+        if key == state.announced or not self.cfg.peers:
+            return []
+        tasks = self.cfg.subtasks
+        all_done = state.k >= len(tasks)
+        task = tasks[state.k] if state.active and not all_done else None
+        return [StatusAnnounce(sender=self.cfg.robot_id, receiver=v, c=state.c, subtask=state.k,
+                               kind=task.kind if task else None,
+                               a=task.a if task else math.nan, b=task.b if task else math.nan,
+                               all_done=all_done)
+                for v in self.cfg.peers]
+
+    def _broadcast(self, task: Task, make) -> list[Message]:
+        i = self.cfg.robot_id
+        return [make(v) for v in task.v_ctrl if v != i]
+
+    # ----------------------------------------------------------------- step
+
+    def step(self, state: AgentState, inputs: StepInput) -> tuple[AgentState, StepOutput]:
+        """One control step (module docstring, stl-funnel.md §12)."""
+        cfg = self.cfg
+        i = cfg.robot_id
+        t = inputs.t
+        poses = {j: p.tolist() if hasattr(p, "tolist") else p for j, p in inputs.poses.items()}
+        fp = cfg.funnel
+        cp = cfg.control
+        out: list[Message] = []
+        changes: dict = {}
+        reinit = False
+
+        # 1. inbox -----------------------------------------------------------------------
+        follow, follow_subtask, follow_funnel = state.follow, state.follow_subtask, \
+            state.follow_funnel
+        peers = state.peers
+        for msg in inputs.inbox:
+            if isinstance(msg, StatusAnnounce):
+                if peers is state.peers:
+                    peers = dict(peers)
+                peers[msg.sender] = msg
+            elif isinstance(msg, CollabRequest):
+                if msg.sender == i:
+                    continue
+                if follow is None or follow == msg.sender or not cfg.protocol.first_come_follow:
+                    if (msg.sender, msg.subtask) not in cfg.library:
+                        logger.warning("robot %d: request from %d for unknown sub-task %d ignored",
+                                       i, msg.sender, msg.subtask)
+                        continue
+                    follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
+            elif isinstance(msg, CollabUpdate):
+                if msg.sender == follow and msg.subtask == follow_subtask:
+                    follow_funnel = msg.funnel
+            elif isinstance(msg, CollabRelease) and msg.sender == follow:
+                follow, follow_subtask, follow_funnel = None, -1, None
+                reinit = True
+        if follow != state.follow or follow_funnel is not state.follow_funnel:
+            changes.update(follow=follow, follow_subtask=follow_subtask,
+                           follow_funnel=follow_funnel)
+        if peers is not state.peers:
+            changes["peers"] = peers
+
+        # 2. sequencer --------------------------------------------------------------------
+        tasks = cfg.subtasks
+        k = state.k
+        active = state.active
+        funnel = state.funnel
+        task = tasks[k] if k < len(tasks) else None
+        rho_own = math.nan
+        grad_own = None
+        if task is not None and (active or t >= self._activation_time(state)):
+            rho_own, grad_own = task.compiled.value_grad(task.stacked_state(poses))
+            if not active:
+                active = True
+                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp)
+                changes.update(active=True, funnel=funnel, ce=0, c=0, stage=0, events=(0, 0, 0),
+                               rho_phi=math.nan)
+                logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, k + 1, t, funnel)
+            elif reinit:
+                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp)
+                changes.update(funnel=funnel, stage=0)
+                if cfg.protocol.reset_ce_on_release:
+                    changes["ce"] = 0
+
+        ce = changes.get("ce", state.ce)
+        c = changes.get("c", state.c)
+        stage = changes.get("stage", state.stage)
+        events = changes.get("events", state.events)
+        repaired = NO_REPAIR
+        u_nom = (0.0, 0.0, 0.0)
+        done = False
+
+        # 3./4. own robustness, completion -----------------------------------------------
+        if active and task is not None:
+            rho_phi = changes.get("rho_phi", state.rho_phi)
+            if task.a <= t <= task.b:
+                if math.isnan(rho_phi):
+                    rho_phi = rho_own
+                elif task.kind == "G":
+                    rho_phi = min(rho_phi, rho_own)
+                else:
+                    rho_phi = max(rho_phi, rho_own)
+                changes["rho_phi"] = rho_phi
+            inside = funnel.r < rho_own < funnel.rho_max
+            satisfied = False
+            if follow is None and inside and (
+                    (task.kind == "F" and task.a <= t <= task.b)
+                    or (task.kind == "G" and t >= task.b)):
+                done = satisfied = True
+            elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
+                done = True
+            if done:
+                outcome = SubTaskOutcome(k, t, satisfied, funnel.r, rho_phi, events)
+                if c == i and (satisfied or cfg.protocol.release_on_window_end):
+                    out.extend(self._broadcast(
+                        task, lambda v: CollabRelease(sender=i, receiver=v, subtask=k)))
+                c = -1
+                changes.update(k=k + 1, active=False, c=-1, t_done=t,
+                               outcomes=(*state.outcomes, outcome))
+                logger.info("robot %d: sub-task %d done at t=%.2f (%s), r=%.4f, rho_phi=%.4f, "
+                            "events=%s", i, k + 1, t, "satisfied" if satisfied else "window end",
+                            funnel.r, rho_phi, events)
+
+        # 5. control ----------------------------------------------------------------------
+        log_funnel = None
+        rho_log = math.nan
+        if follow is not None:
+            ftask = cfg.library[(follow, follow_subtask)]
+            rho, g = ftask.compiled.value_grad(ftask.stacked_state(poses))
+            rho_log = rho
+            log_funnel = follow_funnel
+            z = follow_funnel.zeta(rho, t)
+            if g is not None:
+                b0 = ftask.block(i)
+                g = g[b0:b0 + 3]
+            u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), g, cp.normalize_grad, cp.k_eps)
+        elif active and not done:
+            rho = rho_own
+            rho_log = rho
+            if grad_own is not None:
+                b0 = task.block(i)
+                grad_own = grad_own[b0:b0 + 3]
+            if task.kind == "F" and cp.hold_F_when_above_r and rho > funnel.r:
+                u_nom = (0.0, 0.0, 0.0)
+            else:
+                z = funnel.zeta(rho, t)
+                if not -1.0 < z < 0.0:
+                    ce += 1
+                    stage2_ok = (ce > fp.n_stage1 and c != i
+                                 and stage2_enabled(i, task, c, peers))
+                    stage = choose_stage(ce, fp.n_stage1, c, i, stage2_ok)
+                    if stage == 1:
+                        funnel = funnel.repair(1, rho, t, fp)
+                    elif stage == 2 and c != i:  # entry (Alg. 2 lines 10–12)
+                        if cfg.protocol.stage2_entry_repair:
+                            funnel = funnel.repair(2, rho, t, fp)
+                        c = i
+                        entry_funnel = funnel
+                        out.extend(self._broadcast(task, lambda v: CollabRequest(
+                            sender=i, receiver=v, subtask=k, funnel=entry_funnel, c=i)))
+                    elif stage == 2:  # repeat while c_i = i (lines 13–15)
+                        funnel = funnel.repair(3, rho, t, fp)
+                        if cfg.protocol.stage2_repeat_broadcast:
+                            repeat_funnel = funnel
+                            out.extend(self._broadcast(task, lambda v: CollabUpdate(
+                                sender=i, receiver=v, subtask=k, funnel=repeat_funnel)))
+                    else:
+                        funnel = funnel.repair(3, rho, t, fp)
+                    repaired = stage
+                    events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
+                    changes.update(funnel=funnel, ce=ce, c=c, stage=stage, events=events)
+                    z = funnel.zeta(rho, t)
+                    logger.debug("robot %d: critical event %d at t=%.2f, stage %d: %s", i, ce, t,
+                                 stage, funnel)
+                u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
+                                         cp.k_eps)
+            log_funnel = funnel
+        u_nom = saturate(u_nom, cp.umax_lin, cp.umax_ang)
+
+        # 6. collision avoidance and mixing (eq. (6)) -------------------------------------
+        col = cfg.collision
+        own_pose = poses[i]
+        neighbours = [(p[0], p[1]) for j, p in poses.items() if j != i]
+        u_col = collision_velocity((own_pose[0], own_pose[1]), neighbours, col)
+        u = mix(u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang)
+
+        if changes:
+            state = replace(state, **changes)
+        announce = self._status(state)
+        if announce:
+            out.extend(announce)
+            state = replace(state, announced=(state.c, state.k, state.active))
+        if log_funnel is not None:
+            record = LogRecord(t, rho_log, log_funnel.rho_max, log_funnel.lower(t), log_funnel.r,
+                               stage, ce, c, follow, k, repaired)
+        else:
+            record = LogRecord(t, rho_log, math.nan, math.nan, math.nan, stage, ce, c, follow,
+                               k if k < len(tasks) else -1, repaired)
+        return state, StepOutput(u, tuple(out), record)
+
+
+# --------------------------------------------------------------------------- construction
+
+
+def build_agents(scenario, *, funnel: FunnelParams | None = None,
+                 control: ControlParams | None = None,
+                 protocol: ProtocolParams = ProtocolParams(),
+                 robots: Sequence[int] | None = None,
+                 warn: bool = True) -> dict[int, StlAgent]:
+    """One :class:`StlAgent` per STL robot of a loaded ``agent.scenario.model.Scenario``.
+
+    Parameters come from the scenario's ``[stl]`` table and each robot's limits unless given.
+    ``robots`` restricts which STL agents are built (the library still holds every STL task).
+    """
+    p = scenario.stl
+    stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
+    library: dict[tuple[int, int], Task] = {}
+    sequences: dict[int, tuple[Task, ...]] = {}
+    for robot in scenario.robots:
+        if not robot.is_stl:
+            continue
+        seq = build_sequence(robot.id, robot.stl, robot_ids=scenario.robot_ids, stl_ids=stl_ids,
+                             rho_opt=robot.rho_opt, eta=p.eta, warn=warn)
+        sequences[robot.id] = seq
+        for task in seq:
+            library[(robot.id, task.index)] = task
+    fparams = funnel or FunnelParams(n_stage1=p.n_stage1, delta=p.delta, zeta_l=p.zeta_l)
+    agents = {}
+    for robot_id in robots if robots is not None else stl_ids:
+        robot = scenario.robot(robot_id)
+        seq = sequences[robot_id]
+        cparams = control or ControlParams(umax_lin=robot.omni.max_lin,
+                                           umax_ang=robot.omni.max_ang)
+        config = AgentConfig(
+            robot_id=robot_id,
+            subtasks=seq,
+            library=library,
+            peers=tuple(v for v in stl_ids if v != robot_id),
+            phase_start_times=check_phase_start_times(robot_id, seq, robot.phase_start_times),
+            funnel=fparams,
+            control=cparams,
+            collision=CollisionParams(r1=p.r1, r_sense=p.r_sense, beta=p.beta,
+                                      umax_lin=cparams.umax_lin),
+            protocol=protocol,
+        )
+        agents[robot_id] = StlAgent(config)
+    return agents
+
+
+def single_agent(robot_id: int, subtasks: Sequence[Task], *,
+                 library: Mapping[tuple[int, int], Task] | None = None,
+                 peers: Sequence[int] = (), **params) -> StlAgent:
+    """Convenience constructor for tests and small set-ups (``params``: AgentConfig fields)."""
+    lib = dict(library or {})
+    for task in subtasks:
+        lib.setdefault((task.owner, task.index), task)
+    phase = params.pop("phase_start_times", None)
+    return StlAgent(AgentConfig(robot_id=robot_id, subtasks=tuple(subtasks), library=lib,
+                                peers=tuple(peers),
+                                phase_start_times=check_phase_start_times(robot_id, subtasks,
+                                                                          phase),
+                                **params))

@@ -1,0 +1,178 @@
+"""Prescribed-performance funnel: initial parameters, γ(t), ζ, ε and the repair R1–R10.
+
+stl-funnel.md §4 (funnel and transformed error), §5 (initial parameters), §7.3 (repair with the
+[OUR CHOICE] guards). Funnel (absolute mission time t [s], ρ dimensionless like h)::
+
+    γ(t) = (γ_0 − γ_∞)·exp(−l·(t − t_r)) + γ_∞,        ρ_max − γ(t) < ρ^ψ(x̄(t)) < ρ_max
+    ζ = (ρ − ρ_max)/γ(t) ∈ (−1, 0),                    ε = ln(−(ζ + 1)/ζ)          (eq. (4))
+
+A critical event is ζ ∉ (−1, 0) (§7.1). Every funnel built here is checked against the invariants of
+§5/§7.3 and a violation raises :class:`FunnelInvariantError` (an internal error, never ``assert``).
+The random draws of the authors' code are replaced by fixed fractions unless a
+``numpy.random.Generator`` is passed (then U(0,1) is drawn as the code does, §13 item 2).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+
+from agent.stl.errors import FunnelInvariantError
+
+
+@dataclass(frozen=True)
+class FunnelParams:
+    """Funnel constants (stl-funnel.md §15); scenario values from §10.1."""
+
+    n_stage1: int = 2  # K = N_i, stage-1 repairs before stage 2/3 [AUTHORS' CODE]
+    delta: float = 0.02  # δ, r decrement and stage-3 margin
+    zeta_l: float = 0.2  # ζ_l, lower margin after a stage-1/2 repair
+    rho_max_frac: float = 0.9  # ρ_max = max(0,ρ_0) + frac·(ρ_opt − max(0,ρ_0)) [AUTHORS' CODE]
+    r_frac: float = 0.25  # r = r_frac·ρ_max [OUR CHOICE] (code: U(0,1)/2)
+    gamma0_margin: float = 0.2  # γ_0 = (ρ_max − ρ_0)·(1 + margin) [AUTHORS' CODE]
+    ginf_frac: float = 0.5  # γ_∞ = frac·min(γ_0, ρ_max − r) [OUR CHOICE] (code: U(0,1))
+    late_frac: float = 0.5  # late start / R6 fraction [OUR CHOICE] (code: U(0,1))
+    tau_min: float = 0.01  # [s] "late" threshold on t* − t [AUTHORS' CODE, applied uniformly]
+    f_tstar_frac: float = 1.0 / 3.0  # F: t* = a + frac·(b − a) [AUTHORS' CODE]
+    r_snap: float = 0.001  # R4 snap of r below ρ [AUTHORS' CODE]
+    rho_max_cap_eps: float = 1e-4  # R3 cap ρ_max ≤ ρ_opt + eps [AUTHORS' CODE]
+    guard_a_eps: float = 1e-4  # Guard A: ρ_max := ρ + eps if ρ ≥ ρ_max [OUR CHOICE]
+    guard_b_margin: float = 1e-3  # Guard B margin [OUR CHOICE]
+    zeta_clip: float = 1e-9  # ζ clipped to [−1 + clip, −clip] for ε [OUR CHOICE]
+
+
+def _draw(rng: np.random.Generator | None, fraction: float) -> float:
+    return fraction if rng is None else float(rng.uniform())
+
+
+@dataclass(frozen=True)
+class Funnel:
+    """Funnel parameters of one task φ = G/F_[a,b] ψ (names as in stl-funnel.md §5).
+
+    ``gamma0`` is γ at ``t_r`` (anchored form, cannot overflow); ``zeta_u`` the ρ_max increment per
+    repair; ``rho_opt`` the sup of ρ^ψ.
+    """
+
+    kind: Literal["G", "F"]
+    a: float  # [s]
+    b: float  # [s]
+    rho_opt: float
+    rho_max: float
+    r: float
+    gamma0: float
+    gamma_inf: float
+    l: float  # [1/s] decay rate
+    t_star: float  # [s]
+    t_r: float  # [s]
+    zeta_u: float
+
+    # ----------------------------------------------------------------- §5
+
+    @classmethod
+    def init(cls, kind: Literal["G", "F"], a: float, b: float, rho_opt: float, rho0: float,
+             t_r: float, params: FunnelParams = FunnelParams(),
+             rng: np.random.Generator | None = None) -> Funnel:
+        """Initial parameters at time ``t_r`` with ρ_0 = ρ^ψ(x̄(t_r)) (stl-funnel.md §5)."""
+        p = params
+        base = max(0.0, rho0)
+        rho_max = base + p.rho_max_frac * (rho_opt - base)
+        zeta_u = (rho_opt - rho_max) / max(p.n_stage1, 2)
+        r = rho_max * (0.5 * float(rng.uniform()) if rng is not None else p.r_frac)
+        t_star = a if kind == "G" else a + p.f_tstar_frac * (b - a)
+        late = t_star - t_r <= p.tau_min
+        if late:
+            if rho0 <= r:
+                r = rho0 - p.delta  # already violated: straight to a least-violating r
+            gamma0 = (rho_max - rho0) + _draw(rng, p.late_frac) * (rho0 - r)
+        else:
+            gamma0 = (rho_max - rho0) + p.gamma0_margin * abs(rho_max - rho0)
+        gamma_inf = _draw(rng, p.ginf_frac) * min(gamma0, rho_max - r)
+        l = 0.0
+        if rho_max - gamma0 < r and not late:
+            l = -math.log((r + gamma_inf - rho_max) / (gamma_inf - gamma0)) / (t_star - t_r)
+        funnel = cls(kind, a, b, rho_opt, rho_max, r, gamma0, gamma_inf, l, t_star, t_r, zeta_u)
+        funnel.check(rho0, t_r, "initialisation")
+        return funnel
+
+    # ----------------------------------------------------------------- §4
+
+    def gamma(self, t: float) -> float:
+        """γ(t) = (γ_0 − γ_∞)·e^{−l(t − t_r)} + γ_∞."""
+        return (self.gamma0 - self.gamma_inf) * math.exp(-self.l * (t - self.t_r)) + self.gamma_inf
+
+    def lower(self, t: float) -> float:
+        """Lower funnel boundary ρ_max − γ(t)."""
+        return self.rho_max - self.gamma(t)
+
+    def zeta(self, rho: float, t: float) -> float:
+        """Normalised error ζ = (ρ − ρ_max)/γ(t); inside the funnel iff −1 < ζ < 0."""
+        return (rho - self.rho_max) / self.gamma(t)
+
+    # ----------------------------------------------------------------- §7.3
+
+    def repair(self, stage: Literal[1, 2, 3], rho: float, t: float,
+               params: FunnelParams = FunnelParams(),
+               rng: np.random.Generator | None = None) -> Funnel:
+        """New funnel after a critical event at time ``t`` with ρ = ρ^ψ(x̄(t)): R1–R10 + guards."""
+        p = params
+        t_r = t  # R1
+        t_star = self.b if self.kind == "F" else self.t_star  # R2
+        rho_max = self.rho_max + self.zeta_u  # R3
+        if rho_max > self.rho_opt:
+            rho_max = self.rho_opt + p.rho_max_cap_eps
+        if rho >= rho_max:  # Guard A
+            rho_max = rho + p.guard_a_eps
+        late = t_star - t <= p.tau_min
+        r = self.r
+        if late and rho < r:  # R4 (late predicate instead of the code's t_r > t*)
+            r = rho - p.r_snap
+        # R5: stage 1 keeps r positive while it can ("r_i remains positive" [PAPER])
+        r = (r / 2.0 if r > 0 else r - p.delta) if stage == 1 else r - p.delta
+        zeta_l = _draw(rng, p.late_frac) * (rho - r) if late else p.zeta_l  # R6
+        gamma_tr = rho_max - rho + (zeta_l if stage in (1, 2) else p.delta)  # R7
+        gamma_inf = _draw(rng, p.ginf_frac) * min(gamma_tr, rho_max - r)  # R8
+        l = 0.0  # R9
+        if rho_max - gamma_tr < r:
+            if late:  # Guard B
+                r = min(r, rho_max - gamma_tr - p.guard_b_margin)
+            else:
+                l = -math.log((r + gamma_inf - rho_max) / (gamma_inf - gamma_tr)) / (t_star - t)
+        funnel = replace(self, rho_max=rho_max, r=r, gamma0=gamma_tr, gamma_inf=gamma_inf, l=l,
+                         t_star=t_star, t_r=t_r)  # R10: γ_0 := γ_tr
+        funnel.check(rho, t, f"stage-{stage} repair")
+        return funnel
+
+    def check(self, rho: float, t: float, what: str) -> None:
+        """Invariants of §5/§7.3 at t = t_r; raises :class:`FunnelInvariantError`."""
+        problems = []
+        z = self.zeta(rho, t)
+        if not -1.0 < z < 0.0:
+            problems.append(f"zeta(t_r) = {z:.6g} not in (-1, 0)")
+        if not 0.0 < self.gamma_inf <= self.gamma0:
+            problems.append(f"need 0 < gamma_inf = {self.gamma_inf:.6g} <= gamma0 = "
+                            f"{self.gamma0:.6g}")
+        if not self.gamma_inf < self.rho_max - self.r:
+            problems.append(f"need gamma_inf = {self.gamma_inf:.6g} < rho_max - r = "
+                            f"{self.rho_max - self.r:.6g}")
+        if not (0.0 <= self.l < math.inf):
+            problems.append(f"need 0 <= l = {self.l!r} < inf")
+        if problems:
+            raise FunnelInvariantError(f"{what} at t = {t:.4f} with rho = {rho:.6g}: "
+                                       + "; ".join(problems) + f" ({self})")
+
+
+def epsilon(zeta: float, clip: float = 1e-9) -> float:
+    """Transformed error ε = ln(−(ζ + 1)/ζ) with ζ clipped to [−1 + clip, −clip] (§6.1 step 3)."""
+    if zeta < -1.0 + clip:
+        zeta = -1.0 + clip
+    elif zeta > -clip:
+        zeta = -clip
+    return math.log(-(zeta + 1.0) / zeta)
+
+
+def is_critical(zeta: float) -> bool:
+    """Critical event ⇔ not (−1 < ζ < 0) (stl-funnel.md §7.1)."""
+    return not -1.0 < zeta < 0.0
