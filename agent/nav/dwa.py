@@ -258,7 +258,12 @@ def dwa_control(
     front = end + config.forward_point_distance * np.stack([np.cos(heading), np.sin(heading)], 1)
     cost += config.path_distance_bias * distance_to_polyline(front, extended)
     cost += config.goal_distance_bias * np.linalg.norm(front - front_carrot, axis=1)
-    cost += config.occdist_scale * np.max(inflation_cost(clearance, robot_radius, config), axis=1)
+    # As ROS, the occupancy term is the worst cost along the rollout including the start pose.
+    worst = np.maximum(
+        np.max(inflation_cost(clearance, robot_radius, config), axis=1),
+        float(inflation_cost(np.array(current), robot_radius, config)),
+    )
+    cost += config.occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
     cost = np.where(valid, cost, np.inf)
     best = int(np.argmin(cost))

@@ -180,3 +180,31 @@ def simulate(
         min_robot_gap=min_robot_gap,
         min_wall_gap=min_wall_gap,
     )
+
+
+class ExecutorController:
+    """Adapter that runs a plan executor as a harness controller (tests, benchmarks).
+
+    Holds the executor state between ticks and records every output; ``ids[i]`` is the robot id
+    of harness index ``i`` (used to build the ``(id, x, y, θ)`` pose frame of the others).
+    """
+
+    def __init__(self, executor, state, ids: Sequence[int]):
+        self.executor = executor
+        self.state = state
+        self.ids = tuple(ids)
+        self.outputs: list = []
+        self.events: list = []
+
+    def __call__(self, t: float, index: int, poses: np.ndarray) -> tuple[float, float]:
+        from agent.nav.executor import ExecutorInputs
+
+        ids = np.asarray(self.ids, dtype=float)[:, None]
+        frame = np.hstack([ids, poses])
+        others = np.delete(frame, index, axis=0)
+        self.state, out = self.executor.step(
+            self.state, ExecutorInputs(t=t, pose=tuple(poses[index]), others=others)
+        )
+        self.outputs.append(out)
+        self.events.extend(out.events)
+        return out.v, out.omega

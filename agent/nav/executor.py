@@ -1,0 +1,476 @@
+"""Plan executor: drives a unicycle along its LTL plan, one pure step per control tick.
+
+ltl-planning.md §6 and paper §III-A. The plan is the projection on regions of the optimal
+prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``. Each step (5 Hz):
+
+1. **Visits.** The current target counts as visited when the robot is inside the region or within
+   ``xy_goal_tolerance`` of its centre; the executor then advances (and may visit several
+   targets in one step when they are the same region). A suffix that loops on one region ends
+   the motion: the robot holds there (``PlanFinished``).
+2. **Global path** (``grid_planner.plan_path``) from the pose to the target centre, on the
+   static grid with the other robots within ``local_range`` stamped in as inflated discs — the
+   paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
+3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
+   velocity estimated from two consecutive pose frames.
+4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
+   ``progress_epsilon``; with none for ``stuck_timeout`` the executor emits ``Stuck``, rotates in
+   place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
+   emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
+   answer with a new plan (``ExecutorInputs.new_plan``).
+
+Every command respects the unicycle's velocity and acceleration limits relative to the previous
+command (the dynamic window of one controller period).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
+from agent.nav.errors import InvalidPlanError, NoPathError
+from agent.nav.events import (
+    CycleCompleted,
+    NavEvent,
+    NoPathFound,
+    PlanAccepted,
+    PlanFinished,
+    Progress,
+    RegionVisited,
+    ReplanRequest,
+    Stuck,
+)
+from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_arena
+from agent.nav.grid_planner import plan_path
+from agent.nav.polyline import polyline_length, remaining_polyline
+from agent.scenario.model import Region, Scenario
+
+NAVIGATE, ROTATE, BACK_OFF, HOLD = "navigate", "rotate", "back_off", "hold"
+
+
+@dataclass(frozen=True)
+class ExecutorConfig:
+    """Executor parameters (lengths [m], times [s], speeds [m/s])."""
+
+    dwa: DwaConfig = field(default_factory=DwaConfig)
+    robot_radius: float = 0.2  # [m]
+    inflation_margin: float = DEFAULT_MARGIN  # [m] added to the radius in the global grid
+    resolution: float = DEFAULT_RESOLUTION  # [m] grid cell
+    default_other_radius: float = 0.2  # [m] radius of robots not listed in other_radii
+    local_range: float = 2.5  # [m] other robots closer than this enter the local cost map
+    replan_period: float = 1.0  # [s] global path refresh (move_base planner_frequency 1 Hz)
+    other_robot_margin: float = 0.3  # [m] extra radius of other robots in the global path
+    keep_right_offset: float = 0.3  # [m] lateral shift of robots ahead in the global path
+    max_other_speed: float = 1.0  # [m/s] cap on velocities estimated from pose frames
+    stuck_timeout: float = 10.0  # [s] no progress for this long → stuck
+    progress_epsilon: float = 0.1  # [m] path-length decrease that counts as progress
+    rotate_time: float = 3.0  # [s] recovery: rotate in place at max_rot_vel
+    back_off_time: float = 1.5  # [s] recovery: drive backwards
+    back_off_speed: float = 0.1  # [m/s]
+    blocked_edge_penalty: float = 10.0  # [m] added to a blocked edge's weight on replanning
+
+    def __post_init__(self) -> None:
+        for name in ("robot_radius", "resolution", "replan_period", "stuck_timeout"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"ExecutorConfig.{name} must be positive")
+
+
+@dataclass(frozen=True, eq=False)
+class ExecutorInputs:
+    """One tick's inputs: time [s], own pose (x, y, θ), the other robots of the pose frame as
+    rows ``(id, x, y, θ)`` (K, 4), and optionally a new plan ``(prefix, suffix)``."""
+
+    t: float
+    pose: tuple[float, float, float]
+    others: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    new_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class ExecutorOutputs:
+    """One tick's outputs: the command (v [m/s], ω [rad/s]), events, progress, and the global
+    path being followed (W, 2) [m] (empty when none), for display."""
+
+    v: float
+    omega: float
+    events: tuple[NavEvent, ...]
+    progress: Progress
+    path: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ExecutorState:
+    """Everything the executor remembers between ticks (immutable; ``step`` returns a new one)."""
+
+    prefix: tuple[str, ...]
+    suffix: tuple[str, ...]
+    step: int = 0  # index of the current target in prefix · suffix^ω
+    mode: str = NAVIGATE
+    mode_since: float = 0.0  # [s]
+    visits: tuple[tuple[str, int], ...] = ()
+    last_region: str | None = None
+    command: tuple[float, float] = (0.0, 0.0)  # last (v, ω) sent
+    control_cycles: int = 0
+    path: np.ndarray | None = None
+    path_target: str | None = None
+    path_time: float = -math.inf  # [s]
+    best_remaining: float = math.inf  # [m]
+    progress_time: float = 0.0  # [s]
+    remaining: float = math.inf  # [m]
+    stuck_count: int = 0
+    cycle_start: float | None = None  # [s] when the current suffix pass began
+    prev_others: np.ndarray | None = None  # (K, 4) previous frame's other robots
+    prev_time: float | None = None  # [s]
+
+    @property
+    def cycles(self) -> int:
+        """Completed passes through the suffix."""
+        if not self.suffix:
+            return 0
+        return max(0, (self.step - len(self.prefix)) // len(self.suffix))
+
+    @property
+    def target(self) -> str | None:
+        return None if self.mode == HOLD else target_at(self.prefix, self.suffix, self.step)
+
+
+def target_at(prefix: Sequence[str], suffix: Sequence[str], step: int) -> str | None:
+    """The ``step``-th region of ``prefix · suffix^ω`` (None past the end of a finite plan)."""
+    if step < len(prefix):
+        return prefix[step]
+    if not suffix:
+        return None
+    return suffix[(step - len(prefix)) % len(suffix)]
+
+
+def _move_toward(current: float, goal: float, max_change: float) -> float:
+    return current + min(max(goal - current, -max_change), max_change)
+
+
+@dataclass(frozen=True, eq=False)
+class Executor:
+    """The executor's fixed context: regions, static grid and configuration.
+
+    ``grid`` is the static arena inflated by ``robot_radius + inflation_margin``;
+    ``other_radii`` maps robot ids to radii [m] for the local cost map.
+    """
+
+    regions: tuple[Region, ...]
+    grid: OccupancyGrid
+    config: ExecutorConfig = field(default_factory=ExecutorConfig)
+    other_radii: tuple[tuple[int, float], ...] = ()
+
+    @staticmethod
+    def from_scenario(
+        scenario: Scenario, robot_id: int, config: ExecutorConfig | None = None
+    ) -> Executor:
+        """Executor for one unicycle of a scenario: its radius and limits set the grid and DWA."""
+        robot = scenario.robot(robot_id)
+        base = config or ExecutorConfig()
+        limits = robot.unicycle
+        dwa = replace(
+            base.dwa,
+            max_vel_x=limits.max_v,
+            max_rot_vel=limits.max_omega,
+            acc_lim_x=limits.acc_v,
+            acc_lim_theta=limits.acc_omega,
+            controller_period=1.0 / scenario.ltl.control_rate,
+        )
+        cfg = replace(base, robot_radius=robot.radius, dwa=dwa)
+        grid = grid_from_arena(scenario.arena, robot.radius + cfg.inflation_margin, cfg.resolution)
+        radii = tuple((r.id, r.radius) for r in scenario.robots if r.id != robot_id)
+        return Executor(scenario.regions, grid, cfg, radii)
+
+    def region(self, name: str) -> Region:
+        for region in self.regions:
+            if region.name == name:
+                return region
+        known = ", ".join(r.name for r in self.regions)
+        raise KeyError(f"no region {name!r} (regions: {known})")
+
+    def _check_plan(self, prefix: Sequence[str], suffix: Sequence[str]) -> None:
+        plan = (tuple(prefix), tuple(suffix))
+        if not prefix and not suffix:
+            raise InvalidPlanError(plan, "the plan has no region")
+        known = {r.name for r in self.regions}
+        unknown = [name for name in (*prefix, *suffix) if name not in known]
+        if unknown:
+            raise InvalidPlanError(plan, f"unknown regions {unknown} (known: {sorted(known)})")
+
+    def initial_state(
+        self, prefix: Sequence[str], suffix: Sequence[str], t0: float = 0.0
+    ) -> ExecutorState:
+        """State before the first step for the plan ``prefix · suffix^ω`` (region names)."""
+        self._check_plan(prefix, suffix)
+        names = tuple(dict.fromkeys((*prefix, *suffix)))
+        return ExecutorState(
+            prefix=tuple(prefix),
+            suffix=tuple(suffix),
+            visits=tuple((n, 0) for n in names),
+            mode_since=t0,
+            progress_time=t0,
+        )
+
+    # ------------------------------------------------------------------ the step
+
+    def step(
+        self, state: ExecutorState, inputs: ExecutorInputs
+    ) -> tuple[ExecutorState, ExecutorOutputs]:
+        """One control tick: ``(state, inputs) -> (state, outputs)``; pure."""
+        t = float(inputs.t)
+        pose = np.asarray(inputs.pose, dtype=float)[:3]
+        events: list[NavEvent] = []
+        s = replace(state, control_cycles=state.control_cycles + 1)
+        if inputs.new_plan is not None:
+            s = self._accept_plan(s, inputs.new_plan, t, events)
+        others = self._local_obstacles(s, inputs, pose, t)
+        s = replace(
+            s, prev_others=np.asarray(inputs.others, dtype=float).reshape(-1, 4), prev_time=t
+        )
+        if s.mode != HOLD:
+            s = self._visit(s, pose, t, events)
+        if s.mode == HOLD:
+            s, command = self._settle(s, pose, others)
+        elif s.mode in (ROTATE, BACK_OFF):
+            s, command = self._recover(s, pose, t, events)
+        else:
+            s, command = self._navigate(s, pose, t, others, events)
+        s = replace(s, command=command)
+        return s, ExecutorOutputs(
+            v=command[0],
+            omega=command[1],
+            events=tuple(events),
+            progress=self._progress(s),
+            path=s.path if s.path is not None else np.zeros((0, 2)),
+        )
+
+    def _accept_plan(self, s: ExecutorState, plan, t: float, events: list) -> ExecutorState:
+        prefix, suffix = tuple(plan[0]), tuple(plan[1])
+        self._check_plan(prefix, suffix)
+        counts = dict(s.visits)
+        for name in (*prefix, *suffix):
+            counts.setdefault(name, 0)
+        events.append(PlanAccepted(t, prefix, suffix))
+        return replace(
+            s,
+            prefix=prefix,
+            suffix=suffix,
+            step=0,
+            mode=NAVIGATE,
+            mode_since=t,
+            visits=tuple(counts.items()),
+            path=None,
+            path_target=None,
+            best_remaining=math.inf,
+            progress_time=t,
+            cycle_start=None,
+        )
+
+    def _local_obstacles(
+        self, s: ExecutorState, inputs: ExecutorInputs, pose: np.ndarray, t: float
+    ) -> MovingDiscs:
+        """Other robots within ``local_range`` as moving discs (the local cost map's layer)."""
+        frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
+        if len(frame) == 0:
+            return MovingDiscs.empty()
+        near = np.linalg.norm(frame[:, 1:3] - pose[:2], axis=1) <= self.config.local_range
+        frame = frame[near]
+        velocities = np.zeros((len(frame), 2))
+        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
+            previous = {int(row[0]): row[1:3] for row in s.prev_others}
+            for k, row in enumerate(frame):
+                before = previous.get(int(row[0]))
+                if before is not None:
+                    velocities[k] = (row[1:3] - before) / (t - s.prev_time)
+            speed = np.linalg.norm(velocities, axis=1, keepdims=True)
+            cap = self.config.max_other_speed
+            velocities = np.where(
+                speed > cap, velocities * cap / np.maximum(speed, 1e-12), velocities
+            )
+        radii_by_id = dict(self.other_radii)
+        radii = np.array(
+            [radii_by_id.get(int(i), self.config.default_other_radius) for i in frame[:, 0]]
+        )
+        return MovingDiscs(frame[:, 1:3].copy(), velocities, radii)
+
+    def _visit(self, s: ExecutorState, pose: np.ndarray, t: float, events: list) -> ExecutorState:
+        """Advance over every target the robot is currently in (bounded by the plan length)."""
+        tolerance = self.config.dwa.xy_goal_tolerance
+        for _ in range(len(s.prefix) + len(s.suffix)):
+            target = target_at(s.prefix, s.suffix, s.step)
+            if target is None:
+                break
+            region = self.region(target)
+            near = math.dist(region.center, pose[:2]) <= tolerance
+            if not (region.contains(pose[0], pose[1]) or near):
+                break
+            counts = dict(s.visits)
+            counts[target] = counts.get(target, 0) + 1
+            events.append(RegionVisited(t, target, counts[target]))
+            s = replace(
+                s,
+                step=s.step + 1,
+                visits=tuple(counts.items()),
+                last_region=target,
+                best_remaining=math.inf,
+                progress_time=t,
+                path=None,
+                path_target=None,
+            )
+            into_suffix = s.step - len(s.prefix)
+            if s.suffix and into_suffix == 0:
+                s = replace(s, cycle_start=t)
+            elif s.suffix and into_suffix > 0 and into_suffix % len(s.suffix) == 0:
+                start = s.cycle_start if s.cycle_start is not None else t
+                events.append(CycleCompleted(t, s.cycles, t - start))
+                s = replace(s, cycle_start=t)
+            if self._finished(s):
+                events.append(PlanFinished(t, target))
+                return replace(s, mode=HOLD, mode_since=t)
+        return s
+
+    def _finished(self, s: ExecutorState) -> bool:
+        """No further motion: past a finite plan, or in a suffix that loops on one region."""
+        if s.step < len(s.prefix):
+            return False
+        if not s.suffix:
+            return True
+        return len(set(s.suffix)) == 1 and s.last_region == s.suffix[0]
+
+    def _ramp(self, current: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
+        """The command closest to ``goal`` reachable from ``current`` in one period, saturated."""
+        d = self.config.dwa
+        v = _move_toward(current[0], goal[0], d.acc_lim_x * d.controller_period)
+        w = _move_toward(current[1], goal[1], d.acc_lim_theta * d.controller_period)
+        v = min(max(v, -d.max_vel_x), d.max_vel_x)
+        w = min(max(w, -d.max_rot_vel), d.max_rot_vel)
+        return v, w
+
+    def _recover(
+        self, s: ExecutorState, pose: np.ndarray, t: float, events: list
+    ) -> tuple[ExecutorState, tuple[float, float]]:
+        """Recovery: rotate in place, then back off, then ask for a replan and resume."""
+        cfg = self.config
+        if s.mode == ROTATE and t - s.mode_since >= cfg.rotate_time:
+            behind = pose[:2] - 0.3 * np.array([math.cos(pose[2]), math.sin(pose[2])])
+            back_free = bool(self.grid.clearance_at(behind) > cfg.robot_radius)
+            s = replace(s, mode=BACK_OFF if back_free else NAVIGATE, mode_since=t)
+            if s.mode == NAVIGATE:
+                return self._end_recovery(s, pose, t, events), self._ramp(s.command, (0.0, 0.0))
+        if s.mode == BACK_OFF and t - s.mode_since >= cfg.back_off_time:
+            s = self._end_recovery(s, pose, t, events)
+            return s, self._ramp(s.command, (0.0, 0.0))
+        if s.mode == ROTATE:
+            return s, self._ramp(s.command, (0.0, cfg.dwa.max_rot_vel))
+        return s, self._ramp(s.command, (-cfg.back_off_speed, 0.0))
+
+    def _end_recovery(
+        self, s: ExecutorState, pose: np.ndarray, t: float, events: list
+    ) -> ExecutorState:
+        target = s.target
+        if target is not None:
+            events.append(
+                ReplanRequest(
+                    t,
+                    s.last_region,
+                    target,
+                    self.config.blocked_edge_penalty,
+                    (float(pose[0]), float(pose[1])),
+                )
+            )
+        return replace(
+            s,
+            mode=NAVIGATE,
+            mode_since=t,
+            best_remaining=math.inf,
+            progress_time=t,
+            path=None,
+            path_target=None,
+        )
+
+    def _navigate(
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
+    ) -> tuple[ExecutorState, tuple[float, float]]:
+        cfg = self.config
+        target = s.target
+        assert target is not None  # navigate mode always has a target (HOLD otherwise)
+        goal = self.region(target).center
+        if s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period:
+            grid = self.grid
+            if len(others):
+                centers, radii = self._keep_right(pose, others.centers, others.radii)
+                grid = grid.with_discs(centers, radii + cfg.other_robot_margin)
+            try:
+                path = plan_path(grid, pose[:2], goal).waypoints
+                s = replace(s, path=path, path_target=target, path_time=t)
+            except NoPathError as error:
+                events.append(NoPathFound(t, target, error.reason))
+                s = replace(s, path_time=t)
+        if s.path is None or s.path_target != target:
+            command = self._ramp(s.command, (0.0, 0.0))
+            remaining = math.inf
+        else:
+            result = dwa_control(
+                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa
+            )
+            command = (result.v, result.omega)
+            ahead = remaining_polyline(pose[:2], s.path)
+            remaining = float(np.linalg.norm(ahead[0] - pose[:2])) + polyline_length(ahead)
+        s = replace(s, remaining=remaining)
+        if remaining < s.best_remaining - cfg.progress_epsilon:
+            s = replace(s, best_remaining=remaining, progress_time=t)
+        elif t - s.progress_time >= cfg.stuck_timeout:
+            events.append(Stuck(t, target, s.progress_time, (float(pose[0]), float(pose[1]))))
+            s = replace(s, mode=ROTATE, mode_since=t, stuck_count=s.stuck_count + 1)
+            command = self._ramp(s.command, (0.0, 0.0))
+        return s, command
+
+    def _keep_right(
+        self, pose: np.ndarray, centers: np.ndarray, radii: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Discs to stamp for the other robots: each robot ahead gets a second disc shifted by
+        ``keep_right_offset`` [m] to our left, so the global path passes it on our right (we keep
+        right). Two robots meeting head-on then pick opposite sides in the world instead of
+        mirroring each other into a deadlock."""
+        offset = self.config.keep_right_offset
+        heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
+        ahead = (centers - pose[:2]) @ heading > 0.0
+        if offset == 0.0 or not np.any(ahead):
+            return centers, radii
+        left = np.array([-heading[1], heading[0]])
+        shifted = centers[ahead] + offset * left[None, :]
+        return np.vstack([centers, shifted]), np.concatenate([radii, radii[ahead]])
+
+    def _settle(
+        self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs
+    ) -> tuple[ExecutorState, tuple[float, float]]:
+        """Holding: drive on to the final region's centre (as move_base does with its last goal)
+        and stop within xy_goal_tolerance; no stuck detection."""
+        if s.last_region is None:
+            return s, self._ramp(s.command, (0.0, 0.0))
+        goal = self.region(s.last_region).center
+        if s.path is None:
+            try:
+                path = plan_path(self.grid, pose[:2], goal).waypoints
+            except NoPathError:
+                return s, self._ramp(s.command, (0.0, 0.0))
+            s = replace(s, path=path, path_target=s.last_region)
+        result = dwa_control(
+            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa
+        )
+        return s, (result.v, result.omega)
+
+    def _progress(self, s: ExecutorState) -> Progress:
+        return Progress(
+            target=s.target,
+            step=s.step,
+            visits=s.visits,
+            cycles=s.cycles,
+            control_cycles=s.control_cycles,
+            mode=s.mode,
+            stuck_count=s.stuck_count,
+            distance_to_target=s.remaining,
+        )
