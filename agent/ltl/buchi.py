@@ -1,0 +1,250 @@
+"""LTL → state-based Büchi automaton (ltl-planning.md §2; paper §II-A).
+
+``translate(f)`` runs, with no external tool:
+
+1. parsing and simplification into negation normal form (``agent.ltl.rewrite``);
+2. the very weak alternating automaton of Gastin & Oddoux (``agent.ltl.alternating``);
+3. the transition-based generalised Büchi automaton with GO's simplifications
+   (``agent.ltl.tgba``);
+4. SCC-aware degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``);
+5. removal of useless states (unreachable, or unable to reach an accepting cycle) and a
+   bisimulation quotient (equal acceptance, equal guarded edges to equal classes).
+
+The result ``A = (Q, 2^AP, Δ, Q0, F)`` has states ``0..num_states-1``; ``edges[q]`` lists
+``(q', guard)`` with guards over ``atoms`` (see ``agent.ltl.guards``).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from agent.ltl.degeneralize import degeneralize
+from agent.ltl.formula import Formula, children
+from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
+from agent.ltl.guards import Alphabet, Guard, valuation
+from agent.ltl.parser import parse
+from agent.ltl.printer import to_string
+from agent.ltl.rewrite import normalize
+from agent.ltl.tgba import build_tgba
+
+Edge = tuple[int, Guard]
+
+
+@dataclass(frozen=True)
+class Buchi:
+    """A state-based Büchi automaton with guarded edges (paper §II-A).
+
+    ``formula`` is the text it was translated from, ``atoms`` the AP in guard-bit order.
+    A letter (set of atom names) ``σ`` enables edge ``(q', g)`` of ``q`` iff ``g`` holds on σ;
+    atoms outside ``atoms`` are ignored.
+    """
+
+    formula: str
+    atoms: tuple[str, ...]
+    initial: tuple[int, ...]
+    accepting: frozenset[int]
+    edges: tuple[tuple[Edge, ...], ...]
+    index: dict[str, int] = field(init=False, repr=False, compare=False)
+    alphabet: Alphabet = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "index", {a: i for i, a in enumerate(self.atoms)})
+        object.__setattr__(self, "alphabet", Alphabet(len(self.atoms)))
+
+    @property
+    def num_states(self) -> int:
+        return len(self.edges)
+
+    @property
+    def num_edges(self) -> int:
+        return sum(len(out) for out in self.edges)
+
+    def valuation(self, letter: Iterable[str]) -> int:
+        """Bitmask of a letter over ``atoms``."""
+        return valuation(letter, self.index)
+
+    def successors(self, state: int, letter: Iterable[str]) -> tuple[int, ...]:
+        """Δ(state, letter)."""
+        return self.successors_by_valuation(state, self.valuation(letter))
+
+    def successors_by_valuation(self, state: int, v: int) -> tuple[int, ...]:
+        return tuple(dst for dst, guard in self.edges[state] if guard >> v & 1)
+
+    def guard_text(self, guard: Guard) -> str:
+        return self.alphabet.to_string(guard, self.atoms)
+
+
+def buchi_step(buchi: Buchi, states: frozenset[int], label: Iterable[str]) -> frozenset[int]:
+    """The Büchi states reachable from ``states`` by reading one letter ``label``.
+
+    The LTL agent tracks its automaton state with this: starting from ``buchi.initial``, call it
+    with the label of the region the robot is *leaving* (the product reads the source label,
+    ltl-planning.md §4). An empty result means the executed path already violates the task.
+    """
+    v = buchi.valuation(label)
+    return frozenset(dst for q in states for dst, guard in buchi.edges[q] if guard >> v & 1)
+
+
+def _atoms_in_order(f: Formula) -> tuple[str, ...]:
+    """Atoms by first occurrence (as Spot numbers them)."""
+    order: dict[str, None] = {}
+    stack = [f]
+    while stack:
+        g = stack.pop()
+        name = getattr(g, "name", None)
+        if isinstance(name, str) and not children(g):
+            order.setdefault(name, None)
+        stack.extend(reversed(children(g)))
+    return tuple(order)
+
+
+def translate(formula: Formula | str) -> Buchi:
+    """Translate an LTL formula (tree or Spot-syntax text) into a small state-based Büchi automaton.
+
+    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse.
+    """
+    tree = parse(formula) if isinstance(formula, str) else formula
+    atoms = _atoms_in_order(tree)
+    index = {a: i for i, a in enumerate(atoms)}
+    tgba = build_tgba(normalize(tree), index)
+    n, initial, accepting, edges = degeneralize(tgba)
+    n, initial, accepting, edges = _remove_useless(n, initial, accepting, edges)
+    n, initial, accepting, edges = _merge_bisimilar(n, initial, accepting, edges)
+    return _renumbered(to_string(tree), atoms, initial, accepting, edges)
+
+
+def _remove_useless(n, initial, accepting, edges):
+    """Keep states reachable from ``initial`` that can reach an accepting cycle."""
+    succ = [[dst for dst, _g in out] for out in edges]
+    comp, components = strongly_connected_components(n, succ)
+    cyclic = nontrivial(comp, components, succ)
+    good = {
+        s
+        for c, members in enumerate(components)
+        if cyclic[c] and any(s in accepting for s in members)
+        for s in members
+    }
+    pred: list[list[int]] = [[] for _ in range(n)]
+    for s in range(n):
+        for dst in succ[s]:
+            pred[dst].append(s)
+    live = reachable(good, pred) & reachable(initial, succ)
+    if live == set(range(n)):
+        return n, initial, accepting, edges
+    new_id = {s: i for i, s in enumerate(sorted(live))}
+    new_edges = [
+        [(new_id[dst], g) for dst, g in edges[s] if dst in new_id] for s in sorted(live)
+    ]
+    return (
+        len(new_id),
+        tuple(new_id[s] for s in initial if s in new_id),
+        frozenset(new_id[s] for s in accepting if s in new_id),
+        new_edges,
+    )
+
+
+def _merge_bisimilar(n, initial, accepting, edges):
+    """Quotient by the coarsest bisimulation that respects acceptance and guards."""
+    if n == 0:
+        return n, initial, accepting, edges
+    block = [int(s in accepting) for s in range(n)]
+    num_blocks = len(set(block))
+    while True:
+        signatures: dict[tuple, int] = {}
+        new_block = []
+        for s in range(n):
+            grouped: dict[int, Guard] = {}
+            for dst, guard in edges[s]:
+                grouped[block[dst]] = grouped.get(block[dst], 0) | guard
+            sig = (block[s], frozenset(grouped.items()))
+            new_block.append(signatures.setdefault(sig, len(signatures)))
+        if len(signatures) == num_blocks:
+            break
+        block, num_blocks = new_block, len(signatures)
+    if num_blocks == n:
+        return n, initial, accepting, edges
+    merged: list[dict[int, Guard] | None] = [None] * num_blocks
+    for s in range(n):
+        if merged[block[s]] is None:
+            grouped = {}
+            for dst, guard in edges[s]:
+                grouped[block[dst]] = grouped.get(block[dst], 0) | guard
+            merged[block[s]] = grouped
+    new_edges = [list(grouped.items()) for grouped in merged]
+    return (
+        num_blocks,
+        tuple(dict.fromkeys(block[s] for s in initial)),
+        frozenset(block[s] for s in accepting),
+        new_edges,
+    )
+
+
+def _renumbered(text, atoms, initial, accepting, edges) -> Buchi:
+    """Number states in BFS order from the initial states; empty language → one dead state."""
+    if not initial:
+        return Buchi(text, atoms, (0,), frozenset(), ((),))
+    order: dict[int, int] = {}
+    queue = deque()
+    for s in initial:
+        if s not in order:
+            order[s] = len(order)
+            queue.append(s)
+    while queue:
+        s = queue.popleft()
+        for dst, _g in sorted(edges[s], key=lambda e: e[0]):
+            if dst not in order:
+                order[dst] = len(order)
+                queue.append(dst)
+    new_edges: list[tuple[Edge, ...]] = [()] * len(order)
+    for s, i in order.items():
+        new_edges[i] = tuple(sorted(((order[d], g) for d, g in edges[s]), key=lambda e: e[0]))
+    return Buchi(
+        text,
+        atoms,
+        tuple(order[s] for s in initial),
+        frozenset(order[s] for s in accepting if s in order),
+        tuple(new_edges),
+    )
+
+
+def to_text(buchi: Buchi) -> str:
+    """Human-readable listing: one line per state, then its guarded edges."""
+    lines = [
+        f"Büchi automaton for {buchi.formula}",
+        f"  {buchi.num_states} states, {buchi.num_edges} edges, atoms: {', '.join(buchi.atoms)}",
+    ]
+    alphabet = buchi.alphabet
+    for q, out in enumerate(buchi.edges):
+        flags = []
+        if q in buchi.initial:
+            flags.append("initial")
+        if q in buchi.accepting:
+            flags.append("accepting")
+        lines.append(f"state {q}" + (f" ({', '.join(flags)})" if flags else ""))
+        for dst, guard in out:
+            lines.append(f"  --[{alphabet.to_string(guard, buchi.atoms)}]--> {dst}")
+    return "\n".join(lines) + "\n"
+
+
+def to_dot(buchi: Buchi, name: str = "buchi") -> str:
+    """Graphviz rendering: accepting states double-circled, initial states with an arrow in."""
+    lines = [f'digraph "{name}" {{', "  rankdir=LR;", '  node [shape=circle];']
+    lines.append(f'  label="{_dot_escape(buchi.formula)}"; labelloc=t;')
+    for q in range(buchi.num_states):
+        shape = "doublecircle" if q in buchi.accepting else "circle"
+        lines.append(f'  {q} [shape={shape}];')
+    for i, q in enumerate(buchi.initial):
+        lines.append(f'  init{i} [shape=point]; init{i} -> {q};')
+    alphabet = buchi.alphabet
+    for q, out in enumerate(buchi.edges):
+        for dst, guard in out:
+            label = _dot_escape(alphabet.to_string(guard, buchi.atoms))
+            lines.append(f'  {q} -> {dst} [label="{label}"];')
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def _dot_escape(text: str) -> str:
+    return text.replace("\\", "\\\\").replace('"', '\\"')
