@@ -288,8 +288,19 @@ def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> N
 
 
 def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str) -> None:
-    """Parse an STL sub-task and check the robots it names exist (filled in by the STL core)."""
-    del text, robot_ids, source, where
+    """Parse an STL sub-task (stl-funnel.md §2) and check every robot it names exists.
+
+    Syntax errors and unknown robot ids become ``ScenarioError`` naming the field and the column.
+    Concavity warnings need to know which robots are LTL (exogenous), so they are issued when the
+    agents are built (``agent.stl.agent.build_agents``), not here.
+    """
+    from agent.stl.parser import parse_task
+
+    try:
+        parse_task(text, robot_ids)
+    except FormulaSyntaxError as exc:
+        raise ScenarioError(source, where, f"STL task error at column {exc.column}: "
+                                           f"{exc.reason} in {text!r}") from None
 
 
 def _check_atom(table: _Table, key: str, name: str) -> None:
