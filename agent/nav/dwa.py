@@ -229,9 +229,8 @@ def dwa_control(
     clearance = grid.clearance_at(points)  # (S, T)
     current = float(grid.clearance_at(position))
     if len(others):
-        predicted = (
-            others.centers[:, None, :] + others.velocities[:, None, :] * times[None, :, None]
-        )
+        drift = times[:, None, None] * others.velocities[None, :, :]  # (T, K, 2)
+        predicted = others.centers[None, :, :] + drift  # (T, K, 2)
         gaps = np.linalg.norm(points[:, :, None, :] - predicted[None], axis=-1)  # (S, T, K)
         clearance = np.minimum(clearance, np.min(gaps - others.radii, axis=2))
         current = min(

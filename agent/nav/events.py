@@ -106,6 +106,7 @@ class Progress:
     step: int  # index of the target in prefix · suffix^ω
     visits: tuple[tuple[str, int], ...]  # (region, visits) for every region of the plan
     cycles: int  # completed suffix passes
+    rounds: int  # GF progress: visits of the least visited suffix region
     control_cycles: int  # executor steps so far
     mode: str  # "navigate", "rotate", "back_off" or "hold"
     stuck_count: int

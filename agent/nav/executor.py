@@ -49,6 +49,7 @@ from agent.nav.polyline import polyline_length, remaining_polyline
 from agent.scenario.model import Region, Scenario
 
 NAVIGATE, ROTATE, BACK_OFF, HOLD = "navigate", "rotate", "back_off", "hold"
+START_STATE = "start"  # the LTL planner's virtual initial state (robot in no region)
 
 
 @dataclass(frozen=True)
@@ -133,6 +134,15 @@ class ExecutorState:
         return max(0, (self.step - len(self.prefix)) // len(self.suffix))
 
     @property
+    def rounds(self) -> int:
+        """GF progress: how many times every region of the suffix has been visited (the minimum
+        of their visit counts)."""
+        if not self.suffix:
+            return 0
+        counts = dict(self.visits)
+        return min(counts.get(name, 0) for name in set(self.suffix))
+
+    @property
     def target(self) -> str | None:
         return None if self.mode == HOLD else target_at(self.prefix, self.suffix, self.step)
 
@@ -193,10 +203,13 @@ class Executor:
 
     def _check_plan(self, prefix: Sequence[str], suffix: Sequence[str]) -> None:
         plan = (tuple(prefix), tuple(suffix))
-        if not prefix and not suffix:
+        names = (
+            [*prefix[1:], *suffix] if prefix and prefix[0] == START_STATE else [*prefix, *suffix]
+        )
+        if not names:
             raise InvalidPlanError(plan, "the plan has no region")
         known = {r.name for r in self.regions}
-        unknown = [name for name in (*prefix, *suffix) if name not in known]
+        unknown = [name for name in names if name not in known]
         if unknown:
             raise InvalidPlanError(plan, f"unknown regions {unknown} (known: {sorted(known)})")
 
@@ -205,7 +218,7 @@ class Executor:
     ) -> ExecutorState:
         """State before the first step for the plan ``prefix · suffix^ω`` (region names)."""
         self._check_plan(prefix, suffix)
-        names = tuple(dict.fromkeys((*prefix, *suffix)))
+        names = tuple(n for n in dict.fromkeys((*prefix, *suffix)) if n != START_STATE)
         return ExecutorState(
             prefix=tuple(prefix),
             suffix=tuple(suffix),
@@ -252,7 +265,8 @@ class Executor:
         self._check_plan(prefix, suffix)
         counts = dict(s.visits)
         for name in (*prefix, *suffix):
-            counts.setdefault(name, 0)
+            if name != START_STATE:
+                counts.setdefault(name, 0)
         events.append(PlanAccepted(t, prefix, suffix))
         return replace(
             s,
@@ -297,29 +311,40 @@ class Executor:
         return MovingDiscs(frame[:, 1:3].copy(), velocities, radii)
 
     def _visit(self, s: ExecutorState, pose: np.ndarray, t: float, events: list) -> ExecutorState:
-        """Advance over every target the robot is currently in (bounded by the plan length)."""
+        """Advance over every target the robot is currently in (bounded by the plan length).
+
+        The planner's conventions (agent.ltl.planner): ``prefix[0]`` may be the virtual
+        ``"start"`` state, passed at once; a name equal to the previous one means "stay", passed
+        at once without counting a new visit.
+        """
         tolerance = self.config.dwa.xy_goal_tolerance
-        for _ in range(len(s.prefix) + len(s.suffix)):
+        for _ in range(len(s.prefix) + len(s.suffix) + 1):
             target = target_at(s.prefix, s.suffix, s.step)
             if target is None:
                 break
-            region = self.region(target)
-            near = math.dist(region.center, pose[:2]) <= tolerance
-            if not (region.contains(pose[0], pose[1]) or near):
-                break
-            counts = dict(s.visits)
-            counts[target] = counts.get(target, 0) + 1
-            events.append(RegionVisited(t, target, counts[target]))
-            s = replace(
-                s,
-                step=s.step + 1,
-                visits=tuple(counts.items()),
-                last_region=target,
-                best_remaining=math.inf,
-                progress_time=t,
-                path=None,
-                path_target=None,
-            )
+            previous = target_at(s.prefix, s.suffix, s.step - 1) if s.step > 0 else None
+            if s.step == 0 and target == START_STATE:
+                s = replace(s, step=1)
+                continue
+            stay = previous == target and s.last_region == target
+            if not stay:
+                region = self.region(target)
+                near = math.dist(region.center, pose[:2]) <= tolerance
+                if not (region.contains(pose[0], pose[1]) or near):
+                    break
+                counts = dict(s.visits)
+                counts[target] = counts.get(target, 0) + 1
+                events.append(RegionVisited(t, target, counts[target]))
+                s = replace(
+                    s,
+                    visits=tuple(counts.items()),
+                    last_region=target,
+                    best_remaining=math.inf,
+                    progress_time=t,
+                    path=None,
+                    path_target=None,
+                )
+            s = replace(s, step=s.step + 1)
             into_suffix = s.step - len(s.prefix)
             if s.suffix and into_suffix == 0:
                 s = replace(s, cycle_start=t)
@@ -469,6 +494,7 @@ class Executor:
             step=s.step,
             visits=s.visits,
             cycles=s.cycles,
+            rounds=s.rounds,
             control_cycles=s.control_cycles,
             mode=s.mode,
             stuck_count=s.stuck_count,

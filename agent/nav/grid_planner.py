@@ -53,13 +53,26 @@ class GridPath:
     goal_snapped: bool
 
 
-def nearest_free_cell(grid: OccupancyGrid, point: Sequence[float]) -> tuple[int, int] | None:
-    """The free cell ``(ix, iy)`` whose centre is nearest to ``point`` [m]; None if none is free."""
+def nearest_free_cell(
+    grid: OccupancyGrid, point: Sequence[float], toward: Sequence[float] | None = None
+) -> tuple[int, int] | None:
+    """The free cell ``(ix, iy)`` whose centre is nearest to ``point`` [m]; None if none is free.
+
+    Among the cells within one resolution of the nearest distance, the one nearest to ``toward``
+    (e.g. the start, when moving a blocked goal) is chosen, so a blocked goal is approached from
+    the near side.
+    """
     free_iy, free_ix = np.nonzero(~grid.blocked)
     if len(free_ix) == 0:
         return None
     centres = grid.center_of(np.stack([free_ix, free_iy], axis=-1))
-    k = int(np.argmin(np.sum((centres - np.asarray(point[:2], dtype=float)) ** 2, axis=1)))
+    d = np.linalg.norm(centres - np.asarray(point[:2], dtype=float), axis=1)
+    if toward is None:
+        k = int(np.argmin(d))
+    else:
+        near = np.flatnonzero(d <= d.min() + grid.resolution)
+        d_toward = np.linalg.norm(centres[near] - np.asarray(toward[:2], dtype=float), axis=1)
+        k = int(near[np.argmin(d_toward)])
     return int(free_ix[k]), int(free_iy[k])
 
 
@@ -183,8 +196,9 @@ def plan_path(
     components such as θ are ignored).
 
     A start or goal in blocked c-space (inside an inflated obstacle, or off the grid) is moved
-    to the nearest free cell; the path then begins at the true start and ends at that cell's
-    centre, and ``start_snapped``/``goal_snapped`` say so. Raises ``NoPathError`` (naming start
+    to the nearest free cell (for the goal, on the side nearer the start); the path then begins
+    at the true start and ends at that cell's centre, and ``start_snapped``/``goal_snapped``
+    say so. Raises ``NoPathError`` (naming start
     and goal) when no free cell exists or the goal's free component is not the start's.
     """
     p0 = (float(start[0]), float(start[1]))
@@ -196,7 +210,7 @@ def plan_path(
     if c0 is None:
         c0 = nearest_free_cell(grid, p0)
     if c1 is None:
-        c1 = nearest_free_cell(grid, p1)
+        c1 = nearest_free_cell(grid, p1, toward=p0)
     if c0 is None or c1 is None:
         raise NoPathError(p0, p1, "the grid has no free cell")
     result = astar_cells(grid.blocked, c0, c1)

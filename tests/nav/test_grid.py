@@ -1,0 +1,119 @@
+"""Occupancy grid: layout, exact clearance, inflation, stamping other robots, distance transform."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from agent.nav.grid import (
+    arena_clearance,
+    euclidean_distance_transform,
+    grid_from_arena,
+    grid_from_occupancy,
+    grid_from_scenario,
+)
+from agent.scenario.model import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
+
+
+def test_paper_arena_is_140_by_140_cells_with_origin_at_the_corner():
+    grid = grid_from_arena(Arena(), inflation=0.25)
+    assert grid.shape == (140, 140)
+    assert grid.origin == (-3.5, -3.5)
+    assert grid.extent == pytest.approx((-3.5, 3.5, -3.5, 3.5))
+
+
+@pytest.mark.parametrize(
+    ("point", "expected"),
+    [
+        ((0.0, 0.0), 3.5),  # centre: 3.5 m to every wall
+        ((-3.0, 0.5), 0.5),  # 0.5 m from the west wall
+        ((2.0, 3.2), 0.3),  # 0.3 m from the north wall
+        ((-3.6, 0.0), -0.1),  # outside the arena: negative
+    ],
+)
+def test_wall_clearance_is_the_distance_to_the_nearest_wall(point, expected):
+    assert float(arena_clearance(Arena(), np.array(point))) == pytest.approx(expected)
+
+
+def test_obstacle_clearance_is_exact_for_rectangles_and_discs():
+    arena = Arena(obstacles=(RectObstacle(0.0, 0.0, 1.0, 1.0), DiscObstacle((-2.0, -2.0), 0.5)))
+    pts = np.array([[2.0, 0.5], [2.0, 2.0], [0.5, 0.5], [-2.0, -1.0], [-2.0, -2.0]])
+    # right of the box by 1; off its corner by √2; inside it 0.5 from every side;
+    # 1 m from the disc centre (0.5 from its surface); at the disc centre (−0.5).
+    expected = [1.0, math.sqrt(2.0), -0.5, 0.5, -0.5]
+    assert arena_clearance(arena, pts) == pytest.approx(expected)
+
+
+def test_blocked_cells_are_those_closer_than_the_inflation_radius():
+    grid = grid_from_arena(Arena(), inflation=0.25)
+    res = grid.resolution
+    # Column of cells along y = 0: centres at x = -3.475, -3.425, ...; blocked iff x < -3.25.
+    row = grid.blocked[70]
+    centres_x = -3.5 + (np.arange(140) + 0.5) * res
+    assert np.array_equal(row, (centres_x < -3.25) | (centres_x > 3.25))
+    assert not grid.is_free(np.array([-3.3, 0.0]))
+    assert grid.is_free(np.array([-3.2, 0.0]))
+    assert not grid.is_free(np.array([5.0, 0.0]))  # off the grid
+
+
+def test_grid_from_scenario_inflates_by_robot_radius_plus_margin():
+    scenario = Scenario(
+        name="s",
+        fleet="f",
+        duration=1.0,
+        arena=Arena(),
+        regions=(Region("a", (0.0, 0.0)),),
+        robots=(Robot(1, "unicycle", (0.0, 0.0, 0.0), radius=0.3, ltl="F a"),),
+    )
+    grid = grid_from_scenario(scenario, margin=0.1)
+    assert grid.inflation == pytest.approx(0.4)
+
+
+def test_with_discs_blocks_inflated_discs_and_leaves_the_original_untouched():
+    grid = grid_from_arena(Arena(), inflation=0.25)
+    stamped = grid.with_discs(np.array([[1.0, 1.0]]), [0.2])
+    assert not stamped.is_free(np.array([1.0, 1.0]))
+    assert not stamped.is_free(np.array([1.4, 1.0]))  # 0.4 < 0.2 + 0.25
+    assert stamped.is_free(np.array([1.5, 1.0]))  # 0.5 > 0.45
+    assert float(stamped.clearance_at(np.array([1.6, 1.0]))) == pytest.approx(0.4, abs=0.04)
+    assert grid.is_free(np.array([1.0, 1.0]))
+    assert grid.with_discs(np.zeros((0, 2)), []) is grid
+
+
+def test_cell_centre_round_trip():
+    grid = grid_from_arena(Arena(), inflation=0.0)
+    cells = np.array([[0, 0], [139, 139], [70, 12]])
+    assert np.array_equal(grid.cell_of(grid.center_of(cells)), cells)
+    assert grid.center_of(np.array([0, 0])) == pytest.approx([-3.475, -3.475])
+
+
+def _brute_force_edt(occupied: np.ndarray) -> np.ndarray:
+    iy, ix = np.nonzero(occupied)
+    yy, xx = np.mgrid[0 : occupied.shape[0], 0 : occupied.shape[1]]
+    d2 = (yy[..., None] - iy) ** 2 + (xx[..., None] - ix) ** 2
+    return np.sqrt(d2.min(axis=-1))
+
+
+@settings(max_examples=60)
+@given(arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12))))
+def test_distance_transform_matches_brute_force(occupied):
+    if not occupied.any():
+        assert np.all(np.isinf(euclidean_distance_transform(occupied)))
+        return
+    assert euclidean_distance_transform(occupied) == pytest.approx(_brute_force_edt(occupied))
+
+
+def test_hand_made_grid_blocks_exactly_the_occupied_cells_without_inflation():
+    occupied = np.zeros((5, 6), dtype=bool)
+    occupied[2, 3] = True
+    grid = grid_from_occupancy(occupied, resolution=1.0)
+    assert np.array_equal(grid.blocked, occupied)
+    # Cell (ix=0, iy=2) is 3 cells from the obstacle centre and 1 cell from the border wall.
+    assert grid.clearance[2, 0] == pytest.approx(0.5)
+    assert grid.clearance[2, 3] == pytest.approx(-0.5)
+    assert grid.inflated(1.0).blocked[2, 2]
