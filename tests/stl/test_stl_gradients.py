@@ -138,7 +138,7 @@ def test_angdist_wraps_into_0_pi():
     f = compile_expr(expr, (1, 2))
     for a, b, expected in [(3.0, -3.0, 2 * math.pi - 6.0), (0.1, 0.3, 0.2),
                            (10.0, 0.0, abs(math.remainder(10.0, 2 * math.pi)))]:
-        value, grad = f([0, 0, a, 0, 0, b])
+        value, _ = f([0, 0, a, 0, 0, b])
         assert value == pytest.approx(expected)
         assert 0.0 <= value <= math.pi
         states_ = {1: np.array([[0, 0, a]]), 2: np.array([[0, 0, b]])}

@@ -1,0 +1,93 @@
+"""Scenario 1's STL robots (3, 4, 5) on the pure harness, LTL robots left out (paper §IV).
+
+Built from ``scenarios/scenario1.toml`` (phase_start_times = [30] for robots 3, 4, 5). The standard
+robustness of every sub-task is recomputed here from the trajectory by the offline monitor and
+compared with the paper's reported lower bounds.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from agent.scenario.loader import load_scenario
+from agent.stl.agent import build_agents
+from agent.stl.harness import run_closed_loop
+from agent.stl.messages import CollabRelease, CollabRequest
+from agent.stl.monitor import task_robustness
+
+# Paper §IV, Scenario 1 (φ″5: the paper prints 0.5, a typo for 0.05 per stl-funnel.md §10.2).
+PAPER_BOUNDS = {(3, 0): -0.18, (4, 0): -1.11, (5, 0): -0.12, (3, 1): 0.02, (4, 1): -0.4,
+                (5, 1): 0.05}
+
+
+@pytest.fixture(scope="module")
+def run(repo_root):
+    scenario = load_scenario(repo_root / "scenarios" / "scenario1.toml")
+    agents = build_agents(scenario, robots=[3, 4, 5])
+    for j in (3, 4, 5):
+        assert agents[j].cfg.phase_start_times == (30.0,)
+    poses = {j: scenario.robot(j).pose for j in (3, 4, 5)}
+    result = run_closed_loop(list(agents.values()), poses, scenario.duration)
+    robustness = {(j, task.index): task_robustness(task, result.trajectory)
+                  for j, agent in agents.items() for task in agent.cfg.subtasks}
+    return agents, result, robustness
+
+
+def test_robot4_goes_through_stage3_on_phi4_prime(run):
+    _, result, robustness = run
+    first = result.states[4].outcomes[0]
+    assert first.events[0] == 2 and first.events[1] == 0 and first.events[2] > 10
+    stages = [s for t, s in result.events(4) if t <= 30]
+    assert stages[:2] == [1, 1] and set(stages[2:]) == {3}
+    assert robustness[(4, 0)] >= first.final_r  # ρ^φ ≥ r̄
+
+
+def test_robot3_gets_robot4_help_through_stage2_on_phi3_second(run):
+    _, result, _ = run
+    requests = [(t, m) for t, m in result.messages if isinstance(m, CollabRequest)]
+    assert [(m.sender, m.receiver, m.subtask) for _, m in requests] == [(3, 4, 1)]
+    t_request = requests[0][0]
+    assert 30 < t_request < 57
+    assert [s for t, s in result.events(3) if t > 30][:3] == [1, 1, 2]
+    follow = [rec.t for rec in result.logs[4] if rec.follow == 3]
+    assert follow[0] == pytest.approx(t_request + 0.01)
+    second = result.states[3].outcomes[1]
+    assert second.satisfied and 57 <= second.t_done <= 58
+    releases = [(t, m.receiver) for t, m in result.messages if isinstance(m, CollabRelease)]
+    assert releases == [(second.t_done, 4)]
+    # robot 4 then goes on with φ″4 on its own funnel, re-initialised after the release
+    assert max(follow) <= second.t_done + 0.011
+    assert result.states[4].outcomes[1].t_done >= 83.0
+
+
+@pytest.mark.parametrize("key", [k for k in PAPER_BOUNDS if k != (5, 1)])
+def test_standard_robustness_meets_paper_bounds(run, key):
+    _, _, robustness = run
+    assert robustness[key] >= PAPER_BOUNDS[key]
+
+
+def test_phi5_second_is_satisfied_and_above_its_bound_rbar(run):
+    _, result, robustness = run
+    outcome = result.states[5].outcomes[1]
+    assert outcome.satisfied and robustness[(5, 1)] > 0
+    assert robustness[(5, 1)] >= outcome.final_r
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "with the default F-hold rule (stl-funnel.md §6.1 step 5) and the §8 completion rule an F task "
+    "ends just above r̄ ≤ r_frac·ρ_max = 0.0225 < 0.05; robot 5 gets 2 stage-1 repairs (front-"
+    "loaded funnel, §13 item 10), so ρ(φ″5) ≈ 0.0058. Reported to the lead, not loosened."))
+def test_phi5_second_meets_the_briefs_bound(run):
+    _, _, robustness = run
+    assert robustness[(5, 1)] >= PAPER_BOUNDS[(5, 1)]
+
+
+def test_nobody_collides(run):
+    _, result, _ = run
+    traj = result.trajectory
+    for a, b in itertools.combinations((3, 4, 5), 2):
+        gap = np.hypot(*(traj.states[a][:, :2] - traj.states[b][:, :2]).T)
+        assert gap.min() > 0.4  # two discs of radius 0.2 m

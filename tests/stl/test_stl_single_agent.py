@@ -1,0 +1,107 @@
+"""Closed-loop regression values of stl-funnel.md §11.1, §11.2 and §11.5 (single agent, Δt = 0.01 s,
+explicit Euler, normalised gradient, no disturbance, ρ^φ sampled at the control instants)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agent.stl.agent import StepInput, single_agent
+from agent.stl.control_law import ControlParams
+from agent.stl.harness import run_closed_loop
+from agent.stl.monitor import task_robustness
+from agent.stl.task import build_task
+
+G_REGION = "dist(p1, [0,-2]) <= 0.1"
+
+
+def run_single(text, start, duration, **params):
+    task = build_task(text, 1)
+    agent = single_agent(1, [task], **params)
+    result = run_closed_loop([agent], {1: (*start, 0.0)}, duration)
+    (outcome,) = result.states[1].outcomes
+    return task, result, outcome
+
+
+def test_11_1_g_task_no_event():
+    task, result, outcome = run_single(f"G[21,30] ({G_REGION})", (1, -1), 30)
+    assert result.events(1) == []
+    assert outcome.events == (0, 0, 0)
+    rho_phi = task_robustness(task, result.trajectory)
+    assert round(rho_phi, 4) == 0.0562
+    assert outcome.rho_phi == pytest.approx(rho_phi, abs=1e-12)
+    assert outcome.t_done == 30.0 and outcome.satisfied
+    # first command, §11.1: u_raw = (−1.138, −1.138) saturated to (−0.1414214, −0.1414214)
+    first = result.trajectory.states[1][1] - result.trajectory.states[1][0]
+    assert first[:2] / 0.01 == pytest.approx([-0.1414214, -0.1414214], abs=1e-6)
+
+
+def test_11_2_f_task_with_hold_rule_is_done_at_44():
+    task, result, outcome = run_single("F[44,47] (dist(p1, [-1,0.5]) <= 0.1)", (0, 2), 47)
+    assert result.events(1) == []
+    assert outcome.t_done == 44.0 and outcome.satisfied
+    assert round(task_robustness(task, result.trajectory), 7) == 0.0225018
+    # the agent stops once ρ > r and stays (done → u_nom = 0)
+    z = result.trajectory.states[1]
+    assert np.allclose(z[-1], z[(44 * 100)])
+
+
+def test_11_2_f_task_without_hold_rule():
+    task, result, outcome = run_single("F[44,47] (dist(p1, [-1,0.5]) <= 0.1)", (0, 2), 47,
+                                       control=ControlParams(hold_F_when_above_r=False))
+    assert result.events(1) == []
+    assert outcome.t_done == 44.0
+    assert round(task_robustness(task, result.trajectory), 7) == 0.0545941
+
+
+@pytest.mark.parametrize(("start", "n_events", "final_r", "rho_phi"), [
+    ((1, -1), 23, -0.4144, -0.3142),
+    ((3, -1), 107, -2.0944, -2.0623),
+])
+def test_11_5_infeasible_under_saturation(start, n_events, final_r, rho_phi):
+    task, result, outcome = run_single(f"G[5,30] ({G_REGION})", start, 30)
+    events = result.events(1)
+    assert len(events) == n_events
+    # two stage-1 repairs (r: 0.0225 → 0.01125 → 0.005625), then stage 3 only (V = {1})
+    assert [stage for _, stage in events[:2]] == [1, 1]
+    assert {stage for _, stage in events[2:]} == {3}
+    assert outcome.events == (2, 0, n_events - 2)
+    rs = [rec.r for rec in result.logs[1] if not math.isnan(rec.r)]
+    r_values = list(dict.fromkeys(rs))
+    assert r_values[:3] == pytest.approx([0.0225, 0.01125, 0.005625])
+    assert round(outcome.final_r, 4) == final_r
+    measured = task_robustness(task, result.trajectory)
+    assert round(measured, 4) == rho_phi
+    assert measured >= outcome.final_r  # ρ^φ ≥ r̄ (paper Alg. 2 line 28)
+
+
+def test_log_record_fields_and_funnel_containment_after_every_repair():
+    _, result, _ = run_single(f"G[5,30] ({G_REGION})", (1, -1), 30)
+    logs = result.logs[1]
+    for rec in logs:
+        assert rec.subtask == 0 and rec.follow is None and rec.c in (0, -1)
+        if rec.repair:  # after the repair of this step, ρ is strictly inside the new funnel
+            assert rec.lower < rec.rho < rec.rho_max
+    assert logs[-1].ce == 23
+    assert logs[0].t == 0.0 and logs[-1].t == 30.0
+
+
+def test_step_is_pure_and_idle_after_completion():
+    task = build_task("F[1,2] (dist(p1, [0.05,0]) <= 0.1)", 1)
+    agent = single_agent(1, [task])
+    state = agent.initial_state()
+    poses = {1: np.array([0.0, 0.0, 0.0])}
+    s1, out1 = agent.step(state, StepInput(0.0, poses))
+    s1b, out1b = agent.step(state, StepInput(0.0, poses))
+    assert s1 == s1b and out1 == out1b  # same inputs → same outputs, input state untouched
+    assert state == agent.initial_state()
+    # ρ = 0.05 > r: hold (u = 0) before the window, done inside it, then idle
+    assert out1.u == (0.0, 0.0, 0.0)
+    s2, _ = agent.step(s1, StepInput(1.0, poses))
+    assert s2.k == 1 and s2.c == -1 and s2.outcomes[0].satisfied
+    _, out3 = agent.step(s2, StepInput(1.01, {1: np.array([0.0, 0.0, 0.0]),
+                                              2: np.array([0.5, 0.0, 0.0])}))
+    assert out3.log.subtask == -1 and math.isnan(out3.log.rho)
+    assert out3.u[0] < 0 and out3.u[1] == 0.0  # collision avoidance stays active when idle
