@@ -40,7 +40,10 @@ from agent.ltl.formula import (
     Until,
     WeakUntil,
     Xor,
+    atoms,
 )
+
+__all__ = ["Token", "atoms", "parse", "tokenize"]
 
 _IDENT = re.compile(r"[a-z_][a-z0-9_]*")
 _SYMBOLS = ("<->", "->", "&&", "||", "[]", "<>", "&", "|", "!", "(", ")", "^")

@@ -1,0 +1,196 @@
+"""LTL → Büchi translation (ltl-planning.md §2): language = exact lasso semantics, witnesses,
+golden automata, HOA/text/dot output."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from ltl_helpers import automaton_accepts, formulas, lasso_words
+
+from agent.ltl.buchi import buchi_step, to_dot, to_text, translate
+from agent.ltl.emptiness import accepting_lassos, find_accepting_lasso, is_empty
+from agent.ltl.hoa import to_hoa
+from agent.ltl.lasso import holds
+from agent.ltl.parser import parse
+from agent.ltl.rewrite import normalize
+
+E = frozenset()
+
+
+@settings(max_examples=2000, deadline=None)
+@given(formulas(), st.lists(lasso_words(), min_size=1, max_size=4))
+def test_automaton_accepts_exactly_the_words_satisfying_the_formula(f, words):
+    buchi = translate(f)
+    for prefix, loop in words:
+        assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop), (
+            f"{f} on {prefix} ({loop})^ω"
+        )
+
+
+@settings(max_examples=500, deadline=None)
+@given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
+def test_negation_gets_the_complementary_language(f, words):
+    negated = translate(parse(f"!({f})"))
+    for prefix, loop in words:
+        assert automaton_accepts(negated, prefix, loop) != holds(f, prefix, loop)
+
+
+@settings(max_examples=500, deadline=None)
+@given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
+def test_rewriting_preserves_semantics(f, words):
+    g = normalize(f)
+    for prefix, loop in words:
+        assert holds(g, prefix, loop) == holds(f, prefix, loop), f"{f} rewritten to {g}"
+
+
+@settings(max_examples=1000, deadline=None)
+@given(formulas())
+def test_every_accepting_lasso_of_the_emptiness_check_satisfies_the_formula(f):
+    buchi = translate(f)
+    for prefix, loop in accepting_lassos(buchi):
+        assert holds(f, prefix, loop), f"{f}: witness {prefix} ({loop})^ω"
+        assert automaton_accepts(buchi, prefix, loop)
+
+
+@pytest.mark.parametrize(
+    ("text", "empty"),
+    [("a & !a", True), ("F a & G !a", True), ("G F a & F G !a", True), ("false", True),
+     ("G F a", False), ("a U b", False), ("true", False)],
+)
+def test_emptiness(text, empty):
+    buchi = translate(text)
+    assert is_empty(buchi) is empty
+    witness = find_accepting_lasso(buchi)
+    assert (witness is None) is empty
+    if witness is not None:
+        assert holds(text, *witness)
+
+
+# --------------------------------------------------------------------------- golden automata
+
+A11, A12, BOTH = frozenset({"a11"}), frozenset({"a12"}), frozenset({"a11", "a12"})
+
+
+def test_golden_automaton_of_scenario_1_task():
+    """`G F a11 & G F a12`: three states, deterministic, one accepting state reached only
+    after both propositions have been seen since the last visit to it."""
+    buchi = translate("G F a11 & G F a12")
+    assert (buchi.num_states, len(buchi.initial), len(buchi.accepting)) == (3, 1, 1)
+    assert buchi.atoms == ("a11", "a12")
+    (init,) = buchi.initial
+    (acc,) = buchi.accepting
+    for q in range(3):
+        for letter in (E, A11, A12, BOTH):
+            assert len(buchi.successors(q, letter)) == 1  # deterministic and complete
+    assert buchi.successors(init, BOTH) == (acc,)
+    assert buchi.successors(acc, BOTH) == (acc,)
+    # Alternating visits reach the accepting state at least once every two rounds …
+    states = frozenset(buchi.initial)
+    visits = []
+    for letter in [A11, E, A12, E] * 4:
+        states = buchi_step(buchi, states, letter)
+        visits.append(acc in states)
+    assert all(any(visits[i : i + 8]) for i in range(0, 9))
+    # … while visiting only one of the two regions never does.
+    for only in (A11, A12):
+        states = frozenset(buchi.initial)
+        for _ in range(6):
+            states = buchi_step(buchi, states, only)
+            assert acc not in states
+
+
+def test_golden_automaton_of_scenario_3_task():
+    """`F a1 & … & F a5`: 32 states (subsets of regions still to visit), one accepting sink."""
+    buchi = translate("F a1 & F a2 & F a3 & F a4 & F a5")
+    assert buchi.num_states == 32
+    (acc,) = buchi.accepting
+    assert buchi.edges[acc] == ((acc, buchi.alphabet.full),)  # accepting sink with `true`
+    states = frozenset(buchi.initial)
+    for k in range(1, 6):
+        assert acc not in states
+        states = buchi_step(buchi, states, frozenset({f"a{k}"}))
+    assert states == {acc}
+
+
+def test_literal_paper_formula_needs_both_propositions_at_once():
+    buchi = translate("GF(a11 & a12)")
+    assert buchi.num_states == 2
+    (acc,) = buchi.accepting
+    assert all(acc not in buchi.successors(q, A11) for q in range(2))
+    assert all(buchi.successors(q, BOTH) == (acc,) for q in range(2))
+
+
+def test_buchi_step_tracks_a_violation():
+    buchi = translate("G !a & F b")
+    states = buchi_step(buchi, frozenset(buchi.initial), frozenset({"a"}))
+    assert states == frozenset()
+
+
+# --------------------------------------------------------------------------- output formats
+
+
+def test_hoa_output_structure():
+    buchi = translate("G F a11 & G F a12")
+    text = to_hoa(buchi, name="scenario 1")
+    lines = text.splitlines()
+    assert lines[0] == "HOA: v1"
+    assert 'name: "scenario 1"' in lines
+    assert "States: 3" in lines
+    assert "Start: 0" in lines
+    assert 'AP: 2 "a11" "a12"' in lines
+    assert "acc-name: Buchi" in lines
+    assert "Acceptance: 1 Inf(0)" in lines
+    assert "deterministic" in text and "complete" in text
+    assert lines[-1] == "--END--"
+    body = lines[lines.index("--BODY--") + 1 : -1]
+    states = [line for line in body if line.startswith("State:")]
+    assert len(states) == 3
+    assert sum(line.endswith("{0}") for line in states) == 1
+    edges = [line for line in body if line.startswith("[")]
+    assert len(edges) == buchi.num_edges
+    for line in edges:
+        assert re.fullmatch(r"\[(t|f|!?\d+(&!?\d+)*( \| !?\d+(&!?\d+)*)*)\] \d+", line), line
+
+
+def test_hoa_labels_parse_back_to_the_same_guards():
+    """Read the HOA labels as LTL (0 → a11 …) and compare them with the guards letter by letter."""
+    buchi = translate("F a & G (b -> X c)")
+    body = to_hoa(buchi).split("--BODY--\n")[1]
+    state = -1
+    k = 0
+    for line in body.splitlines():
+        if line.startswith("State:"):
+            state = int(line.split()[1])
+            k = 0
+        elif line.startswith("["):
+            label, dst = line[1:].split("] ")
+            ltl = re.sub(r"\d+", lambda m: buchi.atoms[int(m.group())], label)
+            ltl = ltl.replace("t", "true") if ltl == "t" else ltl
+            edge_dst, guard = buchi.edges[state][k]
+            assert int(dst) == edge_dst
+            for v in range(1 << len(buchi.atoms)):
+                letter = frozenset(a for i, a in enumerate(buchi.atoms) if v >> i & 1)
+                assert holds(ltl, [letter], [E]) == bool(guard >> v & 1)
+            k += 1
+
+
+def test_text_and_dot_renderings():
+    buchi = translate("F a & G !b")
+    text = to_text(buchi)
+    assert "2 states" in text and "(initial)" in text and "(accepting)" in text
+    assert "a & !b" in text
+    dot = to_dot(buchi)
+    assert dot.startswith('digraph "buchi" {') and dot.rstrip().endswith("}")
+    assert dot.count("doublecircle") == len(buchi.accepting)
+    assert dot.count(" -> ") == buchi.num_edges + len(buchi.initial)
+
+
+def test_translate_accepts_text_and_reports_syntax_errors():
+    from agent.errors import FormulaSyntaxError
+
+    assert translate("G F a").num_states == translate(parse("G F a")).num_states
+    with pytest.raises(FormulaSyntaxError, match="column 4"):
+        translate("G F")
