@@ -17,7 +17,7 @@ from __future__ import annotations
 import heapq
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -279,3 +279,24 @@ def path_length_function(
         return cache[key]
 
     return distance
+
+
+def with_penalised_edges(
+    distance: Callable[[Sequence[float], Sequence[float]], float],
+    edges: Iterable[tuple[Sequence[float], Sequence[float]]],
+    penalty: float,
+) -> Callable[[Sequence[float], Sequence[float]], float]:
+    """``distance`` with ``penalty`` [m] added on the directed edges ``(p, q)`` given (points
+    matched to 1 mm): how a ``ReplanRequest`` (blocked edge from region centre p to q) becomes
+    edge weights for the LTL planner's replanning (ltl-planning.md §5)."""
+
+    def key(p: Sequence[float]) -> Point:
+        return (round(float(p[0]), 3), round(float(p[1]), 3))
+
+    blocked = frozenset((key(p), key(q)) for p, q in edges)
+
+    def penalised(p: Sequence[float], q: Sequence[float]) -> float:
+        extra = penalty if (key(p), key(q)) in blocked else 0.0
+        return distance(p, q) + extra
+
+    return penalised

@@ -187,6 +187,7 @@ class ExecutorController:
 
     Holds the executor state between ticks and records every output; ``ids[i]`` is the robot id
     of harness index ``i`` (used to build the ``(id, x, y, θ)`` pose frame of the others).
+    Setting ``pending_plan`` hands a new plan to the executor on the next tick.
     """
 
     def __init__(self, executor, state, ids: Sequence[int]):
@@ -195,6 +196,7 @@ class ExecutorController:
         self.ids = tuple(ids)
         self.outputs: list = []
         self.events: list = []
+        self.pending_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
 
     def __call__(self, t: float, index: int, poses: np.ndarray) -> tuple[float, float]:
         from agent.nav.executor import ExecutorInputs
@@ -202,9 +204,11 @@ class ExecutorController:
         ids = np.asarray(self.ids, dtype=float)[:, None]
         frame = np.hstack([ids, poses])
         others = np.delete(frame, index, axis=0)
-        self.state, out = self.executor.step(
-            self.state, ExecutorInputs(t=t, pose=tuple(poses[index]), others=others)
+        inputs = ExecutorInputs(
+            t=t, pose=tuple(poses[index]), others=others, new_plan=self.pending_plan
         )
+        self.pending_plan = None
+        self.state, out = self.executor.step(self.state, inputs)
         self.outputs.append(out)
         self.events.extend(out.events)
         return out.v, out.omega

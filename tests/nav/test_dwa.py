@@ -107,8 +107,9 @@ def test_robot_in_a_static_ring_of_robots_only_turns_in_place():
     angles = np.linspace(0, 2 * math.pi, 12, endpoint=False)
     ring = 0.45 * np.stack([np.cos(angles), np.sin(angles)], axis=1)
     path = np.array([[0.0, 0.0], [2.0, 0.0]])
-    result = dwa_control((0.0, 0.0, 0.3), (0.2, 0.0), path, GRID, 0.2,
-                         MovingDiscs.static(ring, 0.2), CONFIG)
+    result = dwa_control(
+        (0.0, 0.0, 0.3), (0.2, 0.0), path, GRID, 0.2, MovingDiscs.static(ring, 0.2), CONFIG
+    )
     assert result.n_valid > 0
     assert result.v == 0.0
     assert result.omega < 0.0  # towards the path heading (θ = 0)
@@ -119,8 +120,12 @@ def test_robot_facing_a_wall_does_not_drive_into_it():
     # the path goal lies along the wall, the DWA must not pick a rollout that hits it.
     path = np.array([[3.05, 0.0], [3.05, 2.0]])
     result = dwa_control((3.05, 0.0, 0.0), (0.3, 0.0), path, GRID, 0.2, None, CONFIG)
-    points, _ = rollouts((3.05, 0.0, 0.0), np.array([result.v]), np.array([result.omega]),
-                         np.linspace(0.1, CONFIG.sim_time, 13))
+    points, _ = rollouts(
+        (3.05, 0.0, 0.0),
+        np.array([result.v]),
+        np.array([result.omega]),
+        np.linspace(0.1, CONFIG.sim_time, 13),
+    )
     assert np.all(GRID.clearance_at(points[0]) >= 0.2)
 
 
@@ -174,8 +179,9 @@ def test_two_robots_crossing_head_on_both_arrive_without_contact():
     controllers = []
     for robot_id, goal in ((1, "east"), (2, "west")):
         executor = Executor.from_scenario(scenario, robot_id)
-        controllers.append(ExecutorController(executor, executor.initial_state((goal,), ()),
-                                              [1, 2]))
+        controllers.append(
+            ExecutorController(executor, executor.initial_state((goal,), ()), [1, 2])
+        )
     result = simulate([SimRobot(r.pose) for r in robots], controllers, 40.0, ARENA)
     assert result.contacts == ()
     assert result.min_robot_gap > 0.1

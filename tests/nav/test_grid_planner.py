@@ -195,3 +195,12 @@ def test_distance_goes_around_obstacles_is_symmetric_and_cached(monkeypatch):
     assert distance((2.0, -2.0), (-2.0, -2.0)) == d
     assert len(calls) == 1
     assert distance((-2.0, -2.0), (-2.0, -2.0)) == 0.0
+
+
+def test_penalised_edges_add_the_penalty_in_the_blocked_direction_only():
+    distance = path_length_function(grid_from_arena(Arena(), inflation=0.25))
+    a11, a12 = (-2.0, -2.5), (-2.0, 2.5)
+    penalised = grid_planner.with_penalised_edges(distance, [(a11, a12)], penalty=10.0)
+    assert penalised(a11, a12) == pytest.approx(15.0)
+    assert penalised(a12, a11) == pytest.approx(5.0)
+    assert penalised((-2.0, -2.5001), a12) == pytest.approx(15.0, abs=1e-3)  # matched to 1 mm

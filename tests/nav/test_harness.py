@@ -81,8 +81,14 @@ def test_no_contact_when_robots_stay_apart():
 def test_disturbance_is_bounded_and_reproducible_with_a_seeded_generator():
     config = HarnessConfig(disturbance=0.05)
     runs = [
-        simulate([SimRobot((0.0, 0.0, 0.0))], [constant(0.0, 0.0)], 2.0, Arena(), config,
-                 rng=np.random.default_rng(7))
+        simulate(
+            [SimRobot((0.0, 0.0, 0.0))],
+            [constant(0.0, 0.0)],
+            2.0,
+            Arena(),
+            config,
+            rng=np.random.default_rng(7),
+        )
         for _ in range(2)
     ]
     assert np.array_equal(runs[0].poses, runs[1].poses)
@@ -93,12 +99,22 @@ def test_disturbance_is_bounded_and_reproducible_with_a_seeded_generator():
 
 def test_disturbance_without_a_generator_is_rejected():
     with pytest.raises(ValueError, match="Generator"):
-        simulate([SimRobot((0.0, 0.0, 0.0))], [constant(0.0, 0.0)], 1.0, Arena(),
-                 HarnessConfig(disturbance=0.1))
+        simulate(
+            [SimRobot((0.0, 0.0, 0.0))],
+            [constant(0.0, 0.0)],
+            1.0,
+            Arena(),
+            HarnessConfig(disturbance=0.1),
+        )
 
 
 def test_stop_condition_ends_the_run_early():
-    result = simulate([SimRobot((0.0, 0.0, 0.0))], [constant(0.3, 0.0)], 10.0, Arena(),
-                      stop=lambda t, poses: poses[0, 0] > 1.0)
+    result = simulate(
+        [SimRobot((0.0, 0.0, 0.0))],
+        [constant(0.3, 0.0)],
+        10.0,
+        Arena(),
+        stop=lambda t, poses: poses[0, 0] > 1.0,
+    )
     assert result.duration < 5.0
     assert result.poses[-1, 0, 0] > 1.0

@@ -1,0 +1,216 @@
+"""Navigation benchmark (tracker issue 4): DWA cycle, global plan, executor step, harness speed.
+
+Plain script: ``python bench/nav_bench.py [--quick] [--runs N] [--output PATH]``. Every figure is
+the median over ``runs`` runs (≥ 5) of a per-call time, each run timing a batch of calls; prints a
+table and writes JSON (default ``bench/results/nav_bench.json``). Targets from the issue:
+one DWA cycle with 5 other robots ≤ 2 ms, one global plan across the 7 × 7 m arena at 0.05 m
+≤ 20 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control  # noqa: E402
+from agent.nav.executor import Executor, ExecutorInputs  # noqa: E402
+from agent.nav.grid import grid_from_arena  # noqa: E402
+from agent.nav.grid_planner import path_length_function, plan_path  # noqa: E402
+from agent.nav.harness import ExecutorController, SimRobot, simulate  # noqa: E402
+from agent.scenario.model import Arena, RectObstacle, Region, Robot, Scenario  # noqa: E402
+
+DEFAULT_OUTPUT = ROOT / "bench" / "results" / "nav_bench.json"
+
+
+def per_call(fn: Callable[[], object], calls: int, runs: int) -> dict:
+    """Median and spread over ``runs`` of the mean time per call [ms] of ``calls`` calls."""
+    fn()  # warm-up
+    samples = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        samples.append((time.perf_counter() - t0) / calls * 1e3)
+    return {
+        "median_ms": statistics.median(samples),
+        "min_ms": min(samples),
+        "max_ms": max(samples),
+        "runs": runs,
+        "calls_per_run": calls,
+    }
+
+
+def five_other_robots() -> MovingDiscs:
+    """Five robots around a robot at the origin heading east, some crossing its path."""
+    centers = np.array([[0.8, 0.3], [1.2, -0.6], [-0.7, 0.7], [0.3, -1.1], [1.6, 1.0]])
+    velocities = np.array([[-0.2, 0.0], [0.0, 0.25], [0.1, -0.1], [0.0, 0.3], [-0.15, -0.15]])
+    return MovingDiscs(centers, velocities, np.full(5, 0.2))
+
+
+def scenario_with_fleet() -> Scenario:
+    regions = (Region("a11", (-2.0, -2.5)), Region("a12", (-2.0, 2.5)))
+    robots = [Robot(1, "unicycle", (-2.0, -2.5, math.pi / 2), ltl="G F a11 & G F a12")]
+    robots += [Robot(k, "unicycle", (-2.0 + 0.9 * k, 0.4 * (-1) ** k, 0.0)) for k in range(2, 7)]
+    return Scenario("bench", "bench", 90.0, Arena(), regions, tuple(robots))
+
+
+def bench_dwa(runs: int, calls: int) -> dict:
+    grid = grid_from_arena(Arena(), 0.25)
+    path = plan_path(grid, (-2.0, 0.0), (2.5, 0.0)).waypoints
+    others = five_other_robots()
+    config = DwaConfig()
+    pose = (0.0, 0.0, 0.1)
+    result = dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, config)
+    out = per_call(
+        lambda: dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, config), calls, runs
+    )
+    out["samples_per_cycle"] = config.vx_samples * (config.vtheta_samples + 1)
+    out["admissible"] = result.n_valid
+    return out
+
+
+def bench_global_plans(runs: int, calls: int) -> dict:
+    empty = grid_from_arena(Arena(), 0.25)
+    walled = grid_from_arena(Arena(obstacles=(RectObstacle(-0.1, -3.5, 0.1, 2.5),)), 0.25)
+    crowd = empty.with_discs(
+        np.array([[0.0, 0.0], [1.0, 1.2], [-1.0, -0.8], [2.0, 2.2], [-2.2, -1.9]]), 0.5
+    )
+    start, goal = (-3.2, -3.2), (3.2, 3.2)
+    cases = {
+        "plan_corner_to_corner_empty_arena": (empty, start, goal),
+        "plan_corner_to_corner_5_robots_stamped": (crowd, start, goal),
+        "plan_around_a_6m_wall": (walled, (-2.0, -2.0), (2.0, -2.0)),
+    }
+    out = {}
+    for name, (grid, a, b) in cases.items():
+        path = plan_path(grid, a, b)
+        out[name] = per_call(lambda g=grid, a=a, b=b: plan_path(g, a, b), calls, runs)
+        out[name]["length_m"] = path.length
+        out[name]["grid_shape"] = list(grid.shape)
+    out["grid_build_arena"] = per_call(lambda: grid_from_arena(Arena(), 0.25), calls, runs)
+    regions = [(-1.5, -1.5), (1.5, -1.5), (1.5, 1.5), (-1.5, 1.5), (0.0, 0.0)]
+    walled_arena = Arena(obstacles=(RectObstacle(-0.1, -3.5, 0.1, 1.0),))
+
+    def all_pairs() -> None:
+        distance = path_length_function(grid_from_arena(walled_arena, 0.0), robot_radius=0.2)
+        for p in regions:
+            for q in regions:
+                distance(p, q)
+
+    out["distance_all_pairs_5_regions_with_wall_uncached"] = per_call(all_pairs, 1, runs)
+    return out
+
+
+def bench_executor(runs: int, calls: int) -> dict:
+    scenario = scenario_with_fleet()
+    executor = Executor.from_scenario(scenario, 1)
+    state = executor.initial_state(("a11",), ("a12", "a11"))
+    frame = np.array([[r.id, *r.pose] for r in scenario.robots[1:]], dtype=float)
+    pose = (-2.0, -1.0, math.pi / 2)
+    state, _ = executor.step(state, ExecutorInputs(0.0, pose, frame))
+    # A step that re-plans the global path (every replan_period) and one that only runs DWA.
+    replanning = per_call(
+        lambda: executor.step(state, ExecutorInputs(5.0, pose, frame)), calls, runs
+    )
+    dwa_only = per_call(lambda: executor.step(state, ExecutorInputs(0.2, pose, frame)), calls, runs)
+    return {
+        "executor_step_with_global_replan_5_others": replanning,
+        "executor_step_dwa_only_5_others": dwa_only,
+    }
+
+
+def bench_harness(runs: int, sim_seconds: float) -> dict:
+    scenario = scenario_with_fleet()
+    arena = scenario.arena
+
+    def run_executor() -> None:
+        executor = Executor.from_scenario(scenario, 1)
+        controller = ExecutorController(
+            executor,
+            executor.initial_state(("a11",), ("a12", "a11")),
+            [r.id for r in scenario.robots],
+        )
+        parked = [lambda t, i, p: (0.0, 0.0)] * (len(scenario.robots) - 1)
+        simulate(
+            [SimRobot(r.pose) for r in scenario.robots], [controller, *parked], sim_seconds, arena
+        )
+
+    def run_open_loop() -> None:
+        robots = [SimRobot(r.pose) for r in scenario.robots]
+        simulate(robots, [lambda t, i, p: (0.1, 0.2)] * len(robots), sim_seconds, arena)
+
+    out = {}
+    for name, fn in (
+        ("harness_6_robots_open_loop", run_open_loop),
+        ("harness_6_robots_one_executor", run_executor),
+    ):
+        timing = per_call(fn, 1, runs)
+        timing["sim_seconds"] = sim_seconds
+        timing["realtime_factor"] = sim_seconds / (timing["median_ms"] / 1e3)
+        out[name] = timing
+    return out
+
+
+TARGETS_MS = {"dwa_cycle_5_others": 2.0, "plan_corner_to_corner_empty_arena": 20.0}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smoke run: few calls, 5 runs")
+    parser.add_argument("--runs", type=int, default=None, help="runs per figure (≥ 5)")
+    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
+    args = parser.parse_args(argv)
+    runs = max(5, args.runs or (5 if args.quick else 9))
+    calls = 3 if args.quick else 50
+    sim_seconds = 5.0 if args.quick else 30.0
+
+    results: dict[str, dict] = {"dwa_cycle_5_others": bench_dwa(runs, calls)}
+    results.update(bench_global_plans(runs, max(1, calls // 5)))
+    results.update(bench_executor(runs, max(1, calls // 5)))
+    results.update(bench_harness(runs, sim_seconds))
+
+    print(f"{'benchmark':52s} {'median':>10s} {'min':>10s} {'max':>10s}  target / note")
+    for name, r in results.items():
+        note = f"≤ {TARGETS_MS[name]:g} ms" if name in TARGETS_MS else ""
+        if "realtime_factor" in r:
+            note = f"{r['realtime_factor']:.0f}× real time ({r['sim_seconds']:g} s simulated)"
+        if "length_m" in r:
+            note = (note + f"  path {r['length_m']:.2f} m").strip()
+        print(
+            f"{name:52s} {r['median_ms']:8.3f}ms {r['min_ms']:8.3f}ms {r['max_ms']:8.3f}ms  {note}"
+        )
+    payload = {
+        "benchmark": "nav",
+        "quick": args.quick,
+        "runs": runs,
+        "machine": {
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+            "numpy": np.__version__,
+        },
+        "targets_ms": TARGETS_MS,
+        "results": results,
+        "meets_targets": {k: results[k]["median_ms"] <= v for k, v in TARGETS_MS.items()},
+    }
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(payload, indent=2) + "\n")
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
