@@ -79,7 +79,11 @@ class Funnel:
         p = params
         base = max(0.0, rho0)
         rho_max = base + p.rho_max_frac * (rho_opt - base)
-        zeta_u = (rho_opt - rho_max) / max(p.n_stage1, 2)
+        if rho_max < rho0 + p.guard_a_eps:
+            # ρ_0 at (or numerically above) the supremum ρ_opt: no admissible ρ_max in
+            # (ρ_0, ρ_opt) exists, so lift it just above ρ_0 as Guard A does (§7.3) [OUR CHOICE].
+            rho_max = rho0 + p.guard_a_eps
+        zeta_u = max(0.0, rho_opt - rho_max) / max(p.n_stage1, 2)
         r = rho_max * (0.5 * float(rng.uniform()) if rng is not None else p.r_frac)
         t_star = a if kind == "G" else a + p.f_tstar_frac * (b - a)
         late = t_star - t_r <= p.tau_min
