@@ -40,23 +40,13 @@ from agent.stl.messages import (
     Message,
     StatusAnnounce,
 )
+from agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
 from agent.stl.sequencer import build_sequence, check_phase_start_times
 from agent.stl.task import Task
 
 logger = logging.getLogger(__name__)
 
 NO_REPAIR = 0
-
-
-@dataclass(frozen=True)
-class ProtocolParams:
-    """Collaboration options (stl-funnel.md §7, §15); defaults are the documented [OUR CHOICE]s."""
-
-    stage2_entry_repair: bool = True  # run R1–R10 (stage 2) on entering stage 2 (paper Alg. 2)
-    stage2_repeat_broadcast: bool = True  # later events while c_i = i: stage-3 repair + update
-    reset_ce_on_release: bool = False  # keep ce when a follower re-initialises
-    release_on_window_end: bool = True  # release followers when the window ends unsatisfied
-    first_come_follow: bool = True  # ignore further requests while following
 
 
 @dataclass(frozen=True)
@@ -143,39 +133,6 @@ class StepOutput:
     log: LogRecord
 
 
-def stage2_enabled(robot_id: int, task: Task, c: int,
-                   peers: Mapping[int, StatusAnnounce]) -> bool:
-    """Stage-2 enabling rule (stl-funnel.md §7.4, authors' ``detectStageTwo``).
-
-    True iff someone can help (V_i ≠ {i}), c_i ≠ i, and every v ∈ V_i∖{i} is done (c_v = −1, or its
-    whole sequence is done) or works on its own task (c_v = 0) with a relevant deadline (b_v for F,
-    a_v for G) later than b_i. A peer whose status is unknown blocks stage 2.
-    """
-    others = [v for v in task.v_ctrl if v != robot_id]
-    if not others or c == robot_id:
-        return False
-    for v in others:
-        status = peers.get(v)
-        if status is None:
-            return False
-        if status.all_done or status.c == -1:
-            continue
-        if status.c == 0 and status.kind is not None and status.relevant_deadline > task.b:
-            continue
-        return False
-    return True
-
-
-def choose_stage(ce: int, n_stage1: int, c: int, robot_id: int, stage2_ok: bool) -> int:
-    """Alg. 2 lines 7–17: 1 while ce ≤ N_i; then 2 (entry if enabled, or repeat while c_i = i);
-    else 3."""
-    if ce <= n_stage1:
-        return 1
-    if c == robot_id or stage2_ok:
-        return 2
-    return 3
-
-
 class StlAgent:
     """The step function of one STL agent bound to its immutable :class:`AgentConfig`."""
 
@@ -242,7 +199,9 @@ class StlAgent:
                     peers = dict(peers)
                 peers[msg.sender] = msg
             elif isinstance(msg, CollabRequest):
-                if msg.sender == i:
+                if msg.sender == i or state.c == i:
+                    # [OUR CHOICE] a requester (c_i = i) keeps steering its own funnel: following
+                    # someone else would strand its own followers.
                     continue
                 if follow is None or follow == msg.sender or not cfg.protocol.first_come_follow:
                     if (msg.sender, msg.subtask) not in cfg.library:
@@ -332,6 +291,15 @@ class StlAgent:
             rho_log = rho
             log_funnel = follow_funnel
             z = follow_funnel.zeta(rho, t)
+            if cfg.protocol.followers_detect and not -1.0 < z < 0.0:
+                ce += 1
+                stage = 1 if ce <= fp.n_stage1 else 3
+                follow_funnel = follow_funnel.repair(stage, rho, t, fp)
+                repaired = stage
+                events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
+                changes.update(follow_funnel=follow_funnel, ce=ce, stage=stage, events=events)
+                log_funnel = follow_funnel
+                z = follow_funnel.zeta(rho, t)
             if g is not None:
                 b0 = ftask.block(i)
                 g = g[b0:b0 + 3]
@@ -406,7 +374,7 @@ class StlAgent:
 
 def build_agents(scenario, *, funnel: FunnelParams | None = None,
                  control: ControlParams | None = None,
-                 protocol: ProtocolParams = ProtocolParams(),
+                 protocol: ProtocolParams | None = None,
                  robots: Sequence[int] | None = None,
                  warn: bool = True) -> dict[int, StlAgent]:
     """One :class:`StlAgent` per STL robot of a loaded ``agent.scenario.model.Scenario``.
@@ -443,7 +411,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
             control=cparams,
             collision=CollisionParams(r1=p.r1, r_sense=p.r_sense, beta=p.beta,
                                       umax_lin=cparams.umax_lin),
-            protocol=protocol,
+            protocol=protocol or ProtocolParams(),
         )
         agents[robot_id] = StlAgent(config)
     return agents

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from agent.control.collision import CollisionParams
-from agent.stl.agent import StepInput, choose_stage, single_agent, stage2_enabled
+from agent.stl.agent import StepInput, single_agent
 from agent.stl.funnel import Funnel
 from agent.stl.harness import run_closed_loop
 from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
 from agent.stl.monitor import task_robustness
+from agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
 from agent.stl.sequencer import build_sequence
 
 PSI_3 = "dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7"
@@ -129,3 +131,26 @@ def test_11_7_with_zero_latency_keeps_the_story():
     assert o3.satisfied
     assert task_robustness(tasks[3][0], result.trajectory) > 0.02
     assert not math.isnan(result.states[4].outcomes[0].rho_phi)
+
+
+def test_requester_ignores_requests_and_followers_detect_option():
+    a3, a4, tasks = make_pair()
+    poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
+    s3, _ = a3.step(a3.initial_state(), StepInput(30.0, poses))
+    requesting = replace(s3, c=3)
+    foreign = CollabRequest(sender=4, receiver=3, subtask=0, funnel=s3.funnel, c=4)
+    after, _ = a3.step(requesting, StepInput(30.01, poses, (foreign,)))
+    assert after.follow is None
+    # followers_detect=True (the authors' code): a follower repairs its local copy, no messages
+    lib = dict(a4.cfg.library)
+    detecting = single_agent(4, tasks[4], library=lib, peers=[3],
+                             protocol=ProtocolParams(followers_detect=True))
+    s4, _ = detecting.step(detecting.initial_state(), StepInput(30.0, poses))
+    tight = Funnel.init("F", 57, 58, tasks[3][0].rho_opt, -1.3, 30.0)
+    request = CollabRequest(sender=3, receiver=4, subtask=0, funnel=tight, c=3)
+    s4, _ = detecting.step(s4, StepInput(40.0, poses, (request,)))  # ρ below the lower boundary
+    assert s4.follow == 3 and s4.ce == 1 and s4.events == (1, 0, 0)
+    assert s4.follow_funnel.t_r == 40.0
+    plain, _ = a4.step(a4.step(a4.initial_state(), StepInput(30.0, poses))[0],
+                       StepInput(40.0, poses, (request,)))
+    assert plain.ce == 0 and plain.follow_funnel == tight  # default: followers do not detect
