@@ -9,13 +9,24 @@ all three entries would mix units.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 
-def saturate(u: tuple[float, float, float], umax_lin: float,
-             umax_ang: float) -> tuple[float, float, float]:
-    """Saturated (v_x, v_y, ω): planar part scaled onto the disc of radius ``umax_lin`` [m/s],
-    ω clipped to [−``umax_ang``, ``umax_ang``] [rad/s]."""
+def saturate(u: tuple[float, float, float], umax_lin: float, umax_ang: float,
+             mode: Literal["separate", "norm"] = "separate") -> tuple[float, float, float]:
+    """Saturated (v_x, v_y, ω).
+
+    ``separate`` (default): planar part scaled onto the disc of radius ``umax_lin`` [m/s], ω
+    clipped to [−``umax_ang``, ``umax_ang``] [rad/s]. ``norm``: the paper's literal form,
+    u := u_max·u/‖u‖ over all three entries with u_max = ``umax_lin``.
+    """
     vx, vy, w = u
+    if mode == "norm":
+        length = math.sqrt(vx * vx + vy * vy + w * w)
+        if length > umax_lin:
+            k = umax_lin / length
+            return vx * k, vy * k, w * k
+        return vx, vy, w
     speed = math.hypot(vx, vy)
     if speed > umax_lin:
         k = umax_lin / speed

@@ -345,14 +345,14 @@ class StlAgent:
                 u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
                                          cp.k_eps)
             log_funnel = funnel
-        u_nom = saturate(u_nom, cp.umax_lin, cp.umax_ang)
+        u_nom = saturate(u_nom, cp.umax_lin, cp.umax_ang, cp.saturation)
 
         # 6. collision avoidance and mixing (eq. (6)) -------------------------------------
         col = cfg.collision
         own_pose = poses[i]
         neighbours = [(p[0], p[1]) for j, p in poses.items() if j != i]
         u_col = collision_velocity((own_pose[0], own_pose[1]), neighbours, col)
-        u = mix(u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang)
+        u = mix(u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang, cp.saturation)
 
         if changes:
             state = replace(state, **changes)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,8 @@ class ControlParams:
     normalize_grad: bool = True  # §6.1 step 1 [OUR CHOICE, code behaviour]
     k_eps: float = 1.0  # §6.1 step 2 [AUTHORS' CODE: no gain]
     hold_F_when_above_r: bool = True  # §6.1 step 5 [OUR CHOICE, code behaviour]
+    saturation: Literal["separate", "norm"] = "separate"  # §6.1 step 4 [OUR CHOICE]; "norm" is
+    # the paper's single norm over (v_x, v_y, ω) with u_max = umax_lin
 
 
 def nominal_velocity(eps: float, grad_i: Sequence[float] | None, normalize: bool = True,

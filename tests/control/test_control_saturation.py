@@ -38,3 +38,11 @@ def test_mix_is_eq6():
         (-0.2, 0.0, 0.5))
     assert mix((0.05, 0.0, 0.0), (0.0, 0.01, 0.0), 2.0, 0.2, 6.28) == pytest.approx(
         (0.05, 0.02, 0.0))
+
+
+def test_norm_mode_is_the_papers_single_norm():
+    u = saturate((0.3, 0.0, 0.4), 0.2, 6.28, mode="norm")
+    assert u == pytest.approx((0.12, 0.0, 0.16))
+    assert saturate((0.1, 0.0, 0.1), 0.2, 6.28, mode="norm") == (0.1, 0.0, 0.1)
+    assert mix((0.3, 0.0, 0.4), (0.0, 0.0, 0.0), 2.0, 0.2, 6.28, mode="norm") == pytest.approx(
+        (0.12, 0.0, 0.16))
