@@ -24,6 +24,7 @@ command (the dynamic window of one controller period).
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -47,6 +48,8 @@ from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, gr
 from agent.nav.grid_planner import plan_path
 from agent.nav.polyline import polyline_length, remaining_polyline
 from agent.scenario.model import Region, Scenario
+
+log = logging.getLogger(__name__)
 
 NAVIGATE, ROTATE, BACK_OFF, HOLD = "navigate", "rotate", "back_off", "hold"
 START_STATE = "start"  # the LTL planner's virtual initial state (robot in no region)
@@ -252,6 +255,8 @@ class Executor:
         else:
             s, command = self._navigate(s, pose, t, others, events)
         s = replace(s, command=command)
+        for event in events:
+            log.debug("t=%.2f %s", t, event)
         return s, ExecutorOutputs(
             v=command[0],
             omega=command[1],
@@ -268,11 +273,14 @@ class Executor:
             if name != START_STATE:
                 counts.setdefault(name, 0)
         events.append(PlanAccepted(t, prefix, suffix))
-        return replace(
+        # prefix[0] is where the planner assumes the robot is: the last region it visited (when
+        # replanning from there) is taken as reached, without counting a new visit.
+        start_step = 1 if prefix and prefix[0] == s.last_region else 0
+        s = replace(
             s,
             prefix=prefix,
             suffix=suffix,
-            step=0,
+            step=start_step,
             mode=NAVIGATE,
             mode_since=t,
             visits=tuple(counts.items()),
@@ -280,8 +288,12 @@ class Executor:
             path_target=None,
             best_remaining=math.inf,
             progress_time=t,
-            cycle_start=None,
+            cycle_start=t if start_step == len(prefix) else None,
         )
+        if self._finished(s):
+            events.append(PlanFinished(t, s.last_region or prefix[-1]))
+            s = replace(s, mode=HOLD, mode_since=t)
+        return s
 
     def _local_obstacles(
         self, s: ExecutorState, inputs: ExecutorInputs, pose: np.ndarray, t: float
@@ -421,13 +433,13 @@ class Executor:
     ) -> tuple[ExecutorState, tuple[float, float]]:
         cfg = self.config
         target = s.target
-        assert target is not None  # navigate mode always has a target (HOLD otherwise)
+        if target is None:  # past the end of a finite plan: nothing to drive to
+            return replace(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
         if s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period:
             grid = self.grid
             if len(others):
-                centers, radii = self._keep_right(pose, others.centers, others.radii)
-                grid = grid.with_discs(centers, radii + cfg.other_robot_margin)
+                grid = grid.with_discs(*self._stamps(pose, others))
             try:
                 path = plan_path(grid, pose[:2], goal).waypoints
                 s = replace(s, path=path, path_target=target, path_time=t)
@@ -449,25 +461,41 @@ class Executor:
             s = replace(s, best_remaining=remaining, progress_time=t)
         elif t - s.progress_time >= cfg.stuck_timeout:
             events.append(Stuck(t, target, s.progress_time, (float(pose[0]), float(pose[1]))))
+            log.info("stuck on the way to %s since t=%.1f s: recovering", target, s.progress_time)
             s = replace(s, mode=ROTATE, mode_since=t, stuck_count=s.stuck_count + 1)
             command = self._ramp(s.command, (0.0, 0.0))
         return s, command
 
-    def _keep_right(
-        self, pose: np.ndarray, centers: np.ndarray, radii: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Discs to stamp for the other robots: each robot ahead gets a second disc shifted by
-        ``keep_right_offset`` [m] to our left, so the global path passes it on our right (we keep
-        right). Two robots meeting head-on then pick opposite sides in the world instead of
-        mirroring each other into a deadlock."""
-        offset = self.config.keep_right_offset
+    def _stamps(self, pose: np.ndarray, others: MovingDiscs) -> tuple[np.ndarray, np.ndarray]:
+        """Discs (centres (J, 2), radii (J,)) [m] that put the other robots into the global grid.
+
+        Each robot is stamped with radius ``r + other_robot_margin``, shrunk where needed so that
+        our own position stays outside its inflated disc (a robot that close, such as an STL robot
+        escorting us, is left to the DWA). Each robot ahead gets a second disc shifted by
+        ``keep_right_offset`` to our left, so the path passes it on our right (we keep right):
+        two robots meeting head-on then pick opposite sides in the world instead of mirroring
+        each other into a deadlock.
+        """
+        cfg = self.config
+        centers = others.centers
+        gap = (
+            np.linalg.norm(centers - pose[:2], axis=1) - self.grid.inflation - self.grid.resolution
+        )
+        radii = np.minimum(others.radii + cfg.other_robot_margin, gap)
         heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
-        ahead = (centers - pose[:2]) @ heading > 0.0
-        if offset == 0.0 or not np.any(ahead):
-            return centers, radii
-        left = np.array([-heading[1], heading[0]])
-        shifted = centers[ahead] + offset * left[None, :]
-        return np.vstack([centers, shifted]), np.concatenate([radii, radii[ahead]])
+        ahead = ((centers - pose[:2]) @ heading > 0.0) & (radii > 0.0)
+        if cfg.keep_right_offset > 0.0 and np.any(ahead):
+            left = np.array([-heading[1], heading[0]])
+            shifted = centers[ahead] + cfg.keep_right_offset * left[None, :]
+            shift_gap = (
+                np.linalg.norm(shifted - pose[:2], axis=1)
+                - self.grid.inflation
+                - self.grid.resolution
+            )
+            centers = np.vstack([centers, shifted])
+            radii = np.concatenate([radii, np.minimum(radii[ahead], shift_gap)])
+        keep = radii > 0.0
+        return centers[keep], radii[keep]
 
     def _settle(
         self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from agent.nav.events import NavEvent
+from agent.nav.executor import Executor, ExecutorInputs, ExecutorOutputs, ExecutorState
 from agent.nav.grid import arena_clearance
 from agent.scenario.model import Arena, UnicycleLimits
 
@@ -83,7 +85,8 @@ class HarnessResult:
 
     @property
     def duration(self) -> float:
-        return float(self.times[-1])
+        """Simulated time covered [s]."""
+        return float(self.times[-1] - self.times[0])
 
 
 def _uniform_disc(rng: np.random.Generator, n: int, bound: float) -> np.ndarray:
@@ -101,8 +104,11 @@ def simulate(
     config: HarnessConfig | None = None,
     rng: np.random.Generator | None = None,
     stop: Callable[[float, np.ndarray], bool] | None = None,
+    t0: float = 0.0,
 ) -> HarnessResult:
     """Run the closed loop for ``duration`` [s] (or until ``stop(t, poses)`` is True).
+
+    The clock starts at ``t0`` [s] (to continue an earlier run with the same controllers).
 
     ``controllers[i]`` drives ``robots[i]``. A disturbance (``config.disturbance > 0``) needs
     ``rng``; it is redrawn every integration step.
@@ -126,13 +132,13 @@ def simulate(
     contacts: list[Contact] = []
     min_robot_gap = math.inf
     min_wall_gap = math.inf
-    times = [0.0]
+    times = [t0]
     poses = [pose.copy()]
     vels = [vel.copy()]
     commands = []
     t = 0.0
     for c in range(n_ctrl):
-        t = c * config.control_period
+        t = t0 + c * config.control_period
         if stop is not None and stop(t, pose.copy()):
             break
         cmd = np.array([controllers[i](t, i, pose.copy()) for i in range(n)], dtype=float)
@@ -168,7 +174,7 @@ def simulate(
                 for p in np.flatnonzero(touching & ~touching_pairs):
                     contacts.append(Contact(now, "robot", int(pair_i[p]), int(pair_j[p])))
                 touching_pairs = touching
-        times.append((c + 1) * config.control_period)
+        times.append(t0 + (c + 1) * config.control_period)
         poses.append(pose.copy())
         vels.append(vel.copy())
     return HarnessResult(
@@ -190,17 +196,15 @@ class ExecutorController:
     Setting ``pending_plan`` hands a new plan to the executor on the next tick.
     """
 
-    def __init__(self, executor, state, ids: Sequence[int]):
+    def __init__(self, executor: Executor, state: ExecutorState, ids: Sequence[int]):
         self.executor = executor
         self.state = state
         self.ids = tuple(ids)
-        self.outputs: list = []
-        self.events: list = []
+        self.outputs: list[ExecutorOutputs] = []
+        self.events: list[NavEvent] = []
         self.pending_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
 
     def __call__(self, t: float, index: int, poses: np.ndarray) -> tuple[float, float]:
-        from agent.nav.executor import ExecutorInputs
-
         ids = np.asarray(self.ids, dtype=float)[:, None]
         frame = np.hstack([ids, poses])
         others = np.delete(frame, index, axis=0)

@@ -143,7 +143,11 @@ def test_scenario3_robot1_visits_all_five_regions_in_plan_order(source):
 def test_blocked_target_triggers_stuck_recovery_and_a_replan_request():
     # Robot 9 is parked on a12's centre: a12 cannot be entered, the global planner's goal is
     # moved next to it, the robot stops there and makes no further progress.
-    regions = (Region("a11", (-2.0, -2.5)), Region("a12", (-2.0, 2.5)))
+    regions = (
+        Region("a11", (-2.0, -2.5)),
+        Region("a12", (-2.0, 2.5)),
+        Region("a13", (0.5, 0.5)),
+    )
     robots = (
         Robot(1, "unicycle", (-2.0, -2.5, math.pi / 2), ltl="G F a11 & G F a12"),
         Robot(9, "unicycle", (-2.0, 2.5, 0.0)),
@@ -181,15 +185,29 @@ def test_blocked_target_triggers_stuck_recovery_and_a_replan_request():
     assert "a12" not in dict((n, c) for n, c in controller.state.visits if c)
     assert_commands_within_limits(result.commands[:, 0, :], config.dwa)
 
-    # The runtime answers with a plan avoiding the blocked edge: back to a11.
-    controller.pending_plan = (("a11",), ())
+    # The runtime answers with a plan that avoids the blocked edge: from a11 (where the planner
+    # takes the robot to be) to a13 instead. a11 is not driven back to nor counted again.
+    controller.pending_plan = (("a11", "a13"), ())
     poses = result.poses[-1]
     restart = [SimRobot(tuple(poses[k]), robots[k].radius) for k in range(2)]
-    result2 = simulate(restart, [controller, parked], 40.0, scenario.arena)
+    result2 = simulate(restart, [controller, parked], 40.0, scenario.arena, t0=result.times[-1])
     assert any(isinstance(e, PlanAccepted) for e in controller.events)
-    assert visited(controller)[-1][1] == "a11"
+    after = [name for t, name in visited(controller) if t > request.t]
+    assert after == ["a13"]
+    assert dict(controller.state.visits)["a11"] == 1
     assert controller.state.mode == "hold"
     assert result2.contacts == ()
+
+
+def test_a_new_plan_starting_at_the_last_region_with_nothing_else_holds_at_once():
+    executor = Executor.from_scenario(scenario1(), 1)
+    state = executor.initial_state(("a11",), ("a12", "a11"))
+    state, _ = executor.step(state, ExecutorInputs(t=0.0, pose=(-2.0, -2.5, math.pi / 2)))
+    pose = (-2.0, -1.0, math.pi / 2)
+    state, out = executor.step(state, ExecutorInputs(t=0.2, pose=pose, new_plan=(("a11",), ())))
+    kinds = [e.kind for e in out.events]
+    assert kinds == ["plan_accepted", "plan_finished"]
+    assert out.progress.mode == "hold" and out.progress.target is None
 
 
 # ------------------------------------------------------------------ the step itself
