@@ -70,7 +70,12 @@ class AgentConfig:
 
 @dataclass(frozen=True, slots=True)
 class SubTaskOutcome:
-    """Result of one sub-task (§8): r̄ (final r), ρ^φ over the agent's samples in [a, b], repairs."""
+    """Result of one sub-task (§8): r̄ (final r), ρ^φ and the repairs per stage.
+
+    ``rho_phi`` is min (G) / max (F) of the *smooth* ρ^ψ (what the agent controls) over the
+    agent's own samples in [a, b]; reports use the standard semantics from the trajectory
+    (``agent.stl.monitor``), which is ≥ this value.
+    """
 
     index: int
     t_done: float  # [s]
@@ -171,9 +176,70 @@ class StlAgent:
                                all_done=all_done)
                 for v in self.cfg.peers]
 
-    def _broadcast(self, task: Task, make) -> list[Message]:
+    def _read_inbox(self, state: AgentState, inbox: Sequence[Message]):
+        """Apply peer status and collaboration messages (§7.5, paper Alg. 2 lines 20–25).
+
+        Returns (follow, follow_subtask, follow_funnel, peers, released); ``peers`` is a new dict
+        only if some status arrived.
+        """
         i = self.cfg.robot_id
-        return [make(v) for v in task.v_ctrl if v != i]
+        follow, follow_subtask, follow_funnel = (state.follow, state.follow_subtask,
+                                                 state.follow_funnel)
+        peers = state.peers
+        released = False
+        for msg in inbox:
+            if isinstance(msg, StatusAnnounce):
+                if peers is state.peers:
+                    peers = dict(peers)
+                peers[msg.sender] = msg
+            elif isinstance(msg, CollabRequest):
+                if msg.sender == i or state.c == i:
+                    # [OUR CHOICE] a requester (c_i = i) keeps steering its own funnel: following
+                    # someone else would strand its own followers.
+                    continue
+                if (follow is None or follow == msg.sender
+                        or not self.cfg.protocol.first_come_follow):
+                    if (msg.sender, msg.subtask) not in self.cfg.library:
+                        logger.warning("robot %d: request from %d for unknown sub-task %d ignored",
+                                       i, msg.sender, msg.subtask)
+                        continue
+                    follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
+            elif isinstance(msg, CollabUpdate):
+                if msg.sender == follow and msg.subtask == follow_subtask:
+                    follow_funnel = msg.funnel
+            elif isinstance(msg, CollabRelease) and msg.sender == follow:
+                follow, follow_subtask, follow_funnel = None, -1, None
+                released = True
+        return follow, follow_subtask, follow_funnel, peers, released
+
+    def _repair(self, task: Task, funnel: Funnel, rho: float, t: float, ce: int, c: int,
+                peers: Mapping[int, StatusAnnounce]) -> tuple[Funnel, int, int, list[Message]]:
+        """Critical event number ``ce`` of the owner: stage choice (§7.4), repair (§7.3) and the
+        stage-2 messages. Returns (new funnel, new c_i, stage, outgoing messages)."""
+        cfg = self.cfg
+        i = cfg.robot_id
+        fp = cfg.funnel
+        stage2_ok = ce > fp.n_stage1 and c != i and stage2_enabled(i, task, c, peers)
+        stage = choose_stage(ce, fp.n_stage1, c, i, stage2_ok)
+        messages: list[Message] = []
+        if stage == 1:
+            funnel = funnel.repair(1, rho, t, fp)
+        elif stage == 2 and c != i:  # entry (Alg. 2 lines 10–12)
+            if cfg.protocol.stage2_entry_repair:
+                funnel = funnel.repair(2, rho, t, fp)
+            c = i
+            messages = [CollabRequest(sender=i, receiver=v, subtask=task.index, funnel=funnel, c=i)
+                        for v in task.v_ctrl if v != i]
+        elif stage == 2:  # repeat while c_i = i (lines 13–15): stage-3 computation + update
+            funnel = funnel.repair(3, rho, t, fp)
+            if cfg.protocol.stage2_repeat_broadcast:
+                messages = [CollabUpdate(sender=i, receiver=v, subtask=task.index, funnel=funnel)
+                            for v in task.v_ctrl if v != i]
+        else:
+            funnel = funnel.repair(3, rho, t, fp)
+        logger.debug("robot %d: critical event %d at t=%.2f, stage %d: %s", i, ce, t, stage,
+                     funnel)
+        return funnel, c, stage, messages
 
     # ----------------------------------------------------------------- step
 
@@ -187,34 +253,10 @@ class StlAgent:
         cp = cfg.control
         out: list[Message] = []
         changes: dict = {}
-        reinit = False
 
         # 1. inbox -----------------------------------------------------------------------
-        follow, follow_subtask, follow_funnel = state.follow, state.follow_subtask, \
-            state.follow_funnel
-        peers = state.peers
-        for msg in inputs.inbox:
-            if isinstance(msg, StatusAnnounce):
-                if peers is state.peers:
-                    peers = dict(peers)
-                peers[msg.sender] = msg
-            elif isinstance(msg, CollabRequest):
-                if msg.sender == i or state.c == i:
-                    # [OUR CHOICE] a requester (c_i = i) keeps steering its own funnel: following
-                    # someone else would strand its own followers.
-                    continue
-                if follow is None or follow == msg.sender or not cfg.protocol.first_come_follow:
-                    if (msg.sender, msg.subtask) not in cfg.library:
-                        logger.warning("robot %d: request from %d for unknown sub-task %d ignored",
-                                       i, msg.sender, msg.subtask)
-                        continue
-                    follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
-            elif isinstance(msg, CollabUpdate):
-                if msg.sender == follow and msg.subtask == follow_subtask:
-                    follow_funnel = msg.funnel
-            elif isinstance(msg, CollabRelease) and msg.sender == follow:
-                follow, follow_subtask, follow_funnel = None, -1, None
-                reinit = True
+        follow, follow_subtask, follow_funnel, peers, reinit = self._read_inbox(state,
+                                                                              inputs.inbox)
         if follow != state.follow or follow_funnel is not state.follow_funnel:
             changes.update(follow=follow, follow_subtask=follow_subtask,
                            follow_funnel=follow_funnel)
@@ -273,8 +315,8 @@ class StlAgent:
             if done:
                 outcome = SubTaskOutcome(k, t, satisfied, funnel.r, rho_phi, events)
                 if c == i and (satisfied or cfg.protocol.release_on_window_end):
-                    out.extend(self._broadcast(
-                        task, lambda v: CollabRelease(sender=i, receiver=v, subtask=k)))
+                    out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
+                               for v in task.v_ctrl if v != i)
                 c = -1
                 changes.update(k=k + 1, active=False, c=-1, t_done=t,
                                outcomes=(*state.outcomes, outcome))
@@ -316,32 +358,12 @@ class StlAgent:
                 z = funnel.zeta(rho, t)
                 if not -1.0 < z < 0.0:
                     ce += 1
-                    stage2_ok = (ce > fp.n_stage1 and c != i
-                                 and stage2_enabled(i, task, c, peers))
-                    stage = choose_stage(ce, fp.n_stage1, c, i, stage2_ok)
-                    if stage == 1:
-                        funnel = funnel.repair(1, rho, t, fp)
-                    elif stage == 2 and c != i:  # entry (Alg. 2 lines 10–12)
-                        if cfg.protocol.stage2_entry_repair:
-                            funnel = funnel.repair(2, rho, t, fp)
-                        c = i
-                        entry_funnel = funnel
-                        out.extend(self._broadcast(task, lambda v: CollabRequest(
-                            sender=i, receiver=v, subtask=k, funnel=entry_funnel, c=i)))
-                    elif stage == 2:  # repeat while c_i = i (lines 13–15)
-                        funnel = funnel.repair(3, rho, t, fp)
-                        if cfg.protocol.stage2_repeat_broadcast:
-                            repeat_funnel = funnel
-                            out.extend(self._broadcast(task, lambda v: CollabUpdate(
-                                sender=i, receiver=v, subtask=k, funnel=repeat_funnel)))
-                    else:
-                        funnel = funnel.repair(3, rho, t, fp)
+                    funnel, c, stage, messages = self._repair(task, funnel, rho, t, ce, c, peers)
+                    out.extend(messages)
                     repaired = stage
                     events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                     changes.update(funnel=funnel, ce=ce, c=c, stage=stage, events=events)
                     z = funnel.zeta(rho, t)
-                    logger.debug("robot %d: critical event %d at t=%.2f, stage %d: %s", i, ce, t,
-                                 stage, funnel)
                 u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
                                          cp.k_eps)
             log_funnel = funnel
