@@ -160,7 +160,7 @@ class Vwaa:
 
 
 def _minimal_sets(sets: list[frozenset[Formula]]) -> list[frozenset[Formula]]:
-    unique = sorted(set(sets), key=len)
+    unique = sorted(set(sets), key=lambda s: (len(s), sorted(map(str, s))))
     kept: list[frozenset[Formula]] = []
     for s in unique:
         if not any(k <= s for k in kept):

@@ -74,7 +74,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> Tgba:
             state_id[s] = sid
             raw_edges.append([])
             queue.append(s)
-            for q in s:
+            for q in sorted(s, key=str):  # sorted: numbering must not depend on hashing
                 if is_acceptance_state(q) and q not in mark_of:
                     mark_of[q] = len(mark_of)
         return sid

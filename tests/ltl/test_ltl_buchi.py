@@ -194,3 +194,23 @@ def test_translate_accepts_text_and_reports_syntax_errors():
     assert translate("G F a").num_states == translate(parse("G F a")).num_states
     with pytest.raises(FormulaSyntaxError, match="column 4"):
         translate("G F")
+
+
+def test_translation_does_not_depend_on_string_hashing(tmp_path):
+    """State numbering is part of the API (replanning passes Büchi states around)."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "from agent.ltl.buchi import translate; from agent.ltl.hoa import to_hoa; "
+        "print(''.join(to_hoa(translate(f)) for f in "
+        "['G F a21 & G F a22', 'F a1 & F a2 & F a3', 'G(a -> F b) & G F c | X(d U e)']))"
+    )
+    outputs = set()
+    for seed in ("1", "2", "3"):
+        env = {**os.environ, "PYTHONHASHSEED": seed}
+        done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                              text=True, check=True, timeout=60)
+        outputs.add(done.stdout)
+    assert len(outputs) == 1

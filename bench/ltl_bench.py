@@ -1,0 +1,198 @@
+"""Benchmark of the LTL planning core (ltl-planning.md §2 and §5). A program, not a test.
+
+Measures, as medians over several runs (time.perf_counter):
+
+1. translation time and automaton size for the size-target families (n = 1..8) and for the
+   scenarios' formulas;
+2. end-to-end planning time (parse + translate + product + search) for every LTL robot of the
+   three scenarios (target: ≤ 5 ms median);
+3. a scaling grid: 10, 20, 40 random disc regions × three mission formulas (target for
+   ``F r1 & … & F r5`` at 40 regions: ≤ 100 ms; the reference Python implementation P_MAS_TG
+   with ltl2ba takes 2.36 s).
+
+Prints a table and writes JSON to ``bench/results/ltl_bench.json``.
+
+    .venv/bin/python bench/ltl_bench.py [--quick] [--runs N] [--output PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from agent.ltl.buchi import translate  # noqa: E402
+from agent.ltl.parser import parse  # noqa: E402
+from agent.ltl.planner import plan, plan_robot  # noqa: E402
+from agent.ltl.transition_system import from_regions  # noqa: E402
+from agent.scenario import load_scenario  # noqa: E402
+from agent.scenario.model import Region  # noqa: E402
+
+REFERENCE_SECONDS = {("F r1 & F r2 & F r3 & F r4 & F r5", 40): 2.36, ("G F r1 & G F r2", 40): 0.27}
+
+
+def median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
+    """Median wall-clock time [s] of ``fn()`` over ``runs`` runs, and its last result."""
+    times = []
+    result = None
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), result
+
+
+def families(n: int) -> dict[str, str]:
+    chain = f"a{n}"
+    for i in range(n - 1, 0, -1):
+        chain = f"a{i} & F({chain})"
+    return {
+        "GF a1 & … & GF an": " & ".join(f"G F a{i}" for i in range(1, n + 1)),
+        "F(a1 & F(a2 & … F an))": f"F({chain})",
+        "F a1 & … & F an": " & ".join(f"F a{i}" for i in range(1, n + 1)),
+        "GF(a1 & F(a2 & … F an))": f"G F({chain})",
+    }
+
+
+def random_regions(count: int, rng: np.random.Generator) -> list[Region]:
+    """``count`` non-overlapping disc regions r1..rN (radius 0.25 m) in the 7 m × 7 m arena."""
+    centres: list[tuple[float, float]] = []
+    while len(centres) < count:
+        x, y = rng.uniform(-3.2, 3.2, size=2)
+        if all((x - a) ** 2 + (y - b) ** 2 >= 0.6**2 for a, b in centres):
+            centres.append((float(x), float(y)))
+    return [Region(f"r{i + 1}", c, 0.25) for i, c in enumerate(centres)]
+
+
+GRID_FORMULAS = (
+    "G F r1 & G F r2",
+    "F(r1 & F(r2 & F(r3 & F(r4 & F r5))))",
+    "F r1 & F r2 & F r3 & F r4 & F r5",
+)
+
+
+def bench_families(max_n: int, runs: int) -> list[dict]:
+    rows = []
+    for n in range(1, max_n + 1):
+        for family, text in families(n).items():
+            seconds, buchi = median_time(lambda text=text: translate(text), runs)
+            rows.append({"family": family, "n": n, "formula": text, "states": buchi.num_states,
+                         "edges": buchi.num_edges, "translate_ms": 1e3 * seconds})
+    return rows
+
+
+def bench_scenarios(runs: int) -> tuple[list[dict], list[dict]]:
+    formulas: dict[str, None] = {}
+    plans = []
+    for i in (1, 2, 3):
+        scenario = load_scenario(ROOT / "scenarios" / f"scenario{i}.toml")
+        for robot in sorted(scenario.robots, key=lambda r: r.id):
+            if robot.ltl is None:
+                continue
+            formulas.setdefault(robot.ltl, None)
+            seconds, p = median_time(
+                lambda s=scenario, r=robot.id: plan_robot(s, r), runs
+            )
+            plans.append({
+                "scenario": scenario.name, "robot": robot.id, "formula": robot.ltl,
+                "buchi_states": p.buchi_states, "product_states": p.product_states,
+                "product_edges": p.product_edges, "cost": p.cost,
+                "prefix": list(p.prefix), "suffix": list(p.suffix),
+                "plan_ms": 1e3 * seconds,
+            })
+    translations = []
+    for text in formulas:
+        seconds, buchi = median_time(lambda text=text: translate(text), runs)
+        translations.append({"formula": text, "states": buchi.num_states,
+                             "edges": buchi.num_edges, "translate_ms": 1e3 * seconds})
+    return translations, plans
+
+
+def bench_grid(sizes: list[int], runs: int, seed: int) -> list[dict]:
+    rows = []
+    for count in sizes:
+        rng = np.random.default_rng(seed + count)
+        regions = random_regions(count, rng)
+        start = (0.0, -3.4)  # on the arena's lower edge, outside every region
+        ts = from_regions(regions, start)
+        for text in GRID_FORMULAS:
+            def end_to_end(text=text, ts=ts):
+                return plan(translate(parse(text)), ts, 10.0)
+
+            seconds, p = median_time(end_to_end, runs)
+            reference = REFERENCE_SECONDS.get((text, count))
+            rows.append({
+                "regions": count, "formula": text, "buchi_states": p.buchi_states,
+                "product_states": p.product_states, "product_edges": p.product_edges,
+                "cost": p.cost, "plan_ms": 1e3 * seconds,
+                "reference_ms": 1e3 * reference if reference else None,
+            })
+    return rows
+
+
+def print_tables(result: dict) -> None:
+    print("== translation: size-target families (states / edges, median ms)")
+    print(f"{'family':<26} {'n':>2} {'states':>6} {'edges':>6} {'ms':>8}")
+    for row in result["families"]:
+        print(f"{row['family']:<26} {row['n']:>2} {row['states']:>6} {row['edges']:>6} "
+              f"{row['translate_ms']:>8.3f}")
+    print("\n== translation: scenario formulas")
+    for row in result["scenario_translations"]:
+        print(f"{row['formula']:<40} {row['states']:>4} states {row['edges']:>4} edges "
+              f"{row['translate_ms']:>8.3f} ms")
+    print("\n== end-to-end planning: scenario LTL robots (target <= 5 ms)")
+    for row in result["scenario_plans"]:
+        print(f"{row['scenario']:<10} robot {row['robot']}  {row['formula']:<36} "
+              f"product {row['product_states']:>4}/{row['product_edges']:<5} "
+              f"cost {row['cost']:>8.3f}  {row['plan_ms']:>7.3f} ms")
+    print("\n== scaling grid: end-to-end planning (target F r1&…&F r5 @ 40 regions <= 100 ms)")
+    print(f"{'regions':>7}  {'formula':<38} {'Büchi':>5} {'product':>13} {'ms':>9} "
+          f"{'reference':>10}")
+    for row in result["grid"]:
+        ref = f"{row['reference_ms']:.0f} ms" if row["reference_ms"] else "-"
+        print(f"{row['regions']:>7}  {row['formula']:<38} {row['buchi_states']:>5} "
+              f"{row['product_states']:>6}/{row['product_edges']:<6} {row['plan_ms']:>9.3f} "
+              f"{ref:>10}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small smoke run")
+    parser.add_argument("--runs", type=int, default=None, help="runs per measurement (>= 5)")
+    parser.add_argument("--seed", type=int, default=2024)
+    parser.add_argument("--output", type=Path, default=ROOT / "bench" / "results" /
+                        "ltl_bench.json")
+    args = parser.parse_args(argv)
+    runs = args.runs or (2 if args.quick else 7)
+    max_n = 3 if args.quick else 8
+    sizes = [10] if args.quick else [10, 20, 40]
+    translations, plans = bench_scenarios(runs)
+    result = {
+        "quick": args.quick,
+        "runs": runs,
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "families": bench_families(max_n, runs),
+        "scenario_translations": translations,
+        "scenario_plans": plans,
+        "grid": bench_grid(sizes, runs, args.seed),
+    }
+    print_tables(result)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    print(f"\nwrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
