@@ -117,8 +117,10 @@ def bench_global_plans(runs: int, calls: int) -> dict:
 def bench_executor(runs: int, calls: int) -> dict:
     scenario = scenario_with_fleet()
     executor = Executor.from_scenario(scenario, 1)
-    state = executor.initial_state(("a11",), ("a12", "a11"))
-    frame = np.array([[r.id, *r.pose] for r in scenario.robots[1:]], dtype=float)
+    state = executor.initial_state(("a12",), ("a11", "a12"))  # on its way to a12
+    # Five robots within the local range around robot 1, two of them near its straight path.
+    crowd = [(-2.5, 0.3), (-1.5, 0.9), (-2.2, 1.6), (-0.9, -0.5), (-3.0, -0.2)]
+    frame = np.array([[k + 2, x, y, 0.0] for k, (x, y) in enumerate(crowd)])
     pose = (-2.0, -1.0, math.pi / 2)
     state, _ = executor.step(state, ExecutorInputs(0.0, pose, frame))
     # A step that re-plans the global path (every replan_period) and one that only runs DWA.

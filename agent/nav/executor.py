@@ -121,6 +121,7 @@ class ExecutorState:
     path: np.ndarray | None = None
     path_target: str | None = None
     path_time: float = -math.inf  # [s]
+    no_path_to: str | None = None  # target last reported unreachable (NoPathFound sent once)
     best_remaining: float = math.inf  # [m]
     progress_time: float = 0.0  # [s]
     remaining: float = math.inf  # [m]
@@ -442,10 +443,12 @@ class Executor:
                 grid = grid.with_discs(*self._stamps(pose, others))
             try:
                 path = plan_path(grid, pose[:2], goal).waypoints
-                s = replace(s, path=path, path_target=target, path_time=t)
+                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None)
             except NoPathError as error:
-                events.append(NoPathFound(t, target, error.reason))
-                s = replace(s, path_time=t)
+                if s.no_path_to != target:  # report once, keep trying every replan period
+                    events.append(NoPathFound(t, target, error.reason))
+                    log.info("no path to %s: %s", target, error.reason)
+                s = replace(s, path_time=t, no_path_to=target)
         if s.path is None or s.path_target != target:
             command = self._ramp(s.command, (0.0, 0.0))
             remaining = math.inf

@@ -23,7 +23,7 @@ from agent.nav.harness import (
     SimRobot,
     simulate,
 )
-from agent.scenario.model import Arena, Region, Robot, Scenario
+from agent.scenario.model import Arena, RectObstacle, Region, Robot, Scenario
 
 TOLERANCE = DwaConfig().xy_goal_tolerance
 
@@ -253,3 +253,27 @@ def test_invalid_plans_are_rejected(plan, match):
     executor = Executor.from_scenario(scenario1(), 1)
     with pytest.raises(InvalidPlanError, match=match):
         executor.initial_state(*plan)
+
+
+def test_target_walled_off_by_static_obstacles_reports_no_path_then_stuck_and_replan():
+    walls = (
+        RectObstacle(-2.8, 1.9, -1.2, 2.0),
+        RectObstacle(-2.8, 3.0, -1.2, 3.1),
+        RectObstacle(-2.8, 1.9, -2.7, 3.1),
+        RectObstacle(-1.3, 1.9, -1.2, 3.1),
+    )
+    regions = (Region("a11", (-2.0, -2.5)), Region("a12", (-2.0, 2.5)))
+    robot = Robot(1, "unicycle", (-2.0, -2.5, math.pi / 2), ltl="G F a11 & G F a12")
+    scenario = Scenario("walled", "f", 30.0, Arena(obstacles=walls), regions, (robot,))
+    config = ExecutorConfig(stuck_timeout=4.0)
+    executor = Executor.from_scenario(scenario, 1, config)
+    controller = ExecutorController(executor, executor.initial_state(("a11",), ("a12", "a11")), [1])
+    result = simulate([SimRobot(robot.pose)], [controller], 15.0, scenario.arena)
+    kinds = [e.kind for e in controller.events]
+    assert kinds[:4] == ["region_visited", "no_path", "stuck", "replan_request"]
+    assert kinds.count("no_path") == 1  # reported once, retried silently
+    no_path = controller.events[1]
+    assert no_path.target == "a12" and "not reachable" in no_path.reason
+    request = next(e for e in controller.events if isinstance(e, ReplanRequest))
+    assert (request.from_region, request.to_region) == ("a11", "a12")
+    assert result.contacts == ()
