@@ -1,19 +1,20 @@
 """Why a task has no accepting run on a transition system (ltl-planning.md §5, "Unsatisfiable").
 
-Three causes, checked in order:
+Four causes, checked in order:
 
 1. the formula itself is unsatisfiable (its Büchi automaton accepts no word);
 2. the automaton needs letters that no region supplies: with only the regions' labels as the
    alphabet, no accepting cycle is left. The missing letters are read off the guards that became
    dead: for the paper's literal ``GF(a11 & a12)`` the accepting cycle needs ``a11 & a12`` in one
    letter, and no region carries both;
-3. the letters exist but the accepting cycles are not reachable from the robot's start over the
+3. the run fails on its very first letter (e.g. ``G a`` for a robot that starts outside ``a``);
+4. the letters exist but the accepting cycles are not reachable from the robot's start over the
    transitions available (blocked edges, unreachable regions).
 """
 
 from __future__ import annotations
 
-from agent.ltl.buchi import Buchi
+from agent.ltl.buchi import Buchi, buchi_step
 from agent.ltl.emptiness import find_accepting_lasso
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import Cube
@@ -87,6 +88,13 @@ def explain_unsatisfiable(buchi: Buchi, ts: TransitionSystem, initial_region: st
         if reasons:
             return "; ".join(reasons)
         return "no sequence of region labels is accepted by the task's automaton"
+    label = ts.labels[ts.index(initial_region)]
+    if not buchi_step(buchi, frozenset(buchi.initial), label):
+        carried = "{" + ", ".join(sorted(label)) + "}"
+        return (
+            f"the run already fails where it starts: {initial_region!r} carries {carried} "
+            "and the task does not allow that as its first letter"
+        )
     return (
         f"no accepting cycle is reachable from {initial_region!r} over the available "
         "transitions (blocked or missing edges between regions)"

@@ -7,8 +7,9 @@ returns the run ``prefix · suffix^ω`` minimising ``prefix_cost + β · suffix_
 
 Conventions, shared with the LTL agent:
 
-* ``prefix[0]`` is the state the robot starts in (its region, or ``"start"``); the robot
-  follows ``prefix`` once, then ``suffix`` forever; consecutive equal names mean "stay";
+* ``prefix[0]`` (``suffix[0]`` when the prefix is empty) is the state the robot starts in (its
+  region, or ``"start"``); the robot follows ``prefix`` once, then ``suffix`` forever;
+  consecutive equal names are zero-cost stays (the automaton reads that region's label again);
 * the Büchi state is tracked with :func:`buchi_step`, reading the label of the region being
   *left* (the product evaluates guards on the source region, ltl-planning.md §4);
 * :func:`replan` restarts from a region and a set of Büchi states (after a restart, or with

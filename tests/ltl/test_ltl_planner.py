@@ -313,6 +313,12 @@ def test_unreachable_accepting_cycle_is_reported():
         plan("G F a11 & G F a12", ts, robot=1)
 
 
+def test_task_failing_at_the_start_is_reported():
+    ts = from_regions(SCENARIO1_REGIONS, (0.0, 0.0))  # outside both regions
+    with pytest.raises(UnsatisfiableTask, match=r"fails where it starts: 'start' carries \{\}"):
+        plan("G a11", ts)
+
+
 def test_generic_proposition_on_several_regions():
     regions = [region("x", 0, 0, {"dock"}), region("y", 5, 0, {"dock"}), region("w", 1, 0)]
     robot = Robot(1, "unicycle", (1.0, 0.0, 0.0), ltl="G F dock & G F w")
