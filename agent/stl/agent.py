@@ -312,6 +312,17 @@ class StlAgent:
                 done = satisfied = True
             elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
                 done = True
+                if (task.kind == "G" and follow is None
+                        and not -1.0 < funnel.zeta(rho_own, t) < 0.0):
+                    # [OUR CHOICE] a critical event on the last sample of a G window is still
+                    # repaired (stage 1 or 3: the window is over, nobody can help any more) so
+                    # that the recorded r̄ keeps ρ^φ ≥ r̄ (paper Alg. 2 line 28).
+                    ce += 1
+                    stage = 1 if ce <= fp.n_stage1 else 3
+                    funnel = funnel.repair(stage, rho_own, t, fp)
+                    repaired = stage
+                    events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
+                    changes.update(funnel=funnel, ce=ce, stage=stage, events=events)
             if done:
                 outcome = SubTaskOutcome(k, t, satisfied, funnel.r, rho_phi, events)
                 if c == i and (satisfied or cfg.protocol.release_on_window_end):
@@ -366,6 +377,9 @@ class StlAgent:
                     z = funnel.zeta(rho, t)
                 u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
                                          cp.k_eps)
+            log_funnel = funnel
+        elif done:  # the completion step still logs the finished sub-task's ρ and funnel
+            rho_log = rho_own
             log_funnel = funnel
         u_nom = saturate(u_nom, cp.umax_lin, cp.umax_ang, cp.saturation)
 

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from agent.stl.agent import StepInput, single_agent
 from agent.stl.control_law import ControlParams
@@ -105,3 +107,24 @@ def test_step_is_pure_and_idle_after_completion():
                                               2: np.array([0.5, 0.0, 0.0])}))
     assert out3.log.subtask == -1 and math.isnan(out3.log.rho)
     assert out3.u[0] < 0 and out3.u[1] == 0.0  # collision avoidance stays active when idle
+
+
+@settings(max_examples=25, deadline=None)
+@given(kind=st.sampled_from(["G", "F"]), a=st.integers(0, 12), length=st.integers(0, 6),
+       x=st.floats(-3, 3), y=st.floats(-3, 3), seed=st.integers(0, 2**16),
+       disturbance=st.sampled_from([0.0, 0.05, 0.15]))
+def test_repair_loop_keeps_invariants_under_disturbance(kind, a, length, x, y, seed,
+                                                        disturbance):
+    """Random windows, starts and bounded disturbances: no funnel invariant is ever violated
+    (FunnelInvariantError would propagate), ρ is re-contained after every repair, and for G the
+    achieved ρ^φ is at least the final r̄ (paper Alg. 2 line 28)."""
+    text = f"{kind}[{a},{a + length}] (dist(p1, [0.5,-0.5]) <= 0.2)"
+    task = build_task(text, 1)
+    result = run_closed_loop([single_agent(1, [task])], {1: (x, y, 0.0)}, a + length + 0.5,
+                             disturbance=disturbance, rng=np.random.default_rng(seed))
+    for rec in result.logs[1]:
+        if rec.repair:
+            assert rec.lower < rec.rho < rec.rho_max
+    (outcome,) = result.states[1].outcomes
+    if kind == "G":
+        assert task_robustness(task, result.trajectory, smooth=True) >= outcome.final_r
