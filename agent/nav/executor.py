@@ -252,7 +252,7 @@ class Executor:
         if s.mode == HOLD:
             s, command = self._settle(s, pose, others)
         elif s.mode in (ROTATE, BACK_OFF):
-            s, command = self._recover(s, pose, t, events)
+            s, command = self._recover(s, pose, t, others, events)
         else:
             s, command = self._navigate(s, pose, t, others, events)
         s = replace(s, command=command)
@@ -350,6 +350,7 @@ class Executor:
                 events.append(RegionVisited(t, target, counts[target]))
                 s = replace(
                     s,
+                    mode=NAVIGATE if s.mode in (ROTATE, BACK_OFF) else s.mode,  # ends recovery
                     visits=tuple(counts.items()),
                     last_region=target,
                     best_remaining=math.inf,
@@ -388,13 +389,19 @@ class Executor:
         return v, w
 
     def _recover(
-        self, s: ExecutorState, pose: np.ndarray, t: float, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
     ) -> tuple[ExecutorState, tuple[float, float]]:
-        """Recovery: rotate in place, then back off, then ask for a replan and resume."""
+        """Recovery: rotate in place, then back off (if the space behind is free of walls and
+        robots), then ask for a replan and resume."""
         cfg = self.config
         if s.mode == ROTATE and t - s.mode_since >= cfg.rotate_time:
-            behind = pose[:2] - 0.3 * np.array([math.cos(pose[2]), math.sin(pose[2])])
-            back_free = bool(self.grid.clearance_at(behind) > cfg.robot_radius)
+            # The back-off travels at most back_off_speed · back_off_time; check 0.1 m beyond.
+            reach = cfg.back_off_speed * cfg.back_off_time + 0.1
+            behind = pose[:2] - reach * np.array([math.cos(pose[2]), math.sin(pose[2])])
+            gaps = np.linalg.norm(others.centers - behind, axis=1) - others.radii
+            back_free = bool(self.grid.clearance_at(behind) > cfg.robot_radius) and bool(
+                np.all(gaps > cfg.robot_radius)
+            )
             s = replace(s, mode=BACK_OFF if back_free else NAVIGATE, mode_since=t)
             if s.mode == NAVIGATE:
                 return self._end_recovery(s, pose, t, events), self._ramp(s.command, (0.0, 0.0))
