@@ -51,11 +51,12 @@ def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[tuple[floa
     for xj, yj in neighbours:
         dx = xi - xj
         dy = yi - yj
-        d2 = dx * dx + dy * dy
-        if d2 > r2 or d2 == 0.0:
+        if dx * dx + dy * dy > r2:
             continue
-        d = math.sqrt(d2)
-        mag = umax if d < r1 else k * (big_r - d) / (d2 * d * big_r)
+        d = math.hypot(dx, dy)  # exact also for tiny offsets, where dx² + dy² underflows
+        if d == 0.0:
+            continue
+        mag = umax if d < r1 else k * (big_r - d) / (d * d * d * big_r)
         vx += mag * dx / d
         vy += mag * dy / d
     return vx, vy, 0.0

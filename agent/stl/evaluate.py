@@ -30,6 +30,7 @@ Grad = list[float] | None
 ScalarFn = Callable[[Sequence[float]], tuple[float, Grad]]
 COMPONENT_INDEX = {"x": 0, "y": 1, "th": 2}
 _TWO_PI = 2.0 * math.pi
+_TINY = 1e-150  # below this norm the gradient is taken as 0 (stl-funnel.md §3)
 
 
 def wrap_angle(angle: float) -> float:
@@ -166,8 +167,8 @@ def _norm_closure(f: Callable, is_vec: bool) -> Callable:
     def norm(s):
         (vx, vy), (gx, gy) = f(s)
         length = math.hypot(vx, vy)
-        if length == 0.0:
-            return 0.0, None
+        if length < _TINY:  # non-differentiable at 0 (and 1/length would overflow): gradient 0
+            return length, None
         inv = 1.0 / length
         return length, _lin(vx * inv, gx, vy * inv, gy)
     return norm
