@@ -306,7 +306,7 @@ class StlAgent:
                 changes["rho_phi"] = rho_phi
             inside = funnel.r < rho_own < funnel.rho_max
             satisfied = False
-            if follow is None and inside and (
+            if follow is None and inside and cfg.protocol.complete_on_satisfaction and (
                     (task.kind == "F" and task.a <= t <= task.b)
                     or (task.kind == "G" and t >= task.b)):
                 done = satisfied = True

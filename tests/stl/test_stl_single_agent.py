@@ -14,6 +14,7 @@ from agent.stl.agent import StepInput, single_agent
 from agent.stl.control_law import ControlParams
 from agent.stl.harness import run_closed_loop
 from agent.stl.monitor import task_robustness
+from agent.stl.repair import ProtocolParams
 from agent.stl.task import build_task
 
 G_REGION = "dist(p1, [0,-2]) <= 0.1"
@@ -56,6 +57,15 @@ def test_11_2_f_task_without_hold_rule():
     assert result.events(1) == []
     assert outcome.t_done == 44.0
     assert round(task_robustness(task, result.trajectory), 7) == 0.0545941
+
+
+def test_11_2_f_task_without_hold_and_without_completion_rule():
+    task, result, outcome = run_single("F[44,47] (dist(p1, [-1,0.5]) <= 0.1)", (0, 2), 47.01,
+                                       control=ControlParams(hold_F_when_above_r=False),
+                                       protocol=ProtocolParams(complete_on_satisfaction=False))
+    assert result.events(1) == []
+    assert outcome.t_done == 47.01 and not outcome.satisfied
+    assert round(task_robustness(task, result.trajectory), 7) == 0.0590655
 
 
 @pytest.mark.parametrize(("start", "n_events", "final_r", "rho_phi"), [
