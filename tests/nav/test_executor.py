@@ -277,3 +277,30 @@ def test_target_walled_off_by_static_obstacles_reports_no_path_then_stuck_and_re
     request = next(e for e in controller.events if isinstance(e, ReplanRequest))
     assert (request.from_region, request.to_region) == ("a11", "a12")
     assert result.contacts == ()
+
+
+def test_a_robot_escorting_closely_behind_does_not_bend_the_global_path():
+    # An STL robot 0.5 m behind (scenario 2 keeps one within 0.6 m): its inflated stamp would
+    # swallow our own position, so it is shrunk; the path to a12 stays the straight line.
+    executor = Executor.from_scenario(scenario1(), 1)
+    state = executor.initial_state(("a12",), ("a11", "a12"))
+    escort = np.array([[3.0, -2.0, -2.0, math.pi / 2]])
+    _, out = executor.step(
+        state, ExecutorInputs(t=0.0, pose=(-2.0, -1.5, math.pi / 2), others=escort)
+    )
+    assert out.path.tolist() == [[-2.0, -1.5], [-2.0, 2.5]]
+
+
+def test_a_robot_ahead_is_passed_on_the_right():
+    executor = Executor.from_scenario(scenario1(), 1)
+    state = executor.initial_state(("a12",), ("a11", "a12"))
+    ahead = np.array([[2.0, -2.0, 0.5, -math.pi / 2]])  # right on the straight line, facing us
+    _, out = executor.step(
+        state, ExecutorInputs(t=0.0, pose=(-2.0, -1.5, math.pi / 2), others=ahead)
+    )
+    # Heading north, "right" is east: the detour passes the other robot at x > -2.
+    beside = out.path[np.argmin(np.abs(out.path[:, 1] - 0.5))]
+    assert len(out.path) > 2
+    assert np.max(out.path[:, 0]) > -2.0 + 0.5
+    assert np.min(out.path[:, 0]) >= -2.0 - 1e-9
+    assert beside[0] >= -2.0

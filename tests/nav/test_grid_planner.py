@@ -14,7 +14,7 @@ from hypothesis.extra.numpy import arrays
 import agent.nav.grid_planner as grid_planner
 from agent.errors import TlfleetError
 from agent.nav.errors import NoPathError
-from agent.nav.grid import grid_from_arena, grid_from_occupancy
+from agent.nav.grid import arena_clearance, grid_from_arena, grid_from_occupancy
 from agent.nav.grid_planner import astar_cells, line_of_sight, path_length_function, plan_path
 from agent.scenario.model import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
 
@@ -204,3 +204,32 @@ def test_penalised_edges_add_the_penalty_in_the_blocked_direction_only():
     assert penalised(a11, a12) == pytest.approx(15.0)
     assert penalised(a12, a11) == pytest.approx(5.0)
     assert penalised((-2.0, -2.5001), a12) == pytest.approx(15.0, abs=1e-3)  # matched to 1 mm
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(-2.5, 2.5), st.floats(-2.5, 2.5), st.floats(0.1, 0.6)),
+        max_size=6,
+    ),
+    st.tuples(st.floats(-3.2, 3.2), st.floats(-3.2, 3.2)),
+    st.tuples(st.floats(-3.2, 3.2), st.floats(-3.2, 3.2)),
+)
+def test_smoothed_paths_are_collision_free_and_no_longer_than_the_grid_path(discs, start, goal):
+    arena = Arena(obstacles=tuple(DiscObstacle((x, y), r) for x, y, r in discs))
+    grid = grid_from_arena(arena, inflation=0.25)
+    try:
+        path = plan_path(grid, start, goal)
+    except NoPathError:
+        return
+    # Shortcutting only shortens the polyline start → cell centres → end (triangle inequality).
+    centres = grid.center_of(path.cells)
+    legs = np.linalg.norm(centres[0] - start) + np.linalg.norm(centres[-1] - path.goal)
+    assert path.length <= path.grid_length + legs + 1e-9
+    # Every point of a free cell has clearance ≥ 0.25 − half a cell diagonal; the segments
+    # between free cells may graze cell corners, so allow that much: still > the 0.2 m radius.
+    free_from = 1 if path.start_snapped else 0  # the escape leg starts inside the inflation
+    s = np.linspace(0.0, 1.0, 200)[:, None]
+    for a, b in zip(path.waypoints[free_from:-1], path.waypoints[free_from + 1 :], strict=True):
+        points = a + s * (b - a)
+        assert np.min(arena_clearance(arena, points)) >= 0.25 - 0.05 * SQRT2 / 2 - 1e-9
