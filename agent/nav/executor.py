@@ -169,13 +169,15 @@ class Executor:
     """The executor's fixed context: regions, static grid and configuration.
 
     ``grid`` is the static arena inflated by ``robot_radius + inflation_margin``;
-    ``other_radii`` maps robot ids to radii [m] for the local cost map.
+    ``other_radii`` maps robot ids to radii [m] for the local cost map; rows of the pose frame
+    with the executor's own ``robot_id`` are ignored, so the runtime may pass the whole frame.
     """
 
     regions: tuple[Region, ...]
     grid: OccupancyGrid
     config: ExecutorConfig = field(default_factory=ExecutorConfig)
     other_radii: tuple[tuple[int, float], ...] = ()
+    robot_id: int | None = None
 
     @staticmethod
     def from_scenario(
@@ -196,7 +198,7 @@ class Executor:
         cfg = replace(base, robot_radius=robot.radius, dwa=dwa)
         grid = grid_from_arena(scenario.arena, robot.radius + cfg.inflation_margin, cfg.resolution)
         radii = tuple((r.id, r.radius) for r in scenario.robots if r.id != robot_id)
-        return Executor(scenario.regions, grid, cfg, radii)
+        return Executor(scenario.regions, grid, cfg, radii, robot_id)
 
     def region(self, name: str) -> Region:
         for region in self.regions:
@@ -301,6 +303,8 @@ class Executor:
     ) -> MovingDiscs:
         """Other robots within ``local_range`` as moving discs (the local cost map's layer)."""
         frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
+        if self.robot_id is not None:
+            frame = frame[frame[:, 0] != self.robot_id]
         if len(frame) == 0:
             return MovingDiscs.empty()
         near = np.linalg.norm(frame[:, 1:3] - pose[:2], axis=1) <= self.config.local_range

@@ -304,3 +304,14 @@ def test_a_robot_ahead_is_passed_on_the_right():
     assert np.max(out.path[:, 0]) > -2.0 + 0.5
     assert np.min(out.path[:, 0]) >= -2.0 - 1e-9
     assert beside[0] >= -2.0
+
+
+def test_the_whole_pose_frame_may_be_passed_own_row_is_ignored():
+    executor = Executor.from_scenario(scenario1(), 1)
+    state = executor.initial_state(("a12",), ("a11", "a12"))
+    pose = (-2.0, -1.5, math.pi / 2)
+    frame = np.array([[1.0, *pose], [2.0, 2.5, -2.0, math.pi / 2]])
+    _, with_self = executor.step(state, ExecutorInputs(t=0.0, pose=pose, others=frame))
+    _, without = executor.step(state, ExecutorInputs(t=0.0, pose=pose, others=frame[1:]))
+    assert (with_self.v, with_self.omega) == (without.v, without.omega)
+    assert with_self.path.tolist() == [[-2.0, -1.5], [-2.0, 2.5]]
