@@ -57,6 +57,6 @@ def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[tuple[floa
         if d == 0.0:
             continue
         mag = umax if d < r1 else k * (big_r - d) / (d * d * d * big_r)
-        vx += mag * dx / d
-        vy += mag * dy / d
+        vx += mag * (dx / d)  # unit direction first: mag·dx can underflow for tiny offsets
+        vy += mag * (dy / d)
     return vx, vy, 0.0

@@ -28,6 +28,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from agent.control.collision import CollisionParams, collision_velocity
 from agent.control.mixing import mix
 from agent.control.saturation import saturate
@@ -66,6 +68,7 @@ class AgentConfig:
     control: ControlParams = field(default_factory=ControlParams)
     collision: CollisionParams = field(default_factory=CollisionParams)
     protocol: ProtocolParams = field(default_factory=ProtocolParams)
+    random_seed: int | None = None  # None: fixed fractions (§5); int: code-faithful U(0,1) draws
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,6 +179,15 @@ class StlAgent:
                                all_done=all_done)
                 for v in self.cfg.peers]
 
+    def _rng(self, subtask: int, ce: int, t: float) -> np.random.Generator | None:
+        """``None`` (deterministic fractions, the default) or, with ``random_seed``, a Generator
+        seeded by (seed, robot, sub-task, event count, t [ms]) for the authors' U(0,1) draws
+        (§13 item 2): reproducible, and the step stays a pure function of its inputs."""
+        seed = self.cfg.random_seed
+        if seed is None:
+            return None
+        return np.random.default_rng([seed, self.cfg.robot_id, subtask, ce, round(t * 1000)])
+
     def _read_inbox(self, state: AgentState, inbox: Sequence[Message]):
         """Apply peer status and collaboration messages (§7.5, paper Alg. 2 lines 20–25).
 
@@ -221,22 +233,23 @@ class StlAgent:
         fp = cfg.funnel
         stage2_ok = ce > fp.n_stage1 and c != i and stage2_enabled(i, task, c, peers)
         stage = choose_stage(ce, fp.n_stage1, c, i, stage2_ok)
+        rng = self._rng(task.index, ce, t)
         messages: list[Message] = []
         if stage == 1:
-            funnel = funnel.repair(1, rho, t, fp)
+            funnel = funnel.repair(1, rho, t, fp, rng)
         elif stage == 2 and c != i:  # entry (Alg. 2 lines 10–12)
             if cfg.protocol.stage2_entry_repair:
-                funnel = funnel.repair(2, rho, t, fp)
+                funnel = funnel.repair(2, rho, t, fp, rng)
             c = i
             messages = [CollabRequest(sender=i, receiver=v, subtask=task.index, funnel=funnel, c=i)
                         for v in task.v_ctrl if v != i]
         elif stage == 2:  # repeat while c_i = i (lines 13–15): stage-3 computation + update
-            funnel = funnel.repair(3, rho, t, fp)
+            funnel = funnel.repair(3, rho, t, fp, rng)
             if cfg.protocol.stage2_repeat_broadcast:
                 messages = [CollabUpdate(sender=i, receiver=v, subtask=task.index, funnel=funnel)
                             for v in task.v_ctrl if v != i]
         else:
-            funnel = funnel.repair(3, rho, t, fp)
+            funnel = funnel.repair(3, rho, t, fp, rng)
         logger.debug("robot %d: critical event %d at t=%.2f, stage %d: %s", i, ce, t, stage,
                      funnel)
         return funnel, c, stage, messages
@@ -271,16 +284,19 @@ class StlAgent:
         task = tasks[k] if k < len(tasks) else None
         rho_own = math.nan
         grad_own = None
+        ce_before = state.ce if active else 0
         if task is not None and (active or t >= self._activation_time(state)):
             rho_own, grad_own = task.compiled.value_grad(task.stacked_state(poses))
             if not active:
                 active = True
-                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp)
+                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
+                                     self._rng(k, ce_before, t))
                 changes.update(active=True, funnel=funnel, ce=0, c=0, stage=0, events=(0, 0, 0),
                                rho_phi=math.nan)
                 logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, k + 1, t, funnel)
             elif reinit:
-                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp)
+                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
+                                     self._rng(k, ce_before, t))
                 changes.update(funnel=funnel, stage=0)
                 if cfg.protocol.reset_ce_on_release:
                     changes["ce"] = 0
@@ -319,7 +335,7 @@ class StlAgent:
                     # that the recorded r̄ keeps ρ^φ ≥ r̄ (paper Alg. 2 line 28).
                     ce += 1
                     stage = 1 if ce <= fp.n_stage1 else 3
-                    funnel = funnel.repair(stage, rho_own, t, fp)
+                    funnel = funnel.repair(stage, rho_own, t, fp, self._rng(k, ce, t))
                     repaired = stage
                     events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                     changes.update(funnel=funnel, ce=ce, stage=stage, events=events)
@@ -347,7 +363,8 @@ class StlAgent:
             if cfg.protocol.followers_detect and not -1.0 < z < 0.0:
                 ce += 1
                 stage = 1 if ce <= fp.n_stage1 else 3
-                follow_funnel = follow_funnel.repair(stage, rho, t, fp)
+                follow_funnel = follow_funnel.repair(stage, rho, t, fp,
+                                                     self._rng(k, ce, t))
                 repaired = stage
                 events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                 changes.update(follow_funnel=follow_funnel, ce=ce, stage=stage, events=events)

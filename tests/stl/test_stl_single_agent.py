@@ -138,3 +138,17 @@ def test_repair_loop_keeps_invariants_under_disturbance(kind, a, length, x, y, s
     (outcome,) = result.states[1].outcomes
     if kind == "G":
         assert task_robustness(task, result.trajectory, smooth=True) >= outcome.final_r
+
+
+def test_code_faithful_random_mode_is_reproducible_and_keeps_the_bound():
+    def run(seed):
+        return run_single(f"G[5,30] ({G_REGION})", (1, -1), 30, random_seed=seed)
+
+    task, first, outcome = run(11)
+    _, again, outcome_again = run(11)
+    _, other, _ = run(12)
+    assert outcome == outcome_again
+    assert first.events(1) == again.events(1)
+    assert first.events(1) != other.events(1)
+    assert 0 < first.logs[1][0].r < 0.5 * first.logs[1][0].rho_max  # r = ρ_max·U(0,1)/2
+    assert task_robustness(task, first.trajectory) >= outcome.final_r
