@@ -6,7 +6,8 @@ What the LTL agent runtime uses::
     executor = Executor.from_scenario(scenario, robot_id)        # static grid + DWA + limits
     state = executor.initial_state(plan.prefix, plan.suffix)     # region names from the planner
     state, out = executor.step(state, ExecutorInputs(t, (x, y, θ), others))   # at 5 Hz
-    # others: (K, 4) rows (id, x, y, θ) of the mocap frame; out.v, out.omega: the command;
+    # others: (K, 4) rows (id, x, y, θ) of the mocap frame (own row ignored); out.v, out.omega:
+    # the command [m/s, rad/s];
     # out.events: RegionVisited, CycleCompleted, PlanFinished, Stuck, ReplanRequest, ...;
     # out.progress: target, visits per region, GF rounds, suffix cycles, mode.
     # Answer a ReplanRequest with ExecutorInputs(..., new_plan=(prefix, suffix)).

@@ -107,7 +107,7 @@ def astar_cells(
     inf = math.inf
     g = [inf] * n
     parent = [-1] * n
-    closed = bytearray(n)
+    openable = list(free)  # free and not yet closed (one lookup instead of two per neighbour)
     k = SQRT2 - 1.0
     sy, sx = divmod(s, width)
     dx0, dy0 = abs(sx - gx), abs(sy - gy)
@@ -118,16 +118,16 @@ def astar_cells(
     found = False
     while heap:
         _, _, u, ux, uy = pop(heap)
-        if closed[u]:
+        if not openable[u]:
             continue
         if u == g_idx:
             found = True
             break
-        closed[u] = 1
+        openable[u] = False
         gu = g[u]
         for du, ddx, ddy, cost, o1, o2 in moves:
             v = u + du
-            if not free[v] or closed[v]:
+            if not openable[v]:
                 continue
             if o1 and not (free[u + o1] and free[u + o2]):
                 continue
@@ -180,6 +180,9 @@ def smooth_path(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
     i = 0
     last = len(pts) - 1
     while i < last:
+        if line_of_sight(grid, pts[i], pts[last:])[0]:  # common case: the rest is in sight
+            out.append(last)
+            break
         visible = line_of_sight(grid, pts[i], pts[i + 1 :])
         # The next point is always kept, even if sampling clips a blocked corner.
         visible[0] = True
