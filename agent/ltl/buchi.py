@@ -6,9 +6,12 @@
 2. the very weak alternating automaton of Gastin & Oddoux (``agent.ltl.alternating``);
 3. the transition-based generalised Büchi automaton with GO's simplifications
    (``agent.ltl.tgba``);
-4. SCC-aware degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``);
-5. removal of useless states (unreachable, or unable to reach an accepting cycle) and a
-   bisimulation quotient (equal acceptance, equal guarded edges to equal classes).
+4. SCC-aware degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``),
+   for the two sound markings of the TGBA (lazy/eager, see ``build_tgba``), keeping the smaller;
+5. removal of useless states (unreachable, or unable to reach an accepting cycle), a
+   bisimulation quotient (equal acceptance, equal guarded edges to equal classes), and the
+   merging of *transient* states (on no cycle, so visited at most once and their acceptance
+   is irrelevant) into a state with the same outgoing edges.
 
 The result ``A = (Q, 2^AP, Δ, Q0, F)`` has states ``0..num_states-1``; ``edges[q]`` lists
 ``(q', guard)`` with guards over ``atoms`` (see ``agent.ltl.guards``).
@@ -105,14 +108,28 @@ def translate(formula: Formula | str) -> Buchi:
 
     Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse.
     """
+    candidates = translation_candidates(formula)
+    return min(candidates, key=lambda b: (b.num_states, b.num_edges))
+
+
+def translation_candidates(formula: Formula | str) -> list[Buchi]:
+    """The automata of the (one or two) TGBA markings of ``build_tgba``, fully reduced.
+
+    All are equivalent to the formula; :func:`translate` keeps the smallest. Exposed so tests
+    can check every candidate, not only the one that happens to win.
+    """
     tree = parse(formula) if isinstance(formula, str) else formula
     atoms = _atoms_in_order(tree)
     index = {a: i for i, a in enumerate(atoms)}
-    tgba = build_tgba(normalize(tree), index)
-    n, initial, accepting, edges = degeneralize(tgba)
-    n, initial, accepting, edges = _remove_useless(n, initial, accepting, edges)
-    n, initial, accepting, edges = _merge_bisimilar(n, initial, accepting, edges)
-    return _renumbered(to_string(tree), atoms, initial, accepting, edges)
+    text = to_string(tree)
+    result = []
+    for tgba in build_tgba(normalize(tree), index):
+        n, initial, accepting, edges = degeneralize(tgba)
+        n, initial, accepting, edges = _remove_useless(n, initial, accepting, edges)
+        n, initial, accepting, edges = _merge_bisimilar(n, initial, accepting, edges)
+        n, initial, accepting, edges = _merge_transient(n, initial, accepting, edges)
+        result.append(_renumbered(text, atoms, initial, accepting, edges))
+    return result
 
 
 def _remove_useless(n, initial, accepting, edges):
@@ -178,6 +195,59 @@ def _merge_bisimilar(n, initial, accepting, edges):
         tuple(dict.fromkeys(block[s] for s in initial)),
         frozenset(block[s] for s in accepting),
         new_edges,
+    )
+
+
+def _merge_transient(n, initial, accepting, edges):
+    """Redirect every transient state onto a state with identical outgoing edges.
+
+    A transient state lies on no cycle, so no run visits it twice and its acceptance does not
+    matter; if another state has the same successors and guards, the two accept the same
+    words from there on. No cycle is created: a predecessor of the transient state that could
+    be reached again from the shared successors would put the transient state on a cycle.
+    """
+    alive = set(range(n))
+    target = list(range(n))
+    while True:
+        succ = [[dst for dst, _g in edges[s]] for s in range(n)]
+        comp, components = strongly_connected_components(n, succ)
+        cyclic = nontrivial(comp, components, succ)
+        by_signature: dict[frozenset, int] = {}
+        merged = False
+        # Prefer keeping states on cycles: visit them first.
+        for s in sorted(alive, key=lambda s: (not cyclic[comp[s]], s)):
+            signature = frozenset(edges[s])
+            keep = by_signature.get(signature)
+            if keep is None:
+                by_signature[signature] = s
+            elif not cyclic[comp[s]]:
+                target[s] = keep
+                alive.discard(s)
+                merged = True
+        if not merged:
+            break
+
+        def find(s: int) -> int:
+            while target[s] != s:
+                s = target[s]
+            return s
+
+        new_edges = []
+        for s in range(n):
+            grouped: dict[int, Guard] = {}
+            for dst, guard in edges[s]:
+                d = find(dst)
+                grouped[d] = grouped.get(d, 0) | guard
+            new_edges.append(sorted(grouped.items()))
+        edges = new_edges
+        initial = tuple(dict.fromkeys(find(s) for s in initial))
+    keep = sorted(alive)
+    new_id = {s: i for i, s in enumerate(keep)}
+    return (
+        len(keep),
+        tuple(new_id[s] for s in initial),
+        frozenset(new_id[s] for s in accepting if s in new_id),
+        [[(new_id[d], g) for d, g in edges[s]] for s in keep],
     )
 
 

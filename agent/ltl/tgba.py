@@ -1,9 +1,12 @@
 """Transition-based generalised Büchi automaton from the VWAA (Gastin & Oddoux 2001, §4).
 
-A TGBA state is a set ``S`` of VWAA states (a conjunction). Its transitions are the products
-⊗_{q ∈ S} δ(q); a transition belongs to acceptance set ``j`` (for the j-th acceptance state
-φ_j of the VWAA) unless φ_j ∈ S and the transition chosen for φ_j was not good — so a run is
-accepting iff no branch of the VWAA run stays in φ_j forever without fulfilling it.
+A TGBA state is a set ``S`` of VWAA states (a conjunction). Its transitions ``S → S'`` are the
+products ⊗_{q ∈ S} δ(q); a transition belongs to acceptance set ``j`` (for the j-th acceptance
+state φ_j of the VWAA) when φ_j ∈ S and the transition chosen for φ_j was good, or when φ_j is
+in neither S nor S' — not when φ_j is pending and not fulfilled. A run is accepting iff no
+branch of the VWAA run stays in φ_j forever without fulfilling it: after a fresh spawn φ_j stays
+pending until it is fulfilled, so whether spawning edges are marked does not change the language
+(see ``build_tgba`` for the two variants).
 
 Reductions applied, all language-preserving:
 
@@ -58,14 +61,30 @@ def _prune(partials: list[_Partial]) -> list[_Partial]:
     return kept
 
 
-def build_tgba(formula: Formula, index: dict[str, int]) -> Tgba:
-    """TGBA of an NNF ``formula`` over the atoms numbered by ``index``."""
+def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
+    """TGBA of an NNF ``formula`` over the atoms numbered by ``index``, in one or two variants.
+
+    Both have the same states and edges; they differ only in the marks of the edges that
+    spawn an acceptance state afresh (φ_j ∉ S, φ_j ∈ S'): unmarked in the first (*lazy*,
+    GO-like), marked in the second (*eager*, as if φ_j ∉ S sufficed). Any marking between the
+    two is sound and complete (the lazy marks already are, and the eager ones only add marks on
+    steps where φ_j was not pending). Which one degeneralises into fewer states depends on the
+    formula (``G(a -> F b)`` prefers lazy), so the caller may try both. When no edge spawns an
+    acceptance state the variants coincide and only one is returned.
+    """
     vwaa = Vwaa(index)
     alphabet = Alphabet(len(index))
     mark_of: dict[Formula, int] = {}
     state_id: dict[frozenset[Formula], int] = {}
     raw_edges: list[list[tuple[int, Guard, int]]] = []
     queue: deque[frozenset[Formula]] = deque()
+    names: dict[Formula, str] = {}  # printed form: a hash-independent order on VWAA states
+
+    def ordered(s: frozenset[Formula]) -> list[Formula]:
+        for q in s:
+            if q not in names:
+                names[q] = str(q)
+        return sorted(s, key=names.__getitem__)
 
     def intern(s: frozenset[Formula]) -> int:
         sid = state_id.get(s)
@@ -74,7 +93,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> Tgba:
             state_id[s] = sid
             raw_edges.append([])
             queue.append(s)
-            for q in sorted(s, key=str):  # sorted: numbering must not depend on hashing
+            for q in ordered(s):  # numbering must not depend on hashing
                 if is_acceptance_state(q) and q not in mark_of:
                     mark_of[q] = len(mark_of)
         return sid
@@ -84,7 +103,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> Tgba:
         s = queue.popleft()
         sid = state_id[s]
         partials: list[_Partial] = [(TRUE_CUBE, frozenset(), 0)]
-        for q in sorted(s, key=str):
+        for q in ordered(s):
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
             product: list[_Partial] = []
             for cube, targets, bad in partials:
@@ -97,8 +116,23 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> Tgba:
             (intern(e), g, b) for e, g, b in _per_letter_domination(partials, alphabet)
         ]
     all_marks = (1 << len(mark_of)) - 1
-    edges = [[(dst, guard, all_marks & ~bad) for dst, guard, bad in out] for out in raw_edges]
-    return _merge_bisimilar(Tgba(len(edges), initial, tuple(map(tuple, edges)), len(mark_of)))
+    pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
+    for s, sid in state_id.items():
+        for q in s:
+            if q in mark_of:
+                pending[sid] |= 1 << mark_of[q]
+    lazy = tuple(
+        tuple((dst, guard, all_marks & ~bad & ~(pending[dst] & ~pending[src]))
+              for dst, guard, bad in out)
+        for src, out in enumerate(raw_edges)
+    )
+    eager = tuple(
+        tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
+    )
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)))]
+    if eager != lazy:
+        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of))))
+    return tuple(variants)
 
 
 def _per_letter_domination(

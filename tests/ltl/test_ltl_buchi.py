@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from ltl_helpers import automaton_accepts, formulas, lasso_words
 
-from agent.ltl.buchi import buchi_step, to_dot, to_text, translate
+from agent.ltl.buchi import buchi_step, to_dot, to_text, translate, translation_candidates
 from agent.ltl.emptiness import accepting_lassos, find_accepting_lasso, is_empty
 from agent.ltl.hoa import to_hoa
 from agent.ltl.lasso import holds
@@ -28,6 +28,15 @@ def test_automaton_accepts_exactly_the_words_satisfying_the_formula(f, words):
         assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop), (
             f"{f} on {prefix} ({loop})^ω"
         )
+
+
+@settings(max_examples=500, deadline=None)
+@given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
+def test_every_marking_candidate_is_correct(f, words):
+    """translate() keeps the smaller of two TGBA markings; both must have the right language."""
+    for buchi in translation_candidates(f):
+        for prefix, loop in words:
+            assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop)
 
 
 @settings(max_examples=500, deadline=None)
@@ -121,6 +130,25 @@ def test_literal_paper_formula_needs_both_propositions_at_once():
     (acc,) = buchi.accepting
     assert all(acc not in buchi.successors(q, A11) for q in range(2))
     assert all(buchi.successors(q, BOTH) == (acc,) for q in range(2))
+
+
+def test_response_pattern_has_two_states():
+    """`G(a -> F b)`: accepting while no request is pending (Spot's size)."""
+    buchi = translate("G(a -> F b)")
+    assert buchi.num_states == 2
+    (init,) = buchi.initial
+    assert buchi.accepting == {init}
+    (pending,) = buchi.successors(init, frozenset({"a"}))
+    assert pending not in buchi.accepting
+    assert buchi.successors(pending, frozenset({"b"})) == (init,)
+    assert buchi.successors(pending, frozenset()) == (pending,)
+
+
+def test_small_sizes_of_common_shapes():
+    assert translate("X G F a").num_states == 2  # X of a suspendable formula is dropped
+    assert translate("a & G F a").num_states == 3  # a first letter, then G F a
+    assert translate("G(a -> F b) & G F c").num_states <= 4
+    assert translate("G F a -> G F b").num_states <= 4
 
 
 def test_buchi_step_tracks_a_violation():
