@@ -315,3 +315,43 @@ def test_the_whole_pose_frame_may_be_passed_own_row_is_ignored():
     _, without = executor.step(state, ExecutorInputs(t=0.0, pose=pose, others=frame[1:]))
     assert (with_self.v, with_self.omega) == (without.v, without.omega)
     assert with_self.path.tolist() == [[-2.0, -1.5], [-2.0, 2.5]]
+
+
+@pytest.mark.parametrize(("n_robots", "may_get_stuck"), [(4, False), (6, True)])
+def test_robots_swapping_places_through_the_centre_all_arrive_without_contact(
+    n_robots, may_get_stuck
+):
+    """Robots on a 2 m circle each drive to the opposite point. With 4 the keep-right rule
+    resolves the crossing at once; 6 jam symmetrically and stuck recovery unjams them."""
+    starts = [
+        (
+            2.0 * math.cos(2 * math.pi * k / n_robots + 0.3),
+            2.0 * math.sin(2 * math.pi * k / n_robots + 0.3),
+        )
+        for k in range(n_robots)
+    ]
+    regions = tuple(Region(f"g{k}", (-x, -y)) for k, (x, y) in enumerate(starts))
+    robots = tuple(
+        Robot(k + 1, "unicycle", (x, y, math.atan2(-y, -x))) for k, (x, y) in enumerate(starts)
+    )
+    scenario = Scenario("swap", "f", 60.0, Arena(), regions, robots)
+    ids = [r.id for r in robots]
+    controllers = []
+    for k, robot in enumerate(robots):
+        executor = Executor.from_scenario(scenario, robot.id)
+        controllers.append(
+            ExecutorController(executor, executor.initial_state((f"g{k}",), ()), ids)
+        )
+    result = simulate(
+        [SimRobot(r.pose) for r in robots],
+        controllers,
+        60.0,
+        scenario.arena,
+        HarnessConfig(disturbance=0.01),
+        rng=np.random.default_rng(1),
+    )
+    assert result.contacts == ()
+    for controller in controllers:
+        assert controller.state.mode == "hold"
+        if not may_get_stuck:
+            assert controller.state.stuck_count == 0
