@@ -1,25 +1,31 @@
 """Plan executor: drives a unicycle along its LTL plan, one pure step per control tick.
 
 ltl-planning.md §6 and paper §III-A. The plan is the projection on regions of the optimal
-prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``. Each step (5 Hz):
+prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``, with the planner's
+conventions (``agent.ltl.planner``): ``prefix[0]`` may be the virtual ``"start"`` state, and a
+name equal to the previous one means "stay". Each step (5 Hz):
 
 1. **Visits.** The current target counts as visited when the robot is inside the region or within
-   ``xy_goal_tolerance`` of its centre; the executor then advances (and may visit several
-   targets in one step when they are the same region). A suffix that loops on one region ends
-   the motion: the robot holds there (``PlanFinished``).
+   ``xy_goal_tolerance`` of its centre; the executor then advances (stays pass at once, without a
+   new visit). A suffix that loops on one region ends the motion (``PlanFinished``): the robot
+   drives on to that region's centre and holds there.
 2. **Global path** (``grid_planner.plan_path``) from the pose to the target centre, on the
    static grid with the other robots within ``local_range`` stamped in as inflated discs — the
    paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
+   Robots ahead are stamped a second time shifted to our left, so paths keep right.
 3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
    velocity estimated from two consecutive pose frames.
 4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
    ``progress_epsilon``; with none for ``stuck_timeout`` the executor emits ``Stuck``, rotates in
    place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
    emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
-   answer with a new plan (``ExecutorInputs.new_plan``).
+   answer with a new plan (``ExecutorInputs.new_plan``); its ``prefix[0]``, when it is the last
+   region visited, counts as reached.
 
-Every command respects the unicycle's velocity and acceleration limits relative to the previous
-command (the dynamic window of one controller period).
+Progress: visits per region, ``rounds`` (GF progress: visits of the least visited suffix
+region), ``cycles`` (complete passes through the suffix), the target and the mode. Every command
+respects the unicycle's velocity and acceleration limits relative to the previous command (the
+dynamic window of one controller period).
 """
 
 from __future__ import annotations
