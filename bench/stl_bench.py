@@ -52,9 +52,10 @@ def bench_step(runs: int, steps: int) -> float:
         poses[j] = np.array([d * math.cos(angle), d * math.sin(angle), 0.0])
     state = agent.initial_state()
     state, _ = agent.step(state, StepInput(0.0, poses))  # activation (funnel init)
-    t = 1.0
+    t = 0.5
     _, out = agent.step(state, StepInput(t, poses))
-    assert out.log.repair == 0 and len(out.messages) == 0, out
+    if out.log.repair or out.messages:
+        raise RuntimeError(f"benchmark step is not a plain control step: {out}")
     per_run = []
     for _ in range(runs):
         start = time.perf_counter()

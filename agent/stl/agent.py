@@ -107,6 +107,7 @@ class AgentState:
     t_done: float = -math.inf  # [s] completion time of sub-task k − 1
     outcomes: tuple[SubTaskOutcome, ...] = ()
     announced: tuple[int, int, bool] | None = None  # last (c, k, active) sent to peers
+    t_announced: float = -math.inf  # [s] time of that announcement
 
 
 @dataclass(frozen=True, slots=True)
@@ -166,9 +167,14 @@ class StlAgent:
             return max(state.t_done, forced[state.k - 1])
         return state.t_done
 
-    def _status(self, state: AgentState) -> list[Message]:
+    def _status(self, state: AgentState, t: float) -> list[Message]:
+        """Status announcements: on every change of (c_i, sub-task, active), and again every
+        ``status_period`` seconds so that a peer that missed one (lossy transport, late start)
+        catches up."""
         key = (state.c, state.k, state.active)
-        if key == state.announced or not self.cfg.peers:
+        period = self.cfg.protocol.status_period
+        if not self.cfg.peers or (key == state.announced
+                                  and (period is None or t - state.t_announced < period)):
             return []
         tasks = self.cfg.subtasks
         all_done = state.k >= len(tasks)
@@ -409,10 +415,10 @@ class StlAgent:
 
         if changes:
             state = replace(state, **changes)
-        announce = self._status(state)
+        announce = self._status(state, t)
         if announce:
             out.extend(announce)
-            state = replace(state, announced=(state.c, state.k, state.active))
+            state = replace(state, announced=(state.c, state.k, state.active), t_announced=t)
         if log_funnel is not None:
             record = LogRecord(t, rho_log, log_funnel.rho_max, log_funnel.lower(t), log_funnel.r,
                                stage, ce, c, follow, k, repaired)

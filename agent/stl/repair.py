@@ -23,6 +23,8 @@ class ProtocolParams:
     reset_ce_on_release: bool = False  # keep ce when a follower re-initialises
     release_on_window_end: bool = True  # release followers when the window ends unsatisfied
     first_come_follow: bool = True  # ignore further requests while following
+    status_period: float | None = 1.0  # [s] re-announce the peer status this often (None: only
+    # on changes) [OUR CHOICE]; the stage-2 rule reads these announcements
     complete_on_satisfaction: bool = True  # §8: F done at the first a ≤ t ≤ b with r < ρ < ρ_max;
     # False runs every sub-task to its window end (F at t > b), as in §11.2's last variant
     followers_detect: bool = False  # followers run no detection (paper Alg. 2 line 5); True: the

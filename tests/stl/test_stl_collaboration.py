@@ -154,3 +154,14 @@ def test_requester_ignores_requests_and_followers_detect_option():
     plain, _ = a4.step(a4.step(a4.initial_state(), StepInput(30.0, poses))[0],
                        StepInput(40.0, poses, (request,)))
     assert plain.ce == 0 and plain.follow_funnel == tight  # default: followers do not detect
+
+
+def test_status_is_announced_on_change_and_periodically():
+    a3, a4, _ = make_pair()
+    result = run_closed_loop([a3, a4], {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, 5, start=30)
+    times = [t for t, m in result.messages if isinstance(m, StatusAnnounce) and m.sender == 4]
+    assert times == pytest.approx([30.0, 31.0, 32.0, 33.0, 34.0, 35.0])
+    from3 = [(t, m.c) for t, m in result.messages
+             if isinstance(m, StatusAnnounce) and m.sender == 3]
+    assert from3[0] == (30.0, 0)
+    assert any(c == 3 for _, c in from3)  # the stage-2 entry (c_3 = 3) is announced at once
