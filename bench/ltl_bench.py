@@ -141,11 +141,17 @@ def bench_grid(sizes: list[int], runs: int, seed: int) -> list[dict]:
 
 
 def print_tables(result: dict) -> None:
-    print("== translation: size-target families (states / edges, median ms)")
-    print(f"{'family':<26} {'n':>2} {'states':>6} {'edges':>6} {'ms':>8}")
-    for row in result["families"]:
-        print(f"{row['family']:<26} {row['n']:>2} {row['states']:>6} {row['edges']:>6} "
-              f"{row['translate_ms']:>8.3f}")
+    print("== translation: size-target families — states (bound) / median ms")
+    names = list(dict.fromkeys(row["family"] for row in result["families"]))
+    short = ["GF a1&…&GF an", "F(a1&F(a2&…))", "F a1&…&F an", "GF(a1&F(a2&…))"]
+    print(f"{'n':>2}  " + "  ".join(f"{s:>22}" for s in short))
+    for n in sorted({row["n"] for row in result["families"]}):
+        cells = []
+        for name in names:
+            row = next(r for r in result["families"] if r["family"] == name and r["n"] == n)
+            bound = 2**n if name.startswith("F a1") else n + 1
+            cells.append(f"{row['states']:>4} ({bound:>3}) {row['translate_ms']:>8.3f} ms")
+        print(f"{n:>2}  " + "  ".join(f"{c:>22}" for c in cells))
     print("\n== translation: scenario formulas")
     for row in result["scenario_translations"]:
         print(f"{row['formula']:<40} {row['states']:>4} states {row['edges']:>4} edges "

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from agent.errors import FormulaSyntaxError
 from agent.ltl.formula import (
@@ -48,10 +49,14 @@ __all__ = ["Token", "atoms", "parse", "tokenize"]
 _IDENT = re.compile(r"[a-z_][a-z0-9_]*")
 _SYMBOLS = ("<->", "->", "&&", "||", "[]", "<>", "&", "|", "!", "(", ")", "^")
 _OPERATOR_LETTERS = frozenset("XFGURVWM")
-_KEYWORDS = {"true": "true", "false": "false", "xor": "xor"}
+_KEYWORDS = MappingProxyType({"true": "true", "false": "false", "xor": "xor"})
 
-_UNARY = {"!": Not, "X": Next, "F": Finally, "G": Globally, "[]": Globally, "<>": Finally}
-_TEMPORAL = {"U": Until, "R": Release, "V": Release, "W": WeakUntil, "M": StrongRelease}
+_UNARY = MappingProxyType(
+    {"!": Not, "X": Next, "F": Finally, "G": Globally, "[]": Globally, "<>": Finally}
+)
+_TEMPORAL = MappingProxyType(
+    {"U": Until, "R": Release, "V": Release, "W": WeakUntil, "M": StrongRelease}
+)
 _AND = frozenset({"&", "&&"})
 _OR = frozenset({"|", "||"})
 _XOR = frozenset({"xor", "^"})

@@ -8,6 +8,9 @@ grammar would read the text differently (Spot binds ``xor`` tighter than ``|`` a
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
 from agent.ltl.formula import (
     And,
     Atom,
@@ -31,7 +34,7 @@ from agent.ltl.formula import (
 # Binding strength: larger binds tighter.
 _EQUIV, _IMPLIES, _XOR, _OR, _AND, _TEMPORAL, _UNARY, _PRIMARY = range(8)
 
-_BINARY_SYMBOL: dict[type, tuple[str, int]] = {
+_BINARY_SYMBOL: Mapping[type, tuple[str, int]] = MappingProxyType({
     Equiv: ("<->", _EQUIV),
     Implies: ("->", _IMPLIES),
     Xor: ("xor", _XOR),
@@ -39,8 +42,10 @@ _BINARY_SYMBOL: dict[type, tuple[str, int]] = {
     Release: ("R", _TEMPORAL),
     WeakUntil: ("W", _TEMPORAL),
     StrongRelease: ("M", _TEMPORAL),
-}
-_UNARY_SYMBOL: dict[type, str] = {Not: "!", Next: "X ", Finally: "F ", Globally: "G "}
+})
+_UNARY_SYMBOL: Mapping[type, str] = MappingProxyType(
+    {Not: "!", Next: "X ", Finally: "F ", Globally: "G "}
+)
 
 
 def _level(f: Formula) -> int:
