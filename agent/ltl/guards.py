@@ -24,6 +24,19 @@ from collections.abc import Iterable, Sequence
 Cube = tuple[int, int]
 Guard = int
 
+MAX_ATOMS = 20  # a guard is then a 2^20-bit (128 KiB) int; robot missions use a handful
+
+
+class TooManyPropositions(ValueError):
+    """A formula with more atomic propositions than truth-table guards support."""
+
+    def __init__(self, count: int):
+        self.count = count
+        super().__init__(
+            f"the formula has {count} atomic propositions; at most {MAX_ATOMS} are supported "
+            f"(edge guards are truth tables over the 2^n letters)"
+        )
+
 TRUE_CUBE: Cube = (0, 0)
 
 
@@ -60,6 +73,8 @@ class Alphabet:
     """Truth tables over ``n`` atoms: ``full`` (true), the atoms' tables, cubes ↔ tables."""
 
     def __init__(self, n: int):
+        if n > MAX_ATOMS:
+            raise TooManyPropositions(n)
         self.n = n
         width = 1 << n
         self.full = (1 << width) - 1

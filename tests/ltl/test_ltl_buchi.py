@@ -242,3 +242,11 @@ def test_translation_does_not_depend_on_string_hashing(tmp_path):
                               text=True, check=True, timeout=60)
         outputs.add(done.stdout)
     assert len(outputs) == 1
+
+
+def test_too_many_propositions_is_a_clear_error():
+    from agent.ltl.guards import MAX_ATOMS, TooManyPropositions
+
+    text = " & ".join(f"F p{i}" for i in range(MAX_ATOMS + 1))
+    with pytest.raises(TooManyPropositions, match=f"has {MAX_ATOMS + 1} atomic propositions"):
+        translate(text)
