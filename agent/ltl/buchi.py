@@ -166,8 +166,9 @@ def _merge_bisimilar(n, initial, accepting, edges):
     """Quotient by the coarsest bisimulation that respects acceptance and guards."""
     if n == 0:
         return n, initial, accepting, edges
-    block = [int(s in accepting) for s in range(n)]
-    num_blocks = len(set(block))
+    flags = {flag: i for i, flag in enumerate(dict.fromkeys(s in accepting for s in range(n)))}
+    block = [flags[s in accepting] for s in range(n)]  # numbered 0..k-1
+    num_blocks = len(flags)
     while True:
         signatures: dict[tuple, int] = {}
         new_block = []

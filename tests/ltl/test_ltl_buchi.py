@@ -144,6 +144,14 @@ def test_response_pattern_has_two_states():
     assert buchi.successors(pending, frozenset()) == (pending,)
 
 
+def test_all_accepting_automaton_is_reduced():
+    """Regression (found by Hypothesis): bisimulation when every state is accepting."""
+    f = parse("!F((a | !X a) R !!(b U a))")
+    buchi = translate(f)
+    assert buchi.accepting == set(range(buchi.num_states))
+    assert automaton_accepts(buchi, [], [E]) == holds(f, [], [E])
+
+
 def test_small_sizes_of_common_shapes():
     assert translate("X G F a").num_states == 2  # X of a suspendable formula is dropped
     assert translate("a & G F a").num_states == 3  # a first letter, then G F a
