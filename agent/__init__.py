@@ -1,1 +1,1 @@
-"""tlfleet agents: pure planning/control cores (ltl, stl, nav, control, protocol) and their runtime."""
+"""tlfleet agents: the pure cores (ltl, stl, nav, control, protocol, scenario) and their runtime."""

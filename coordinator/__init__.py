@@ -1,1 +1,1 @@
-"""The coordinator: command line, launch, supervision, recording and reports (architecture.md §1)."""
+"""The coordinator: command line, launch, supervision, recording, reports (architecture.md §1)."""

@@ -232,8 +232,8 @@ def _robot(table: _Table, arena: Arena) -> Robot:
 
 
 def _params(table: _Table | None, cls: type) -> Any:
-    """Build a flat dataclass of numbers from a table; every field optional, all positive
-    except those whose default is 0 (disturbance, noise, seed), which must be ≥ 0."""
+    """Build a flat dataclass of numbers and flags from a table; every field optional. Numbers are
+    positive except those whose default is 0 (disturbance, noise, seed), which must be ≥ 0."""
     if table is None:
         return cls()
     values: dict[str, Any] = {}
@@ -242,7 +242,8 @@ def _params(table: _Table | None, cls: type) -> Any:
             continue
         if isinstance(f.default, bool):
             values[f.name] = table.boolean(f.name)
-        elif isinstance(f.default, int):
+            continue
+        if isinstance(f.default, int):
             values[f.name] = table.integer(f.name)
         else:
             values[f.name] = table.number(f.name)

@@ -156,6 +156,12 @@ class StlParams:
     r_sense: float = 0.7  # [m] R, collision-avoidance sensing radius
     beta: float = 2.0  # β_i, collision weight in eq. (6)
     control_rate: float = 100.0  # [Hz]
+    # F-task termination (stl-funnel.md §6.1 step 5 and §8). Both default to the authors' code:
+    # an agent holds still once ρ > r on its own F task and is done at the first instant of the
+    # window with r < ρ < ρ_max, so F robustness ends just above r̄. With both false the funnel
+    # controller runs through the whole window (paper Alg. 2 without the code's hold rule).
+    hold_f_above_r: bool = True
+    complete_f_on_satisfaction: bool = True
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ import logging
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 
@@ -82,10 +83,13 @@ class SubTaskOutcome:
 
     index: int
     t_done: float  # [s]
-    satisfied: bool  # completion by the satisfaction rule (F, or G with r < ρ < ρ_max at b)
+    satisfied: bool  # ρ^φ > 0 (paper §II-B) for the smooth ρ^φ above: conservative, the
+    # standard min/max robustness of the trajectory can be positive when this is not
     final_r: float
     rho_phi: float
     events: tuple[int, int, int]  # critical events handled by stage 1, 2, 3
+    ended_by: Literal["satisfaction", "window_end"] = "window_end"  # §8: the completion rule
+    # (F: first a ≤ t ≤ b with r < ρ < ρ_max; G: t ≥ b inside the funnel) or the window's end
 
 
 @dataclass(frozen=True, slots=True)
@@ -327,11 +331,11 @@ class StlAgent:
                     rho_phi = max(rho_phi, rho_own)
                 changes["rho_phi"] = rho_phi
             inside = funnel.r < rho_own < funnel.rho_max
-            satisfied = False
+            by_rule = False
             if follow is None and inside and cfg.protocol.complete_on_satisfaction and (
                     (task.kind == "F" and task.a <= t <= task.b)
                     or (task.kind == "G" and t >= task.b)):
-                done = satisfied = True
+                done = by_rule = True
             elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
                 done = True
                 if (task.kind == "G" and follow is None
@@ -346,15 +350,16 @@ class StlAgent:
                     events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                     changes.update(funnel=funnel, ce=ce, stage=stage, events=events)
             if done:
-                outcome = SubTaskOutcome(k, t, satisfied, funnel.r, rho_phi, events)
-                if c == i and (satisfied or cfg.protocol.release_on_window_end):
+                outcome = SubTaskOutcome(k, t, rho_phi > 0.0, funnel.r, rho_phi, events,
+                                         "satisfaction" if by_rule else "window_end")
+                if c == i and (by_rule or cfg.protocol.release_on_window_end):
                     out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
                                for v in task.v_ctrl if v != i)
                 c = -1
                 changes.update(k=k + 1, active=False, c=-1, t_done=t,
                                outcomes=(*state.outcomes, outcome))
                 logger.info("robot %d: sub-task %d done at t=%.2f (%s), r=%.4f, rho_phi=%.4f, "
-                            "events=%s", i, k + 1, t, "satisfied" if satisfied else "window end",
+                            "events=%s", i, k + 1, t, outcome.ended_by,
                             funnel.r, rho_phi, events)
 
         # 5. control ----------------------------------------------------------------------
@@ -459,7 +464,8 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
         robot = scenario.robot(robot_id)
         seq = sequences[robot_id]
         cparams = control or ControlParams(umax_lin=robot.omni.max_lin,
-                                           umax_ang=robot.omni.max_ang)
+                                           umax_ang=robot.omni.max_ang,
+                                           hold_F_when_above_r=p.hold_f_above_r)
         config = AgentConfig(
             robot_id=robot_id,
             subtasks=seq,
@@ -470,7 +476,8 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
             control=cparams,
             collision=CollisionParams(r1=p.r1, r_sense=p.r_sense, beta=p.beta,
                                       umax_lin=cparams.umax_lin),
-            protocol=protocol or ProtocolParams(),
+            protocol=protocol or ProtocolParams(
+                complete_on_satisfaction=p.complete_f_on_satisfaction),
         )
         agents[robot_id] = StlAgent(config)
     return agents

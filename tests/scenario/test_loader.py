@@ -62,6 +62,7 @@ BAD = [
     ("stl.eta", 0, "stl.eta", "expected a positive number, got 0"),
     ("stl.n_stage1", 2.5, "stl.n_stage1", "expected an integer, got number 2.5"),
     ("stl.gamma", 1.0, "stl.gamma", "unknown key 'gamma'"),
+    ("stl.hold_f_above_r", 0, "stl.hold_f_above_r", "expected true or false, got integer 0"),
     ("sim.seed", -1, "sim.seed", "expected a number ≥ 0, got -1"),
     ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
@@ -143,6 +144,8 @@ def test_scenario1_matches_the_design_table(scenarios_dir: Path):
     assert s.region("a12").center == (-2.0, 2.5)
     assert (s.stl.delta, s.stl.zeta_l, s.stl.r1, s.stl.r_sense, s.stl.beta) == (
         0.02, 0.2, 0.6, 0.7, 2.0)
+    # the paper's Algorithm 2 through each F window, not the authors' code's F-hold
+    assert (s.stl.hold_f_above_r, s.stl.complete_f_on_satisfaction) == (False, False)
 
 
 def test_missing_file(tmp_path: Path):

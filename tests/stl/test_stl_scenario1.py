@@ -8,6 +8,7 @@ compared with the paper's reported lower bounds.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -46,7 +47,7 @@ def test_robot4_goes_through_stage3_on_phi4_prime(run):
 
 
 def test_robot3_gets_robot4_help_through_stage2_on_phi3_second(run):
-    _, result, _ = run
+    _, result, robustness = run
     requests = [(t, m) for t, m in result.messages if isinstance(m, CollabRequest)]
     assert [(m.sender, m.receiver, m.subtask) for _, m in requests] == [(3, 4, 1)]
     t_request = requests[0][0]
@@ -55,7 +56,8 @@ def test_robot3_gets_robot4_help_through_stage2_on_phi3_second(run):
     follow = [rec.t for rec in result.logs[4] if rec.follow == 3]
     assert follow[0] == pytest.approx(t_request + 0.01)
     second = result.states[3].outcomes[1]
-    assert second.satisfied and 57 <= second.t_done <= 58
+    # the window runs to its end (scenario1.toml); the standard robustness is positive
+    assert 57 <= second.t_done <= 58.01 and robustness[(3, 1)] > 0
     releases = [(t, m.receiver) for t, m in result.messages if isinstance(m, CollabRelease)]
     assert releases == [(second.t_done, 4)]
     # robot 4 then goes on with φ″4 on its own funnel, re-initialised after the release
@@ -63,7 +65,7 @@ def test_robot3_gets_robot4_help_through_stage2_on_phi3_second(run):
     assert result.states[4].outcomes[1].t_done >= 83.0
 
 
-@pytest.mark.parametrize("key", [k for k in PAPER_BOUNDS if k != (5, 1)])
+@pytest.mark.parametrize("key", list(PAPER_BOUNDS))
 def test_standard_robustness_meets_paper_bounds(run, key):
     _, _, robustness = run
     assert robustness[key] >= PAPER_BOUNDS[key]
@@ -76,13 +78,20 @@ def test_phi5_second_is_satisfied_and_above_its_bound_rbar(run):
     assert robustness[(5, 1)] >= outcome.final_r
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "with the default F-hold rule (stl-funnel.md §6.1 step 5) and the §8 completion rule an F task "
-    "ends just above r̄ ≤ r_frac·ρ_max = 0.0225 < 0.05; robot 5 gets 2 stage-1 repairs (front-"
-    "loaded funnel, §13 item 10), so ρ(φ″5) ≈ 0.0058. Reported to the lead, not loosened."))
-def test_phi5_second_meets_the_briefs_bound(run):
-    _, _, robustness = run
-    assert robustness[(5, 1)] >= PAPER_BOUNDS[(5, 1)]
+def test_code_default_f_termination_ends_phi5_just_above_rbar(repo_root):
+    """With the authors' code behaviour (F-hold + first-instant completion, tlfleet's defaults)
+    an F task ends just above r̄ ≤ r_frac·ρ_max = 0.0225: the reason scenario1.toml runs the
+    paper's Algorithm 2 through the window instead (see its [stl] comment)."""
+    scenario = load_scenario(repo_root / "scenarios" / "scenario1.toml")
+    code_like = replace(scenario, stl=replace(scenario.stl, hold_f_above_r=True,
+                                              complete_f_on_satisfaction=True))
+    agents = build_agents(code_like, robots=[3, 4, 5])
+    result = run_closed_loop(list(agents.values()),
+                             {j: scenario.robot(j).pose for j in (3, 4, 5)}, scenario.duration)
+    outcome = result.states[5].outcomes[1]
+    rho = task_robustness(agents[5].cfg.subtasks[1], result.trajectory)
+    assert outcome.ended_by == "satisfaction" and 44.0 <= outcome.t_done <= 44.02
+    assert outcome.final_r <= rho < 0.0225
 
 
 def test_nobody_collides(run):

@@ -44,7 +44,7 @@ def test_11_1_g_task_no_event():
 def test_11_2_f_task_with_hold_rule_is_done_at_44():
     task, result, outcome = run_single("F[44,47] (dist(p1, [-1,0.5]) <= 0.1)", (0, 2), 47)
     assert result.events(1) == []
-    assert outcome.t_done == 44.0 and outcome.satisfied
+    assert outcome.t_done == 44.0 and outcome.satisfied and outcome.ended_by == "satisfaction"
     assert round(task_robustness(task, result.trajectory), 7) == 0.0225018
     # the agent stops once ρ > r and stays (done → u_nom = 0)
     z = result.trajectory.states[1]
@@ -64,7 +64,7 @@ def test_11_2_f_task_without_hold_and_without_completion_rule():
                                        control=ControlParams(hold_F_when_above_r=False),
                                        protocol=ProtocolParams(complete_on_satisfaction=False))
     assert result.events(1) == []
-    assert outcome.t_done == 47.01 and not outcome.satisfied
+    assert outcome.t_done == 47.01 and outcome.ended_by == "window_end" and outcome.satisfied
     assert round(task_robustness(task, result.trajectory), 7) == 0.0590655
 
 
