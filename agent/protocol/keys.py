@@ -1,0 +1,89 @@
+"""Zenoh key expressions of a fleet (architecture.md §2), built here and nowhere else.
+
+Every key lives under ``tlfleet/<fleet>/``. Functions return plain strings, so this module needs
+no zenoh import; the runtime hands them to the session.
+"""
+
+from __future__ import annotations
+
+import re
+
+ROOT = "tlfleet"
+_SEGMENT = re.compile(r"[A-Za-z0-9_-]+\Z")
+ROLES = ("sim", "agent", "coordinator", "router")
+
+
+def _check_segment(value: str, what: str) -> str:
+    if not _SEGMENT.match(value):
+        raise ValueError(f"{what} {value!r} is not a key segment: use letters, digits, _ and -")
+    return value
+
+
+def prefix(fleet: str) -> str:
+    return f"{ROOT}/{_check_segment(fleet, 'fleet')}"
+
+
+def clock(fleet: str) -> str:
+    """Sim → all: ``Clock`` every sim tick."""
+    return f"{prefix(fleet)}/clock"
+
+
+def mocap(fleet: str) -> str:
+    """Sim → all: one ``MocapFrame`` with every robot per mocap period."""
+    return f"{prefix(fleet)}/mocap"
+
+
+def cmd(fleet: str, robot: int) -> str:
+    """Agent → sim: ``Command`` of robot ``robot``."""
+    return f"{prefix(fleet)}/robot/{int(robot)}/cmd"
+
+
+def all_cmds(fleet: str) -> str:
+    return f"{prefix(fleet)}/robot/*/cmd"
+
+
+def status(fleet: str, robot: int) -> str:
+    """Agent → coordinator: ``LtlStatus`` or ``StlStatus``."""
+    return f"{prefix(fleet)}/robot/{int(robot)}/status"
+
+
+def all_statuses(fleet: str) -> str:
+    return f"{prefix(fleet)}/robot/*/status"
+
+
+def collab(fleet: str, robot: int) -> str:
+    """Queryable of STL agent ``robot``: stage-2 ``CollabMessage`` → ``CollabReply``."""
+    return f"{prefix(fleet)}/robot/{int(robot)}/collab"
+
+
+def event(fleet: str) -> str:
+    """Any → coordinator: ``Event``."""
+    return f"{prefix(fleet)}/event"
+
+
+def control(fleet: str) -> str:
+    """Coordinator → all: ``Control`` (start / stop)."""
+    return f"{prefix(fleet)}/control"
+
+
+def alive(fleet: str, role: str, ident: str | int) -> str:
+    """Liveliness token of one process, e.g. ``alive/agent/3`` or ``alive/sim/0``."""
+    if role not in ROLES:
+        raise ValueError(f"unknown role {role!r}; expected one of {', '.join(ROLES)}")
+    return f"{prefix(fleet)}/alive/{role}/{_check_segment(str(ident), 'process id')}"
+
+
+def all_alive(fleet: str) -> str:
+    return f"{prefix(fleet)}/alive/**"
+
+
+def robot_of(key: str) -> int | None:
+    """The robot id in a ``.../robot/<id>/...`` key, or ``None``."""
+    match = re.search(r"/robot/(\d+)/", key + "/")
+    return int(match.group(1)) if match else None
+
+
+def parse_alive(key: str) -> tuple[str, str] | None:
+    """``(role, id)`` of a liveliness key, or ``None`` when it is not one."""
+    match = re.search(r"/alive/([A-Za-z]+)/([A-Za-z0-9_-]+)$", key)
+    return (match.group(1), match.group(2)) if match else None
