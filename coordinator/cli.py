@@ -21,6 +21,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "translate": ("coordinator.commands.translate", "LTL formula to Büchi automaton"),
     "plan": ("coordinator.commands.plan", "optimal prefix–suffix plans of the LTL robots"),
     "monitor": ("coordinator.commands.monitor", "STL robustness of a recorded trajectory"),
+    "router": ("coordinator.commands.router", "run a zenoh router for a fleet"),
+    "sim": ("coordinator.commands.sim", "run the pymunk simulator process of a scenario"),
+    "agent": ("coordinator.commands.agent", "run the agent process of one robot"),
+    "run": ("coordinator.commands.run", "launch, supervise and record a whole fleet"),
 }
 
 
