@@ -75,8 +75,16 @@ def _missing_letters(buchi: Buchi, letters: list[int]) -> list[str]:
     return [missing[c] for c in kept]
 
 
-def explain_unsatisfiable(buchi: Buchi, ts: TransitionSystem, initial_region: str) -> str:
-    """A sentence saying what is missing for ``buchi`` to have an accepting run on ``ts``."""
+def explain_unsatisfiable(
+    buchi: Buchi,
+    ts: TransitionSystem,
+    initial_region: str,
+    initial_states: frozenset[int] | None = None,
+) -> str:
+    """A sentence saying what is missing for ``buchi`` to have an accepting run on ``ts`` from
+    ``initial_region`` with the automaton in ``initial_states`` (default: its initial states)."""
+    if initial_states is None:
+        initial_states = frozenset(buchi.initial)
     if find_accepting_lasso(buchi) is None:
         return "the formula is unsatisfiable: no infinite word satisfies it"
     region_letters = sorted({buchi.valuation(label) for label in ts.labels})
@@ -89,7 +97,7 @@ def explain_unsatisfiable(buchi: Buchi, ts: TransitionSystem, initial_region: st
             return "; ".join(reasons)
         return "no sequence of region labels is accepted by the task's automaton"
     label = ts.labels[ts.index(initial_region)]
-    if not buchi_step(buchi, frozenset(buchi.initial), label):
+    if not buchi_step(buchi, initial_states, label):
         carried = "{" + ", ".join(sorted(label)) + "}"
         return (
             f"the run already fails where it starts: {initial_region!r} carries {carried} "

@@ -133,9 +133,11 @@ def _search(
     t1 = time.perf_counter()
     lasso = optimal_lasso(graph.succ, graph.initial, graph.accepting, beta)
     t2 = time.perf_counter()
-    start_name = ts.names[initial_pairs[0][0]] if initial_pairs else ts.names[ts.initial]
     if lasso is None:
-        raise UnsatisfiableTask(robot, buchi.formula, explain_unsatisfiable(buchi, ts, start_name))
+        start = ts.names[initial_pairs[0][0]] if initial_pairs else ts.names[ts.initial]
+        states = frozenset(q for _r, q in initial_pairs)
+        missing = explain_unsatisfiable(buchi, ts, start, states)
+        raise UnsatisfiableTask(robot, buchi.formula, missing)
 
     def run(ids: Iterable[int]) -> tuple[tuple[str, int], ...]:
         return tuple((ts.names[graph.pairs[k][0]], graph.pairs[k][1]) for k in ids)
@@ -220,15 +222,12 @@ def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = No
     if robot.ltl is None:
         raise ValueError(f"robot {robot_id} has no LTL task")
     ts = from_scenario(scenario, robot_id, distance)
-    beta = scenario.ltl.suffix_weight
-    t0 = time.perf_counter()
-    tree = parse(robot.ltl)
-    t1 = time.perf_counter()
-    buchi = translate(tree)
-    t2 = time.perf_counter()
+    buchi, t_parse, t_translate = _automaton(robot.ltl)
     pairs = [(ts.initial, q) for q in buchi.initial]
     try:
-        return _search(buchi, ts, pairs, beta, robot_id, t1 - t0, t2 - t1)
+        return _search(
+            buchi, ts, pairs, scenario.ltl.suffix_weight, robot_id, t_parse, t_translate
+        )
     except UnsatisfiableTask as exc:
         # Name the formula as the scenario wrote it.
         raise UnsatisfiableTask(robot_id, robot.ltl, exc.missing) from None

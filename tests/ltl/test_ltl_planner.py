@@ -262,6 +262,17 @@ def test_replan_after_a_violation_is_unsatisfiable():
         replan(buchi, ts, "a", states)
 
 
+def test_replan_diagnoses_from_the_given_states():
+    """After leaving 'a', only `G b` is left: from 'a' the run fails on its first letter,
+    from 'b' the robot stays forever."""
+    ts = from_regions([region("a", 0, 0), region("b", 1, 0)], (0, 0))
+    buchi = translate("a & X G b")
+    states = follow(buchi, ts, ["a"])  # now `G b` remains, the robot is in 'a'
+    with pytest.raises(UnsatisfiableTask, match="fails where it starts: 'a' carries \\{a\\}"):
+        replan(buchi, ts, "a", states)
+    assert replan(buchi, ts, "b", states).suffix == ("b",)
+
+
 def test_replan_rejects_unknown_states_and_regions():
     ts = from_regions([region("a", 0, 0)], (0, 0))
     buchi = translate("G F a")
