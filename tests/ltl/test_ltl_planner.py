@@ -212,6 +212,22 @@ def follow(buchi, ts, names):
     return states
 
 
+@pytest.mark.parametrize("formula", ["G F a & G F b & G F c", "F a & F b & F c",
+                                     "F(a & F(b & F c))", "G(a -> F c) & G F b"])
+def test_tracking_the_plan_with_buchi_step_follows_its_run(formula):
+    """What the LTL agent does: read the label of each region it leaves; the plan's Büchi
+    states are always among the tracked ones, and the accepting state recurs on the suffix."""
+    ts = from_regions([region("a", 0, 0), region("b", 2, 0), region("c", 0, 3)], (1, 1))
+    buchi = translate(formula)
+    p = plan(buchi, ts)
+    states = frozenset(buchi.initial)
+    run = [*p.prefix_run, *p.suffix_run * 3]
+    for name, q in run:
+        assert q in states
+        states = buchi_step(buchi, states, ts.labels[ts.index(name)])
+    assert p.suffix_run[0][1] in buchi.accepting
+
+
 def test_replan_from_the_start_equals_plan():
     ts = from_regions([region("a", 0, 0), region("b", 2, 0), region("c", 0, 3)], (1, 1))
     buchi = translate("F a & F b & F c")
