@@ -87,3 +87,20 @@ def parse_alive(key: str) -> tuple[str, str] | None:
     """``(role, id)`` of a liveliness key, or ``None`` when it is not one."""
     match = re.search(r"/alive/([A-Za-z]+)/([A-Za-z0-9_-]+)$", key)
     return (match.group(1), match.group(2)) if match else None
+
+
+def key_matches(key_expr: str, key: str) -> bool:
+    """Zenoh key-expression matching of a concrete ``key``: ``*`` is one chunk, ``**`` any number
+    of chunks (zero included)."""
+    return _match(key_expr.split("/"), key.split("/"))
+
+
+def _match(pattern: list[str], chunks: list[str]) -> bool:
+    if not pattern:
+        return not chunks
+    head, rest = pattern[0], pattern[1:]
+    if head == "**":
+        return any(_match(rest, chunks[i:]) for i in range(len(chunks) + 1))
+    if not chunks:
+        return False
+    return (head == "*" or head == chunks[0]) and _match(rest, chunks[1:])

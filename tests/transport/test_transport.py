@@ -1,0 +1,93 @@
+"""Transport: key matching, the fake network's semantics, and the same calls over real zenoh on
+loopback (multicast scouting off, explicit tcp/127.0.0.1 endpoints)."""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+import pytest
+
+from agent.protocol.keys import key_matches
+from agent.runtime.transport import FakeNetwork, TransportConfig, ZenohTransport
+
+
+@pytest.mark.parametrize(("expr", "key", "expected"), [
+    ("tlfleet/s/mocap", "tlfleet/s/mocap", True),
+    ("tlfleet/s/mocap", "tlfleet/s/clock", False),
+    ("tlfleet/s/robot/*/cmd", "tlfleet/s/robot/3/cmd", True),
+    ("tlfleet/s/robot/*/cmd", "tlfleet/s/robot/3/status", False),
+    ("tlfleet/s/robot/*/cmd", "tlfleet/s/robot/cmd", False),
+    ("tlfleet/s/alive/**", "tlfleet/s/alive/agent/3", True),
+    ("tlfleet/s/alive/**", "tlfleet/s/alive", True),
+    ("tlfleet/**/cmd", "tlfleet/s/robot/3/cmd", True),
+    ("tlfleet/**/cmd", "tlfleet/s/robot/3/status", False),
+    ("tlfleet/s/*", "tlfleet/s/robot/3", False),
+])
+def test_key_matches(expr, key, expected):
+    assert key_matches(expr, key) is expected
+
+
+def test_fake_pub_sub_query_and_liveliness():
+    net = FakeNetwork()
+    a, b = net.transport("a"), net.transport("b")
+    got: list[tuple[str, bytes]] = []
+    b.subscribe("f/robot/*/cmd", lambda k, p: got.append((k, p)))
+    a.publish("f/robot/3/cmd", b"x")
+    a.publish("f/robot/3/status", b"y")
+    assert got == [("f/robot/3/cmd", b"x")]
+
+    b.serve("f/robot/4/collab", lambda p: b"ok:" + p)
+    assert a.query("f/robot/4/collab", b"req", timeout=1.0) == [b"ok:req"]
+    assert a.query("f/robot/5/collab", b"req", timeout=1.0) == []
+
+    seen: list[tuple[str, bool]] = []
+    b.declare_alive("f/alive/agent/4")
+    a.watch_alive("f/alive/**", lambda k, alive: seen.append((k, alive)))
+    assert seen == [("f/alive/agent/4", True)]  # history: existing tokens at once
+    b.kill()
+    assert seen[-1] == ("f/alive/agent/4", False)
+    assert a.query("f/robot/4/collab", b"req", timeout=1.0) == []  # dead peer answers nothing
+    a.publish("f/robot/3/cmd", b"z")
+    assert got[-1] == ("f/robot/3/cmd", b"x")  # its subscriber died with it
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.system
+def test_zenoh_round_trip_on_loopback():
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = ZenohTransport.open(TransportConfig(mode="router", listen=(endpoint,)))
+    a = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+    b = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+    try:
+        arrived = threading.Event()
+        payloads: list[bytes] = []
+
+        def on_cmd(key: str, payload: bytes) -> None:
+            payloads.append(payload)
+            arrived.set()
+
+        b.subscribe("t/robot/*/cmd", on_cmd)
+        b.serve("t/robot/2/collab", lambda p: b"ack " + p)
+        alive = threading.Event()
+        gone = threading.Event()
+        a.watch_alive("t/alive/**", lambda k, up: (alive if up else gone).set())
+        token = b.declare_alive("t/alive/agent/2")
+        assert alive.wait(5.0)
+        # a subscriber declared by a remote session may take a moment to propagate
+        for _ in range(50):
+            a.publish("t/robot/2/cmd", b"go")
+            if arrived.wait(0.1):
+                break
+        assert payloads and payloads[0] == b"go"
+        assert a.query("t/robot/2/collab", b"help", timeout=2.0) == [b"ack help"]
+        token.close()
+        assert gone.wait(5.0)
+    finally:
+        for t in (a, b, router):
+            t.close()
