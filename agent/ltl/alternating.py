@@ -17,6 +17,9 @@ a single state whose good transitions are those that fulfil ``x`` now,
 formulas give one generalised Büchi state instead of exponentially many. A run is accepting when
 no branch stays forever in an acceptance state without taking its good transitions infinitely
 often. Dominated transitions (weaker cube, more targets, worse acceptance) are dropped.
+
+States are numbered in discovery order (``Vwaa.states[i]``) and sets of states are int bitmasks,
+so unions and inclusion tests are single int operations.
 """
 
 from __future__ import annotations
@@ -36,8 +39,9 @@ from agent.ltl.formula import (
 )
 from agent.ltl.guards import TRUE_CUBE, Cube, cube_and, cube_implies
 
-Transition = tuple[Cube, frozenset[Formula]]
-StateTransition = tuple[Cube, frozenset[Formula], bool]  # (cube, targets, good)
+StateSet = int  # bitmask over Vwaa.states
+Transition = tuple[Cube, StateSet]
+StateTransition = tuple[Cube, StateSet, bool]  # (cube, targets, good)
 
 
 def is_acceptance_state(q: Formula) -> bool:
@@ -52,11 +56,11 @@ def _prune(transitions: list[Transition]) -> list[Transition]:
     unique = list(dict.fromkeys(transitions))
     if len(unique) < 2:
         return unique
-    unique.sort(key=lambda t: (len(t[1]), (t[0][0] | t[0][1]).bit_count()))
+    unique.sort(key=lambda t: (t[1].bit_count(), (t[0][0] | t[0][1]).bit_count()))
     kept: list[Transition] = []
     for t in unique:
         cube, targets = t
-        if not any(cube_implies(cube, k[0]) and k[1] <= targets for k in kept):
+        if not any(cube_implies(cube, k[0]) and not k[1] & ~targets for k in kept):
             kept.append(t)
     return kept
 
@@ -76,16 +80,27 @@ class Vwaa:
 
     def __init__(self, index: dict[str, int]):
         self.index = index
+        self.states: list[Formula] = []
+        self._ids: dict[Formula, int] = {}
         self._delta: dict[Formula, list[Transition]] = {}
-        self._state_delta: dict[Formula, list[StateTransition]] = {}
+        self._state_delta: dict[int, list[StateTransition]] = {}
 
-    def bar(self, f: Formula) -> list[frozenset[Formula]]:
+    def state(self, f: Formula) -> StateSet:
+        """The singleton set {f}, numbering ``f`` on first sight."""
+        i = self._ids.get(f)
+        if i is None:
+            i = len(self.states)
+            self._ids[f] = i
+            self.states.append(f)
+        return 1 << i
+
+    def bar(self, f: Formula) -> list[StateSet]:
         """x̄: the DNF of ``f`` over VWAA states (each disjunct a set of states)."""
         match f:
             case Const(value):
-                return [frozenset()] if value else []
+                return [0] if value else []
             case And(args):
-                result = [frozenset()]
+                result = [0]
                 for arg in args:
                     result = [r | s for r in result for s in self.bar(arg)]
                 return _minimal_sets(result)
@@ -94,7 +109,7 @@ class Vwaa:
                 for arg in args:
                     result.extend(self.bar(arg))
                 return _minimal_sets(result)
-        return [frozenset((f,))]
+        return [self.state(f)]
 
     def delta(self, f: Formula) -> list[Transition]:
         """δ(f) for an NNF formula ``f`` (see module docstring)."""
@@ -105,15 +120,16 @@ class Vwaa:
         return cached
 
     def _compute_delta(self, f: Formula) -> list[Transition]:
-        top: list[Transition] = [(TRUE_CUBE, frozenset())]
-        stay: list[Transition] = [(TRUE_CUBE, frozenset((f,)))]
+        top: list[Transition] = [(TRUE_CUBE, 0)]
         match f:
             case Const(value):
                 return top if value else []
             case Atom(name):
-                return [((1 << self.index[name], 0), frozenset())]
+                return [((1 << self.index[name], 0), 0)]
             case Not(Atom(name)):
-                return [((0, 1 << self.index[name]), frozenset())]
+                return [((0, 1 << self.index[name]), 0)]
+        stay: list[Transition] = [(TRUE_CUBE, self.state(f))]
+        match f:
             case Next(x):
                 return [(TRUE_CUBE, e) for e in self.bar(x)]
             case Finally(x):
@@ -138,32 +154,33 @@ class Vwaa:
                 return _prune(result)
         raise TypeError(f"not a formula in negation normal form: {f}")
 
-    def state_delta(self, q: Formula) -> list[StateTransition]:
-        """Transitions of the state ``q`` with their acceptance (good) flag."""
-        cached = self._state_delta.get(q)
+    def state_delta(self, i: int) -> list[StateTransition]:
+        """Transitions of state number ``i`` with their acceptance (good) flag."""
+        cached = self._state_delta.get(i)
         if cached is not None:
             return cached
-        transitions = self.delta(q)
+        q = self.states[i]
+        me = 1 << i
         if isinstance(q, Globally) and isinstance(q.arg, Finally):
             # Good: fulfil x now; bad: the plain wait (⊤, {G F x}), unless x is valid.
-            stay = [(TRUE_CUBE, frozenset((q,)))]
+            stay = [(TRUE_CUBE, me)]
             fulfil = _product(self.delta(q.arg.arg), stay)
             result = [(c, e, True) for c, e in fulfil]
             if stay[0] not in fulfil:
-                result.append((TRUE_CUBE, stay[0][1], False))
+                result.append((TRUE_CUBE, me, False))
         elif is_acceptance_state(q):
-            result = [(c, e, q not in e) for c, e in transitions]
+            result = [(c, e, not e & me) for c, e in self.delta(q)]
         else:
-            result = [(c, e, True) for c, e in transitions]
-        self._state_delta[q] = result
+            result = [(c, e, True) for c, e in self.delta(q)]
+        self._state_delta[i] = result
         return result
 
 
-def _minimal_sets(sets: list[frozenset[Formula]]) -> list[frozenset[Formula]]:
-    unique = sorted(set(sets), key=lambda s: (len(s), sorted(map(str, s))))
-    kept: list[frozenset[Formula]] = []
+def _minimal_sets(sets: list[StateSet]) -> list[StateSet]:
+    unique = sorted(set(sets), key=lambda s: (s.bit_count(), s))
+    kept: list[StateSet] = []
     for s in unique:
-        if not any(k <= s for k in kept):
+        if not any(not k & ~s for k in kept):
             kept.append(s)
     return kept
 

@@ -30,7 +30,7 @@ from agent.ltl.guards import TRUE_CUBE, Alphabet, Cube, Guard, cube_and, cube_im
 
 # (cube, targets, bad) where bad is the bitmask of acceptance states whose chosen
 # transition was not good.
-_Partial = tuple[Cube, frozenset[Formula], int]
+_Partial = tuple[Cube, int, int]  # targets: bitmask over Vwaa.states
 
 
 @dataclass(frozen=True)
@@ -47,13 +47,13 @@ def _prune(partials: list[_Partial]) -> list[_Partial]:
     unique = list(dict.fromkeys(partials))
     if len(unique) < 2:
         return unique
-    unique.sort(key=lambda t: (len(t[1]), t[2].bit_count(), (t[0][0] | t[0][1]).bit_count()))
+    unique.sort(key=lambda t: (t[1].bit_count(), t[2].bit_count(), (t[0][0] | t[0][1]).bit_count()))
     kept: list[_Partial] = []
     for t in unique:
         cube, targets, bad = t
         dominated = False
         for k in kept:
-            if k[1] <= targets and not (k[2] & ~bad) and cube_implies(cube, k[0]):
+            if not k[1] & ~targets and not k[2] & ~bad and cube_implies(cube, k[0]):
                 dominated = True
                 break
         if not dominated:
@@ -74,27 +74,31 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     """
     vwaa = Vwaa(index)
     alphabet = Alphabet(len(index))
-    mark_of: dict[Formula, int] = {}
-    state_id: dict[frozenset[Formula], int] = {}
+    mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
+    state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
     raw_edges: list[list[tuple[int, Guard, int]]] = []
-    queue: deque[frozenset[Formula]] = deque()
-    names: dict[Formula, str] = {}  # printed form: a hash-independent order on VWAA states
+    queue: deque[int] = deque()
+    names: list[str] = []  # printed VWAA states: a hash-independent order
 
-    def ordered(s: frozenset[Formula]) -> list[Formula]:
-        for q in s:
-            if q not in names:
-                names[q] = str(q)
-        return sorted(s, key=names.__getitem__)
+    def ordered(s: int) -> list[int]:
+        while len(names) < len(vwaa.states):
+            names.append(str(vwaa.states[len(names)]))
+        members = []
+        while s:
+            low = s & -s
+            members.append(low.bit_length() - 1)
+            s ^= low
+        return sorted(members, key=names.__getitem__)
 
-    def intern(s: frozenset[Formula]) -> int:
+    def intern(s: int) -> int:
         sid = state_id.get(s)
         if sid is None:
             sid = len(state_id)
             state_id[s] = sid
             raw_edges.append([])
             queue.append(s)
-            for q in ordered(s):  # numbering must not depend on hashing
-                if is_acceptance_state(q) and q not in mark_of:
+            for q in ordered(s):
+                if is_acceptance_state(vwaa.states[q]) and q not in mark_of:
                     mark_of[q] = len(mark_of)
         return sid
 
@@ -102,7 +106,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     while queue:
         s = queue.popleft()
         sid = state_id[s]
-        partials: list[_Partial] = [(TRUE_CUBE, frozenset(), 0)]
+        partials: list[_Partial] = [(TRUE_CUBE, 0, 0)]
         for q in ordered(s):
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
             product: list[_Partial] = []
@@ -118,9 +122,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
     for s, sid in state_id.items():
-        for q in s:
-            if q in mark_of:
-                pending[sid] |= 1 << mark_of[q]
+        for q, mark in mark_of.items():
+            if s >> q & 1:
+                pending[sid] |= 1 << mark
     lazy = tuple(
         tuple((dst, guard, all_marks & ~bad & ~(pending[dst] & ~pending[src]))
               for dst, guard, bad in out)
@@ -137,9 +141,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
 
 def _per_letter_domination(
     partials: list[_Partial], alphabet: Alphabet
-) -> list[tuple[frozenset, Guard, int]]:
+) -> list[tuple[int, Guard, int]]:
     """Group transitions by (targets, bad) and remove letters read by a dominating group."""
-    groups: dict[tuple[frozenset[Formula], int], Guard] = {}
+    groups: dict[tuple[int, int], Guard] = {}
     for cube, targets, bad in partials:
         key = (targets, bad)
         groups[key] = groups.get(key, 0) | alphabet.cube(cube)
@@ -148,7 +152,7 @@ def _per_letter_domination(
         targets, bad = key
         guard = table
         for other, other_table in groups.items():
-            if other is not key and other[0] <= targets and not other[1] & ~bad:
+            if other is not key and not other[0] & ~targets and not other[1] & ~bad:
                 guard &= ~other_table
         if guard:
             result.append((targets, guard, bad))
