@@ -46,12 +46,12 @@ def format_plan(p: Plan) -> str:
 def run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     if args.robot is not None:
-        robot = scenario.robot(args.robot) if args.robot in scenario.robot_ids else None
-        if robot is None:
+        if args.robot not in scenario.robot_ids:
             known = ", ".join(str(i) for i in scenario.robot_ids)
             print(f"tlfleet plan: scenario {scenario.name!r} has no robot {args.robot} "
                   f"(robots: {known})", file=sys.stderr)
             return 1
+        robot = scenario.robot(args.robot)
         if robot.ltl is None:
             print(f"tlfleet plan: robot {args.robot} has no LTL task", file=sys.stderr)
             return 1
