@@ -7,8 +7,7 @@ the shortest-path distance from the initial states and ``c(a)`` the cheapest cyc
 1. one multi-source Dijkstra from the initial states gives ``d`` for every reachable state;
 2. Tarjan's SCCs: only accepting states in SCCs that contain a cycle are candidates, and each
    cycle search stays inside the candidate's SCC;
-3. candidates are tried by increasing ``d``; once ``d(a) ≥ best`` the rest cannot win (ties
-   are broken by the number of steps, so equally cheap plans avoid needless stays);
+3. candidates are tried by increasing ``d``; once ``d(a) ≥ best`` the rest cannot win;
 4. each cycle search is a Dijkstra from ``a`` that stops as soon as ``d(a) + β·(distance popped)``
    reaches the best cost so far, or as soon as the cycle found cannot be improved;
 5. a zero-weight self-loop closes a cycle at once, and every accepting state on a cycle found
@@ -38,113 +37,105 @@ class Lasso:
     cycle_cost: float
 
 
-def shortest_paths(
-    succ: Succ, sources: Sequence[int]
-) -> tuple[list[float], list[int], list[int]]:
-    """Multi-source Dijkstra on ``(cost, steps)``: among paths of equal cost the one with fewest
-    edges. Returns distance, number of edges and parent (``-1`` at sources/unreached)."""
+def shortest_paths(succ: Succ, sources: Sequence[int]) -> tuple[list[float], list[int]]:
+    """Multi-source Dijkstra: distance and parent (``-1`` at sources/unreached) of every node."""
     n = len(succ)
     dist = [math.inf] * n
-    steps = [0] * n
     parent = [-1] * n
     heap = []
     for s in sources:
         dist[s] = 0.0
-        heap.append((0.0, 0, s))
+        heap.append((0.0, s))
     heapq.heapify(heap)
     while heap:
-        d, k, u = heapq.heappop(heap)
-        if d > dist[u] or (d == dist[u] and k > steps[u]):
+        d, u = heapq.heappop(heap)
+        if d > dist[u]:
             continue
         for v, w in succ[u]:
             nd = d + w
-            if nd < dist[v] or (nd == dist[v] and k + 1 < steps[v]):
+            if nd < dist[v]:
                 dist[v] = nd
-                steps[v] = k + 1
                 parent[v] = u
-                heapq.heappush(heap, (nd, k + 1, v))
-    return dist, steps, parent
+                heapq.heappush(heap, (nd, v))
+    return dist, parent
 
 
 def _cheapest_cycle(
     succ: Succ, a: int, comp: Sequence[int], budget: float
 ) -> tuple[float, list[int]] | None:
-    """Cheapest cycle through ``a`` inside ``a``'s SCC with cost ≤ ``budget`` (fewest edges among
-    equally cheap ones), as a node list starting at ``a`` without the final return, or ``None``."""
+    """Cheapest cycle through ``a`` inside ``a``'s SCC with cost < ``budget``, as a node list
+    starting at ``a`` (without the final return), or ``None``."""
     c = comp[a]
-    dist: dict[int, tuple[float, int]] = {a: (0.0, 0)}
+    dist = {a: 0.0}
     parent: dict[int, int] = {}
-    best: tuple[float, float] = (budget, math.inf)
+    best = budget
     best_last = -1
-    heap = [(0.0, 0, a)]
+    heap = [(0.0, a)]
     while heap:
-        d, k, u = heapq.heappop(heap)
-        if (d, k) >= best:
+        d, u = heapq.heappop(heap)
+        if d >= best:
             break
-        if (d, k) > dist[u]:
+        if d > dist[u]:
             continue
         for v, w in succ[u]:
-            key = (d + w, k + 1)
+            nd = d + w
             if v == a:
-                if key < best:
-                    best = key
+                if nd < best:
+                    best = nd
                     best_last = u
                 continue
             if comp[v] != c:
                 continue
-            if key < dist.get(v, (math.inf, 0)):
-                dist[v] = key
+            if nd < dist.get(v, math.inf):
+                dist[v] = nd
                 parent[v] = u
-                heapq.heappush(heap, (key[0], key[1], v))
+                heapq.heappush(heap, (nd, v))
     if best_last < 0:
         return None
     path = [best_last]
     while path[-1] != a:
         path.append(parent[path[-1]])
     path.reverse()
-    return best[0], path
+    return best, path
 
 
 def optimal_lasso(
     succ: Succ, initial: Sequence[int], accepting: Sequence[bool], beta: float
 ) -> Lasso | None:
-    """The lasso minimising ``prefix_cost + beta · cycle_cost`` (then the number of steps), or
-    ``None`` if there is none."""
+    """The lasso minimising ``prefix_cost + beta · cycle_cost``, or ``None`` if there is none."""
     if beta < 0:
         raise ValueError(f"the suffix weight must be >= 0, got {beta}")
     n = len(succ)
-    dist, steps, parent = shortest_paths(succ, initial)
+    dist, parent = shortest_paths(succ, initial)
     plain_succ = [[v for v, _w in out] for out in succ]
     comp, components = strongly_connected_components(n, plain_succ)
     cyclic = nontrivial(comp, components, plain_succ)
     candidates = sorted(
-        (dist[a], steps[a], a)
-        for a in range(n)
-        if accepting[a] and cyclic[comp[a]] and dist[a] < math.inf
+        (dist[a], a) for a in range(n) if accepting[a] and cyclic[comp[a]] and dist[a] < math.inf
     )
-    best_key: tuple[float, int] = (math.inf, 0)
+    best_cost = math.inf
     best: tuple[int, float, list[int]] | None = None
     known_cycle: dict[int, tuple[float, list[int]]] = {}
-    for d_a, k_a, a in candidates:
-        if (d_a, k_a + 1) >= best_key:
+    for d_a, a in candidates:
+        if d_a >= best_cost:
             break
         zero_loop = any(v == a and w == 0.0 for v, w in succ[a])
         if zero_loop:
             found: tuple[float, list[int]] | None = (0.0, [a])
         else:
-            budget = (best_key[0] - d_a) / beta if beta > 0 else math.inf
+            budget = (best_cost - d_a) / beta if beta > 0 else math.inf
             upper = known_cycle.get(a)
             if upper is not None:
-                budget = min(budget, upper[0])
+                budget = min(budget, upper[0] + 1e-12)
             found = _cheapest_cycle(succ, a, comp, budget)
-            if found is None and upper is not None:
+            if found is None and upper is not None and d_a + beta * upper[0] < best_cost:
                 found = upper
         if found is None:
             continue
         cycle_cost, cycle = found
-        key = (d_a + beta * cycle_cost, k_a + len(cycle))
-        if key < best_key:
-            best_key = key
+        cost = d_a + beta * cycle_cost
+        if cost < best_cost:
+            best_cost = cost
             best = (a, cycle_cost, cycle)
         # Every accepting state on this cycle has a cycle at most this expensive.
         for i, b in enumerate(cycle):
