@@ -24,7 +24,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from agent.ltl.degeneralize import degeneralize
-from agent.ltl.formula import Formula, children
+from agent.ltl.formula import Atom, Formula, children
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import Alphabet, Guard, valuation
 from agent.ltl.parser import parse
@@ -96,9 +96,8 @@ def _atoms_in_order(f: Formula) -> tuple[str, ...]:
     stack = [f]
     while stack:
         g = stack.pop()
-        name = getattr(g, "name", None)
-        if isinstance(name, str) and not children(g):
-            order.setdefault(name, None)
+        if isinstance(g, Atom):
+            order.setdefault(g.name, None)
         stack.extend(reversed(children(g)))
     return tuple(order)
 
