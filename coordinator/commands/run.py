@@ -1,0 +1,113 @@
+"""``tlfleet run SCENARIO [--lockstep|--realtime] [--out DIR] [--duration S] [--seed N] [--quiet]``.
+
+Validates the scenario (an invalid file exits 1 before any process starts), launches router → sim
+→ agents, supervises and records the run (:mod:`coordinator.runner`), shows a progress bar in sim
+time on stderr when it is a terminal, then prints the summary and the run directory.
+
+Exit codes: 0 every process ended cleanly; 1 invalid scenario or launch failure; 3 the run
+finished but a process died, did not stop cleanly, or the run ended early; 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import TextIO
+
+from coordinator.runner import RunConfig, run_fleet
+from coordinator.supervisor import SupervisorConfig
+
+NAME = "run"
+HELP = "launch, supervise and record a whole fleet"
+BAR_WIDTH = 30
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
+                      help="deterministic, faster than real time (default)")
+    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
+                      help="physics on wall-clock time")
+    parser.set_defaults(mode="lockstep")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="sim time to run [s] (default: the scenario's duration)")
+    parser.add_argument("--seed", type=int, default=None, help="simulator seed")
+    parser.add_argument("--tick-timeout", type=float, default=None, metavar="S",
+                        help="lockstep: wall time the sim waits for a due command [s]")
+    parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
+                        help="wall time for every process to come up [s] (default 60)")
+    parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
+                        help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+class ProgressBar:
+    """``\\r[#####     ] 45.0/90.0 s`` on a terminal, redrawn at most every 0.1 s of sim time."""
+
+    def __init__(self, stream: TextIO, width: int = BAR_WIDTH):
+        self.stream = stream
+        self.width = width
+        self._last = -1.0
+        self.drawn = False
+
+    def __call__(self, t: float, duration: float) -> None:
+        if abs(t - self._last) < 0.1 and self.drawn:
+            return
+        self._last = t
+        filled = int(self.width * min(max(t / duration, 0.0), 1.0)) if duration > 0 else 0
+        self.stream.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] "
+                          f"{t:.1f}/{duration:.1f} s")
+        self.stream.flush()
+        self.drawn = True
+
+    def end(self) -> None:
+        if self.drawn:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def run(args: argparse.Namespace) -> int:
+    duration = args.duration
+    wall_timeout = args.wall_timeout
+    if wall_timeout is None:
+        from agent.scenario import load_scenario  # validated here first: exit 1 before launching
+
+        wall_timeout = 3.0 * (duration or load_scenario(args.scenario).duration) + 60.0
+    config = RunConfig(
+        scenario_path=Path(args.scenario), mode=args.mode, out=args.out, duration=duration,
+        seed=args.seed, tick_timeout=args.tick_timeout,
+        supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout))
+    bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
+
+    def report(text: str) -> None:
+        if bar is not None and bar.drawn:
+            sys.stderr.write("\n")
+            bar.drawn = False
+        print(f"tlfleet run: {text}", file=sys.stderr, flush=True)
+
+    stop = threading.Event()
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in previous:
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        result = run_fleet(config, stop=stop, progress=bar, report=report)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if bar is not None:
+            bar.end()
+    print(result.summary_text)
+    print(f"run directory: {result.run_dir}")
+    if result.outcome.reason == "interrupted":
+        return 130
+    if not result.clean:
+        print(f"tlfleet run: not clean (end: {result.outcome.reason}, exit codes: "
+              f"{result.exit_codes})", file=sys.stderr)
+        return 3
+    return 0

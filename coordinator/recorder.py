@@ -1,0 +1,275 @@
+"""The run directory of architecture.md §6, written as the run goes.
+
+Layout under ``runs/<scenario>-<YYYYmmdd-HHMMSS>/`` (or ``--out``)::
+
+    scenario.toml    copy of the scenario file
+    run.json         how the run was started (mode, seed, duration, argv) and how it ended
+    trajectory.csv   t,x1,y1,th1,x2,y2,th2,… (robot ids ascending), one row per mocap frame
+                     after Control(start); readable by agent.stl.monitor.read_trajectory_csv
+    status.csv       one row per LtlStatus / StlStatus
+    events.jsonl     one JSON object per Event: {"t", "source", "kind", "data"}
+    logs/<name>.log  each child's stdout and stderr (written by the launcher)
+    summary.txt      the plain-text summary (coordinator.summary), at the end
+
+Everything is appended and flushed at least every ``flush_period`` (1 s), so a crash loses at most
+the last second. :class:`Recorder` is a plain consumer of decoded messages (no transport);
+:class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
+(stack-notes.md §0) and decodes in the coordinator's loop.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import queue
+import shutil
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import IO, Any
+
+from agent.protocol import keys
+from agent.protocol.codec import ProtocolError, decode, peek_kind
+from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from agent.runtime.transport import Closeable, Transport
+
+logger = logging.getLogger(__name__)
+
+STATUS_COLUMNS = ("t", "robot", "kind", "subtask", "rho", "rho_max", "lower", "r", "stage", "ce",
+                  "c", "follow", "events", "target", "mode", "rounds", "visits", "prefix",
+                  "suffix", "buchi_states")
+
+
+def default_run_dir(scenario_name: str, root: Path = Path("runs"),
+                    now: datetime | None = None) -> Path:
+    """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists."""
+    stamp = (now or datetime.now(UTC)).strftime("%Y%m%d-%H%M%S")
+    base = root / f"{scenario_name}-{stamp}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    return path
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, (set, frozenset, tuple)):
+        return list(value)
+    return str(value)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (tuple, list)):
+        return json.dumps(value, default=_json_default, separators=(",", ":"))
+    return "" if value is None else str(value)
+
+
+class Recorder:
+    """Writes ``trajectory.csv``, ``status.csv`` and ``events.jsonl`` of one run.
+
+    ``robot_ids`` fixes the trajectory columns (ascending). Frames are written only after
+    :meth:`start` (the mission start), with strictly increasing ``seq``; the newest frame is held
+    back until a newer one arrives (the sim's last pre-start frame and tick 0 both carry seq 0,
+    the later one wins), then written — so the file's times increase strictly.
+    """
+
+    def __init__(self, run_dir: Path, robot_ids: Sequence[int], *,
+                 flush_period: float = 1.0, clock: Callable[[], float] = time.monotonic):
+        self.run_dir = Path(run_dir)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.robot_ids = tuple(sorted(robot_ids))
+        self.flush_period = flush_period  # [s] wall
+        self._clock = clock
+        self._last_flush = clock()
+        self._started = False
+        self._pending: MocapFrame | None = None
+        self._last_written_seq = -1
+        self.frames_written = 0
+        self.frames_skipped = 0
+        self.last_t = 0.0  # [s] sim time of the newest frame seen after start
+        self.statuses = 0
+        self.events = 0
+        self.event_kinds: Counter[str] = Counter()
+        self._traj: IO[str] = open(self.run_dir / "trajectory.csv", "w", newline="",  # noqa: SIM115
+                                   encoding="utf-8")
+        self._traj_csv = csv.writer(self._traj)
+        self._traj_csv.writerow(["t"] + [f"{c}{r}" for r in self.robot_ids
+                                         for c in ("x", "y", "th")])
+        self._status: IO[str] = open(self.run_dir / "status.csv", "w", newline="",  # noqa: SIM115
+                                     encoding="utf-8")
+        self._status_csv = csv.writer(self._status)
+        self._status_csv.writerow(STATUS_COLUMNS)
+        self._events: IO[str] = open(self.run_dir / "events.jsonl", "w",  # noqa: SIM115
+                                     encoding="utf-8")
+        self.flush()
+
+    # ----------------------------------------------------------------- files beside the stream
+
+    def copy_scenario(self, source: Path) -> None:
+        shutil.copyfile(source, self.run_dir / "scenario.toml")
+
+    def write_run_info(self, info: dict[str, Any]) -> None:
+        """(Re)write ``run.json`` with ``info`` (small, rewritten whole)."""
+        path = self.run_dir / "run.json"
+        path.write_text(json.dumps(info, indent=2, default=_json_default) + "\n",
+                        encoding="utf-8")
+
+    # ----------------------------------------------------------------- stream
+
+    def start(self) -> None:
+        """Mission start: frames from now on are trajectory rows."""
+        self._started = True
+
+    def on_mocap(self, frame: MocapFrame) -> None:
+        if not self._started:
+            return
+        if self._pending is not None and frame.seq < self._pending.seq:
+            self.frames_skipped += 1  # out of order (realtime) or a late pre-start frame
+            return
+        if self._pending is not None and frame.seq > self._pending.seq:
+            self._write_frame(self._pending)
+        self._pending = frame
+        self.last_t = max(self.last_t, frame.t)
+        self._maybe_flush()
+
+    def _write_frame(self, frame: MocapFrame) -> None:
+        if frame.seq <= self._last_written_seq:
+            self.frames_skipped += 1
+            return
+        poses = {int(row[0]): row[1:4] for row in frame.poses}
+        try:
+            values = [float(v) for r in self.robot_ids for v in poses[r]]
+        except KeyError as exc:
+            logger.warning("mocap frame seq %d lacks robot %s: not recorded", frame.seq, exc)
+            self.frames_skipped += 1
+            return
+        if not all(math.isfinite(v) for v in values) or not math.isfinite(frame.t):
+            logger.warning("mocap frame seq %d has a non-finite value: not recorded", frame.seq)
+            self.frames_skipped += 1
+            return
+        self._traj_csv.writerow([repr(float(frame.t))] + [repr(v) for v in values])
+        self._last_written_seq = frame.seq
+        self.frames_written += 1
+
+    def on_status(self, status: LtlStatus | StlStatus) -> None:
+        row: dict[str, Any] = {"t": status.t, "robot": status.robot}
+        if isinstance(status, StlStatus):
+            row.update(kind="stl", subtask=status.subtask, rho=status.rho,
+                       rho_max=status.rho_max, lower=status.lower, r=status.r,
+                       stage=status.stage, ce=status.ce, c=status.c, follow=status.follow,
+                       events=status.events)
+        else:
+            row.update(kind="ltl", target=status.target, mode=status.mode, rounds=status.rounds,
+                       visits=[list(v) for v in status.visits], prefix=status.prefix,
+                       suffix=status.suffix, buchi_states=status.buchi_states)
+        self._status_csv.writerow([_cell(row.get(col)) for col in STATUS_COLUMNS])
+        self.statuses += 1
+        self._maybe_flush()
+
+    def on_event(self, event: Event) -> None:
+        record = {"t": event.t, "source": event.source, "kind": event.kind, "data": event.data}
+        self._events.write(json.dumps(record, default=_json_default, allow_nan=True) + "\n")
+        self.events += 1
+        self.event_kinds[event.kind] += 1
+        if event.kind in ("process_died", "sim_done"):
+            self._events.flush()  # rare and important: on disk at once
+        self._maybe_flush()
+
+    # ----------------------------------------------------------------- files
+
+    def _maybe_flush(self) -> None:
+        if self._clock() - self._last_flush >= self.flush_period:
+            self.flush()
+
+    def flush(self) -> None:
+        for handle in (self._traj, self._status, self._events):
+            handle.flush()
+        self._last_flush = self._clock()
+
+    def close(self) -> None:
+        """Write the held-back frame and close every file (idempotent)."""
+        if self._traj.closed:
+            return
+        if self._pending is not None:
+            self._write_frame(self._pending)
+            self._pending = None
+        for handle in (self._traj, self._status, self._events):
+            handle.close()
+
+
+class RecorderTap:
+    """Subscribes a :class:`Recorder` to a fleet's mocap, status and event keys.
+
+    Transport callbacks only queue ``(key, payload)``; :meth:`drain` (called from the coordinator's
+    loop) decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
+    logged once per kind, never raised.
+    """
+
+    def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
+                 on_message: Callable[[str, Any], None] | None = None):
+        self.recorder = recorder
+        self.fleet = fleet
+        self.malformed: Counter[str] = Counter()
+        self.latest_frame: MocapFrame | None = None
+        self._on_message = on_message
+        self._queue: queue.SimpleQueue[tuple[str, str, bytes]] = queue.SimpleQueue()
+        self._handles: list[Closeable] = []
+        for what, key in (("mocap", keys.mocap(fleet)), ("status", keys.all_statuses(fleet)),
+                          ("event", keys.event(fleet))):
+            self._handles.append(transport.subscribe(key, self._enqueue(what)))
+
+    def _enqueue(self, what: str) -> Callable[[str, bytes], None]:
+        put = self._queue.put
+
+        def callback(key: str, payload: bytes) -> None:
+            put((what, key, payload))
+
+        return callback
+
+    def drain(self, limit: int | None = None) -> int:
+        """Decode and record what has arrived (at most ``limit`` samples); returns the count."""
+        n = 0
+        while limit is None or n < limit:
+            try:
+                what, key, payload = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            n += 1
+            self._handle(what, key, payload)
+        return n
+
+    def _handle(self, what: str, key: str, payload: bytes) -> None:
+        try:
+            if what == "mocap":
+                frame = decode(MocapFrame, payload)
+                self.latest_frame = frame
+                self.recorder.on_mocap(frame)
+                message: Any = frame
+            elif what == "status":
+                cls = StlStatus if peek_kind(payload) == "StlStatus" else LtlStatus
+                message = decode(cls, payload)
+                self.recorder.on_status(message)
+            else:
+                message = decode(Event, payload)
+                self.recorder.on_event(message)
+        except ProtocolError as exc:
+            if not self.malformed[what]:
+                logger.warning("malformed payload on %s (further ones only counted): %s", key,
+                               exc)
+            self.malformed[what] += 1
+            return
+        if self._on_message is not None:
+            self._on_message(what, message)
+
+    def close(self) -> None:
+        for handle in self._handles:
+            handle.close()
+        self._handles.clear()

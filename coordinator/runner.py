@@ -1,0 +1,185 @@
+"""One whole run of a fleet: validate, launch, supervise, record, summarise (issue 5 §4).
+
+:func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks:
+
+1. load the scenario (``ScenarioError`` before any process starts);
+2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port;
+3. start the router, wait until it listens, open the coordinator's own client session, declare
+   ``alive/coordinator/0`` and subscribe the recorder;
+4. start the simulator, then one agent per robot (each its own process group,
+   :mod:`coordinator.launcher`);
+5. wait for every liveliness token, send ``Control(start)``, supervise until the end of the
+   mission (:mod:`coordinator.supervisor`), send ``Control(stop)``;
+6. close the session, stop every process group (SIGTERM, then SIGKILL), close the files and write
+   ``summary.txt`` (:mod:`coordinator.summary`).
+
+Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from agent.protocol import keys
+from agent.runtime.transport import TransportConfig, ZenohTransport, open_transport
+from agent.scenario import Scenario, load_scenario
+from coordinator.launcher import (
+    Child,
+    Launcher,
+    LaunchError,
+    free_port,
+    tlfleet_command,
+    wait_for_port,
+)
+from coordinator.recorder import Recorder, RecorderTap, default_run_dir
+from coordinator.summary import write_summary
+from coordinator.supervisor import Outcome, Supervisor, SupervisorConfig
+
+logger = logging.getLogger(__name__)
+
+HOST = "127.0.0.1"
+ChildArgv = Callable[[str, "RunConfig", Scenario, int | None, str], list[str]]
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything ``tlfleet run`` needs; ``None`` means "the scenario's value"."""
+
+    scenario_path: Path
+    mode: str = "lockstep"  # "lockstep" | "realtime"
+    out: Path | None = None
+    duration: float | None = None  # [s] sim time
+    seed: int | None = None
+    tick_timeout: float | None = None  # [s] wall, lockstep wait for a due command
+    supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
+    router_timeout: float = 15.0  # [s] wall, for the router to listen
+    kill_grace: float = 3.0  # [s] wall, SIGTERM → SIGKILL
+    sim_args: tuple[str, ...] = ()  # extra flags for `tlfleet sim`
+    agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
+    child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
+
+
+@dataclass
+class RunResult:
+    run_dir: Path
+    outcome: Outcome
+    exit_codes: dict[str, int | None]
+    clean: bool
+    summary_text: str = ""
+    summary: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
+                       endpoint: str) -> list[str]:
+    """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
+    path = str(Path(config.scenario_path).resolve())
+    if role == "router":
+        return tlfleet_command("router", "--listen", endpoint)
+    if role == "sim":
+        argv = ["sim", path, f"--{config.mode}", "--duration",
+                repr(float(config.duration or scenario.duration))]
+        if config.seed is not None:
+            argv += ["--seed", str(config.seed)]
+        if config.tick_timeout is not None:
+            argv += ["--tick-timeout", repr(float(config.tick_timeout))]
+        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint)
+    return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
+                           "--connect", endpoint)
+
+
+def _open_client(endpoint: str, router: Child, timeout: float) -> ZenohTransport:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+        except Exception as exc:  # zenoh raises ZError, not a stable type
+            if router.returncode is not None or time.monotonic() > deadline:
+                raise LaunchError(f"cannot open a client session to the router at {endpoint}: "
+                                  f"{exc}\n{router.log_tail()}") from exc
+            time.sleep(0.05)
+
+
+def _router_clean(code: int | None) -> bool:
+    return code in (0, -signal.SIGTERM, 128 + signal.SIGTERM)
+
+
+def run_fleet(config: RunConfig, stop: threading.Event | None = None,
+              progress: Callable[[float, float], None] | None = None,
+              report: Callable[[str], None] | None = None) -> RunResult:
+    """Run the fleet of ``config`` to the end; see the module docstring."""
+    scenario = load_scenario(config.scenario_path)
+    duration = float(config.duration or scenario.duration)
+    run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
+    recorder = Recorder(run_dir, [r.id for r in scenario.robots])
+    recorder.copy_scenario(Path(config.scenario_path))
+    endpoint = f"tcp/{HOST}:{free_port(HOST)}"
+    info: dict[str, Any] = {
+        "scenario": scenario.name, "scenario_path": str(config.scenario_path),
+        "mode": config.mode, "duration": duration,
+        "seed": scenario.sim.seed if config.seed is None else config.seed,
+        "endpoint": endpoint, "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    recorder.write_run_info(info)
+    argv_of = config.child_argv or default_child_argv
+    launcher = Launcher(run_dir / "logs")
+    transport: ZenohTransport | None = None
+    tap: RecorderTap | None = None
+    supervisor: Supervisor | None = None
+    outcome = Outcome("error", 0.0)
+    codes: dict[str, int | None] = {}
+    wall_start = time.monotonic()
+    try:
+        router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
+        wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
+        transport = _open_client(endpoint, router, config.router_timeout)
+        transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
+        tap = RecorderTap(transport, scenario.fleet, recorder)
+        supervisor = Supervisor(transport, scenario, tap, {"router": router}, duration=duration,
+                                config=config.supervisor, report=report)
+        supervisor.children["sim"] = launcher.start(
+            "sim", argv_of("sim", config, scenario, None, endpoint))
+        for robot in sorted(scenario.robots, key=lambda r: r.id):
+            name = f"agent-{robot.id}"
+            supervisor.children[name] = launcher.start(
+                name, argv_of("agent", config, scenario, robot.id, endpoint))
+        info["ready_time"] = supervisor.wait_ready(stop)
+        supervisor.start()
+        wall_start = time.monotonic()
+        try:
+            outcome = supervisor.supervise(stop, progress)
+        except KeyboardInterrupt:
+            outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
+        info["wall_time"] = time.monotonic() - wall_start
+        codes = supervisor.finish()
+    finally:
+        if tap is not None:
+            tap.drain()
+            tap.close()
+            info["malformed_received"] = dict(tap.malformed)
+        if supervisor is not None:
+            supervisor.close()
+        if transport is not None:
+            transport.close()
+        final = launcher.stop_all(config.kill_grace)
+        recorder.close()
+        info.update(reason=outcome.reason, t_end=outcome.t_end, exit_codes=final,
+                    exit_codes_after_stop=codes, frames=recorder.frames_written)
+        info.setdefault("wall_time", time.monotonic() - wall_start)
+        if info["wall_time"] > 0:
+            info["speedup"] = outcome.t_end / info["wall_time"]
+        recorder.write_run_info(info)
+    clean = (outcome.reason in ("sim_done", "duration") and not outcome.deaths
+             and all(code == 0 for code in codes.values())
+             and _router_clean(final.get("router")))
+    info["clean"] = clean
+    recorder.write_run_info(info)
+    text, data = write_summary(run_dir)
+    return RunResult(run_dir, outcome, final, clean, text, data, info)

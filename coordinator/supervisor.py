@@ -1,0 +1,251 @@
+"""Supervision of a running fleet: readiness, start, deaths, end of run (issue 5 §4).
+
+Protocol (architecture.md §1–§3, the runtime contract):
+
+1. :meth:`Supervisor.wait_ready` — wait until the liveliness tokens ``alive/sim/0`` and
+   ``alive/agent/<id>`` of every robot exist; a child that exits first, or a token still missing
+   after ``ready_timeout``, raises :class:`~coordinator.launcher.LaunchError` naming who did not
+   come up, with the tail of its log.
+2. :meth:`Supervisor.start` — publish ``Control(start)`` (mission clock t = 0).
+3. :meth:`Supervisor.supervise` — every ``poll_period`` drain the recorder tap, and report a child
+   whose token disappears or whose process has exited: printed and recorded as
+   ``Event(kind="process_died")`` within one poll period (≪ 1 s); the run goes on without it
+   unless it was the simulator or the router. The run ends at ``Event(kind="sim_done")``, at sim
+   time ≥ ``duration``, after ``wall_timeout`` or when ``stop`` is set (Ctrl-C).
+4. :meth:`Supervisor.finish` — publish ``Control(stop)`` and give the children ``stop_grace`` to
+   exit by themselves (the launcher then terminates what is left).
+
+Deaths are detected twice (token DELETE, ``Popen.poll()``) and reported once per process.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from agent.protocol import keys
+from agent.protocol.codec import encode
+from agent.protocol.messages import Control, Event
+from agent.runtime.transport import Closeable, Transport
+from agent.scenario import Scenario
+from coordinator.launcher import LaunchError
+from coordinator.recorder import RecorderTap
+
+logger = logging.getLogger(__name__)
+
+
+class ChildLike(Protocol):
+    """What the supervisor needs from a child process (``launcher.Child`` and test doubles)."""
+
+    name: str
+
+    @property
+    def returncode(self) -> int | None: ...
+
+    def log_tail(self, lines: int = 15) -> str: ...
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    ready_timeout: float = 60.0  # [s] wall, for every token to appear
+    wall_timeout: float = 600.0  # [s] wall, safety limit of the supervised phase
+    poll_period: float = 0.05  # [s] wall, death detection and tap draining
+    stop_grace: float = 5.0  # [s] wall, for children to exit after Control(stop)
+
+
+@dataclass
+class Death:
+    process: str
+    how: str
+    t: float  # [s] sim time when it was noticed
+    wall: float  # [s] time.time() when it was noticed
+    returncode: int | None = None
+
+
+@dataclass
+class Outcome:
+    """How the supervised phase ended."""
+
+    reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_died
+    t_end: float  # [s] sim time
+    deaths: list[Death] = field(default_factory=list)
+
+
+def expected_tokens(scenario: Scenario) -> dict[str, str]:
+    """{liveliness key: process name} of the processes a run waits for."""
+    fleet = scenario.fleet
+    tokens = {keys.alive(fleet, "sim", 0): "sim"}
+    for robot in sorted(scenario.robots, key=lambda r: r.id):
+        tokens[keys.alive(fleet, "agent", robot.id)] = f"agent-{robot.id}"
+    return tokens
+
+
+class Supervisor:
+    """Watches the fleet's liveliness and child processes; sends start and stop."""
+
+    def __init__(self, transport: Transport, scenario: Scenario, tap: RecorderTap,
+                 children: Mapping[str, ChildLike], *, duration: float,
+                 config: SupervisorConfig = SupervisorConfig(),
+                 report: Callable[[str], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic):
+        self.transport = transport
+        self.scenario = scenario
+        self.fleet = scenario.fleet
+        self.tap = tap
+        self.children = dict(children)
+        self.duration = duration  # [s] sim time
+        self.config = config
+        self._report = report or (lambda text: logger.warning("%s", text))
+        self._clock = clock
+        self.tokens = expected_tokens(scenario)
+        self.alive: set[str] = set()
+        self.deaths: dict[str, Death] = {}
+        self.stopping = False
+        self._alive_queue: queue.SimpleQueue[tuple[str, bool]] = queue.SimpleQueue()
+        self._handles: list[Closeable] = [
+            transport.watch_alive(keys.all_alive(self.fleet),
+                                  lambda key, alive: self._alive_queue.put((key, alive)))]
+
+    # ----------------------------------------------------------------- helpers
+
+    @property
+    def sim_time(self) -> float:
+        return self.tap.recorder.last_t
+
+    @property
+    def sim_done(self) -> bool:
+        """True once the simulator's ``Event(kind="sim_done")`` has been recorded."""
+        return self.tap.recorder.event_kinds["sim_done"] > 0
+
+    def _process_alive_queue(self) -> None:
+        while True:
+            try:
+                key, alive = self._alive_queue.get_nowait()
+            except queue.Empty:
+                return
+            name = self.tokens.get(key)
+            if name is None:
+                continue
+            if alive:
+                self.alive.add(name)
+            else:
+                self.alive.discard(name)
+                if not self.stopping:
+                    self._died(name, "liveliness token lost", None)
+
+    def _poll_children(self) -> None:
+        for name, child in self.children.items():
+            code = child.returncode
+            if code is not None and name not in self.deaths and not self.stopping:
+                self._died(name, f"exited with code {code}", code)
+
+    def _died(self, name: str, how: str, returncode: int | None) -> None:
+        if name in self.deaths:
+            return
+        death = Death(name, how, self.sim_time, time.time(), returncode)
+        self.deaths[name] = death
+        fatal = name in ("sim", "router")
+        self._report(f"{name} died ({how}) at t = {death.t:.2f} s; "
+                     + ("the run cannot go on" if fatal else "the run goes on without it"))
+        event = Event(t=death.t, source="coordinator", kind="process_died",
+                      data={"process": name, "how": how, "returncode": returncode,
+                            "wall": death.wall})
+        self.tap.recorder.on_event(event)
+        try:
+            self.transport.publish(keys.event(self.fleet), encode(event))
+        except Exception:  # the router may be gone: recording matters, publishing does not
+            logger.exception("cannot publish the process_died event")
+
+    def check(self) -> None:
+        """One supervision step: drain messages, process liveliness changes, poll children."""
+        self.tap.drain()
+        self._process_alive_queue()
+        self._poll_children()
+
+    # ----------------------------------------------------------------- phases
+
+    def wait_ready(self, stop: threading.Event | None = None) -> float:
+        """Block until every expected token is alive; returns the wall time it took [s]."""
+        started = self._clock()
+        deadline = started + self.config.ready_timeout
+        while True:
+            self.tap.drain()
+            self._process_alive_queue()
+            missing = [name for name in self.tokens.values() if name not in self.alive]
+            if not missing:
+                return self._clock() - started
+            for name, child in self.children.items():
+                if child.returncode is not None:
+                    raise LaunchError(f"{name} exited with code {child.returncode} before the "
+                                      f"fleet was ready\n{child.log_tail()}")
+            if stop is not None and stop.is_set():
+                raise KeyboardInterrupt
+            if self._clock() > deadline:
+                tails = "\n".join(self.children[n].log_tail() for n in missing
+                                  if n in self.children)
+                raise LaunchError(f"not up after {self.config.ready_timeout:g} s (no liveliness "
+                                  f"token): {', '.join(missing)}" + (f"\n{tails}" if tails else ""))
+            time.sleep(0.02)
+
+    def start(self) -> None:
+        """Mission start: the recorder starts writing rows, then ``Control(start)`` goes out."""
+        self.tap.recorder.start()
+        self.transport.publish(keys.control(self.fleet), encode(Control(cmd="start", t0=0.0)))
+
+    def supervise(self, stop: threading.Event | None = None,
+                  progress: Callable[[float, float], None] | None = None) -> Outcome:
+        """Run until the end of the mission (see the module docstring)."""
+        deadline = self._clock() + self.config.wall_timeout
+        reason = ""
+        while not reason:
+            self.check()
+            if progress is not None:
+                progress(self.sim_time, self.duration)
+            if "sim" in self.deaths:
+                reason = "sim_died"
+            elif "router" in self.deaths:
+                reason = "router_died"
+            elif self.sim_done:
+                reason = "sim_done"
+            elif self.sim_time >= self.duration:
+                reason = "duration"
+            elif stop is not None and stop.is_set():
+                reason = "interrupted"
+            elif self._clock() > deadline:
+                reason = "wall_timeout"
+                self._report(f"wall-clock safety timeout ({self.config.wall_timeout:g} s) at "
+                             f"t = {self.sim_time:.2f} s: stopping the run")
+            else:
+                time.sleep(self.config.poll_period)
+        return Outcome(reason, self.sim_time, list(self.deaths.values()))
+
+    def finish(self, wait_for: Mapping[str, ChildLike] | None = None) -> dict[str, int | None]:
+        """Publish ``Control(stop)`` and wait up to ``stop_grace`` for ``wait_for`` (default:
+        every child but the router) to exit; returns their exit codes (``None``: still running).
+        """
+        self.check()
+        self.stopping = True
+        try:
+            self.transport.publish(keys.control(self.fleet),
+                                   encode(Control(cmd="stop", t0=self.sim_time)))
+        except Exception:
+            logger.exception("cannot publish Control(stop)")
+        waiting = dict(wait_for) if wait_for is not None else {
+            n: c for n, c in self.children.items() if n != "router"}
+        deadline = self._clock() + self.config.stop_grace
+        while self._clock() < deadline and any(c.returncode is None for c in waiting.values()):
+            self.tap.drain()
+            time.sleep(0.02)
+        self.tap.drain()
+        self._process_alive_queue()
+        return {n: c.returncode for n, c in waiting.items()}
+
+    def close(self) -> None:
+        for handle in self._handles:
+            handle.close()
+        self._handles.clear()
