@@ -1,0 +1,38 @@
+"""``tlfleet sim SCENARIO``: run the pymunk simulator process of a scenario (architecture.md §1).
+
+The process publishes the clock, mocap frames and events, reads the agents' commands and runs
+until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM (``sim.process``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from agent.runtime.transport import add_transport_arguments
+
+NAME = "sim"
+HELP = "run the pymunk simulator process of a scenario"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--lockstep", dest="realtime", action="store_false",
+                      help="wait for every due agent's command each tick (default; deterministic)")
+    mode.add_argument("--realtime", dest="realtime", action="store_true",
+                      help="step the physics on wall-clock time")
+    parser.set_defaults(realtime=False)
+    parser.add_argument("--seed", type=int, default=None,
+                        help="seed of the disturbance and mocap noise (default: the scenario's)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="sim time to run [s] (default: the scenario's duration)")
+    parser.add_argument("--tick-timeout", type=float, default=2.0, metavar="S",
+                        help="lockstep: wall time to wait for the due commands of a tick "
+                             "(default 2 s)")
+    add_transport_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from sim.process import main
+
+    return main(args)

@@ -1,0 +1,387 @@
+"""The simulator process: the pymunk world behind the tlfleet protocol (architecture.md §1–§3).
+
+One loop on the main thread owns the :class:`~sim.world.World` and every piece of state. The
+transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
+callbacks tiny); the loop decodes, decides and publishes.
+
+Protocol (architecture.md §3 and the issue-5 contract):
+
+* before ``Control(start)``: the initial ``MocapFrame(t=0, seq=0, due=())`` every
+  ``preview_period`` wall seconds, so agents can initialise;
+* tick k after start, t_k = k / mocap_rate: ``Clock(t_k, k, mode)`` then
+  ``MocapFrame(t_k, k, poses, due)``;
+  - **lockstep**: ``due`` = the live agents' robots due at k (:func:`sim.lockstep.due_robots`);
+    the loop waits for their ``Command(seq=k)`` (wall timeout ``tick_timeout`` → one
+    ``deadline_miss`` event per missing robot; a dead agent is dropped at once), applies them,
+    then steps the physics by one mocap period;
+  - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
+    (:class:`sim.clock.Pacer`) with the newest command of each robot;
+* after every step: ``contact`` and ``watchdog_stop`` events;
+* at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_done")``, exit 0.
+  ``Control(stop)``, SIGINT or SIGTERM end the loop earlier, also with 0.
+
+A payload that does not decode (or a command whose key, robot or values do not fit) is counted,
+logged at most once per ``malformed_report_period`` per key, and published as
+``Event(kind="malformed_message", data={"key", "count"})``; it never stops the process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import queue
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agent.errors import TlfleetError
+from agent.protocol import keys
+from agent.protocol.codec import ProtocolError, decode, encode
+from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
+from agent.runtime.transport import Closeable, Transport, install_signal_handlers, open_transport
+from agent.scenario import Scenario, load_scenario
+from sim.clock import Pacer, TickClock
+from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
+from sim.world import WALL, World, WorldConfig
+
+logger = logging.getLogger(__name__)
+
+SOURCE = "sim"
+
+
+class SimConfigError(TlfleetError, ValueError):
+    """A simulator setting out of range (names the setting and the value)."""
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """How one simulator process runs (the CLI flags of ``tlfleet sim``)."""
+
+    mode: TimeMode = "lockstep"
+    duration: float = 60.0  # [s] sim time of the run
+    seed: int = 0  # seed of the one numpy Generator (disturbance, mocap noise)
+    tick_timeout: float = 2.0  # [s] wall: lockstep wait for the due commands of one tick
+    preview_period: float = 0.1  # [s] wall between initial frames before start
+    malformed_report_period: float = 1.0  # [s] wall between reports of one key's malformed count
+    poll: float = 0.05  # [s] wall: longest wait before the stop flag is checked again
+    world: WorldConfig = field(default_factory=WorldConfig)
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("lockstep", "realtime"):
+            raise SimConfigError(f"mode {self.mode!r}: expected 'lockstep' or 'realtime'")
+        for name in ("duration", "tick_timeout", "preview_period", "poll"):
+            value = getattr(self, name)
+            if not (value >= 0.0 if name == "duration" else value > 0.0):
+                raise SimConfigError(f"{name} = {value!r} s: must be "
+                                     f"{'≥ 0' if name == 'duration' else '> 0'}")
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace, scenario: Scenario) -> SimConfig:
+        return cls(
+            mode="realtime" if getattr(args, "realtime", False) else "lockstep",
+            duration=scenario.duration if args.duration is None else args.duration,
+            seed=scenario.sim.seed if args.seed is None else args.seed,
+            tick_timeout=args.tick_timeout,
+        )
+
+
+@dataclass
+class SimStats:
+    """What the loop counted; logged at the end and handy in tests."""
+
+    ticks: int = 0
+    deadline_misses: int = 0
+    contacts: int = 0
+    watchdog_stops: int = 0
+    overruns: int = 0
+    wall_time: float = 0.0  # [s] from start to the end of the loop
+
+
+class SimProcess:
+    """The simulator's loop on one transport (see the module docstring).
+
+    ``now`` is the monotonic wall clock (injectable for tests). ``stop`` ends the loop when set
+    (SIGINT/SIGTERM handlers set it in :func:`main`).
+    """
+
+    def __init__(self, transport: Transport, scenario: Scenario, config: SimConfig,
+                 stop: threading.Event | None = None,
+                 now: Callable[[], float] = time.monotonic):
+        self.transport = transport
+        self.scenario = scenario
+        self.config = config
+        self.stop_event = stop or threading.Event()
+        self._now = now
+        self.fleet = scenario.fleet
+        self.world = World.from_scenario(scenario, np.random.default_rng(config.seed),
+                                         config.world)
+        self.clock = TickClock(scenario.sim.mocap_rate)
+        self.dividers = control_dividers(scenario)
+        self.lockstep = LockstepCollector(self.world.ids)
+        self.latest = LatestCommands(self.world.ids)
+        self.alive: set[int] = set()
+        self.started = False
+        self.stop_requested = False
+        self.t = 0.0  # [s] sim time of the newest frame
+        self.stats = SimStats()
+        self.malformed: Counter[str] = Counter()
+        self._reported: dict[str, tuple[int, float]] = {}  # key -> (count reported, wall time)
+        self._inbox: queue.SimpleQueue[tuple[str, str, Any]] = queue.SimpleQueue()
+        self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
+                      "event": keys.event(self.fleet)}
+
+    # ----------------------------------------------------------------- public
+
+    def run(self) -> int:
+        """Declare presence, subscribe, run until done or stopped; undeclare. Returns 0."""
+        handles: list[Closeable] = []
+        try:
+            handles.append(self.transport.subscribe(
+                keys.all_cmds(self.fleet), lambda k, p: self._inbox.put(("cmd", k, p))))
+            handles.append(self.transport.subscribe(
+                keys.control(self.fleet), lambda k, p: self._inbox.put(("control", k, p))))
+            handles.append(self.transport.watch_alive(
+                keys.all_alive(self.fleet), lambda k, up: self._inbox.put(("alive", k, up))))
+            handles.append(self.transport.declare_alive(keys.alive(self.fleet, "sim", 0)))
+            logger.info("sim %s: %d robots, %s mode, seed %d, duration %g s", self.fleet,
+                        len(self.world.ids), self.config.mode, self.config.seed,
+                        self.config.duration)
+            if self._wait_for_start():
+                started = self._now()
+                if self.config.mode == "lockstep":
+                    self._run_lockstep()
+                else:
+                    self._run_realtime()
+                self.stats.wall_time = self._now() - started
+            self._report_malformed(force=True)
+            self._log_summary()
+            return 0
+        finally:
+            for handle in reversed(handles):
+                try:
+                    handle.close()
+                except Exception:
+                    logger.exception("undeclaring a sim entity failed")
+
+    @property
+    def stopping(self) -> bool:
+        return self.stop_requested or self.stop_event.is_set()
+
+    # ----------------------------------------------------------------- phases
+
+    def _wait_for_start(self) -> bool:
+        """Publish the initial frame every ``preview_period`` until ``Control(start)``."""
+        self._frame0 = self.world.mocap_poses()  # noise drawn once: start time stays irrelevant
+        next_publish = self._now()
+        while not self.stopping:
+            if self._now() >= next_publish:
+                self._publish(self._keys["mocap"], MocapFrame(0.0, 0, self._frame0, ()))
+                next_publish += self.config.preview_period
+            self._pump(max(0.0, min(next_publish - self._now(), self.config.poll)))
+            if self.started:
+                return True
+        return False
+
+    def _run_lockstep(self) -> None:
+        last = self.clock.last_tick(self.config.duration)
+        k = 0
+        while not self.stopping:
+            due = () if k >= last else due_robots(k, self.dividers, self.alive)
+            self._publish_tick(k, due)
+            if k >= last:
+                self._finish()
+                return
+            self.lockstep.begin(k, due)
+            self._pump(0.0)
+            deadline = self._now() + self.config.tick_timeout
+            while not self.lockstep.complete and not self.stopping:
+                left = deadline - self._now()
+                if left <= 0.0:
+                    for robot in self.lockstep.expire():
+                        self.stats.deadline_misses += 1
+                        logger.warning("robot %d missed the deadline of tick %d", robot, k)
+                        self._event("deadline_miss", robot=robot, seq=k)
+                    break
+                self._pump(min(left, self.config.poll))
+            if self.stopping:
+                return
+            self._advance(k, self.lockstep.take())
+            k += 1
+
+    def _run_realtime(self) -> None:
+        last = self.clock.last_tick(self.config.duration)
+        pacer = Pacer(self.clock.period, self._now)
+        self.latest.started = True
+        k = 0
+        while not self.stopping:
+            self._publish_tick(k, ())
+            if k >= last:
+                self._finish()
+                break
+            self._pump(0.0)
+            while not self.stopping and (left := pacer.remaining()) > 0.0:
+                self._pump(min(left, self.config.poll))
+            if self.stopping:
+                break
+            pacer.advance()
+            self._advance(k, self.latest.take())
+            k += 1
+        self.stats.overruns = pacer.overruns
+
+    # ----------------------------------------------------------------- one tick
+
+    def _publish_tick(self, k: int, due: tuple[int, ...]) -> None:
+        self.t = self.clock.time(k)
+        poses = self._frame0 if k == 0 else self.world.mocap_poses()
+        self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
+        self._publish(self._keys["mocap"], MocapFrame(self.t, k, poses, due))
+
+    def _advance(self, k: int, commands: list[Command]) -> None:
+        """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}."""
+        t = self.clock.time(k)
+        for command in commands:
+            self.world.set_command(command.robot, command.u, t)
+        for robot in self.world.check_watchdog(t):
+            self.stats.watchdog_stops += 1
+            logger.warning("watchdog: robot %d has had no command for %g s, stopped", robot,
+                           self.world.watchdog)
+            self._event("watchdog_stop", robot=robot)
+        self.world.step(self.clock.period)
+        self.stats.ticks = k + 1
+        self.t = self.clock.time(k + 1)
+        for contact in self.world.drain_contacts():
+            self.stats.contacts += 1
+            data: dict[str, object] = {"a": contact.a, "b": contact.b}
+            if contact.b == WALL:
+                data["what"] = contact.what
+            self._event("contact", **data)
+
+    def _finish(self) -> None:
+        logger.info("sim time reached %g s", self.t)
+        self._event("sim_done", ticks=self.stats.ticks)
+
+    # ----------------------------------------------------------------- inbox
+
+    def _pump(self, timeout: float) -> None:
+        """Handle everything the callbacks queued, waiting up to ``timeout`` [s] for the first."""
+        try:
+            item = self._inbox.get(timeout=timeout) if timeout > 0.0 else self._inbox.get_nowait()
+        except queue.Empty:
+            item = None
+        while item is not None:
+            kind, key, payload = item
+            if kind == "cmd":
+                self._on_command(key, payload)
+            elif kind == "control":
+                self._on_control(key, payload)
+            else:
+                self._on_alive(key, payload)
+            try:
+                item = self._inbox.get_nowait()
+            except queue.Empty:
+                item = None
+        self._report_malformed()
+
+    def _on_command(self, key: str, payload: bytes) -> None:
+        try:
+            command = decode(Command, payload)
+        except ProtocolError as exc:
+            self._malformed(key, str(exc))
+            return
+        if keys.robot_of(key) != command.robot:
+            self._malformed(key, f"command of robot {command.robot} on another robot's key")
+            return
+        if command.robot in self.world.robots:
+            try:
+                self.world.check_command(command.robot, command.u)
+            except ValueError as exc:
+                self._malformed(key, str(exc))
+                return
+        collector = self.lockstep if self.config.mode == "lockstep" else self.latest
+        outcome = collector.offer(command)
+        if outcome is not Offer.ACCEPTED:
+            logger.debug("command of robot %d seq %d ignored: %s", command.robot, command.seq,
+                         outcome.value)
+
+    def _on_control(self, key: str, payload: bytes) -> None:
+        try:
+            control = decode(Control, payload)
+        except ProtocolError as exc:
+            self._malformed(key, str(exc))
+            return
+        if control.cmd == "start" and not self.started:
+            logger.info("start")
+            self.started = True
+        elif control.cmd == "stop":
+            logger.info("stop requested")
+            self.stop_requested = True
+
+    def _on_alive(self, key: str, up: bool) -> None:
+        parsed = keys.parse_alive(key)
+        if parsed is None or parsed[0] != "agent" or not parsed[1].isdigit():
+            return
+        robot = int(parsed[1])
+        if up:
+            self.alive.add(robot)
+        else:
+            logger.info("agent of robot %d is gone", robot)
+            self.alive.discard(robot)
+            self.lockstep.drop(robot)
+
+    # ----------------------------------------------------------------- output
+
+    def _publish(self, key: str, message: object) -> None:
+        self.transport.publish(key, encode(message))
+
+    def _event(self, kind: str, **data: object) -> None:
+        self._publish(self._keys["event"], Event(self.t, SOURCE, kind, dict(data)))
+
+    def _malformed(self, key: str, reason: str) -> None:
+        self.malformed[key] += 1
+        if key not in self._reported:
+            logger.warning("malformed message on %s: %s", key, reason)
+
+    def _report_malformed(self, force: bool = False) -> None:
+        """Publish each key's malformed count when it grew, at most once per period per key."""
+        now = self._now()
+        for key, count in self.malformed.items():
+            reported, when = self._reported.get(key, (0, -float("inf")))
+            if count > reported and (force or now - when >= self.config.malformed_report_period):
+                if reported:
+                    logger.warning("%d malformed messages on %s so far", count, key)
+                self._reported[key] = (count, now)
+                self._event("malformed_message", key=key, count=count)
+
+    def _log_summary(self) -> None:
+        s = self.stats
+        rate = s.ticks / s.wall_time if s.wall_time > 0 else float("nan")
+        counts = self.lockstep.counts + self.latest.counts
+        ignored = {o.value: n for o, n in counts.items() if o is not Offer.ACCEPTED}
+        logger.info("sim done: %d ticks in %.2f s wall (%.0f ticks/s), %d deadline misses, "
+                    "%d contacts, %d watchdog stops, %d overruns, ignored commands %s, "
+                    "malformed %s", s.ticks, s.wall_time, rate, s.deadline_misses, s.contacts,
+                    s.watchdog_stops, s.overruns, ignored, dict(self.malformed))
+
+
+def run_sim(transport: Transport, scenario: Scenario, config: SimConfig,
+            stop: threading.Event | None = None) -> int:
+    """Run the simulator on an open transport (the caller closes it)."""
+    return SimProcess(transport, scenario, config, stop).run()
+
+
+def main(args: argparse.Namespace) -> int:
+    """``tlfleet sim``: load the scenario, open the transport, run, close the session."""
+    scenario = load_scenario(args.scenario)
+    config = SimConfig.from_args(args, scenario)
+    stop = threading.Event()
+    install_signal_handlers(stop)
+    transport = open_transport(args)
+    try:
+        return run_sim(transport, scenario, config, stop)
+    finally:
+        transport.close()

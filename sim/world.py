@@ -1,0 +1,336 @@
+"""The pymunk world: arena walls, static obstacles and velocity-tracking robots (issue 5 §3).
+
+Plays the robots' hardware as in the paper's experiments (§IV): each robot tracks its last
+velocity command with a low-level controller, modelled here as first-order velocity tracking
+with acceleration limits,
+
+    v̇ = sat_a((u − v) / τ),        u = sat_max(command),                       (tracking)
+
+where ``sat_max`` clips the command to the robot's velocity limits and ``sat_a`` clips the
+acceleration to its acceleration limits. The paper's system (1), ẋ_i = f_i + g_i u_i + w_i, is
+completed by the bounded additive disturbance w_i ∈ ℝ³ (world-frame (vx [m/s], vy [m/s],
+ω [rad/s]), ‖w_i‖ ≤ ``SimParams.disturbance``), drawn uniformly in that ball once per
+:meth:`World.step` and held constant over it.
+
+* Omnidirectional robots track the world-frame command ``(vx, vy, ω)``; the linear part is
+  clipped in norm (‖(vx, vy)‖ ≤ ``max_lin``), the linear acceleration in norm too.
+* Unicycles track ``(v, ω)``: the linear velocity is always along the heading (no lateral slip;
+  only the disturbance, which is part of the model (1), moves them sideways).
+
+Collisions stay physical (stack-notes.md §3): robots are dynamic, frictionless, inelastic discs
+whose velocity is set inside ``body.velocity_func`` — i.e. before pymunk's contact solver, never
+by writing ``body.velocity`` before ``space.step`` — and the tracking starts from the velocity the
+solver left, so a robot pushed back by a wall or a robot re-accelerates within its limits.
+
+Contacts (robot–robot, robot–wall/obstacle) are recorded on each contact *begin* and drained with
+:meth:`World.drain_contacts`. The command watchdog (architecture.md §1, contract) stops a robot
+whose last command is older than ``SimParams.watchdog`` seconds of sim time.
+
+Only this package imports pymunk (architecture.md §4); this module knows nothing of zenoh.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+
+from agent.scenario.model import DiscObstacle, RectObstacle, Robot, Scenario
+
+ROBOT_TYPE = 1  # pymunk collision types
+WALL_TYPE = 2
+WALL = "wall"  # the "robot id" of a wall or obstacle in contact records
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Physical constants of the simulated world (not part of the scenario file)."""
+
+    tracking_tau: float = 0.02  # [s] time constant τ of the first-order velocity tracking
+    robot_mass: float = 2.0  # [kg]
+    wall_radius: float = 0.05  # [m] thickness/2 of the arena's wall segments (outside the arena)
+    collision_slop: float = 0.001  # [m] allowed overlap (pymunk's default 0.1 is pixel-scale)
+    solver_iterations: int = 10
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One contact begin: robot ``a`` touched robot ``b`` (``a < b``) or a wall/obstacle.
+
+    ``what`` names the static shape ("arena" or "obstacle:<name>") for wall contacts.
+    """
+
+    a: int
+    b: int | str
+    what: str = ""
+
+
+def wrap_angle(theta: float) -> float:
+    """θ wrapped to (−π, π] [rad]."""
+    wrapped = math.atan2(math.sin(theta), math.cos(theta))
+    return math.pi if wrapped <= -math.pi else wrapped
+
+
+def _limit_norm(x: float, y: float, bound: float) -> tuple[float, float]:
+    norm = math.hypot(x, y)
+    if norm > bound:
+        scale = bound / norm
+        return x * scale, y * scale
+    return x, y
+
+
+def _limit(value: float, bound: float) -> float:
+    return min(bound, max(-bound, value))
+
+
+class SimRobot:
+    """One robot's body, shape and low-level velocity tracking (see the module docstring).
+
+    ``target`` is the clipped command: world-frame ``(vx, vy, ω)`` for omni robots, ``(v, ω)``
+    for unicycles. ``disturbance`` is w_i = (wx, wy, wω), the part of the body's velocity that is
+    not the tracked velocity.
+    """
+
+    def __init__(self, robot: Robot, config: WorldConfig):
+        self.id = robot.id
+        self.kind = robot.kind
+        self.radius = robot.radius
+        self._tau = config.tracking_tau
+        if robot.kind == "omni":
+            lim = robot.omni
+            self.max_lin, self.max_ang = lim.max_lin, lim.max_ang
+            self.acc_lin, self.acc_ang = lim.acc_lin, lim.acc_ang
+            self.target: tuple[float, ...] = (0.0, 0.0, 0.0)
+        else:
+            lim = robot.unicycle
+            self.max_lin, self.max_ang = lim.max_v, lim.max_omega
+            self.acc_lin, self.acc_ang = lim.acc_v, lim.acc_omega
+            self.target = (0.0, 0.0)
+        self.disturbance = (0.0, 0.0, 0.0)
+        self.last_command_t: float | None = None  # [s] sim time of the last accepted command
+        self.watchdog_tripped = False
+
+        self.body = pymunk.Body(config.robot_mass,
+                                pymunk.moment_for_circle(config.robot_mass, 0, robot.radius))
+        x, y, theta = robot.pose
+        self.body.position = (x, y)
+        self.body.angle = theta
+        self.body.velocity_func = self._track
+        self.shape = pymunk.Circle(self.body, robot.radius)
+        self.shape.friction = 0.0
+        self.shape.elasticity = 0.0
+        self.shape.collision_type = ROBOT_TYPE
+
+    def clipped(self, u: Sequence[float]) -> tuple[float, ...]:
+        """``u`` clipped to the velocity limits; ``ValueError`` if it is malformed."""
+        expected = 3 if self.kind == "omni" else 2
+        if len(u) != expected:
+            raise ValueError(f"robot {self.id} ({self.kind}) expects {expected} command values, "
+                             f"got {len(u)}")
+        if not all(math.isfinite(v) for v in u):
+            raise ValueError(f"robot {self.id}: non-finite command {tuple(u)!r}")
+        if self.kind == "omni":
+            vx, vy = _limit_norm(float(u[0]), float(u[1]), self.max_lin)
+            return (vx, vy, _limit(float(u[2]), self.max_ang))
+        return (_limit(float(u[0]), self.max_lin), _limit(float(u[1]), self.max_ang))
+
+    def stop(self) -> None:
+        self.target = (0.0, 0.0, 0.0) if self.kind == "omni" else (0.0, 0.0)
+
+    def _track(self, body: pymunk.Body, _gravity: object, _damping: float, dt: float) -> None:
+        """pymunk velocity integration: one step of the tracking law (runs before the solver)."""
+        wx, wy, ww = self.disturbance
+        vel = body.velocity
+        vx, vy = vel.x - wx, vel.y - wy  # tracked linear velocity the solver left [m/s]
+        omega = body.angular_velocity - ww  # [rad/s]
+        gain = dt / max(self._tau, dt)  # first-order step, never overshooting
+        dv_max, dw_max = self.acc_lin * dt, self.acc_ang * dt
+        if self.kind == "omni":
+            ux, uy, uw = self.target
+            dvx, dvy = _limit_norm((ux - vx) * gain, (uy - vy) * gain, dv_max)
+            vx, vy = vx + dvx, vy + dvy
+        else:
+            u_lin, uw = self.target
+            c, s = math.cos(body.angle), math.sin(body.angle)
+            v = vx * c + vy * s  # forward speed; the lateral part is dropped (no slip)
+            v += _limit((u_lin - v) * gain, dv_max)
+            vx, vy = v * c, v * s
+        omega += _limit((uw - omega) * gain, dw_max)
+        body.velocity = (vx + wx, vy + wy)
+        body.angular_velocity = omega + ww
+
+
+class World:
+    """The simulated fleet: one pymunk space, walls, obstacles and :class:`SimRobot` s.
+
+    Build it with :meth:`from_scenario`; the random generator (disturbance, mocap noise) is
+    passed in and is the world's only source of randomness, so equal seeds give equal runs.
+    """
+
+    def __init__(self, scenario: Scenario, rng: np.random.Generator,
+                 config: WorldConfig | None = None):
+        self.config = config or WorldConfig()
+        self.rng = rng
+        self.physics_dt = 1.0 / scenario.sim.physics_rate  # [s]
+        self.disturbance_bound = scenario.sim.disturbance  # [m/s] bound on ‖w_i‖
+        self.mocap_noise = scenario.sim.mocap_noise  # [m] and [rad], standard deviation
+        self.watchdog = scenario.sim.watchdog  # [s]
+        self.time = 0.0  # [s] sim time of the physics state
+        self.space = pymunk.Space()
+        self.space.gravity = (0.0, 0.0)
+        self.space.collision_slop = self.config.collision_slop
+        self.space.iterations = self.config.solver_iterations
+        self._contacts: list[Contact] = []
+        self._static_names: dict[pymunk.Shape, str] = {}
+        self._add_arena(scenario)
+        self.robots: dict[int, SimRobot] = {}
+        for robot in sorted(scenario.robots, key=lambda r: r.id):
+            sim_robot = SimRobot(robot, self.config)
+            self.space.add(sim_robot.body, sim_robot.shape)
+            self.robots[robot.id] = sim_robot
+        self.ids = tuple(self.robots)  # ascending
+        self._robot_of_shape = {r.shape: r.id for r in self.robots.values()}
+        self.space.on_collision(ROBOT_TYPE, ROBOT_TYPE, begin=self._on_robot_robot)
+        self.space.on_collision(ROBOT_TYPE, WALL_TYPE, begin=self._on_robot_wall)
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario, rng: np.random.Generator,
+                      config: WorldConfig | None = None) -> World:
+        return cls(scenario, rng, config)
+
+    # ----------------------------------------------------------------- building
+
+    def _add_static(self, shape: pymunk.Shape, name: str) -> None:
+        shape.friction = 0.0
+        shape.elasticity = 0.0
+        shape.collision_type = WALL_TYPE
+        self._static_names[shape] = name
+        self.space.add(shape)
+
+    def _add_arena(self, scenario: Scenario) -> None:
+        arena, r = scenario.arena, self.config.wall_radius
+        static = self.space.static_body
+        # Segments lie ``r`` outside the border, so their inner face is the arena's edge.
+        x0, x1, y0, y1 = arena.xmin - r, arena.xmax + r, arena.ymin - r, arena.ymax + r
+        for a, b in (((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)), ((x1, y1), (x0, y1)),
+                     ((x0, y1), (x0, y0))):
+            self._add_static(pymunk.Segment(static, a, b, r), "arena")
+        for obstacle in arena.obstacles:
+            name = f"obstacle:{obstacle.name}" if obstacle.name else "obstacle"
+            if isinstance(obstacle, RectObstacle):
+                box = [(obstacle.xmin, obstacle.ymin), (obstacle.xmax, obstacle.ymin),
+                       (obstacle.xmax, obstacle.ymax), (obstacle.xmin, obstacle.ymax)]
+                self._add_static(pymunk.Poly(static, box), name)
+            elif isinstance(obstacle, DiscObstacle):
+                self._add_static(pymunk.Circle(static, obstacle.radius, obstacle.center), name)
+
+    # ----------------------------------------------------------------- contacts
+
+    def _on_robot_robot(self, arbiter: pymunk.Arbiter, _space: pymunk.Space, _data: object
+                        ) -> None:
+        a, b = (self._robot_of_shape[s] for s in arbiter.shapes)
+        self._contacts.append(Contact(min(a, b), max(a, b)))
+
+    def _on_robot_wall(self, arbiter: pymunk.Arbiter, _space: pymunk.Space, _data: object
+                       ) -> None:
+        robot_shape, wall_shape = arbiter.shapes
+        self._contacts.append(Contact(self._robot_of_shape[robot_shape], WALL,
+                                      self._static_names.get(wall_shape, "")))
+
+    def drain_contacts(self) -> list[Contact]:
+        """Contact begins since the last call, in the order pymunk reported them."""
+        contacts, self._contacts = self._contacts, []
+        return contacts
+
+    # ----------------------------------------------------------------- commands
+
+    def set_command(self, robot: int, u: Sequence[float], t: float) -> None:
+        """Robot ``robot`` tracks ``u`` from now on (zero-order hold); ``t`` = sim time [s].
+
+        ``KeyError`` for an unknown robot, ``ValueError`` for a command of the wrong length or
+        with non-finite values (the previous command then stays in force).
+        """
+        sim_robot = self.robots[robot]
+        sim_robot.target = sim_robot.clipped(u)
+        sim_robot.last_command_t = t
+        sim_robot.watchdog_tripped = False
+
+    def check_command(self, robot: int, u: Sequence[float]) -> None:
+        """Raise as :meth:`set_command` would, without applying anything."""
+        self.robots[robot].clipped(u)
+
+    def check_watchdog(self, t: float) -> list[int]:
+        """Stop every robot whose last command is older than the watchdog period at sim time
+        ``t``; return the robots stopped *now* (each once until it is commanded again).
+
+        A robot that was never commanded is at rest with a zero command and is not reported.
+        """
+        stopped = []
+        for sim_robot in self.robots.values():
+            last = sim_robot.last_command_t
+            if last is None or sim_robot.watchdog_tripped:
+                continue
+            if t - last > self.watchdog + 1e-9:
+                sim_robot.stop()
+                sim_robot.watchdog_tripped = True
+                stopped.append(sim_robot.id)
+        return stopped
+
+    # ----------------------------------------------------------------- time
+
+    def substeps(self, duration: float) -> int:
+        return max(1, round(duration / self.physics_dt))
+
+    def step(self, duration: float) -> None:
+        """Advance the physics by ``duration`` [s] in physics-rate sub-steps.
+
+        A fresh disturbance w_i (uniform in the ball ‖w‖ ≤ bound) is drawn for every robot first
+        and held over the whole call.
+        """
+        self._draw_disturbance()
+        n = self.substeps(duration)
+        dt = duration / n
+        for _ in range(n):
+            self.space.step(dt)
+        self.time += duration
+
+    def _draw_disturbance(self) -> None:
+        if self.disturbance_bound <= 0.0:
+            return
+        n = len(self.ids)
+        direction = self.rng.normal(size=(n, 3))
+        norms = np.linalg.norm(direction, axis=1, keepdims=True)
+        norms[norms == 0.0] = 1.0
+        radius = self.disturbance_bound * self.rng.random((n, 1)) ** (1.0 / 3.0)
+        w = direction / norms * radius
+        for row, robot in zip(w, self.robots.values(), strict=True):
+            robot.disturbance = (float(row[0]), float(row[1]), float(row[2]))
+
+    # ----------------------------------------------------------------- read-out
+
+    def poses(self) -> tuple[tuple[int, float, float, float], ...]:
+        """True poses ``(id, x [m], y [m], θ [rad] in (−π, π])``, ids ascending."""
+        out = []
+        for rid, sim_robot in self.robots.items():
+            body = sim_robot.body
+            p = body.position
+            out.append((rid, float(p.x), float(p.y), wrap_angle(body.angle)))
+        return tuple(out)
+
+    def mocap_poses(self) -> tuple[tuple[int, float, float, float], ...]:
+        """What the motion-capture system reports: the true poses plus Gaussian noise
+        (σ = ``mocap_noise`` on x [m], y [m] and θ [rad]), θ wrapped to (−π, π]."""
+        poses = self.poses()
+        if self.mocap_noise <= 0.0:
+            return poses
+        noise = self.rng.normal(0.0, self.mocap_noise, size=(len(poses), 3))
+        return tuple((rid, x + float(n[0]), y + float(n[1]), wrap_angle(th + float(n[2])))
+                     for (rid, x, y, th), n in zip(poses, noise, strict=True))
+
+    def velocities(self) -> dict[int, tuple[float, float, float]]:
+        """Each robot's world-frame body velocity ``(vx [m/s], vy [m/s], ω [rad/s])``."""
+        return {rid: (r.body.velocity.x, r.body.velocity.y, r.body.angular_velocity)
+                for rid, r in self.robots.items()}
