@@ -253,7 +253,8 @@ def path_length_function(
     ``distance(p, q)`` is the length of the smoothed global-planner path from p to q (points or
     poses; only x, y are used), which equals ``‖p − q‖`` when the straight segment is free, as on
     the paper's obstacle-free arena. Results are cached per unordered pair (rounded to 1 mm) in
-    the returned closure. Raises ``NoPathError`` when q cannot be reached from p.
+    the returned closure. An unreachable pair is ``math.inf``: no transition between those regions
+    (the LTL planner drops infinite edges and names what is then missing).
     """
     if isinstance(scenario_or_grid, OccupancyGrid):
         grid = scenario_or_grid
@@ -277,7 +278,10 @@ def path_length_function(
             ):
                 cache[key] = math.dist(a, b)
             else:
-                cache[key] = plan_path(grid, key[0], key[1]).length
+                try:
+                    cache[key] = plan_path(grid, key[0], key[1]).length
+                except NoPathError:
+                    cache[key] = math.inf
             log.debug("distance %s -> %s = %.3f m", key[0], key[1], cache[key])
         return cache[key]
 

@@ -3,6 +3,10 @@
 For every LTL robot (or only ``--robot ID``) prints the Büchi and product sizes, the plan (prefix
 once, then the suffix forever, as region names), its cost ``prefix + β·suffix`` and the time each
 step of paper Algorithm 1 took (ltl-planning.md §5). Unsatisfiable tasks are reported as errors.
+
+Edge weights (ltl-planning.md §3) are the global planner's path lengths on the arena's map by
+default (``--weights map``: obstacles count, equal to the straight line where it is free), or the
+straight-line distances between region centres (``--weights euclidean``).
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ import json
 import sys
 
 from agent.ltl.planner import Plan, plan_robot
+from agent.nav.grid_planner import path_length_function
 from agent.scenario import load_scenario
 
 NAME = "plan"
@@ -22,6 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
     parser.add_argument("--robot", type=int, default=None, help="only this robot id")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    parser.add_argument("--weights", choices=("map", "euclidean"), default="map",
+                        help="transition weights: path lengths around obstacles (default) or "
+                             "straight-line distances")
 
 
 def _ms(seconds: float) -> str:
@@ -58,7 +66,11 @@ def run(args: argparse.Namespace) -> int:
         robots = [robot]
     else:
         robots = [r for r in sorted(scenario.robots, key=lambda r: r.id) if r.ltl is not None]
-    plans = [plan_robot(scenario, r.id) for r in robots]
+    plans = []
+    for robot in robots:
+        distance = (path_length_function(scenario, robot.radius) if args.weights == "map"
+                    else None)
+        plans.append(plan_robot(scenario, robot.id, distance=distance))
     if args.json:
         print(json.dumps({"scenario": scenario.name, "plans": [p.to_dict() for p in plans]},
                          indent=2))

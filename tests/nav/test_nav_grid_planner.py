@@ -233,3 +233,20 @@ def test_smoothed_paths_are_collision_free_and_no_longer_than_the_grid_path(disc
     for a, b in zip(path.waypoints[free_from:-1], path.waypoints[free_from + 1 :], strict=True):
         points = a + s * (b - a)
         assert np.min(arena_clearance(arena, points)) >= 0.25 - 0.05 * SQRT2 / 2 - 1e-9
+
+
+def test_unreachable_region_is_an_infinite_distance_and_the_planner_names_it():
+    """A region walled in by obstacles: no transition to it, so `F a2` is unsatisfiable."""
+    from agent.errors import UnsatisfiableTask
+    from agent.ltl.planner import plan_robot
+
+    box = (RectObstacle(1.0, 1.0, 3.0, 1.2), RectObstacle(1.0, 2.8, 3.0, 3.0),
+           RectObstacle(1.0, 1.0, 1.2, 3.0), RectObstacle(2.8, 1.0, 3.0, 3.0))
+    regions = (Region("a1", (-2.0, -2.0)), Region("a2", (2.0, 2.0)))
+    robot = Robot(1, "unicycle", (-2.0, -2.0, 0.0), ltl="F a1 & F a2")
+    scenario = Scenario("boxed", "f", 10.0, Arena(obstacles=box), regions, (robot,))
+    distance = path_length_function(scenario)
+    assert distance((-2.0, -2.0), (2.0, 2.0)) == math.inf
+    assert distance((-2.0, -2.0), (-2.0, 2.0)) == pytest.approx(4.0)
+    with pytest.raises(UnsatisfiableTask, match=r"robot 1: task 'F a1 & F a2' cannot be satisfied"):
+        plan_robot(scenario, 1, distance=distance)
