@@ -44,6 +44,9 @@ STATUS_COLUMNS = ("t", "robot", "kind", "subtask", "rho", "rho_max", "lower", "r
                   "suffix", "buchi_states")
 
 
+COORDINATOR_SOURCE = "coordinator"  # Event.source of the events the coordinator makes
+
+
 def default_run_dir(scenario_name: str, root: Path = Path("runs"),
                     now: datetime | None = None) -> Path:
     """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists."""
@@ -259,7 +262,8 @@ class RecorderTap:
                 self.recorder.on_status(message)
             else:
                 message = decode(Event, payload)
-                self.recorder.on_event(message)
+                if message.source != COORDINATOR_SOURCE:  # ours are recorded when made
+                    self.recorder.on_event(message)
         except ProtocolError as exc:
             if not self.malformed[what]:
                 logger.warning("malformed payload on %s (further ones only counted): %s", key,

@@ -34,7 +34,7 @@ from agent.protocol.messages import Control, Event
 from agent.runtime.transport import Closeable, Transport
 from agent.scenario import Scenario
 from coordinator.launcher import LaunchError
-from coordinator.recorder import RecorderTap
+from coordinator.recorder import COORDINATOR_SOURCE, RecorderTap
 
 logger = logging.getLogger(__name__)
 
@@ -152,7 +152,7 @@ class Supervisor:
         fatal = name in ("sim", "router")
         self._report(f"{name} died ({how}) at t = {death.t:.2f} s; "
                      + ("the run cannot go on" if fatal else "the run goes on without it"))
-        event = Event(t=death.t, source="coordinator", kind="process_died",
+        event = Event(t=death.t, source=COORDINATOR_SOURCE, kind="process_died",
                       data={"process": name, "how": how, "returncode": returncode,
                             "wall": death.wall})
         self.tap.recorder.on_event(event)

@@ -1,0 +1,131 @@
+"""Recorder: the run directory files of architecture.md §6, on synthetic messages (no sockets)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from datetime import UTC
+
+import numpy as np
+import pytest
+
+from agent.protocol import keys
+from agent.protocol.codec import encode
+from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from agent.runtime.transport import FakeNetwork
+from agent.stl.monitor import read_trajectory_csv
+from coordinator.recorder import STATUS_COLUMNS, Recorder, RecorderTap, default_run_dir
+
+
+def frame(seq: int, ids=(1, 3), rate: float = 100.0) -> MocapFrame:
+    t = seq / rate
+    return MocapFrame(t, seq, tuple((r, r + t, -r * t, 0.1 * r) for r in ids))
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_trajectory_rows_after_start_only_strictly_increasing(tmp_path):
+    rec = Recorder(tmp_path, [3, 1])
+    rec.on_mocap(frame(0))  # before start: not a row
+    rec.start()
+    rec.on_mocap(frame(0))  # a late pre-start frame …
+    rec.on_mocap(frame(0))  # … and tick 0 (the later one wins)
+    for seq in (1, 2, 4, 3, 5):  # 3 arrives after 4: dropped
+        rec.on_mocap(frame(seq))
+    rec.close()
+    traj = read_trajectory_csv(tmp_path / "trajectory.csv")
+    assert traj.robot_ids == (1, 3)
+    np.testing.assert_allclose(traj.t, [0.0, 0.01, 0.02, 0.04, 0.05])
+    np.testing.assert_allclose(traj.states[3][:, 0], 3 + traj.t)
+    np.testing.assert_allclose(traj.states[1][:, 1], -traj.t)
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
+    assert header == "t,x1,y1,th1,x3,y3,th3"
+    assert rec.frames_written == 5 and rec.frames_skipped == 1
+
+
+def test_frame_missing_a_robot_or_non_finite_is_skipped(tmp_path):
+    rec = Recorder(tmp_path, [1, 3])
+    rec.start()
+    rec.on_mocap(frame(0))
+    rec.on_mocap(MocapFrame(0.01, 1, ((1, 0.0, 0.0, 0.0),)))
+    rec.on_mocap(MocapFrame(0.02, 2, ((1, math.nan, 0.0, 0.0), (3, 0.0, 0.0, 0.0))))
+    rec.on_mocap(frame(3))
+    rec.close()
+    traj = read_trajectory_csv(tmp_path / "trajectory.csv")
+    np.testing.assert_allclose(traj.t, [0.0, 0.03])
+
+
+def test_files_are_flushed_while_the_run_goes(tmp_path):
+    clock = FakeClock()
+    rec = Recorder(tmp_path, [1, 3], flush_period=1.0, clock=clock)
+    rec.start()
+    for seq in range(50):
+        rec.on_mocap(frame(seq))
+    rec.on_event(Event(0.3, "sim", "contact", {"a": 1, "b": "wall"}))
+    assert len((tmp_path / "trajectory.csv").read_text().splitlines()) == 1  # header only
+    clock.now = 1.5
+    rec.on_mocap(frame(50))  # a second has passed: everything so far is on disk
+    lines = (tmp_path / "trajectory.csv").read_text().splitlines()
+    assert len(lines) == 1 + 50
+    assert json.loads((tmp_path / "events.jsonl").read_text())["kind"] == "contact"
+    rec.close()
+
+
+def test_status_and_event_rows(tmp_path):
+    rec = Recorder(tmp_path, [1, 3])
+    rec.on_status(StlStatus(3, 1.25, 1, 0.05, 0.1, -0.2, 0.08, 2, 1, 1, 4, (2, 1, 0)))
+    rec.on_status(LtlStatus(1, 1.4, ("start", "a11"), ("a12", "a11"), "a12", (0, 2),
+                            (("a11", 2), ("a12", 1)), 1, "navigate"))
+    rec.on_event(Event(2.0, "agent/3", "repair", {"stage": 2, "r": 0.07}))
+    rec.close()
+    with open(tmp_path / "status.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert tuple(rows[0]) == STATUS_COLUMNS
+    stl, ltl = rows
+    assert (stl["t"], stl["robot"], stl["kind"], stl["subtask"], stl["stage"]) == \
+        ("1.25", "3", "stl", "1", "2")
+    assert float(stl["r"]) == 0.08 and json.loads(stl["events"]) == [2, 1, 0]
+    assert ltl["kind"] == "ltl" and ltl["target"] == "a12"
+    assert json.loads(ltl["visits"]) == [["a11", 2], ["a12", 1]]
+    assert json.loads(ltl["suffix"]) == ["a12", "a11"]
+    events = [json.loads(line) for line in (tmp_path / "events.jsonl").read_text().splitlines()]
+    assert events == [{"t": 2.0, "source": "agent/3", "kind": "repair",
+                       "data": {"stage": 2, "r": 0.07}}]
+
+
+def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path):
+    net = FakeNetwork()
+    coord, sim = net.transport("coordinator"), net.transport("sim")
+    rec = Recorder(tmp_path, [1, 3])
+    tap = RecorderTap(coord, "f", rec)
+    rec.start()
+    sim.publish(keys.mocap("f"), encode(frame(0)))
+    sim.publish(keys.mocap("f"), b"\xc1garbage")
+    sim.publish(keys.mocap("f"), encode(Event(0.0, "x", "y", {})))  # wrong message kind
+    sim.publish(keys.status("f", 3), b"")
+    sim.publish(keys.event("f"), encode(Event(0.5, "sim", "sim_done", {})))
+    sim.publish(keys.mocap("f"), encode(frame(1)))
+    assert rec.frames_written == 0  # callbacks only queue
+    assert tap.drain() == 6
+    tap.close()
+    rec.close()
+    assert dict(tap.malformed) == {"mocap": 2, "status": 1}
+    assert rec.event_kinds["sim_done"] == 1 and rec.last_t == pytest.approx(0.01)
+    assert len(read_trajectory_csv(tmp_path / "trajectory.csv").t) == 2
+
+
+def test_default_run_dir_is_unique(tmp_path):
+    from datetime import datetime
+
+    now = datetime(2026, 11, 22, 5, 6, 7, tzinfo=UTC)
+    first = default_run_dir("scenario1", tmp_path, now)
+    assert first.name == "scenario1-20261122-050607"
+    first.mkdir()
+    assert default_run_dir("scenario1", tmp_path, now).name == "scenario1-20261122-050607-2"

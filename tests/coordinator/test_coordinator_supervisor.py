@@ -1,0 +1,192 @@
+"""Supervisor on the fake transport: readiness errors, death reports within 1 s, end of run."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass
+
+import pytest
+
+from agent.protocol import keys
+from agent.protocol.codec import decode, encode
+from agent.protocol.messages import Control, Event, MocapFrame
+from agent.runtime.transport import FakeNetwork
+from agent.scenario import load_scenario
+from coordinator.launcher import Launcher, LaunchError
+from coordinator.recorder import Recorder, RecorderTap
+from coordinator.supervisor import Supervisor, SupervisorConfig, expected_tokens
+
+SCENARIO = """
+name = "sup"
+fleet = "sup"
+duration = 5.0
+[[regions]]
+name = "a1"
+center = [-1.0, 0.0]
+[[robots]]
+id = 1
+kind = "unicycle"
+pose = [0.0, -1.0, 0.0]
+ltl = "G F a1"
+[[robots]]
+id = 2
+kind = "omni"
+pose = [0.0, 1.0, 0.0]
+stl = ["G[0,5] (dist(p2, p1) <= 2.5)"]
+"""
+
+
+@dataclass
+class FakeChild:
+    name: str
+    returncode: int | None = None
+
+    def log_tail(self, lines: int = 15) -> str:
+        return f"  | last words of {self.name}"
+
+
+@pytest.fixture
+def fleet(tmp_path):
+    path = tmp_path / "sup.toml"
+    path.write_text(SCENARIO)
+    scenario = load_scenario(path)
+    net = FakeNetwork()
+    coord = net.transport("coordinator")
+    recorder = Recorder(tmp_path / "run", [1, 2])
+    tap = RecorderTap(coord, scenario.fleet, recorder)
+    children = {n: FakeChild(n) for n in ("router", "sim", "agent-1", "agent-2")}
+    reports: list[str] = []
+    sup = Supervisor(coord, scenario, tap, children, duration=5.0,
+                     config=SupervisorConfig(ready_timeout=0.3, wall_timeout=10.0,
+                                             poll_period=0.01, stop_grace=0.2),
+                     report=reports.append)
+    yield scenario, net, sup, children, reports
+    sup.close()
+    recorder.close()
+
+
+def declare(net, scenario, names):
+    transports = {}
+    for name in names:
+        t = net.transport(name)
+        role, ident = ("sim", 0) if name == "sim" else ("agent", name.split("-")[1])
+        t.declare_alive(keys.alive(scenario.fleet, role, ident))
+        transports[name] = t
+    return transports
+
+
+def test_expected_tokens(fleet):
+    scenario = fleet[0]
+    assert expected_tokens(scenario) == {"tlfleet/sup/alive/sim/0": "sim",
+                                         "tlfleet/sup/alive/agent/1": "agent-1",
+                                         "tlfleet/sup/alive/agent/2": "agent-2"}
+
+
+def test_wait_ready_names_who_did_not_come_up(fleet):
+    scenario, net, sup, _children, _ = fleet
+    declare(net, scenario, ["sim", "agent-1"])
+    with pytest.raises(LaunchError, match=r"not up after 0.3 s .*: agent-2\n"
+                                          r".*last words of agent-2"):
+        sup.wait_ready()
+
+
+def test_wait_ready_fails_early_when_a_child_exits(fleet):
+    _scenario, _net, sup, children, _ = fleet
+    children["agent-1"].returncode = 1
+    with pytest.raises(LaunchError, match=r"agent-1 exited with code 1 .*\n.*last words"):
+        sup.wait_ready()
+
+
+def test_start_death_and_sim_done(fleet):
+    scenario, net, sup, _children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    controls = []
+    peers["sim"].subscribe(keys.control(scenario.fleet),
+                           lambda _k, p: controls.append(decode(Control, p).cmd))
+    assert sup.wait_ready() < 0.3
+    sup.start()
+    assert controls == ["start"]
+    sim = peers["sim"]
+    killed_at = {}
+
+    def script():
+        for k in range(50):
+            sim.publish(keys.mocap(scenario.fleet),
+                        encode(MocapFrame(k / 10, k, ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0)))))
+            if k == 10:
+                killed_at["wall"] = time.time()
+                peers["agent-2"].kill()  # its token disappears, as for a dead process
+            time.sleep(0.005)
+        sim.publish(keys.event(scenario.fleet), encode(Event(4.9, "sim", "sim_done", {})))
+
+    thread = threading.Thread(target=script)
+    thread.start()
+    outcome = sup.supervise()
+    thread.join()
+    assert outcome.reason == "sim_done"
+    assert [d.process for d in outcome.deaths] == ["agent-2"]
+    assert outcome.deaths[0].wall - killed_at["wall"] < 1.0
+    assert outcome.deaths[0].how == "liveliness token lost"
+    assert "agent-2 died (liveliness token lost)" in reports[0]
+    assert "goes on without it" in reports[0]
+    codes = sup.finish()
+    assert controls == ["start", "stop"]
+    assert codes == {"sim": None, "agent-1": None, "agent-2": None}  # fakes never exit
+    assert sup.tap.recorder.event_kinds["process_died"] == 1
+
+
+def test_end_at_duration_and_on_stop_event(fleet):
+    scenario, net, sup, _children, _ = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    peers["sim"].publish(keys.mocap(scenario.fleet),
+                         encode(MocapFrame(5.0, 500, ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0)))))
+    assert sup.supervise().reason == "duration"
+    stop = threading.Event()
+    stop.set()
+    sup.tap.recorder.last_t = 0.0
+    assert sup.supervise(stop).reason == "interrupted"
+
+
+def test_sim_death_ends_the_run(fleet):
+    scenario, net, sup, children, reports = fleet
+    declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    children["sim"].returncode = -9
+    outcome = sup.supervise()
+    assert outcome.reason == "sim_died"
+    assert "sim died (exited with code -9)" in reports[0] and "cannot go on" in reports[0]
+
+
+def test_a_killed_child_process_is_reported_within_one_second(fleet, tmp_path):
+    scenario, net, sup, _children, _reports = fleet
+    declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    with Launcher(tmp_path / "logs") as launcher:
+        real = launcher.start("agent-1", [sys.executable, "-c",
+                                          "import time; print('up', flush=True); "
+                                          "time.sleep(600)"])
+        sup.children["agent-1"] = real
+        sup.wait_ready()
+        sup.start()
+        killed = {}
+
+        def kill():
+            killed["wall"] = time.time()
+            os.kill(real.pid, signal.SIGKILL)
+
+        timer = threading.Timer(0.2, kill)
+        timer.start()
+        stop = threading.Event()
+        threading.Timer(1.5, stop.set).start()
+        outcome = sup.supervise(stop)
+        timer.join()
+    assert outcome.reason == "interrupted"  # the run went on until stopped
+    (death,) = outcome.deaths
+    assert death.process == "agent-1" and death.returncode == -signal.SIGKILL
+    assert death.wall - killed["wall"] < 1.0
