@@ -20,7 +20,7 @@ $(VENV)/.installed-test: pyproject.toml | $(PY)
 	touch $@ $(VENV)/.installed
 
 run: $(VENV)/.installed
-	$(BIN)/tlfleet plan scenarios/scenario1.toml
+	$(BIN)/tlfleet run scenarios/scenario1.toml --lockstep
 
 test: $(VENV)/.installed-test
 	$(PY) -m pytest
