@@ -343,7 +343,7 @@ class SimProcess:
 
     def _malformed(self, key: str, reason: str) -> None:
         self.malformed[key] += 1
-        if key not in self._reported:
+        if self.malformed[key] == 1:  # later ones are logged as counts by _report_malformed
             logger.warning("malformed message on %s: %s", key, reason)
 
     def _report_malformed(self, force: bool = False) -> None:

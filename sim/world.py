@@ -109,7 +109,8 @@ class SimRobot:
             self.max_lin, self.max_ang = lim.max_v, lim.max_omega
             self.acc_lin, self.acc_ang = lim.acc_v, lim.acc_omega
             self.target = (0.0, 0.0)
-        self.disturbance = (0.0, 0.0, 0.0)
+        self.disturbance = (0.0, 0.0, 0.0)  # w_i to apply from the next physics step on
+        self._applied = (0.0, 0.0, 0.0)  # w_i inside the body's current velocity
         self.last_command_t: float | None = None  # [s] sim time of the last accepted command
         self.watchdog_tripped = False
 
@@ -142,10 +143,10 @@ class SimRobot:
 
     def _track(self, body: pymunk.Body, _gravity: object, _damping: float, dt: float) -> None:
         """pymunk velocity integration: one step of the tracking law (runs before the solver)."""
-        wx, wy, ww = self.disturbance
+        old_wx, old_wy, old_ww = self._applied
         vel = body.velocity
-        vx, vy = vel.x - wx, vel.y - wy  # tracked linear velocity the solver left [m/s]
-        omega = body.angular_velocity - ww  # [rad/s]
+        vx, vy = vel.x - old_wx, vel.y - old_wy  # tracked linear velocity the solver left [m/s]
+        omega = body.angular_velocity - old_ww  # [rad/s]
         gain = dt / max(self._tau, dt)  # first-order step, never overshooting
         dv_max, dw_max = self.acc_lin * dt, self.acc_ang * dt
         if self.kind == "omni":
@@ -159,6 +160,7 @@ class SimRobot:
             v += _limit((u_lin - v) * gain, dv_max)
             vx, vy = v * c, v * s
         omega += _limit((uw - omega) * gain, dw_max)
+        wx, wy, ww = self._applied = self.disturbance
         body.velocity = (vx + wx, vy + wy)
         body.angular_velocity = omega + ww
 
