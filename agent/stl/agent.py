@@ -116,9 +116,16 @@ class AgentState:
 
 @dataclass(frozen=True, slots=True)
 class StepInput:
+    """``unreachable``: peers the runtime knows it cannot reach (liveliness token gone, or a
+    message to them unanswered). [OUR CHOICE] The step forgets their status announcements, so
+    they block stage 2 like a peer never heard of (§7.4); a follower whose requester is
+    unreachable releases itself (as on ``CollabRelease``); a requester (c_i = i) whose helpers
+    are all unreachable leaves stage 2 (c_i := 0), so its next critical event gets stage 3."""
+
     t: float  # [s] absolute mission time
     poses: Mapping[int, object]  # id -> (x, y, θ)
     inbox: Sequence[Message] = ()
+    unreachable: frozenset[int] = frozenset()
 
 
 @dataclass(frozen=True, slots=True)
@@ -280,6 +287,13 @@ class StlAgent:
         # 1. inbox -----------------------------------------------------------------------
         follow, follow_subtask, follow_funnel, peers, reinit = self._read_inbox(state,
                                                                               inputs.inbox)
+        unreachable = inputs.unreachable
+        if unreachable:
+            if any(v in peers for v in unreachable):
+                peers = {v: status for v, status in peers.items() if v not in unreachable}
+            if follow is not None and follow in unreachable:
+                logger.info("robot %d: requester %d unreachable, released", i, follow)
+                follow, follow_subtask, follow_funnel, reinit = None, -1, None, True
         if follow != state.follow or follow_funnel is not state.follow_funnel:
             changes.update(follow=follow, follow_subtask=follow_subtask,
                            follow_funnel=follow_funnel)
@@ -313,6 +327,11 @@ class StlAgent:
 
         ce = changes.get("ce", state.ce)
         c = changes.get("c", state.c)
+        if (unreachable and c == i and task is not None
+                and all(v in unreachable for v in task.v_ctrl if v != i)):
+            logger.info("robot %d: every helper unreachable, stage 2 left at t=%.2f", i, t)
+            c = 0
+            changes["c"] = 0
         stage = changes.get("stage", state.stage)
         events = changes.get("events", state.events)
         repaired = NO_REPAIR

@@ -1,0 +1,305 @@
+"""The one loop of an agent process: decode → pure ``step`` → encode/publish (style.md §3).
+
+:class:`AgentLoop` is transport-agnostic (a :class:`~agent.runtime.transport.Transport`: zenoh in
+processes, ``FakeNetwork`` in tests) and core-agnostic: the LTL and the STL agents are a
+:class:`Core` each, whose ``step(state, TickInput) -> (state, TickOutput)`` holds all the logic.
+The loop implements the time protocol of architecture.md §3 (contract of issue 5):
+
+* mission start: ``Control(start)``, or a frame that lists this robot in ``due`` (a lockstep sim
+  only lists agents after the start, so a start message overtaken by the first frame costs
+  nothing); nothing is sent before the start; ``Control(stop)`` ends the loop;
+* a frame is *due* when it lists this robot in ``due`` (lockstep), or, when ``due`` is empty
+  (realtime), when a new control period of ``divider`` mocap ticks has begun since the last
+  frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
+* per due frame: one ``step``; the step's collaboration messages are sent by query and their
+  replies awaited **before** ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published; then
+  status and events;
+* stale mocap: no frame for ``stale_after`` [s] wall after the start → the zero command (with the
+  last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
+  ``Event(stale_mocap)`` per episode; the next frame ends the episode;
+* malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
+  ``Event(malformed_message)``; they never end the loop.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from agent.protocol import keys
+from agent.protocol.codec import ProtocolError, decode, encode
+from agent.protocol.messages import CollabMessage, Command, Control, Event, MocapFrame
+from agent.runtime.inbox import Mailbox, MalformedCounter
+from agent.runtime.peers import CollabLink
+from agent.runtime.transport import Closeable, Transport
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Timing of one agent loop (times [s] wall unless stated)."""
+
+    fleet: str
+    robot: int
+    divider: int = 1  # mocap ticks per control period: round(mocap_rate / control_rate)
+    stale_after: float = 0.5  # no frame for this long → zero command
+    wait_slice: float = 0.05  # longest single block, so stop and staleness are noticed
+
+    def __post_init__(self) -> None:
+        if self.divider < 1:
+            raise ValueError(f"LoopConfig.divider must be ≥ 1, got {self.divider}")
+        if self.stale_after <= 0:
+            raise ValueError(f"LoopConfig.stale_after must be positive, got {self.stale_after}")
+
+
+@dataclass(frozen=True)
+class TickInput:
+    """One due frame, the collaboration messages delivered for it (core messages) and the peers
+    the runtime currently cannot reach."""
+
+    frame: MocapFrame
+    inbox: tuple[Any, ...] = ()
+    unreachable: frozenset[int] = frozenset()
+
+
+@dataclass(frozen=True)
+class TickOutput:
+    """The command ``u`` (unicycle (v [m/s], ω [rad/s]); omni world-frame (vx, vy [m/s],
+    ω [rad/s])), an optional status, events, and collaboration messages to send first."""
+
+    u: tuple[float, ...]
+    status: Any = None  # LtlStatus | StlStatus | None
+    events: tuple[Event, ...] = ()
+    messages: tuple[CollabMessage, ...] = ()
+
+
+class Core(Protocol):
+    """A pure agent: all decisions of a tick in ``step``."""
+
+    robot: int
+    zero: tuple[float, ...]  # the stop command
+
+    def step(self, state: Any, inputs: TickInput) -> tuple[Any, TickOutput]: ...
+
+
+@dataclass
+class LoopStats:
+    """Counters for tests, logs and benchmarks."""
+
+    frames: int = 0
+    steps: int = 0
+    commands: int = 0
+    stale_episodes: int = 0
+    stale_commands: int = 0
+    step_time: float = 0.0  # [s] wall, total time inside core.step
+    max_step_time: float = 0.0  # [s] wall
+    collab_failures: int = 0
+    extra: dict[str, int] = field(default_factory=dict)
+
+
+class AgentLoop:
+    """Drive one :class:`Core` from a transport (see the module docstring for the protocol).
+
+    ``open()`` subscribes (and serves the collab queryable when ``link`` is given), ``ready()``
+    declares the liveliness token ``alive/agent/<robot>``, ``run(stop)`` loops until
+    ``Control(stop)`` or ``stop`` is set, ``close()`` undeclares everything. Tests may instead
+    call ``run_once(timeout)`` to process whatever arrived, deterministically.
+    """
+
+    def __init__(self, transport: Transport, config: LoopConfig, core: Core, state: Any, *,
+                 link: CollabLink | None = None, malformed: MalformedCounter | None = None,
+                 clock: Callable[[], float] = time.monotonic):
+        self.transport = transport
+        self.config = config
+        self.core = core
+        self.state = state
+        self.link = link
+        self.source = f"agent/{config.robot}"
+        self.malformed = malformed or MalformedCounter(self.source, clock=clock)
+        self.clock = clock
+        self.mailbox = Mailbox()
+        self.stats = LoopStats()
+        self.started = False
+        self.stopped = False
+        self._handles: list[Closeable] = []
+        self._last_frame_wall: float | None = None
+        self._last_frame: MocapFrame | None = None
+        self._last_period: int | None = None
+        self._last_seq: int | None = None
+        self._stale = False
+        self._stale_sent = -float("inf")
+        fleet, robot = config.fleet, config.robot
+        self._keys = {"mocap": keys.mocap(fleet), "control": keys.control(fleet),
+                      "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
+                      "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot)}
+
+    # set-up and tear-down -------------------------------------------------------------------
+
+    def open(self) -> None:
+        box = self.mailbox
+        self._handles.append(self.transport.subscribe(self._keys["mocap"],
+                                                      lambda _k, p: box.put_frame(p)))
+        self._handles.append(self.transport.subscribe(self._keys["control"],
+                                                      lambda _k, p: box.put_control(p)))
+        if self.link is not None:
+            self.link.open()
+
+    def ready(self) -> None:
+        """Declare ``alive/agent/<robot>``: from now on this agent answers due frames."""
+        self._handles.append(self.transport.declare_alive(self._keys["alive"]))
+
+    def close(self) -> None:
+        self.mailbox.stop()
+        if self.link is not None:
+            self.link.close()
+        for handle in reversed(self._handles):
+            try:
+                handle.close()
+            except Exception:  # a dying session must not prevent the others from closing
+                logger.exception("%s: closing a transport handle failed", self.source)
+        self._handles.clear()
+
+    def publish_event(self, event: Event) -> None:
+        self.transport.publish(self._keys["event"], encode(event))
+
+    # the loop --------------------------------------------------------------------------------
+
+    def run(self, stop: threading.Event | None = None) -> int:
+        """Loop until ``Control(stop)`` or ``stop``; returns the exit code (0)."""
+        while not (stop is not None and stop.is_set()):
+            if not self.run_once(self.config.wait_slice):
+                break
+        return 0
+
+    def run_once(self, timeout: float = 0.0) -> bool:
+        """Wait up to ``timeout`` [s] for input and handle it; False once stopped."""
+        wake = self.mailbox.wait(timeout)
+        for payload in wake.controls:
+            self._on_control(payload)
+        if wake.stopped:
+            self.stopped = True
+        if self.stopped:
+            return False
+        if wake.frame is not None:
+            self._on_frame(wake.frame)
+        else:
+            self._check_stale()
+        self._flush_malformed()
+        return True
+
+    @property
+    def last_t(self) -> float:
+        """Sim time [s] of the last frame handled (0 before any)."""
+        return self._last_frame.t if self._last_frame is not None else 0.0
+
+    def _on_control(self, payload: bytes) -> None:
+        try:
+            control = decode(Control, payload)
+        except ProtocolError as exc:
+            self.malformed.record(self._keys["control"], exc, self.last_t)
+            return
+        if control.cmd == "start":
+            if not self.started:
+                logger.info("%s: start (t0 = %g)", self.source, control.t0)
+                self._start()
+        else:
+            logger.info("%s: stop", self.source)
+            self.stopped = True
+
+    def _start(self) -> None:
+        self.started = True
+        self._last_frame_wall = self.clock()  # staleness counts from the start
+
+    def _on_frame(self, payload: bytes) -> None:
+        try:
+            frame = decode(MocapFrame, payload)
+        except ProtocolError as exc:
+            self.malformed.record(self._keys["mocap"], exc, self.last_t)
+            self._check_stale()
+            return
+        robot = self.config.robot
+        listed = robot in frame.due
+        if listed and not self.started:
+            self._start()
+        if not self.started:
+            return
+        self.stats.frames += 1
+        self._last_frame = frame
+        self._last_frame_wall = self.clock()
+        if self._stale:
+            self._stale = False
+            logger.warning("%s: mocap frames are back (t = %.3f)", self.source, frame.t)
+        if frame.due:
+            due = listed and frame.seq != self._last_seq
+        else:
+            due = frame.seq // self.config.divider != self._last_period
+        if not due:
+            return
+        if frame.pose(robot) is None:
+            self.malformed.record(self._keys["mocap"],
+                                  ProtocolError(f"MocapFrame.poses: no row for robot {robot}"),
+                                  frame.t)
+            return
+        self._last_seq = frame.seq
+        self._last_period = frame.seq // self.config.divider
+        self._tick(frame)
+
+    def _tick(self, frame: MocapFrame) -> None:
+        link = self.link
+        inputs = TickInput(frame,
+                           link.inbox.take_before(frame.t) if link is not None else (),
+                           link.unreachable if link is not None else frozenset())
+        began = time.perf_counter()
+        self.state, out = self.core.step(self.state, inputs)
+        spent = time.perf_counter() - began
+        self.stats.steps += 1
+        self.stats.step_time += spent
+        self.stats.max_step_time = max(self.stats.max_step_time, spent)
+        if out.messages:
+            if link is None:
+                raise TypeError(f"{self.source}: the core sent collaboration messages but the "
+                                "loop has no CollabLink")
+            for msg in out.messages:
+                if not link.send(msg):
+                    self.stats.collab_failures += 1
+        self._publish_command(frame, out.u)
+        if out.status is not None:
+            self.transport.publish(self._keys["status"], encode(out.status))
+        for event in out.events:
+            self.publish_event(event)
+
+    def _publish_command(self, frame: MocapFrame, u: tuple[float, ...]) -> None:
+        command = Command(self.config.robot, frame.t, frame.seq, tuple(float(x) for x in u))
+        self.transport.publish(self._keys["cmd"], encode(command))
+        self.stats.commands += 1
+
+    def _check_stale(self) -> None:
+        if not self.started or self._last_frame_wall is None:
+            return
+        now = self.clock()
+        if now - self._last_frame_wall < self.config.stale_after:
+            return
+        if not self._stale:
+            self._stale = True
+            self._stale_sent = -float("inf")
+            self.stats.stale_episodes += 1
+            silence = now - self._last_frame_wall
+            logger.warning("%s: no mocap frame for %.2f s: zero command", self.source, silence)
+            self.publish_event(Event(self.last_t, self.source, "stale_mocap",
+                                     {"silence": silence,
+                                      "last_seq": self._last_frame.seq
+                                      if self._last_frame is not None else -1}))
+        if now - self._stale_sent >= self.config.stale_after:
+            self._stale_sent = now
+            frame = self._last_frame or MocapFrame(0.0, -1, ())
+            self._publish_command(frame, self.core.zero)
+            self.stats.stale_commands += 1
+
+    def _flush_malformed(self) -> None:
+        for event in self.malformed.take_events():
+            self.publish_event(event)

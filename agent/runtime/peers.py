@@ -1,0 +1,144 @@
+"""Stage-2 collaboration over query/reply, and who of the peers is reachable (stl-funnel.md §7.5).
+
+One :class:`CollabLink` per STL agent process:
+
+* serves the queryable ``robot/<own id>/collab``: decodes a ``CollabMessage``, converts it to the
+  core's message, appends it to the :class:`~agent.runtime.inbox.CollabInbox` and replies
+  ``CollabReply(accepted=True)``; a malformed payload is counted and answered
+  ``CollabReply(False, reason)`` (architecture.md §2);
+* sends each outgoing message by ``query`` to ``robot/<receiver>/collab`` and waits for the reply
+  (at most ``timeout`` [s] wall): in lockstep every message is in its receiver's inbox before the
+  next frame;
+* keeps the set of *unreachable* peers, which the pure STL step forgets (``StepInput.unreachable``,
+  so a dead partner cannot enable stage 2): a peer is unreachable while its liveliness token
+  ``alive/agent/<id>`` is gone (until it is declared again), and for ``retry_after`` [s] wall
+  after a query to it failed (no reply in time, or a rejection). Messages to an unreachable peer
+  are not sent (a hung peer would otherwise cost a full timeout per message); the periodic status
+  re-announcement (``ProtocolParams.status_period``) reaches it once it is back. Receiving a
+  message from a peer does not make it reachable: a peer that can talk but not listen would
+  otherwise flap between stage 2 and stage 3 at every critical event.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+from agent.protocol import keys
+from agent.protocol.codec import ProtocolError, decode, encode
+from agent.protocol.messages import CollabMessage, CollabReply
+from agent.runtime.collab import from_wire
+from agent.runtime.inbox import CollabInbox, MalformedCounter
+from agent.runtime.transport import Closeable, Transport
+
+logger = logging.getLogger(__name__)
+
+
+class CollabLink:
+    """Query/reply collaboration of STL agent ``robot`` with its ``peers`` (robot ids)."""
+
+    def __init__(self, transport: Transport, fleet: str, robot: int, peers: tuple[int, ...],
+                 malformed: MalformedCounter, timeout: float = 0.25, retry_after: float = 2.0,
+                 clock: Callable[[], float] = time.monotonic):
+        self.transport = transport
+        self.fleet = fleet
+        self.robot = robot
+        self.peers = frozenset(peers)
+        self.malformed = malformed
+        self.timeout = timeout
+        self.inbox = CollabInbox()
+        self._lock = threading.Lock()
+        self.retry_after = retry_after
+        self._clock = clock
+        self._gone: set[int] = set()  # liveliness token disappeared
+        self._failed: dict[int, float] = {}  # wall time [s] of the last failed query
+        self._handles: list[Closeable] = []
+        self.sent = 0
+        self.failed = 0
+        self.received = 0
+
+    def open(self) -> None:
+        """Serve the own queryable and watch the peers' liveliness tokens."""
+        self._handles.append(self.transport.serve(keys.collab(self.fleet, self.robot),
+                                                  self._on_query))
+        self._handles.append(self.transport.watch_alive(keys.all_alive(self.fleet),
+                                                        self._on_alive))
+
+    def close(self) -> None:
+        for handle in reversed(self._handles):
+            handle.close()
+        self._handles.clear()
+
+    @property
+    def unreachable(self) -> frozenset[int]:
+        now = self._clock()
+        with self._lock:
+            failed = {p for p, when in self._failed.items() if now - when < self.retry_after}
+            return frozenset(self._gone | failed)
+
+    def _mark(self, peer: int, *, alive: bool | None = None, failed: bool = False,
+              why: str) -> None:
+        if peer not in self.peers:
+            return
+        with self._lock:
+            if alive is True:
+                self._gone.discard(peer)
+                self._failed.pop(peer, None)
+            elif alive is False:
+                self._gone.add(peer)
+            if failed:
+                self._failed[peer] = self._clock()
+        logger.info("robot %d: peer %d %s", self.robot, peer, why)
+
+    # transport threads -------------------------------------------------------------------
+
+    def _on_alive(self, key: str, alive: bool) -> None:
+        parsed = keys.parse_alive(key)
+        if parsed is None or parsed[0] != "agent" or not parsed[1].isdigit():
+            return
+        self._mark(int(parsed[1]), alive=alive,
+                   why="liveliness token " + ("declared" if alive else "gone"))
+
+    def _on_query(self, payload: bytes) -> bytes:
+        """Queryable handler: never raises, always replies."""
+        key = keys.collab(self.fleet, self.robot)
+        try:
+            msg = decode(CollabMessage, payload)
+            if msg.receiver != self.robot:
+                raise ProtocolError(f"CollabMessage.receiver: {msg.receiver}, this is robot "
+                                    f"{self.robot}")
+            core = from_wire(msg)
+        except ProtocolError as exc:
+            self.malformed.record(key, exc)
+            return encode(CollabReply(False, str(exc)[:200]))
+        self.inbox.put(msg.t, msg.sender, core)
+        self.received += 1
+        return encode(CollabReply(True))
+
+    # the loop ---------------------------------------------------------------------------
+
+    def send(self, msg: CollabMessage) -> bool:
+        """Query the receiver and wait for its reply; True when it accepted the message."""
+        receiver = msg.receiver
+        if receiver in self.unreachable:
+            self.failed += 1
+            return False
+        self.sent += 1
+        replies = self.transport.query(keys.collab(self.fleet, receiver), encode(msg),
+                                       self.timeout)
+        reasons = []
+        for raw in replies:
+            try:
+                reply = decode(CollabReply, raw)
+            except ProtocolError as exc:
+                self.malformed.record(keys.collab(self.fleet, receiver), exc, msg.t)
+                continue
+            if reply.accepted:
+                return True
+            reasons.append(reply.reason)
+        self.failed += 1
+        why = f"{msg.kind} rejected: {'; '.join(reasons)}" if reasons else f"{msg.kind}: no reply"
+        self._mark(receiver, failed=True, why=why)
+        return False

@@ -1,0 +1,87 @@
+"""What every agent process does around its loop (style.md §6; stack-notes.md §0, §1.7, §2.3).
+
+``run_agent`` opens the transport from the shared flags, builds the agent (planning included)
+*before* declaring ``alive/agent/<id>`` (the token means "ready to answer frames"), runs the loop
+until ``Control(stop)``, SIGINT or SIGTERM, and closes everything in ``finally``. It sets
+``sys.setswitchinterval(0.0005)`` so transport callbacks are not held ~5 ms behind the GIL by the
+agent's CPU-bound step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from agent.protocol import keys
+from agent.protocol.codec import encode
+from agent.protocol.messages import Event
+from agent.runtime.inbox import MalformedCounter
+from agent.runtime.loop import AgentLoop, Core, LoopConfig
+from agent.runtime.peers import CollabLink
+from agent.runtime.transport import Transport, install_signal_handlers, open_transport
+from agent.scenario.model import Scenario
+
+logger = logging.getLogger(__name__)
+
+Built = tuple[Core, Any, tuple[Event, ...], CollabLink | None]
+Builder = Callable[[Transport, MalformedCounter, Callable[[Event], None]], Built | None]
+
+SWITCH_INTERVAL = 0.0005  # [s] stack-notes.md §2.3
+
+
+def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build: Builder, *,
+              transport: Transport | None = None, stop: threading.Event | None = None) -> int:
+    """Run one agent process; 0 on a clean stop, 1 when ``build`` reports a fault (None).
+
+    ``transport`` and ``stop`` are for tests (a fake transport, a stop event they control);
+    by default the zenoh session is opened from ``args`` and SIGINT/SIGTERM set ``stop``.
+    """
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    if stop is None:
+        stop = threading.Event()
+        install_signal_handlers(stop)
+    own_transport = transport is None
+    if transport is None:
+        transport = open_transport(args)
+    source = f"agent/{args.robot}"
+    loop: AgentLoop | None = None
+    try:
+        malformed = MalformedCounter(source)
+        event_key = keys.event(scenario.fleet)
+
+        def publish(event: Event) -> None:
+            transport.publish(event_key, encode(event))
+
+        built = build(transport, malformed, publish)
+        if built is None:
+            return 1
+        core, state, events, link = built
+        config = LoopConfig(scenario.fleet, args.robot, divider,
+                            getattr(args, "stale_after", 0.5))
+        loop = AgentLoop(transport, config, core, state, link=link, malformed=malformed)
+        loop.open()
+        loop.ready()
+        for event in events:
+            loop.publish_event(event)
+        logger.info("%s ready (fleet %s, divider %d)", source, scenario.fleet, divider)
+        try:
+            code = loop.run(stop)
+        except Exception as exc:  # a bug in a core: report it, then exit non-zero
+            logger.exception("%s: fault", source)
+            loop.publish_event(Event(loop.last_t, source, "fault",
+                                     {"error": f"{type(exc).__name__}: {exc}"}))
+            return 1
+        logger.info("%s stopped: %d frames, %d steps, mean step %.3f ms, max %.3f ms", source,
+                    loop.stats.frames, loop.stats.steps,
+                    1e3 * loop.stats.step_time / max(loop.stats.steps, 1),
+                    1e3 * loop.stats.max_step_time)
+        return code
+    finally:
+        if loop is not None:
+            loop.close()
+        if own_transport:
+            transport.close()

@@ -1,0 +1,137 @@
+"""The STL agent: the pure funnel agent of ``agent.stl.agent`` behind the runtime loop.
+
+:class:`StlCore` wraps one :class:`~agent.stl.agent.StlAgent` (built with
+``build_agents(scenario, robots=[id])[id]``; stl-funnel.md §6–§9, §12, paper Alg. 2) into the
+loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of its own:
+
+* inputs: the frame's poses of *every* robot (LTL robots included, for collision avoidance,
+  eq. (6)) as ``{id: array([x, y, θ])}``, the collaboration messages delivered for this tick and
+  the peers the runtime cannot reach (``StepInput.unreachable``);
+* outputs: the world-frame command (v_x, v_y [m/s], ω [rad/s]), the step's messages as
+  ``CollabMessage`` stamped with the frame's time (the loop sends them by query before the
+  command), an ``StlStatus`` at most every ``status_period`` [s] of sim time (≤ 10 Hz), and
+  events read off the step's ``LogRecord`` and messages: ``critical_event`` and ``repair``
+  (data: stage, r, …), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
+  starts or stops following a requester) and ``subtask_done``.
+
+``main(args)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL robot); its
+:class:`~agent.runtime.peers.CollabLink` serves ``robot/<id>/collab``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from agent.protocol.messages import Event, StlStatus
+from agent.runtime.collab import to_wire
+from agent.runtime.loop import TickInput, TickOutput
+from agent.runtime.peers import CollabLink
+from agent.scenario.model import Scenario
+from agent.stl.agent import AgentState, LogRecord, StepInput, StlAgent, build_agents
+from agent.stl.messages import CollabRelease, CollabRequest
+
+STATUS_PERIOD = 0.1  # [s] sim time: StlStatus at ≤ 10 Hz (architecture.md §2)
+_EPS = 1e-9  # [s] so that frames at exactly k·0.1 s count as due despite float sums
+
+
+@dataclass(frozen=True, eq=False)
+class StlRuntimeState:
+    """The pure agent's state and when the last status went out [s]."""
+
+    agent: AgentState
+    last_status: float = -math.inf
+
+
+class StlCore:
+    """One STL agent as a loop :class:`~agent.runtime.loop.Core`."""
+
+    def __init__(self, agent: StlAgent, status_period: float = STATUS_PERIOD):
+        self.agent = agent
+        self.robot = agent.robot_id
+        self.zero = (0.0, 0.0, 0.0)
+        self.source = f"agent/{self.robot}"
+        self.status_period = status_period
+
+    def initial_state(self) -> StlRuntimeState:
+        return StlRuntimeState(self.agent.initial_state())
+
+    def step(self, state: StlRuntimeState, inputs: TickInput
+             ) -> tuple[StlRuntimeState, TickOutput]:
+        frame = inputs.frame
+        t = frame.t
+        poses = {int(row[0]): np.array(row[1:4], dtype=float) for row in frame.poses}
+        before = state.agent
+        after, out = self.agent.step(before, StepInput(t, poses, inputs.inbox,
+                                                       inputs.unreachable))
+        messages = tuple(to_wire(m, t) for m in out.messages)
+        events = self._events(t, before, after, out.log, out.messages)
+        status = None
+        last = state.last_status
+        if t - last >= self.status_period - _EPS:
+            status = _status(self.robot, out.log, after)
+            last = t
+        return StlRuntimeState(after, last), TickOutput(out.u, status, events, messages)
+
+    def _events(self, t: float, before: AgentState, after: AgentState, log: LogRecord,
+                sent) -> tuple[Event, ...]:
+        src = self.source
+        events = []
+        if log.repair:
+            events.append(Event(t, src, "critical_event",
+                                {"stage": log.repair, "ce": log.ce, "rho": log.rho,
+                                 "subtask": log.subtask, "follow": _follow(log.follow)}))
+            events.append(Event(t, src, "repair",
+                                {"stage": log.repair, "r": log.r, "rho_max": log.rho_max,
+                                 "lower": log.lower, "subtask": log.subtask}))
+        requests = [m for m in sent if isinstance(m, CollabRequest)]
+        if requests:
+            events.append(Event(t, src, "collab_request",
+                                {"subtask": requests[0].subtask,
+                                 "receivers": [m.receiver for m in requests]}))
+        releases = [m for m in sent if isinstance(m, CollabRelease)]
+        if releases:
+            events.append(Event(t, src, "collab_release",
+                                {"subtask": releases[0].subtask,
+                                 "receivers": [m.receiver for m in releases]}))
+        if after.follow != before.follow:
+            events.append(Event(t, src, "collab_follow",
+                                {"requester": _follow(after.follow),
+                                 "previous": _follow(before.follow),
+                                 "subtask": after.follow_subtask}))
+        for outcome in after.outcomes[len(before.outcomes):]:
+            events.append(Event(t, src, "subtask_done",
+                                {"subtask": outcome.index, "satisfied": outcome.satisfied,
+                                 "r": outcome.final_r, "rho_phi": outcome.rho_phi,
+                                 "events": list(outcome.events), "ended_by": outcome.ended_by}))
+        return tuple(events)
+
+
+def _follow(follow: int | None) -> int:
+    return -1 if follow is None else int(follow)
+
+
+def _status(robot: int, log: LogRecord, state: AgentState) -> StlStatus:
+    return StlStatus(robot, log.t, log.subtask, log.rho, log.rho_max, log.lower, log.r,
+                     log.stage, log.ce, log.c, _follow(log.follow), tuple(state.events))
+
+
+# --------------------------------------------------------------------------- process
+
+
+def main(args: argparse.Namespace, scenario: Scenario) -> int:
+    """The STL agent process of ``args.robot`` (see ``coordinator.commands.agent``)."""
+    from agent.runtime.process import run_agent
+
+    def build(transport, malformed, _publish_fault):
+        agent = build_agents(scenario, robots=[args.robot])[args.robot]
+        core = StlCore(agent)
+        link = CollabLink(transport, scenario.fleet, args.robot, agent.cfg.peers, malformed,
+                          timeout=getattr(args, "collab_timeout", 0.25))
+        return core, core.initial_state(), (), link
+
+    divider = max(1, round(scenario.sim.mocap_rate / scenario.stl.control_rate))
+    return run_agent(args, scenario, divider, build)

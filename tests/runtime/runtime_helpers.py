@@ -1,0 +1,102 @@
+"""A scripted fake simulator on the ``FakeNetwork`` for agent-runtime tests (no sockets).
+
+``FakeSim`` publishes mocap frames the test builds (lockstep ``due`` or realtime), collects every
+command, status and event the agents publish, and integrates nothing itself: the tests drive
+their own kinematics so they know exactly what the agents saw.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+from agent.protocol import keys
+from agent.protocol.codec import decode, encode, peek_kind
+from agent.protocol.messages import (
+    Command,
+    Control,
+    Event,
+    LtlStatus,
+    MocapFrame,
+    StlStatus,
+)
+from agent.runtime.transport import FakeNetwork
+
+
+class FakeSim:
+    def __init__(self, network: FakeNetwork, fleet: str):
+        self.fleet = fleet
+        self.transport = network.transport("sim")
+        self.commands: list[Command] = []
+        self._by_seq: dict[tuple[int, int], Command] = {}
+        self.events: list[Event] = []
+        self.statuses: list[LtlStatus | StlStatus] = []
+        self.transport.subscribe(keys.all_cmds(fleet), self._on_cmd)
+        self.transport.subscribe(keys.event(fleet), self._on_event)
+        self.transport.subscribe(keys.all_statuses(fleet), self._on_status)
+
+    def _on_cmd(self, _key: str, payload: bytes) -> None:
+        command = decode(Command, payload)
+        self.commands.append(command)
+        self._by_seq[(command.robot, command.seq)] = command
+
+    def _on_event(self, _key: str, payload: bytes) -> None:
+        self.events.append(decode(Event, payload))
+
+    def _on_status(self, _key: str, payload: bytes) -> None:
+        kind = peek_kind(payload)
+        self.statuses.append(decode(LtlStatus if kind == "LtlStatus" else StlStatus, payload))
+
+    def control(self, cmd: str) -> None:
+        self.transport.publish(keys.control(self.fleet), encode(Control(cmd)))
+
+    def frame(self, t: float, seq: int, poses: Mapping[int, Sequence[float]],
+              due: Iterable[int] = ()) -> MocapFrame:
+        frame = MocapFrame(t, seq, tuple((int(j), float(p[0]), float(p[1]), float(p[2]))
+                                         for j, p in sorted(poses.items())), tuple(due))
+        self.transport.publish(keys.mocap(self.fleet), encode(frame))
+        return frame
+
+    def raw(self, key: str, payload: bytes) -> None:
+        self.transport.publish(key, payload)
+
+    def command(self, robot: int, seq: int) -> Command:
+        """The (last) command of ``robot`` for frame ``seq``."""
+        found = self._by_seq.get((robot, seq))
+        if found is None:
+            raise AssertionError(f"no command of robot {robot} for frame {seq}")
+        return found
+
+    def kinds(self, source: str | None = None) -> list[str]:
+        return [e.kind for e in self.events if source is None or e.source == source]
+
+
+class FakeClock:
+    """A wall clock the test moves by hand [s]."""
+
+    def __init__(self, now: float = 100.0):
+        self.now = now
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        self.now += seconds
+
+
+def stl_loop(network: FakeNetwork, fleet: str, agent, clock=None, stale_after: float = 0.5):
+    """An STL agent loop on its own fake transport, opened and alive."""
+    from agent.runtime.inbox import MalformedCounter
+    from agent.runtime.loop import AgentLoop, LoopConfig
+    from agent.runtime.peers import CollabLink
+    from agent.runtime.stl_agent import StlCore
+
+    transport = network.transport(f"agent{agent.robot_id}")
+    extra = {"clock": clock} if clock is not None else {}
+    malformed = MalformedCounter(f"agent/{agent.robot_id}", **extra)
+    link = CollabLink(transport, fleet, agent.robot_id, agent.cfg.peers, malformed, **extra)
+    core = StlCore(agent)
+    loop = AgentLoop(transport, LoopConfig(fleet, agent.robot_id, 1, stale_after), core,
+                     core.initial_state(), link=link, malformed=malformed, **extra)
+    loop.open()
+    loop.ready()
+    return loop, transport

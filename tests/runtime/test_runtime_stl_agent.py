@@ -1,0 +1,173 @@
+"""The STL agent loop on the fake network: no logic in the loop, stage 2 over query/reply, and a
+dead partner (stl-funnel.md §7.4–§7.5, §11.7; architecture.md §3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from runtime_helpers import FakeClock, FakeSim, stl_loop
+
+from agent.control.collision import CollisionParams
+from agent.protocol.messages import StlStatus
+from agent.runtime.transport import FakeNetwork
+from agent.scenario import load_scenario
+from agent.stl.agent import StepInput, build_agents, single_agent
+from agent.stl.harness import run_closed_loop
+from agent.stl.messages import CollabRequest
+from agent.stl.sequencer import build_sequence
+
+RATE = 100.0
+DT = 1.0 / RATE
+PSI_3 = "dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7"
+FLEET = "pair"
+
+
+def make_pair():
+    """§11.7's set-up (as tests/stl/test_stl_collaboration.py): no collision avoidance."""
+    tasks = {
+        3: build_sequence(3, [f"F[57,58] ({PSI_3})"], stl_ids=[3, 4]),
+        4: build_sequence(4, ["F[83,87] (dist(p4, [2,2]) <= 0.1)"], stl_ids=[3, 4]),
+    }
+    library = {(j, t.index): t for j, seq in tasks.items() for t in seq}
+    col = CollisionParams(beta=0.0)
+    a3 = single_agent(3, tasks[3], library=library, peers=[4], collision=col)
+    a4 = single_agent(4, tasks[4], library=library, peers=[3], collision=col)
+    return a3, a4
+
+
+def drive(sim, loops, poses, k0, steps, *, before_tick=None):
+    """Lockstep: frame k (every live loop due) → each loop answers → integrate like the pure
+    harness (x += Δt·u). Returns the poses per tick."""
+    trajectory = []
+    for step in range(steps + 1):
+        k = k0 + step
+        t = k / RATE
+        if before_tick is not None:
+            before_tick(t, loops)
+        trajectory.append({j: p.copy() for j, p in poses.items()})
+        live = {loop.config.robot: loop for loop in loops if not loop.stopped}
+        sim.frame(t, k, poses, due=sorted(live))
+        for loop in live.values():
+            assert loop.run_once(0.0)
+        if step == steps:
+            break
+        for j in live:
+            poses[j] = poses[j] + DT * np.asarray(sim.command(j, k).u)
+    return trajectory
+
+
+def test_one_agent_commands_equal_the_pure_step():
+    """Scenario 1's robot 5 alone in the loop: every command equals a direct StlAgent.step on the
+    same poses, status at 10 Hz of sim time (the loop adds no logic)."""
+    scenario = load_scenario("scenarios/scenario1.toml")
+    network = FakeNetwork()
+    sim = FakeSim(network, scenario.fleet)
+    loop, _ = stl_loop(network, scenario.fleet, build_agents(scenario, robots=[5])[5])
+    direct = build_agents(scenario, robots=[5])[5]
+    state = direct.initial_state()
+    poses = {r.id: np.array(r.pose, dtype=float) for r in scenario.robots}
+    sim.control("start")
+    n = 800  # 8 s: the G[21,30] funnel of robot 5 is active and steering from t = 0
+    moved = 0.0
+    for k in range(n):
+        t = k / RATE
+        sim.frame(t, k, poses, due=[5])
+        assert loop.run_once(0.0)
+        state, out = direct.step(state, StepInput(t, {j: p.copy() for j, p in poses.items()}))
+        u = sim.command(5, k).u
+        assert u == pytest.approx(out.u, abs=0.0)
+        poses[5] = poses[5] + DT * np.asarray(u)
+        moved += abs(u[0]) + abs(u[1])
+    assert moved > 0.5  # it did steer
+    statuses = [s for s in sim.statuses if isinstance(s, StlStatus)]
+    assert len(statuses) == pytest.approx(n / 10, abs=1)
+    assert all(s.robot == 5 for s in statuses)
+    assert loop.stats.steps == n
+    # its peers 3 and 4 are absent: their status announcements failed, they count as unreachable
+    assert loop.link.unreachable == frozenset({3, 4})
+
+
+def test_two_agents_reproduce_stage2_of_the_pure_harness():
+    """§11.7 over query/reply: same repair times and stages, same request time and the same
+    trajectory as ``run_closed_loop`` with one-step message latency."""
+    a3, a4 = make_pair()
+    start, duration = 30.0, 8.0
+    reference = run_closed_loop([a3, a4], {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, duration,
+                                start=start, latency_steps=1)
+    ref_requests = [t for t, m in reference.messages if isinstance(m, CollabRequest)]
+    assert ref_requests == [pytest.approx(34.86, abs=0.05)]
+
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    loops = [stl_loop(network, FLEET, a)[0] for a in make_pair()]
+    poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
+    sim.control("start")
+    trajectory = drive(sim, loops, poses, round(start * RATE), round(duration * RATE))
+
+    repairs = [(e.t, e.data["stage"]) for e in sim.events
+               if e.kind == "repair" and e.source == "agent/3"]
+    assert repairs == [pytest.approx(x) for x in reference.events(3)]
+    assert [s for _, s in repairs] == [1, 1, 2]
+    requests = [e for e in sim.events if e.kind == "collab_request"]
+    assert [e.t for e in requests] == pytest.approx(ref_requests)
+    assert requests[0].data["receivers"] == [4]
+    follows = [e for e in sim.events if e.kind == "collab_follow"]
+    assert follows[0].source == "agent/4" and follows[0].data["requester"] == 3
+    assert follows[0].t == pytest.approx(ref_requests[0] + DT)  # one-step latency
+    for j in (3, 4):
+        ours = np.array([row[j] for row in trajectory])
+        np.testing.assert_allclose(ours, reference.trajectory.states[j], rtol=0, atol=1e-12)
+
+
+def test_a_dead_partner_means_stage_3():
+    """Robot 4's process dies (its liveliness token disappears) before robot 3's third critical
+    event: robot 3 forgets 4's status, stage 2 is not enabled, the event gets stage 3 and no
+    request is sent."""
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    (loop3, _), (loop4, transport4) = (stl_loop(network, FLEET, a) for a in make_pair())
+    poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
+    sim.control("start")
+
+    def kill_at_34(t, loops):
+        if t == pytest.approx(34.0) and not loop4.stopped:
+            transport4.kill()
+            loop4.close()
+            loop4.stopped = True
+
+    drive(sim, [loop3, loop4], poses, 3000, 1500, before_tick=kill_at_34)
+    repairs = [(e.t, e.data["stage"]) for e in sim.events
+               if e.kind == "repair" and e.source == "agent/3"]
+    assert [s for _, s in repairs[:3]] == [1, 1, 3]
+    assert repairs[2][0] > 34.0
+    assert "collab_request" not in sim.kinds()
+    assert loop3.link.unreachable == frozenset({4})
+
+
+def test_an_unanswered_request_leaves_stage_2():
+    """Robot 4 stays alive (token, frames) but stops answering queries after robot 3's last status
+    announcement and before its request: the request fails, robot 3 leaves stage 2 (c_3 := 0)
+    and its next critical event gets stage 3; robot 4 never follows."""
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    clock = FakeClock()
+    (loop3, _), (loop4, _) = (stl_loop(network, FLEET, a, clock=clock) for a in make_pair())
+    poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
+    sim.control("start")
+
+    def deaf_at_34_5(t, loops):
+        if t == pytest.approx(34.5):
+            loop4.link.close()  # the queryable is gone, the liveliness token stays
+
+    drive(sim, [loop3, loop4], poses, 3000, 1000, before_tick=deaf_at_34_5)
+    repairs = [(e.t, e.data["stage"]) for e in sim.events
+               if e.kind == "repair" and e.source == "agent/3"]
+    assert [s for _, s in repairs[:4]] == [1, 1, 2, 3]
+    assert [e.t for e in sim.events if e.kind == "collab_request"] == [repairs[2][0]]
+    assert loop3.stats.collab_failures >= 1  # the request, then announcements not sent
+    assert loop3.link.unreachable == frozenset({4})
+    assert "collab_follow" not in sim.kinds()
+    statuses = [s for s in sim.statuses if isinstance(s, StlStatus) and s.robot == 3]
+    assert statuses[-1].c == 0
+    clock.advance(loop3.link.retry_after)  # a failed query is retried after a while
+    assert loop3.link.unreachable == frozenset()
