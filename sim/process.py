@@ -52,6 +52,7 @@ from sim.world import WALL, World, WorldConfig
 logger = logging.getLogger(__name__)
 
 SOURCE = "sim"
+LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 
 class SimConfigError(TlfleetError, ValueError):
@@ -382,6 +383,8 @@ def main(args: argparse.Namespace) -> int:
     install_signal_handlers(stop)
     transport = open_transport(args)
     try:
-        return run_sim(transport, scenario, config, stop)
+        code = run_sim(transport, scenario, config, stop)
+        time.sleep(LINGER)  # let zenoh deliver the last frame and sim_done before closing
+        return code
     finally:
         transport.close()
