@@ -198,8 +198,9 @@ def _plain(value: object) -> object:
 # --------------------------------------------------------------------------- process
 
 
-def main(args: argparse.Namespace, scenario: Scenario) -> int:
-    """The LTL agent process of ``args.robot`` (see ``coordinator.commands.agent``)."""
+def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=None) -> int:
+    """The LTL agent process of ``args.robot`` (see ``coordinator.commands.agent``);
+    ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
     from agent.runtime.process import run_agent
 
     def build(_transport, _malformed, publish_fault: Callable[[Event], None]):
@@ -216,4 +217,4 @@ def main(args: argparse.Namespace, scenario: Scenario) -> int:
         return core, state, (event,), None
 
     divider = max(1, round(scenario.sim.mocap_rate / scenario.ltl.control_rate))
-    return run_agent(args, scenario, divider, build)
+    return run_agent(args, scenario, divider, build, transport=transport, stop=stop)

@@ -122,8 +122,9 @@ def _status(robot: int, log: LogRecord, state: AgentState) -> StlStatus:
 # --------------------------------------------------------------------------- process
 
 
-def main(args: argparse.Namespace, scenario: Scenario) -> int:
-    """The STL agent process of ``args.robot`` (see ``coordinator.commands.agent``)."""
+def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=None) -> int:
+    """The STL agent process of ``args.robot`` (see ``coordinator.commands.agent``);
+    ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
     from agent.runtime.process import run_agent
 
     def build(transport, malformed, _publish_fault):
@@ -134,4 +135,4 @@ def main(args: argparse.Namespace, scenario: Scenario) -> int:
         return core, core.initial_state(), (), link
 
     divider = max(1, round(scenario.sim.mocap_rate / scenario.stl.control_rate))
-    return run_agent(args, scenario, divider, build)
+    return run_agent(args, scenario, divider, build, transport=transport, stop=stop)
