@@ -1,0 +1,118 @@
+"""``tlfleet router`` + ``tlfleet agent`` as real processes on loopback zenoh (one smoke test).
+
+Router on a free 127.0.0.1 port, an STL agent (Scenario 1, robot 3) as a client; the test is a
+client too: it waits for ``alive/agent/3``, sends Control(start) and a due frame, receives the
+Command, then SIGTERMs both processes and checks they exit cleanly. Every wait is on a condition
+with a timeout; process groups are killed in ``finally``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from agent.protocol import keys
+from agent.protocol.codec import decode, encode
+from agent.protocol.messages import Command, Control, MocapFrame
+from agent.runtime.transport import TransportConfig, ZenohTransport
+from agent.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "scenarios" / "scenario1.toml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def tlfleet(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "coordinator.cli", *args], cwd=ROOT,
+                            start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+
+
+def kill_group(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(5)
+    for stream in (proc.stdout, proc.stderr):
+        if stream:
+            stream.close()
+
+
+def open_client(endpoint: str, timeout: float = 15.0) -> ZenohTransport:
+    """A client fails at once while the router is not listening yet: retry until it is."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+        except Exception:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+
+
+@pytest.mark.system
+def test_router_and_stl_agent_processes_answer_a_frame_and_stop_on_sigterm():
+    scenario = load_scenario(SCENARIO)
+    fleet = scenario.fleet
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = tlfleet("router", "--listen", endpoint, "--fleet", fleet)
+    agent = None
+    transport = None
+    try:
+        transport = open_client(endpoint)
+        agent = tlfleet("agent", str(SCENARIO), "--robot", "3", "--connect", endpoint)
+        alive = {"router": threading.Event(), "agent": threading.Event()}
+        commands: list[Command] = []
+        answered = threading.Event()
+
+        def on_alive(key: str, up: bool) -> None:
+            if up and key == keys.alive(fleet, "agent", 3):
+                alive["agent"].set()
+            if up and key == keys.alive(fleet, "router", 0):
+                alive["router"].set()
+
+        def on_cmd(_key: str, payload: bytes) -> None:
+            commands.append(decode(Command, payload))
+            answered.set()
+
+        transport.watch_alive(keys.all_alive(fleet), on_alive)
+        transport.subscribe(keys.cmd(fleet, 3), on_cmd)
+        assert alive["router"].wait(15), "no liveliness token alive/router/0"
+        assert alive["agent"].wait(30), "no liveliness token alive/agent/3"
+
+        transport.publish(keys.control(fleet), encode(Control("start")))
+        poses = tuple((r.id, *r.pose) for r in sorted(scenario.robots, key=lambda r: r.id))
+        frame = MocapFrame(0.0, 0, poses, due=(3,))
+        deadline = time.monotonic() + 10
+        while not answered.is_set() and time.monotonic() < deadline:
+            transport.publish(keys.mocap(fleet), encode(frame))  # duplicates are ignored
+            answered.wait(0.2)
+        assert answered.is_set(), "no command for the due frame"
+        command = commands[0]
+        assert (command.robot, command.seq, command.t, len(command.u)) == (3, 0, 0.0, 3)
+
+        agent.send_signal(signal.SIGTERM)
+        assert agent.wait(10) == 0
+        assert {c.seq for c in commands} == {0}  # one frame (then maybe a stale zero command)
+        router.send_signal(signal.SIGTERM)
+        assert router.wait(10) == 0
+    finally:
+        if transport is not None:
+            transport.close()
+        if agent is not None:
+            kill_group(agent)
+        kill_group(router)
