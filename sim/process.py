@@ -47,6 +47,7 @@ from agent.runtime.transport import Closeable, Transport, install_signal_handler
 from agent.scenario import Scenario, load_scenario
 from sim.clock import Pacer, TickClock
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
+from sim.stats import TimingStats
 from sim.world import WALL, World, WorldConfig
 
 logger = logging.getLogger(__name__)
@@ -128,11 +129,14 @@ class SimProcess:
         self.alive: set[int] = set()
         self.started = False
         self.stop_requested = False
+        self.done = False  # sim time reached the duration
         self.t = 0.0  # [s] sim time of the newest frame
         self.stats = SimStats()
         self.malformed: Counter[str] = Counter()
         self._reported: dict[str, tuple[int, float]] = {}  # key -> (count reported, wall time)
-        self._inbox: queue.SimpleQueue[tuple[str, str, Any]] = queue.SimpleQueue()
+        self.timing = TimingStats()
+        # (kind, key, payload or liveliness, arrival wall time [s]) from the transport callbacks
+        self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
                       "event": keys.event(self.fleet)}
 
@@ -142,12 +146,13 @@ class SimProcess:
         """Declare presence, subscribe, run until done or stopped; undeclare. Returns 0."""
         handles: list[Closeable] = []
         try:
+            inbox, now = self._inbox, self._now
             handles.append(self.transport.subscribe(
-                keys.all_cmds(self.fleet), lambda k, p: self._inbox.put(("cmd", k, p))))
+                keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
             handles.append(self.transport.subscribe(
-                keys.control(self.fleet), lambda k, p: self._inbox.put(("control", k, p))))
+                keys.control(self.fleet), lambda k, p: inbox.put(("control", k, p, 0.0))))
             handles.append(self.transport.watch_alive(
-                keys.all_alive(self.fleet), lambda k, up: self._inbox.put(("alive", k, up))))
+                keys.all_alive(self.fleet), lambda k, up: inbox.put(("alive", k, up, 0.0))))
             handles.append(self.transport.declare_alive(keys.alive(self.fleet, "sim", 0)))
             logger.info("sim %s: %d robots, %s mode, seed %d, duration %g s", self.fleet,
                         len(self.world.ids), self.config.mode, self.config.seed,
@@ -160,6 +165,10 @@ class SimProcess:
                     self._run_realtime()
                 self.stats.wall_time = self._now() - started
             self._report_malformed(force=True)
+            if self.started:
+                self._event("sim_stats", **self.summary())
+            if self.done:
+                self._event("sim_done", ticks=self.stats.ticks)
             self._log_summary()
             return 0
         finally:
@@ -211,7 +220,8 @@ class SimProcess:
                 self._pump(min(left, self.config.poll))
             if self.stopping:
                 return
-            self._advance(k, self.lockstep.take())
+            answering = tuple(r for r in self.lockstep.due if r in self.alive)
+            self._advance(k, self.lockstep.take(), answering)
             k += 1
 
     def _run_realtime(self) -> None:
@@ -230,7 +240,7 @@ class SimProcess:
             if self.stopping:
                 break
             pacer.advance()
-            self._advance(k, self.latest.take())
+            self._advance(k, self.latest.take(), due_robots(k, self.dividers, self.alive))
             k += 1
         self.stats.overruns = pacer.overruns
 
@@ -240,11 +250,16 @@ class SimProcess:
         self.t = self.clock.time(k)
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
+        self.timing.frame_published(k, self._now())
         self._publish(self._keys["mocap"], MocapFrame(self.t, k, poses, due))
 
-    def _advance(self, k: int, commands: list[Command]) -> None:
-        """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}."""
+    def _advance(self, k: int, commands: list[Command], due: tuple[int, ...]) -> None:
+        """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}.
+
+        ``due``: the live robots that owed a command for tick k (deadline bookkeeping).
+        """
         t = self.clock.time(k)
+        self.timing.close_tick(k, due)
         for command in commands:
             self.world.set_command(command.robot, command.u, t)
         for robot in self.world.check_watchdog(t):
@@ -264,7 +279,7 @@ class SimProcess:
 
     def _finish(self) -> None:
         logger.info("sim time reached %g s", self.t)
-        self._event("sim_done", ticks=self.stats.ticks)
+        self.done = True
 
     # ----------------------------------------------------------------- inbox
 
@@ -275,9 +290,9 @@ class SimProcess:
         except queue.Empty:
             item = None
         while item is not None:
-            kind, key, payload = item
+            kind, key, payload, arrival = item
             if kind == "cmd":
-                self._on_command(key, payload)
+                self._on_command(key, payload, arrival)
             elif kind == "control":
                 self._on_control(key, payload)
             else:
@@ -288,7 +303,7 @@ class SimProcess:
                 item = None
         self._report_malformed()
 
-    def _on_command(self, key: str, payload: bytes) -> None:
+    def _on_command(self, key: str, payload: bytes, arrival: float) -> None:
         try:
             command = decode(Command, payload)
         except ProtocolError as exc:
@@ -305,7 +320,9 @@ class SimProcess:
                 return
         collector = self.lockstep if self.config.mode == "lockstep" else self.latest
         outcome = collector.offer(command)
-        if outcome is not Offer.ACCEPTED:
+        if outcome is Offer.ACCEPTED:
+            self.timing.command_arrived(command.robot, command.seq, arrival)
+        else:
             logger.debug("command of robot %d seq %d ignored: %s", command.robot, command.seq,
                          outcome.value)
 
@@ -358,15 +375,28 @@ class SimProcess:
                 self._reported[key] = (count, now)
                 self._event("malformed_message", key=key, count=count)
 
+    def summary(self) -> dict[str, object]:
+        """The run's counters: published as ``Event(kind="sim_stats")`` at the end.
+
+        ``missed``/``due`` count control deadlines (``sim.stats``); ``latency_*_ms`` are frame
+        publication → command arrival at the sim; ``ignored`` counts commands by reason.
+        """
+        s = self.stats
+        counts = self.lockstep.counts + self.latest.counts
+        return {
+            "mode": self.config.mode, "ticks": s.ticks, "wall_time": s.wall_time,
+            "deadline_misses": s.deadline_misses, "contacts": s.contacts,
+            "watchdog_stops": s.watchdog_stops, "overruns": s.overruns,
+            "ignored": {o.value: n for o, n in counts.items() if o is not Offer.ACCEPTED},
+            "malformed": sum(self.malformed.values()),
+            **self.timing.summary(),
+        }
+
     def _log_summary(self) -> None:
         s = self.stats
         rate = s.ticks / s.wall_time if s.wall_time > 0 else float("nan")
-        counts = self.lockstep.counts + self.latest.counts
-        ignored = {o.value: n for o, n in counts.items() if o is not Offer.ACCEPTED}
-        logger.info("sim done: %d ticks in %.2f s wall (%.0f ticks/s), %d deadline misses, "
-                    "%d contacts, %d watchdog stops, %d overruns, ignored commands %s, "
-                    "malformed %s", s.ticks, s.wall_time, rate, s.deadline_misses, s.contacts,
-                    s.watchdog_stops, s.overruns, ignored, dict(self.malformed))
+        logger.info("sim finished: %d ticks in %.2f s wall (%.0f ticks/s); %s", s.ticks,
+                    s.wall_time, rate, self.summary())
 
 
 def run_sim(transport: Transport, scenario: Scenario, config: SimConfig,

@@ -15,6 +15,7 @@ from sim.lockstep import (
     control_dividers,
     due_robots,
 )
+from sim.stats import TimingStats
 
 
 def cmd(robot: int, seq: int, u=(0.0, 0.0, 0.0)) -> Command:
@@ -141,3 +142,20 @@ def test_pacer_keeps_the_period_and_restarts_after_an_overrun():
     pacer.advance()
     assert pacer.overruns == 1
     assert pacer.next_due == pytest.approx(100.21)
+
+
+def test_timing_stats_latency_and_missed_deadlines():
+    stats = TimingStats(keep_frames=2)
+    stats.frame_published(0, 10.000)
+    stats.frame_published(1, 10.010)
+    stats.command_arrived(1, 0, 10.002)
+    stats.command_arrived(2, 1, 10.013)
+    assert stats.close_tick(1, due=(1, 2)) == (1,)  # robot 1 answered tick 0 only
+    stats.frame_published(2, 10.020)  # forgets tick 0
+    stats.command_arrived(1, 0, 10.030)  # a very late answer: no latency without its frame
+    assert stats.close_tick(2, due=iter([2])) == (2,)
+    summary = stats.summary()
+    assert (summary["commands"], summary["due"], summary["missed"]) == (2, 3, 2)
+    assert summary["latency_max_ms"] == pytest.approx(3.0)
+    assert summary["latency_p50_ms"] == pytest.approx(2.5)
+    assert "latency_p50_ms" not in TimingStats().summary()

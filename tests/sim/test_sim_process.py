@@ -116,6 +116,9 @@ def test_tick_timeout_publishes_a_deadline_miss_and_goes_on():
     assert [(e.t, e.source, e.data) for e in misses] == [(0.02, "sim", {"robot": 2, "seq": 2})]
     assert run.process.stats.deadline_misses == 1
     assert run.process.lockstep.misses == {2: 1}
+    (stats,) = observer.events_of("sim_stats")
+    assert (stats.data["due"], stats.data["missed"], stats.data["deadline_misses"]) == (10, 1, 1)
+    assert stats.data["commands"] == 9 and stats.data["latency_max_ms"] >= 0.0
     assert [f.seq for f in mission_frames(observer.frames)] == list(range(6))
 
 
@@ -175,7 +178,7 @@ def _disturbed(seed: int | None = None, **config):
         config["seed"] = seed
     observer, _, _ = run_lockstep(scen, policies, **config)
     payloads = observer.frame_bytes[-len(mission_frames(observer.frames)):]
-    events = [(e.t, e.kind, e.data) for e in observer.events]
+    events = [(e.t, e.kind, e.data) for e in observer.events if e.kind != "sim_stats"]  # wall
     return payloads, events
 
 
@@ -322,7 +325,11 @@ def test_realtime_mode_paces_on_wall_time_with_empty_due():
     assert 0.03 < frames[-1].pose(1)[0] <= 0.2 * 0.3
     assert 0.03 < frames[-1].pose(2)[0] <= 0.3 * 0.3
     assert len([f for f in agents[1].frames if f.seq % 20 == 0]) >= 2
-    assert observer.events_of("sim_done")
+    assert [e.kind for e in observer.events] == ["sim_stats", "sim_done"]
+    stats = observer.events_of("sim_stats")[0].data
+    # The fake agents answer inside the frame's publication: no deadline is missed.
+    assert (stats["mode"], stats["ticks"], stats["due"], stats["missed"]) == (
+        "realtime", 30, 30 + 2, 0)
 
 
 def test_sim_thread_leaves_no_thread_behind():

@@ -1,0 +1,60 @@
+"""Command timing as the simulator sees it (issue 5 §6: latency and missed control deadlines).
+
+* **Latency** of a command: its arrival at the sim (wall clock, taken in the transport callback)
+  minus the publication of the frame it answers (same ``seq``) [s]. Both are read on the sim's
+  own monotonic clock, so no clock synchronisation is involved.
+* **Control deadline** of robot r at tick k (r due at k): its ``Command(seq=k)`` must have
+  arrived before the sim steps the physics from t_k to t_{k+1}. In lockstep the sim waits (up
+  to the tick timeout), so only timeouts miss; in realtime the step happens one mocap period
+  after the frame, whatever arrived.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Iterable
+
+import numpy as np
+
+
+class TimingStats:
+    """Frame publication times, command latencies and deadline misses of one run."""
+
+    def __init__(self, keep_frames: int = 1000):
+        self._published: OrderedDict[int, float] = OrderedDict()  # seq -> wall time [s]
+        self._keep = keep_frames
+        self._answered: dict[int, int] = {}  # robot -> newest seq answered
+        self.latencies: list[float] = []  # [s]
+        self.expected = 0  # due (robot, tick) pairs
+        self.missed = 0
+
+    def frame_published(self, seq: int, wall: float) -> None:
+        self._published[seq] = wall
+        while len(self._published) > self._keep:
+            self._published.popitem(last=False)
+
+    def command_arrived(self, robot: int, seq: int, wall: float) -> None:
+        """Record a command accepted for ``seq``; its latency if that frame is remembered."""
+        self._answered[robot] = max(seq, self._answered.get(robot, -1))
+        published = self._published.get(seq)
+        if published is not None:
+            self.latencies.append(wall - published)
+
+    def close_tick(self, seq: int, due: Iterable[int]) -> tuple[int, ...]:
+        """The sim steps past tick ``seq``: count the due robots whose command is missing."""
+        due = tuple(due)
+        late = tuple(r for r in due if self._answered.get(r, -1) < seq)
+        self.expected += len(due)
+        self.missed += len(late)
+        return late
+
+    def summary(self) -> dict[str, float | int]:
+        """Counts and latency percentiles [ms] (NaN-free: absent when nothing was measured)."""
+        out: dict[str, float | int] = {"commands": len(self.latencies),
+                                       "due": self.expected, "missed": self.missed}
+        if self.latencies:
+            ms = np.asarray(self.latencies) * 1000.0
+            out.update(latency_p50_ms=float(np.percentile(ms, 50)),
+                       latency_p99_ms=float(np.percentile(ms, 99)),
+                       latency_max_ms=float(ms.max()))
+        return out
