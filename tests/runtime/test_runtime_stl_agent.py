@@ -13,7 +13,7 @@ from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
 from agent.stl.agent import StepInput, build_agents, single_agent
 from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRequest
+from agent.stl.messages import CollabRelease, CollabRequest
 from agent.stl.sequencer import build_sequence
 
 RATE = 100.0
@@ -91,7 +91,7 @@ def test_two_agents_reproduce_stage2_of_the_pure_harness():
     """§11.7 over query/reply: same repair times and stages, same request time and the same
     trajectory as ``run_closed_loop`` with one-step message latency."""
     a3, a4 = make_pair()
-    start, duration = 30.0, 8.0
+    start, duration = 30.0, 28.0  # through robot 3's completion and release at 57.01 s
     reference = run_closed_loop([a3, a4], {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, duration,
                                 start=start, latency_steps=1)
     ref_requests = [t for t, m in reference.messages if isinstance(m, CollabRequest)]
@@ -114,6 +114,12 @@ def test_two_agents_reproduce_stage2_of_the_pure_harness():
     follows = [e for e in sim.events if e.kind == "collab_follow"]
     assert follows[0].source == "agent/4" and follows[0].data["requester"] == 3
     assert follows[0].t == pytest.approx(ref_requests[0] + DT)  # one-step latency
+    releases = [e for e in sim.events if e.kind == "collab_release"]
+    ref_releases = [t for t, m in reference.messages if isinstance(m, CollabRelease)]
+    assert [e.t for e in releases] == ref_releases == [pytest.approx(57.01, abs=0.05)]
+    (done,) = [e for e in sim.events if e.kind == "subtask_done" and e.source == "agent/3"]
+    assert done.data["satisfied"] and done.data["r"] == reference.states[3].outcomes[0].final_r
+    assert [e.data["requester"] for e in sim.events if e.kind == "collab_follow"] == [3, -1]
     for j in (3, 4):
         ours = np.array([row[j] for row in trajectory])
         np.testing.assert_allclose(ours, reference.trajectory.states[j], rtol=0, atol=1e-12)
