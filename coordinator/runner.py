@@ -82,7 +82,7 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
     path = str(Path(config.scenario_path).resolve())
     if role == "router":
-        return tlfleet_command("router", "--listen", endpoint)
+        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint)
     if role == "sim":
         argv = ["sim", path, f"--{config.mode}", "--duration",
                 repr(float(config.duration or scenario.duration))]

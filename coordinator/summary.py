@@ -11,8 +11,10 @@
 * contacts (robot–robot, robot–wall) from ``contact`` events, and the closest approach of two
   robots in the trajectory (centre distance minus both radii) [m];
 * deadline statistics: ``deadline_miss``, ``watchdog_stop``, ``stale_mocap`` and
-  ``malformed_message`` events (an event may carry ``data.count``), plus the malformed payloads
-  the coordinator itself received;
+  ``malformed_message`` events (``data.count``, when present, is the running total of that
+  source on ``data.key``: the last one counts), plus the malformed payloads the coordinator
+  itself received; the simulator's ``sim_stats`` event (control deadlines due/missed, frame →
+  command latency percentiles [ms]);
 * process deaths (``process_died`` events).
 """
 
@@ -264,17 +266,28 @@ def _deadlines(events: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, 
     misses: Counter[str] = Counter()
     malformed: Counter[str] = Counter()
     counts: Counter[str] = Counter()
+    running: dict[tuple[str, str], int] = {}
     for e in events:
         kind = e.get("kind")
         if kind == "deadline_miss":
             misses[str(e["data"].get("robot"))] += _count(e)
         elif kind == "malformed_message":
-            malformed[str(e.get("source"))] += _count(e)
+            source, data = str(e.get("source")), e.get("data", {})
+            count = data.get("count")
+            if isinstance(count, int) and count >= 0:  # a running total per (source, key)
+                key = (source, str(data.get("key")))
+                running[key] = max(running.get(key, 0), count)
+            else:
+                malformed[source] += 1
         elif kind in ("watchdog_stop", "stale_mocap"):
             counts[kind] += 1
+    for (source, _key), n in running.items():
+        malformed[source] += n
     for what, n in (info.get("malformed_received") or {}).items():
         malformed[f"coordinator ({what})"] += int(n)
+    stats = next((e["data"] for e in reversed(events) if e.get("kind") == "sim_stats"), None)
     return {"deadline_miss": sum(misses.values()), "deadline_miss_by_robot": dict(misses),
+            "sim_stats": stats,
             "watchdog_stop": counts["watchdog_stop"], "stale_mocap": counts["stale_mocap"],
             "malformed": sum(malformed.values()), "malformed_by_source": dict(malformed)}
 
@@ -334,6 +347,14 @@ def format_summary(data: dict[str, Any]) -> str:
     by_source = ", ".join(f"{k}: {v}" for k, v in sorted(d["malformed_by_source"].items()))
     lines.append(f"deadlines: {d['deadline_miss']} missed" + (f" ({by_robot})" if by_robot else "")
                  + f", watchdog stops {d['watchdog_stop']}, stale-mocap {d['stale_mocap']}")
+    stats = d.get("sim_stats")
+    if stats and stats.get("due"):
+        timing = (f"control deadlines (sim): {stats.get('missed', 0)} of {stats['due']} missed "
+                  f"({100.0 * stats.get('missed', 0) / stats['due']:.3f} %)")
+        if "latency_p50_ms" in stats:
+            timing += (f", frame→command latency p50 {stats['latency_p50_ms']:.2f} ms, "
+                       f"p99 {stats['latency_p99_ms']:.2f} ms")
+        lines.append(timing)
     lines.append(f"malformed messages: {d['malformed']}" + (f" ({by_source})" if by_source else ""))
     deaths = data["process_deaths"]
     lines.append(f"process deaths: {len(deaths)}" + "".join(

@@ -15,7 +15,9 @@ Protocol (architecture.md §1–§3, the runtime contract):
 4. :meth:`Supervisor.finish` — publish ``Control(stop)`` and give the children ``stop_grace`` to
    exit by themselves (the launcher then terminates what is left).
 
-Deaths are detected twice (token DELETE, ``Popen.poll()``) and reported once per process.
+Deaths are detected twice (token DELETE, ``Popen.poll()``) and reported once per process. The
+simulator exits by itself after ``sim_done``: its end counts as a death only when ``sim_done`` has
+not arrived ``end_grace`` later.
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ class SupervisorConfig:
     wall_timeout: float = 600.0  # [s] wall, safety limit of the supervised phase
     poll_period: float = 0.05  # [s] wall, death detection and tap draining
     stop_grace: float = 5.0  # [s] wall, for children to exit after Control(stop)
+    end_grace: float = 0.5  # [s] wall, for sim_done to arrive after the simulator exits
 
 
 @dataclass
@@ -74,6 +77,9 @@ class Outcome:
     reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_died
     t_end: float  # [s] sim time
     deaths: list[Death] = field(default_factory=list)
+
+
+FINISHERS = frozenset({"sim"})  # processes that end by themselves at the end of the mission
 
 
 def expected_tokens(scenario: Scenario) -> dict[str, str]:
@@ -105,6 +111,7 @@ class Supervisor:
         self.tokens = expected_tokens(scenario)
         self.alive: set[str] = set()
         self.deaths: dict[str, Death] = {}
+        self._suspects: dict[str, tuple[float, str, int | None]] = {}
         self.stopping = False
         self._alive_queue: queue.SimpleQueue[tuple[str, bool]] = queue.SimpleQueue()
         self._handles: list[Closeable] = [
@@ -136,13 +143,32 @@ class Supervisor:
             else:
                 self.alive.discard(name)
                 if not self.stopping:
-                    self._died(name, "liveliness token lost", None)
+                    self._suspect(name, "liveliness token lost", None)
 
     def _poll_children(self) -> None:
         for name, child in self.children.items():
             code = child.returncode
             if code is not None and name not in self.deaths and not self.stopping:
-                self._died(name, f"exited with code {code}", code)
+                self._suspect(name, f"exited with code {code}", code)
+        now = self._clock()
+        for name, (since, how, code) in list(self._suspects.items()):
+            if self.sim_done:
+                del self._suspects[name]  # the simulator ended the mission: not a death
+            elif now - since >= self.config.end_grace:
+                del self._suspects[name]
+                self._died(name, how, code)
+
+    def _suspect(self, name: str, how: str, returncode: int | None) -> None:
+        """The simulator exits by itself right after ``sim_done``, which may still be in flight:
+        its end is a death only if ``sim_done`` has not arrived within ``end_grace``."""
+        if name in self.deaths:
+            return
+        if name not in FINISHERS:
+            self._died(name, how, returncode)
+        elif not self.sim_done:
+            since, old_how, old_code = self._suspects.get(name, (self._clock(), how, returncode))
+            self._suspects[name] = (since, old_how if old_code is not None else how,
+                                    returncode if returncode is not None else old_code)
 
     def _died(self, name: str, how: str, returncode: int | None) -> None:
         if name in self.deaths:

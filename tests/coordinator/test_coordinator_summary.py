@@ -79,12 +79,15 @@ EVENTS = [
     {"t": 2.0, "source": "sim", "kind": "deadline_miss", "data": {"robot": 2, "seq": 200}},
     {"t": 2.1, "source": "sim", "kind": "deadline_miss", "data": {"robot": 2, "seq": 210}},
     {"t": 2.2, "source": "sim", "kind": "deadline_miss", "data": {"robot": 3, "seq": 220}},
-    {"t": 3.0, "source": "agent/3", "kind": "malformed_message", "data": {"count": 4}},
+    {"t": 2.9, "source": "agent/3", "kind": "malformed_message", "data": {"key": "k", "count": 1}},
+    {"t": 3.0, "source": "agent/3", "kind": "malformed_message", "data": {"key": "k", "count": 4}},
     {"t": 3.1, "source": "sim", "kind": "malformed_message", "data": {"key": "x"}},
     {"t": 3.5, "source": "agent/3", "kind": "repair", "data": {"stage": 1, "r": 0.1}},
     {"t": 3.6, "source": "agent/3", "kind": "repair", "data": {"stage": 3, "r": 0.0}},
     {"t": 3.7, "source": "agent/3", "kind": "repair", "data": {"stage": 3, "r": 0.0}},
     {"t": 4.0, "source": "sim", "kind": "watchdog_stop", "data": {"robot": 2}},
+    {"t": 9.0, "source": "sim", "kind": "sim_stats",
+     "data": {"due": 2000, "missed": 3, "latency_p50_ms": 0.41, "latency_p99_ms": 1.52}},
     {"t": 5.0, "source": "coordinator", "kind": "process_died",
      "data": {"process": "agent-2", "how": "exited with code -9", "returncode": -9}},
 ]
@@ -131,7 +134,8 @@ def test_repairs_ltl_contacts_deadlines_deaths(tmp_path):
     assert d["malformed"] == 4 + 1 + 2 and d["watchdog_stop"] == 1
     assert [x["process"] for x in data["process_deaths"]] == ["agent-2"]
     for needle in ("robot 3: rho = ", "a1 3/3", "robot-robot 1, robot-wall 1", "3 missed",
-                   "malformed messages: 7", "process deaths: 1", "agent-2"):
+                   "malformed messages: 7", "process deaths: 1", "agent-2",
+                   "3 of 2000 missed (0.150 %)", "p99 1.52 ms"):
         assert needle in text
 
 

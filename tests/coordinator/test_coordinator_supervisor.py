@@ -190,3 +190,17 @@ def test_a_killed_child_process_is_reported_within_one_second(fleet, tmp_path):
     (death,) = outcome.deaths
     assert death.process == "agent-1" and death.returncode == -signal.SIGKILL
     assert death.wall - killed["wall"] < 1.0
+
+
+def test_the_sim_ending_by_itself_after_sim_done_is_not_a_death(fleet):
+    scenario, net, sup, children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    # the process exit and the token loss are seen before the sim_done event is drained
+    children["sim"].returncode = 0
+    peers["sim"].kill()
+    sup.check()
+    peers["agent-1"].publish(keys.event(scenario.fleet), encode(Event(5.0, "sim", "sim_done", {})))
+    outcome = sup.supervise()
+    assert outcome.reason == "sim_done" and outcome.deaths == [] and reports == []

@@ -1,0 +1,92 @@
+"""Helpers of the system tests: run a fleet with real processes on loopback, read its outputs.
+
+Robustness is recomputed here with numpy from ``trajectory.csv`` (independently of
+``agent.stl.monitor``): G[a,b] → min over the samples with a ≤ t ≤ b, F[a,b] → max.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import psutil
+
+from coordinator.runner import RunConfig, RunResult, run_fleet
+from coordinator.supervisor import SupervisorConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIOS = ROOT / "scenarios"
+HERE = Path(__file__).resolve().parent
+
+
+def run(scenario: Path, out: Path, mode: str = "lockstep", **kwargs) -> RunResult:
+    """One ``tlfleet run`` in this process (the children are real processes)."""
+    supervisor = kwargs.pop("supervisor", SupervisorConfig(ready_timeout=60.0,
+                                                           wall_timeout=400.0))
+    return run_fleet(RunConfig(scenario, mode=mode, out=out, supervisor=supervisor, **kwargs))
+
+
+def load_trajectory(run_dir: Path) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """(t (N,), {robot: (N, 3) x, y, θ}) parsed with the csv module."""
+    with open(run_dir / "trajectory.csv", newline="") as handle:
+        rows = list(csv.reader(handle))
+    header, data = rows[0], np.array(rows[1:], dtype=float)
+    ids = [int(h[1:]) for h in header[1::3]]
+    return data[:, 0], {r: data[:, 1 + 3 * k:4 + 3 * k] for k, r in enumerate(ids)}
+
+
+def events(run_dir: Path) -> list[dict]:
+    return [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()
+            if line.strip()]
+
+
+def dist_to(states: dict[int, np.ndarray], robot: int, target) -> np.ndarray:
+    """‖p_robot − target‖ [m] per sample; ``target`` a point or another robot's id."""
+    p = states[robot][:, :2]
+    q = states[target][:, :2] if isinstance(target, int) else np.asarray(target, dtype=float)
+    return np.hypot(*(p - q).T)
+
+
+def g_rob(t: np.ndarray, values: np.ndarray, a: float, b: float) -> float:
+    """ρ of G[a,b] for a sampled predicate robustness ``values``."""
+    window = (t >= a) & (t <= b)
+    return float(values[window].min()) if window.any() else math.inf
+
+
+def f_rob(t: np.ndarray, values: np.ndarray, a: float, b: float) -> float:
+    window = (t >= a) & (t <= b)
+    return float(values[window].max()) if window.any() else -math.inf
+
+
+def entries(xy: np.ndarray, center, radius: float, hysteresis: float = 0.05) -> int:
+    """Entries of a path into a disc (starting inside counts), re-entry after leaving by
+    ``hysteresis`` [m]."""
+    d = np.hypot(xy[:, 0] - center[0], xy[:, 1] - center[1])
+    count, inside = 0, False
+    for value in d:
+        if not inside and value <= radius:
+            count, inside = count + 1, True
+        elif inside and value > radius + hysteresis:
+            inside = False
+    return count
+
+
+def robot_robot_contacts(run_dir: Path) -> list[dict]:
+    return [e for e in events(run_dir) if e["kind"] == "contact"
+            and "wall" not in (e["data"].get("a"), e["data"].get("b"))]
+
+
+def leftover_processes(marker: str) -> list[psutil.Process]:
+    """Live processes whose command line mentions ``marker`` (a scenario path of the test)."""
+    found = []
+    for proc in psutil.process_iter(["cmdline", "status"]):
+        try:
+            if proc.info["status"] != psutil.STATUS_ZOMBIE and \
+                    any(marker in part for part in proc.info["cmdline"] or ()):
+                found.append(proc)
+        except psutil.NoSuchProcess:
+            continue
+    return found
