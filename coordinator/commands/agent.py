@@ -31,9 +31,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
-    robot = scenario.robot(args.robot)  # KeyError names the known robots
-    if args.stale_after <= 0:
-        raise SystemExit(f"tlfleet agent: --stale-after must be positive, got {args.stale_after}")
+    if args.robot not in scenario.robot_ids:
+        known = ", ".join(str(r) for r in scenario.robot_ids)
+        raise SystemExit(f"tlfleet agent: scenario {scenario.name!r} has no robot {args.robot} "
+                         f"(robots: {known})")
+    robot = scenario.robot(args.robot)
+    for flag, value in (("--stale-after", args.stale_after),
+                        ("--collab-timeout", args.collab_timeout)):
+        if value <= 0:
+            raise SystemExit(f"tlfleet agent: {flag} must be positive, got {value}")
     if robot.is_ltl:
         from agent.runtime import ltl_agent
 
