@@ -27,7 +27,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from agent.protocol import keys
@@ -99,7 +99,6 @@ class LoopStats:
     step_time: float = 0.0  # [s] wall, total time inside core.step
     max_step_time: float = 0.0  # [s] wall
     collab_failures: int = 0
-    extra: dict[str, int] = field(default_factory=dict)
 
 
 class AgentLoop:
@@ -163,6 +162,20 @@ class AgentLoop:
             except Exception:  # a dying session must not prevent the others from closing
                 logger.exception("%s: closing a transport handle failed", self.source)
         self._handles.clear()
+
+    def summary(self) -> dict[str, object]:
+        """Counters of this loop for ``Event(kind="agent_stats")`` and logs (times in ms)."""
+        st = self.stats
+        out: dict[str, object] = {
+            "frames": st.frames, "steps": st.steps, "commands": st.commands,
+            "mean_step_ms": 1e3 * st.step_time / st.steps if st.steps else 0.0,
+            "max_step_ms": 1e3 * st.max_step_time, "stale_episodes": st.stale_episodes,
+            "stale_commands": st.stale_commands, "frames_overwritten":
+            self.mailbox.frames_overwritten, "malformed": self.malformed.total}
+        if self.link is not None:
+            out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
+                       collab_received=self.link.received)
+        return out
 
     def publish_event(self, event: Event) -> None:
         self.transport.publish(self._keys["event"], encode(event))

@@ -4,7 +4,8 @@
 *before* declaring ``alive/agent/<id>`` (the token means "ready to answer frames"), runs the loop
 until ``Control(stop)``, SIGINT or SIGTERM, and closes everything in ``finally``. It sets
 ``sys.setswitchinterval(0.0005)`` so transport callbacks are not held ~5 ms behind the GIL by the
-agent's CPU-bound step.
+agent's CPU-bound step. On a clean stop it publishes ``Event(kind="agent_stats")`` (frames, steps,
+step times, collaboration and malformed counters).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import argparse
 import logging
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -31,6 +33,7 @@ Built = tuple[Core, Any, tuple[Event, ...], CollabLink | None]
 Builder = Callable[[Transport, MalformedCounter, Callable[[Event], None]], Built | None]
 
 SWITCH_INTERVAL = 0.0005  # [s] stack-notes.md §2.3
+LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 
 def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build: Builder, *,
@@ -75,13 +78,13 @@ def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build:
             loop.publish_event(Event(loop.last_t, source, "fault",
                                      {"error": f"{type(exc).__name__}: {exc}"}))
             return 1
-        logger.info("%s stopped: %d frames, %d steps, mean step %.3f ms, max %.3f ms", source,
-                    loop.stats.frames, loop.stats.steps,
-                    1e3 * loop.stats.step_time / max(loop.stats.steps, 1),
-                    1e3 * loop.stats.max_step_time)
+        stats = loop.summary()
+        loop.publish_event(Event(loop.last_t, source, "agent_stats", stats))
+        logger.info("%s stopped: %s", source, stats)
         return code
     finally:
         if loop is not None:
             loop.close()
         if own_transport:
+            time.sleep(LINGER)  # let zenoh deliver the last command / event before closing
             transport.close()

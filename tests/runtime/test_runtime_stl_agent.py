@@ -3,12 +3,18 @@ dead partner (stl-funnel.md §7.4–§7.5, §11.7; architecture.md §3)."""
 
 from __future__ import annotations
 
+import argparse
+import threading
+import time
+
 import numpy as np
 import pytest
 from runtime_helpers import FakeClock, FakeSim, stl_loop
 
 from agent.control.collision import CollisionParams
+from agent.protocol import keys
 from agent.protocol.messages import StlStatus
+from agent.runtime import stl_agent
 from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
 from agent.stl.agent import StepInput, build_agents, single_agent
@@ -177,3 +183,39 @@ def test_an_unanswered_request_leaves_stage_2():
     assert statuses[-1].c == 0
     clock.advance(loop3.link.retry_after)  # a failed query is retried after a while
     assert loop3.link.unreachable == frozenset()
+
+
+def test_the_stl_process_main_on_the_fake_network():
+    """``stl_agent.main`` end to end without sockets: alive once ready, answers a due frame,
+    stops on Control(stop) with exit code 0 and an ``agent_stats`` event, token gone."""
+    scenario = load_scenario("scenarios/scenario1.toml")
+    network = FakeNetwork()
+    sim = FakeSim(network, scenario.fleet)
+    args = argparse.Namespace(robot=4, stale_after=0.5, collab_timeout=0.1)
+    result = {}
+    thread = threading.Thread(target=lambda: result.setdefault(
+        "code", stl_agent.main(args, scenario, transport=network.transport("a4"),
+                               stop=threading.Event())))
+    thread.start()
+    try:
+        alive = keys.alive(scenario.fleet, "agent", 4)
+        deadline = time.monotonic() + 10
+        while alive not in network.alive_keys() and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert alive in network.alive_keys()
+        sim.control("start")
+        poses = {r.id: r.pose for r in scenario.robots}
+        sim.frame(0.0, 0, poses, due=[4])
+        while not sim.commands and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert sim.commands[0].robot == 4 and len(sim.commands[0].u) == 3
+        sim.control("stop")
+        thread.join(10)
+        assert not thread.is_alive() and result["code"] == 0
+    finally:
+        sim.control("stop")
+        thread.join(10)
+    (stats,) = [e for e in sim.events if e.kind == "agent_stats"]
+    assert stats.source == "agent/4" and stats.data["steps"] == 1
+    assert stats.data["collab_sent"] >= 1  # its status announcement to the absent peers
+    assert alive not in network.alive_keys()
