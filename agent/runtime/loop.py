@@ -11,6 +11,7 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
 * a frame is *due* when it lists this robot in ``due`` (lockstep), or, when ``due`` is empty
   (realtime), when a new control period of ``divider`` mocap ticks has begun since the last
   frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
+  the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
 * per due frame: one ``step``; the step's collaboration messages are sent by query and their
   replies awaited **before** ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published; then
   status and events;
@@ -249,6 +250,11 @@ class AgentLoop:
             logger.warning("%s: mocap frames are back (t = %.3f)", self.source, frame.t)
         if frame.due:
             due = listed and frame.seq != self._last_seq
+        elif frame.seq == 0 and frame.t == 0.0:
+            # The sim's preview frame, which may still arrive after Control(start): answering it
+            # would make a lockstep agent skip the real tick 0 (same seq) and miss its deadline.
+            # In realtime mode tick 0 looks the same and goes unanswered too: 1 period only.
+            due = False
         else:
             due = frame.seq // self.config.divider != self._last_period
         if not due:

@@ -79,6 +79,21 @@ def test_a_frame_listing_the_robot_starts_it_without_control():
     assert loop.started and [c.seq for c in sim.commands] == [0]
 
 
+def test_a_preview_frame_after_start_does_not_hide_tick_0():
+    """Control(start) may overtake the sim's last preview frame (t = 0, seq = 0, due = ()): it is
+    not answered, so the lockstep tick-0 frame (same seq) still is."""
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    loop, _, _ = make_loop(network)
+    sim.control("start")
+    sim.frame(0.0, 0, POSES)
+    loop.run_once(0.0)
+    assert sim.commands == []
+    sim.frame(0.0, 0, POSES, due=[1])
+    loop.run_once(0.0)
+    assert [c.seq for c in sim.commands] == [0]
+
+
 def test_realtime_frames_are_due_once_per_control_period():
     """due = () (realtime): compute when seq // divider changes — every 20th frame at 5 Hz, and
     still once per period when the loop only sees every 7th frame."""
@@ -89,7 +104,7 @@ def test_realtime_frames_are_due_once_per_control_period():
     for k in range(100):
         sim.frame(k / 100, k, POSES)
         loop.run_once(0.0)
-    assert [c.seq for c in sim.commands] == [0, 20, 40, 60, 80]
+    assert [c.seq for c in sim.commands] == [1, 20, 40, 60, 80]  # tick 0 = the preview frame
     sim.commands.clear()
     for k in range(100, 200, 7):  # a slow loop: the slot keeps only the newest frame
         sim.frame(k / 100, k, POSES)
