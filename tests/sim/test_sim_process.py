@@ -337,3 +337,21 @@ def test_sim_thread_leaves_no_thread_behind():
     _, run, _ = run_lockstep(scenario(omni(1, 0, 0), duration=0.05), {1: STILL_OMNI})
     assert not run.thread.is_alive()
     assert threading.active_count() == before
+
+
+def test_realtime_counts_missed_control_deadlines():
+    net = FakeNetwork()
+    observer = Observer(net)
+    FakeAgent(net, 1, lambda frame, robot: (0.0, 0.0, 0.0) if frame.seq % 2 else None,
+              realtime_divider=1)  # answers odd ticks only
+    FakeAgent(net, 9, STILL_OMNI, realtime_divider=1)  # an agent of no robot: not counted
+    run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode="realtime").start()
+    try:
+        assert observer.wait_for(lambda: bool(observer.frames))
+        observer.send_control("start")
+        assert run.join() == 0
+    finally:
+        run.stop()
+    stats = observer.events_of("sim_stats")[0].data
+    assert (stats["due"], stats["missed"], stats["commands"]) == (10, 5, 5)
+    assert stats["ignored"] == {"unknown_robot": 10}
