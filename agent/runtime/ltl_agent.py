@@ -203,14 +203,9 @@ def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=N
     ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
     from agent.runtime.process import run_agent
 
-    def build(_transport, _malformed, publish_fault: Callable[[Event], None]):
+    def build(_transport, _malformed, _publish):
         core = LtlCore(scenario, args.robot)
-        try:
-            plan = core.plan()
-        except UnsatisfiableTask as exc:
-            publish_fault(Event(0.0, core.source, "fault", {"error": str(exc)}))
-            logger.error("%s", exc)
-            return None
+        plan = core.plan()  # UnsatisfiableTask → fault event, exit code 1 (run_agent)
         state, event = core.initial_state(plan)
         logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", args.robot, plan.prefix,
                     plan.suffix, plan.cost, 1e3 * plan.timings.total)

@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event
@@ -38,7 +39,9 @@ LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build: Builder, *,
               transport: Transport | None = None, stop: threading.Event | None = None) -> int:
-    """Run one agent process; 0 on a clean stop, 1 when ``build`` reports a fault (None).
+    """Run one agent process; 0 on a clean stop, 1 on a fault: ``build`` raising a
+    :class:`~agent.errors.TlfleetError` (e.g. an unsatisfiable LTL task) or returning None, or
+    the loop failing; each is reported as ``Event(kind="fault", data={"error": ...})``.
 
     ``transport`` and ``stop`` are for tests (a fake transport, a stop event they control);
     by default the zenoh session is opened from ``args`` and SIGINT/SIGTERM set ``stop``.
@@ -59,7 +62,12 @@ def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build:
         def publish(event: Event) -> None:
             transport.publish(event_key, encode(event))
 
-        built = build(transport, malformed, publish)
+        try:
+            built = build(transport, malformed, publish)
+        except TlfleetError as exc:  # e.g. UnsatisfiableTask: report it, exit 1
+            logger.error("%s: %s", source, exc)
+            publish(Event(0.0, source, "fault", {"error": str(exc)}))
+            return 1
         if built is None:
             return 1
         core, state, events, link = built
