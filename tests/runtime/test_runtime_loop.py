@@ -3,8 +3,10 @@ payloads, stop — with a recording core, on the fake network."""
 
 from __future__ import annotations
 
+import argparse
 import threading
 import time
+import types
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from agent.protocol.codec import decode, encode
 from agent.protocol.messages import CollabMessage, CollabReply, Command, MocapFrame
 from agent.runtime.inbox import CollabInbox, Mailbox, MalformedCounter
 from agent.runtime.loop import AgentLoop, LoopConfig, TickInput, TickOutput
+from agent.runtime.process import run_agent
 from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
 from agent.stl.agent import build_agents
@@ -288,3 +291,36 @@ def test_mocap_frame_poses_reach_the_core_whole():
     assert core.inputs[0].frame == sent
     assert isinstance(core.inputs[0].frame, MocapFrame)
     assert np.allclose([row[1:] for row in sent.poses], [POSES[1], POSES[2]])
+
+
+def test_a_failing_core_is_a_fault_event_and_exit_code_1():
+    class BrokenCore:
+        robot = 1
+        zero = (0.0, 0.0)
+
+        def step(self, state, inputs):
+            raise RuntimeError("boom")
+
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    args = argparse.Namespace(robot=1, stale_after=0.5)
+    scenario = types.SimpleNamespace(fleet=FLEET)
+    result = {}
+    thread = threading.Thread(target=lambda: result.setdefault("code", run_agent(
+        args, scenario, 1, lambda *_: (BrokenCore(), 0, (), None),
+        transport=network.transport("a1"), stop=threading.Event())))
+    thread.start()
+    try:
+        deadline = time.monotonic() + 10
+        while not network.alive_keys() and time.monotonic() < deadline:
+            time.sleep(0.005)
+        sim.control("start")
+        sim.frame(0.01, 1, POSES, due=[1])
+        thread.join(10)
+        assert result["code"] == 1
+    finally:
+        sim.control("stop")
+        thread.join(10)
+    (fault,) = [e for e in sim.events if e.kind == "fault"]
+    assert fault.source == "agent/1" and fault.data["error"] == "RuntimeError: boom"
+    assert network.alive_keys() == []
