@@ -9,6 +9,12 @@
   advance when every due robot has answered, when an agent died (it is dropped from ``due`` at
   once), or at the wall timeout, when every robot still missing is recorded as a deadline miss.
 * **Realtime collection** (:class:`LatestCommands`): the newest command of each robot wins.
+* **Early answers.** Before the sim has processed ``Control(start)`` it republishes the initial
+  frame (t = 0, seq = 0). An agent that got the start first may answer such a frame; its
+  command is then exactly its answer to tick 0 (same t, same poses), so a ``seq = 0`` command
+  that arrives before the start is held for tick 0 instead of being dropped (otherwise the
+  agent, having answered seq 0 already, would miss tick 0 and make the run depend on the race).
+  Any other command before the start is ignored.
 
 Every class here is single-threaded; the process loop feeds it from its own thread.
 """
@@ -47,7 +53,8 @@ class Offer(enum.Enum):
     NOT_DUE = "not_due"  # the robot is not due this tick (or its agent was dropped)
     DUPLICATE = "duplicate"  # a second command for the same robot and seq
     UNKNOWN_ROBOT = "unknown_robot"  # no such robot in the scenario
-    BEFORE_START = "before_start"  # no tick is open yet
+    BEFORE_START = "before_start"  # no tick is open yet (and not an early answer to tick 0)
+    EARLY = "early"  # a seq-0 answer before the start: held for tick 0
 
 
 class LockstepCollector:
@@ -63,19 +70,28 @@ class LockstepCollector:
         self.due: tuple[int, ...] = ()
         self._waiting: set[int] = set()
         self._received: dict[int, Command] = {}
+        self._early: dict[int, Command] = {}
         self.counts: Counter[Offer] = Counter()
         self.misses: Counter[int] = Counter()
 
-    def begin(self, seq: int, due: Iterable[int]) -> None:
-        """Open tick ``seq``; the commands of the previous tick must have been taken."""
+    def begin(self, seq: int, due: Iterable[int]) -> tuple[int, ...]:
+        """Open tick ``seq`` (the previous tick's commands must have been taken); returns the
+        due robots whose early answer was accepted for it (tick 0 only)."""
         self.seq = seq
         self.due = tuple(sorted(due))
         self._waiting = set(self.due)
         self._received = {}
+        early, self._early = self._early, {}
+        for robot in sorted(early):
+            self.offer(early[robot])
+        return tuple(sorted(r for r in early if r in self._received))
 
     def offer(self, command: Command) -> Offer:
         if command.robot not in self.robots:
             outcome = Offer.UNKNOWN_ROBOT
+        elif self.seq is None and command.seq == 0 and command.robot not in self._early:
+            self._early[command.robot] = command
+            outcome = Offer.EARLY
         elif self.seq is None:
             outcome = Offer.BEFORE_START
         elif command.seq != self.seq:
@@ -130,6 +146,9 @@ class LatestCommands:
     def offer(self, command: Command) -> Offer:
         if command.robot not in self.robots:
             outcome = Offer.UNKNOWN_ROBOT
+        elif not self.started and command.seq == 0:
+            self._pending[command.robot] = command
+            outcome = Offer.EARLY
         elif not self.started:
             outcome = Offer.BEFORE_START
         else:

@@ -133,6 +133,7 @@ class SimProcess:
         self.stop_requested = False
         self.done = False  # sim time reached the duration
         self.t = 0.0  # [s] sim time of the newest frame
+        self._frame0: tuple[tuple[int, float, float, float], ...] = ()  # the initial poses
         self.stats = SimStats()
         self.malformed: Counter[str] = Counter()
         self._reported: dict[str, tuple[int, float]] = {}  # key -> (count reported, wall time)
@@ -208,7 +209,8 @@ class SimProcess:
             if k >= last:
                 self._finish()
                 return
-            self.lockstep.begin(k, due)
+            for robot in self.lockstep.begin(k, due):
+                self.timing.answered(robot, k)
             self._pump(0.0)
             deadline = self._now() + self.config.tick_timeout
             while not self.lockstep.complete and not self.stopping:
@@ -324,6 +326,8 @@ class SimProcess:
         outcome = collector.offer(command)
         if outcome is Offer.ACCEPTED:
             self.timing.command_arrived(command.robot, command.seq, arrival)
+        elif outcome is Offer.EARLY and collector is self.latest:
+            self.timing.answered(command.robot, command.seq)
         else:
             logger.debug("command of robot %d seq %d ignored: %s", command.robot, command.seq,
                          outcome.value)
@@ -389,7 +393,9 @@ class SimProcess:
             "mode": self.config.mode, "ticks": s.ticks, "wall_time": s.wall_time,
             "deadline_misses": s.deadline_misses, "contacts": s.contacts,
             "watchdog_stops": s.watchdog_stops, "overruns": s.overruns,
-            "ignored": {o.value: n for o, n in counts.items() if o is not Offer.ACCEPTED},
+            "ignored": {o.value: n for o, n in counts.items()
+                        if o not in (Offer.ACCEPTED, Offer.EARLY)},
+            "early": counts[Offer.EARLY],
             "malformed": sum(self.malformed.values()),
             **self.timing.summary(),
         }

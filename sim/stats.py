@@ -35,10 +35,14 @@ class TimingStats:
 
     def command_arrived(self, robot: int, seq: int, wall: float) -> None:
         """Record a command accepted for ``seq``; its latency if that frame is remembered."""
-        self._answered[robot] = max(seq, self._answered.get(robot, -1))
+        self.answered(robot, seq)
         published = self._published.get(seq)
         if published is not None:
             self.latencies.append(wall - published)
+
+    def answered(self, robot: int, seq: int) -> None:
+        """Record an answer whose latency is not measurable (an early answer to tick 0)."""
+        self._answered[robot] = max(seq, self._answered.get(robot, -1))
 
     def close_tick(self, seq: int, due: Iterable[int]) -> tuple[int, ...]:
         """The sim steps past tick ``seq``: count the due robots whose command is missing."""

@@ -43,7 +43,7 @@ def test_due_robots(tick, alive, expected):
 
 def test_lockstep_collector_accepts_one_command_per_due_robot_of_the_open_seq():
     c = LockstepCollector(robots=(1, 2, 3))
-    assert c.offer(cmd(1, 0)) is Offer.BEFORE_START
+    assert c.offer(cmd(1, 3)) is Offer.BEFORE_START
     c.begin(5, due=(2, 1))
     assert c.due == (1, 2) and not c.complete and c.missing() == (1, 2)
     assert c.offer(cmd(2, 4)) is Offer.WRONG_SEQ  # late for tick 4
@@ -59,6 +59,20 @@ def test_lockstep_collector_accepts_one_command_per_due_robot_of_the_open_seq():
     assert c.counts == {Offer.BEFORE_START: 1, Offer.WRONG_SEQ: 2, Offer.NOT_DUE: 1,
                         Offer.UNKNOWN_ROBOT: 1, Offer.ACCEPTED: 2, Offer.DUPLICATE: 1}
     assert c.take() == []
+
+
+def test_early_answers_to_the_initial_frame_are_held_for_tick_0():
+    c = LockstepCollector(robots=(1, 2, 3))
+    assert c.offer(cmd(1, 0, (0.1, 0.0, 0.0))) is Offer.EARLY
+    assert c.offer(cmd(1, 0, (0.5, 0.0, 0.0))) is Offer.BEFORE_START  # one early answer each
+    assert c.offer(cmd(3, 0)) is Offer.EARLY
+    assert c.offer(cmd(2, 1)) is Offer.BEFORE_START
+    assert c.begin(0, due=(1, 2)) == (1,)  # robot 3 is not due (its agent is not alive)
+    assert c.missing() == (2,)
+    assert c.offer(cmd(1, 0, (0.9, 0.0, 0.0))) is Offer.DUPLICATE
+    c.offer(cmd(2, 0))
+    assert [(x.robot, x.u[0]) for x in c.take()] == [(1, 0.1), (2, 0.0)]
+    assert c.begin(1, due=(1,)) == ()
 
 
 def test_first_command_of_a_tick_wins_over_duplicates():
@@ -93,7 +107,8 @@ def test_empty_tick_is_complete_at_once():
 
 def test_realtime_latest_command_wins_and_is_taken_once():
     latest = LatestCommands(robots=(1, 2))
-    assert latest.offer(cmd(1, 0)) is Offer.BEFORE_START
+    assert latest.offer(cmd(1, 2)) is Offer.BEFORE_START
+    assert latest.offer(cmd(1, 0)) is Offer.EARLY  # held for tick 0, unless overtaken
     latest.started = True
     latest.offer(cmd(2, 3, (0.1, 0.0, 0.0)))
     latest.offer(cmd(1, 3))

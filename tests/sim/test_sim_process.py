@@ -287,20 +287,61 @@ def test_stop_event_ends_the_loop_like_a_signal():
     assert run.join() == 0
 
 
-def test_commands_before_start_are_ignored():
+def test_commands_before_start_are_ignored_unless_early_answers_to_tick_0():
     net = FakeNetwork()
     observer = Observer(net)
     agent = FakeAgent(net, 1, STILL_OMNI)
     run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1)).start()
     try:
         assert observer.wait_for(lambda: bool(observer.frames))
-        agent.send(0, (0.2, 0.0, 0.0))  # too early: must not move the robot
+        agent.send(5, (0.2, 0.0, 0.0))  # not an answer to the initial frame: ignored
         observer.send_control("start")
         assert run.join() == 0
     finally:
         run.stop()
     assert mission_frames(observer.frames)[-1].pose(1) == (0.0, 0.0, 0.0)
-    assert {o.value: n for o, n in run.process.lockstep.counts.items()}["before_start"] == 1
+    counts = {o.value: n for o, n in run.process.lockstep.counts.items()}
+    assert counts["before_start"] == 1 and "early" not in counts
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_an_agent_that_saw_start_first_and_answered_the_initial_frame_misses_nothing(mode):
+    """The start message raced the sim: the agent took a preview frame (t = 0, seq = 0) for
+    tick 0 and will not answer seq 0 again. Its answer must count for tick 0."""
+
+    def once_per_seq(answered: set[int]):
+        def policy(frame: MocapFrame, robot: int):
+            if frame.seq in answered:
+                return None
+            answered.add(frame.seq)
+            return (0.2, 0.0, 0.0)
+        return policy
+
+    def final_pose(race: bool):
+        net = FakeNetwork()
+        observer = Observer(net)
+        agent = FakeAgent(net, 1, once_per_seq(set()), realtime_divider=1)
+        run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode=mode,
+                     preview_period=0.01).start()
+        try:
+            if race:
+                agent.started = True  # as if its start message had arrived first
+                assert observer.wait_for(lambda: len(observer.frames) >= 2)
+            else:
+                assert observer.wait_for(lambda: bool(observer.frames))
+            observer.send_control("start")
+            assert run.join() == 0
+        finally:
+            run.stop()
+        stats = observer.events_of("sim_stats")[0].data
+        assert stats["missed"] == 0 and observer.events_of("deadline_miss") == []
+        assert stats["early"] == (1 if race else 0)
+        return mission_frames(observer.frames)[-1].pose(1)
+
+    raced = final_pose(race=True)
+    assert raced[0] > 0.005  # moved from tick 0 on (0.2 m/s reached after 0.1 s)
+    if mode == "lockstep":
+        assert raced == final_pose(race=False)  # the race leaves no trace in the trajectory
 
 
 def test_realtime_mode_paces_on_wall_time_with_empty_due():
