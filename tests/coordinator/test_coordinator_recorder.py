@@ -129,3 +129,17 @@ def test_default_run_dir_is_unique(tmp_path):
     assert first.name == "scenario1-20261122-050607"
     first.mkdir()
     assert default_run_dir("scenario1", tmp_path, now).name == "scenario1-20261122-050607-2"
+
+
+def test_progress_bar_line():
+    import io
+
+    from coordinator.commands.run import ProgressBar
+
+    stream = io.StringIO()
+    bar = ProgressBar(stream, width=10)
+    bar(45.0, 90.0)
+    bar(45.05, 90.0)  # less than 0.1 s of sim time later: not redrawn
+    bar(90.0, 90.0)
+    bar.end()
+    assert stream.getvalue() == "\r[#####     ] 45.0/90.0 s\r[##########] 90.0/90.0 s\n"

@@ -1,0 +1,52 @@
+"""``tlfleet run`` as a user runs it: a subprocess, its output, its exit code, Ctrl-C."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from system_helpers import HERE, ROOT, leftover_processes
+
+pytestmark = pytest.mark.system
+TWO = HERE / "two_robots.toml"
+
+
+def tlfleet_run(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "coordinator.cli", "run", str(TWO), *args],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_run_prints_the_summary_and_the_run_directory(tmp_path):
+    proc = tlfleet_run("--lockstep", "--duration", "5", "--out", str(tmp_path / "run"))
+    try:
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert out.startswith("run two_robots")
+    assert "STL robots (standard robustness" in out and "process deaths: 0" in out
+    assert out.rstrip().endswith(f"run directory: {tmp_path / 'run'}")
+    assert "\r[" not in err  # stderr is not a terminal: no progress bar
+    assert (tmp_path / "run" / "summary.txt").read_text().strip() in out
+    assert leftover_processes(str(TWO)) == []
+
+
+def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
+    proc = tlfleet_run("--realtime", "--out", str(tmp_path / "run"))
+    try:
+        deadline = time.monotonic() + 60
+        trajectory = tmp_path / "run" / "trajectory.csv"
+        while not (trajectory.exists() and len(trajectory.read_text().splitlines()) > 50):
+            assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
+            time.sleep(0.05)
+        assert len(leftover_processes(str(TWO))) == 4  # tlfleet run, sim, 2 agents (not the router)
+        proc.send_signal(signal.SIGINT)
+        out, _err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130
+    assert "run directory:" in out
+    assert leftover_processes(str(TWO)) == []
