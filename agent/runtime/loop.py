@@ -12,9 +12,11 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   (realtime), when a new control period of ``divider`` mocap ticks has begun since the last
   frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
   the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
-* per due frame: one ``step``; the step's collaboration messages are sent by query and their
-  replies awaited **before** ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published; then
-  status and events;
+* per due frame: one ``step``; in lockstep the step's collaboration messages are sent by query
+  and their replies awaited **before** ``Command(robot, t=frame.t, seq=frame.seq, u)`` is
+  published (so they are in their receivers' inboxes before the next frame: a deterministic
+  one-step latency); in realtime the command goes first, so query round trips never delay it;
+  then status and events;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start → the zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
@@ -100,6 +102,8 @@ class LoopStats:
     step_time: float = 0.0  # [s] wall, total time inside core.step
     max_step_time: float = 0.0  # [s] wall
     collab_failures: int = 0
+    collab_time: float = 0.0  # [s] wall, total time in collaboration queries
+    max_collab_time: float = 0.0  # [s] wall
 
 
 class AgentLoop:
@@ -175,7 +179,9 @@ class AgentLoop:
             self.mailbox.frames_overwritten, "malformed": self.malformed.total}
         if self.link is not None:
             out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
-                       collab_received=self.link.received)
+                       collab_received=self.link.received,
+                       mean_collab_ms=1e3 * st.collab_time / max(self.link.sent, 1),
+                       max_collab_ms=1e3 * st.max_collab_time)
         return out
 
     def publish_event(self, event: Event) -> None:
@@ -279,18 +285,28 @@ class AgentLoop:
         self.stats.steps += 1
         self.stats.step_time += spent
         self.stats.max_step_time = max(self.stats.max_step_time, spent)
-        if out.messages:
-            if link is None:
-                raise TypeError(f"{self.source}: the core sent collaboration messages but the "
-                                "loop has no CollabLink")
-            for msg in out.messages:
-                if not link.send(msg):
-                    self.stats.collab_failures += 1
+        if out.messages and link is None:
+            raise TypeError(f"{self.source}: the core sent collaboration messages but the loop "
+                            "has no CollabLink")
+        lockstep = bool(frame.due)
+        if lockstep:  # every message in its receiver's inbox before the sim's next frame
+            self._send(out.messages)
         self._publish_command(frame, out.u)
+        if not lockstep:  # realtime: the command must not wait for query round trips
+            self._send(out.messages)
         if out.status is not None:
             self.transport.publish(self._keys["status"], encode(out.status))
         for event in out.events:
             self.publish_event(event)
+
+    def _send(self, messages: tuple[CollabMessage, ...]) -> None:
+        for msg in messages:
+            began = time.perf_counter()
+            if not self.link.send(msg):
+                self.stats.collab_failures += 1
+            spent = time.perf_counter() - began
+            self.stats.collab_time += spent
+            self.stats.max_collab_time = max(self.stats.max_collab_time, spent)
 
     def _publish_command(self, frame: MocapFrame, u: tuple[float, ...]) -> None:
         command = Command(self.config.robot, frame.t, frame.seq, tuple(float(x) for x in u))

@@ -219,3 +219,18 @@ def test_the_stl_process_main_on_the_fake_network():
     assert stats.source == "agent/4" and stats.data["steps"] == 1
     assert stats.data["collab_sent"] >= 1  # its status announcement to the absent peers
     assert alive not in network.alive_keys()
+
+
+@pytest.mark.parametrize("lockstep", [True, False])
+def test_messages_go_before_the_command_in_lockstep_and_after_it_in_realtime(lockstep):
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    (loop3, _), (loop4, _) = (stl_loop(network, FLEET, a) for a in make_pair())
+    seen = []
+    sim.transport.subscribe(keys.cmd(FLEET, 3), lambda _k, _p: seen.append(len(loop4.link.inbox)))
+    sim.control("start")
+    poses = {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}
+    sim.frame(30.0, 3000, poses, due=[3, 4] if lockstep else [])
+    loop3.run_once(0.0)  # its first step announces its status to robot 4
+    assert seen == [1 if lockstep else 0]
+    assert len(loop4.link.inbox) == 1
