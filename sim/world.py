@@ -75,11 +75,14 @@ def wrap_angle(theta: float) -> float:
 
 
 def _limit_norm(x: float, y: float, bound: float) -> tuple[float, float]:
+    """(x, y) scaled down to norm ≤ ``bound`` (exactly: rounding never leaves it above)."""
     norm = math.hypot(x, y)
-    if norm > bound:
-        scale = bound / norm
-        return x * scale, y * scale
-    return x, y
+    if norm <= bound:
+        return x, y
+    scale = bound / norm
+    while math.hypot(x * scale, y * scale) > bound:
+        scale = math.nextafter(scale, 0.0)
+    return x * scale, y * scale
 
 
 def _limit(value: float, bound: float) -> float:
