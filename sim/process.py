@@ -17,8 +17,13 @@ Protocol (architecture.md §3 and the issue-5 contract):
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
     (:class:`sim.clock.Pacer`) with the newest command of each robot;
 * after every step: ``contact`` and ``watchdog_stop`` events;
-* at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_done")``, exit 0.
-  ``Control(stop)``, SIGINT or SIGTERM end the loop earlier, also with 0.
+* at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_stats")`` (counters,
+  frame → command latency, missed control deadlines: :meth:`SimProcess.summary`), then
+  ``Event(kind="sim_done")``, exit 0. ``Control(stop)``, SIGINT or SIGTERM end the loop earlier
+  (``sim_stats`` only), also with 0.
+
+A ``seq = 0`` command that arrives before the sim has processed the start is an agent's answer
+to a republished initial frame and is held for tick 0 (``sim.lockstep``, "early answers").
 
 A payload that does not decode (or a command whose key, robot or values do not fit) is counted,
 logged at most once per ``malformed_report_period`` per key, and published as
