@@ -127,6 +127,14 @@ class Observer:
         with self._cond:
             return [e for e in self.events if e.kind == kind]
 
+    def wait_first_frame(self) -> None:
+        assert self.wait_for(lambda: bool(self.frames)), "the sim published no frame"
+
+    def start_mission(self) -> None:
+        """Wait until the sim is up (its first frame), then send ``Control(start)``."""
+        self.wait_first_frame()
+        self.send_control("start")
+
     def send_control(self, cmd: str) -> None:
         self.transport.publish(keys.control(FLEET), encode(Control(cmd)))  # type: ignore[arg-type]
 
@@ -154,6 +162,12 @@ class SimRun:
         self.process.stop_event.set()
         self.thread.join(WAIT)
 
+    def __enter__(self) -> SimRun:
+        return self.start()
+
+    def __exit__(self, *_exc: object) -> None:
+        self.stop()  # a failed test must not leave the loop running
+
 
 def run_lockstep(scen: Scenario, policies: dict[int, Policy], **config: object
                  ) -> tuple[Observer, SimRun, dict[int, FakeAgent]]:
@@ -161,13 +175,9 @@ def run_lockstep(scen: Scenario, policies: dict[int, Policy], **config: object
     net = FakeNetwork()
     observer = Observer(net)
     agents = {rid: FakeAgent(net, rid, policy) for rid, policy in policies.items()}
-    run = SimRun(net, scen, **config).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scen, **config) as run:
+        observer.start_mission()
         assert run.join() == 0
-    finally:
-        run.stop()
     return observer, run, agents
 
 

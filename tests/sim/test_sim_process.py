@@ -37,15 +37,12 @@ def test_initial_frame_is_repeated_until_start_and_nothing_moves():
     net = FakeNetwork()
     observer = Observer(net)
     agent = FakeAgent(net, 1, constant((0.2, 0.0, 0.0)))
-    run = SimRun(net, scenario(omni(1, 0.5, 0.5)), preview_period=0.02).start()
-    try:
+    with SimRun(net, scenario(omni(1, 0.5, 0.5)), preview_period=0.02) as run:
         assert observer.wait_for(lambda: len(observer.frames) >= 3)
         assert all(f == MocapFrame(0.0, 0, ((1, 0.5, 0.5, 0.0),), ()) for f in observer.frames)
         assert agent.transport.network.alive_keys()[-1] == keys.alive(FLEET, "sim", 0)
         observer.send_control("stop")
         assert run.join() == 0
-    finally:
-        run.stop()
     assert observer.events_of("sim_done") == []
     assert keys.alive(FLEET, "sim", 0) not in net.alive_keys()  # token withdrawn on exit
 
@@ -59,13 +56,9 @@ def test_lockstep_mission_publishes_every_tick_with_the_due_robots():
     observer = Observer(net)
     FakeAgent(net, 1, constant((0.3, 0.0)))
     FakeAgent(net, 2, constant((0.0, 0.2, 0.0)))
-    run = SimRun(net, scen).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scen) as run:
+        observer.start_mission()
         assert run.join() == 0
-    finally:
-        run.stop()
     frames = mission_frames(observer.frames)
     assert [f.seq for f in frames] == list(range(51))
     assert [f.t for f in frames] == [k / 100 for k in range(51)]
@@ -86,10 +79,8 @@ def test_lockstep_does_not_advance_without_the_due_commands():
     observer = Observer(net)
     FakeAgent(net, 1, STILL_OMNI)
     silent = FakeAgent(net, 2, lambda frame, robot: None if frame.seq == 3 else (0.0, 0.0, 0.0))
-    run = SimRun(net, scenario(omni(1, 0, 0), omni(2, 1, 1), duration=0.1)).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scenario(omni(1, 0, 0), omni(2, 1, 1), duration=0.1)) as run:
+        observer.start_mission()
         assert observer.wait_for(lambda: observer.frames[-1].seq == 3)
         # Robot 2 owes tick 3: the sim must wait (the tick timeout is 2 s).
         assert not observer.wait_for(lambda: observer.frames[-1].seq > 3, timeout=0.3)
@@ -99,8 +90,6 @@ def test_lockstep_does_not_advance_without_the_due_commands():
         silent.send(3, (0.0, 0.0, 0.0))
         assert observer.wait_for(lambda: observer.frames[-1].seq > 3)
         assert run.join() == 0
-    finally:
-        run.stop()
     assert observer.events_of("deadline_miss") == []
     counts = {o.value: n for o, n in run.process.lockstep.counts.items()}
     assert counts["wrong_seq"] == 2
@@ -136,13 +125,9 @@ def test_dead_agent_is_dropped_at_once_and_its_robot_stopped_by_the_watchdog():
 
     doomed.policy = die_at_50
     scen = scenario(omni(1, 0, 0), omni(2, -2.0, 1.0), duration=1.5)
-    run = SimRun(net, scen, tick_timeout=30.0).start()  # a wait for the dead would hang the test
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scen, tick_timeout=30.0) as run:  # a wait for the dead would hang the test
+        observer.start_mission()
         assert run.join() == 0
-    finally:
-        run.stop()
     frames = mission_frames(observer.frames)
     assert frames[50].due == (1, 2) and all(f.due == (1,) for f in frames[51:-1])
     assert observer.events_of("deadline_miss") == []
@@ -218,9 +203,8 @@ def test_malformed_payloads_are_counted_reported_and_survived():
     agent = FakeAgent(net, 1, STILL_OMNI)
     rogue = net.transport("rogue")
     bad_cmd_key = keys.cmd(FLEET, 1)
-    run = SimRun(net, scenario(omni(1, 0, 0), duration=0.2)).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
+    with SimRun(net, scenario(omni(1, 0, 0), duration=0.2)) as run:
+        observer.wait_first_frame()
         rogue.publish(bad_cmd_key, b"\xc1 not msgpack")
         rogue.publish(bad_cmd_key, msgpack.packb({"v": 1, "k": "Command", "robot": "one"}))
         rogue.publish(bad_cmd_key, encode(Command(2, 0.0, 0, (0.0, 0.0, 0.0))))  # robot 2's
@@ -232,8 +216,6 @@ def test_malformed_payloads_are_counted_reported_and_survived():
         assert observer.wait_for(lambda: len(observer.events_of("malformed_message")) == 2)
         observer.send_control("start")
         assert run.join() == 0  # ... and the mission ran to its end
-    finally:
-        run.stop()
     assert run.process.malformed == {bad_cmd_key: 5, keys.control(FLEET): 3}
     reports = {e.data["key"]: e.data["count"] for e in observer.events_of("malformed_message")}
     assert reports == {bad_cmd_key: 5, keys.control(FLEET): 3}
@@ -245,17 +227,14 @@ def test_malformed_reports_are_rate_limited_per_key():
     net = FakeNetwork()
     observer = Observer(net)
     rogue = net.transport("rogue")
-    run = SimRun(net, scenario(omni(1, 0, 0)), malformed_report_period=60.0).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
+    with SimRun(net, scenario(omni(1, 0, 0)), malformed_report_period=60.0) as run:
+        observer.wait_first_frame()
         rogue.publish(keys.cmd(FLEET, 1), b"junk")
         assert observer.wait_for(lambda: bool(observer.events_of("malformed_message")))
         for _ in range(49):
             rogue.publish(keys.cmd(FLEET, 1), b"junk")
         observer.send_control("stop")  # queued after the junk: the final count is reported
         assert run.join() == 0
-    finally:
-        run.stop()
     counts = [e.data["count"] for e in observer.events_of("malformed_message")]
     assert counts == [1, 50]  # the first at once, then nothing until the period or the end
 
@@ -265,16 +244,12 @@ def test_control_stop_ends_a_lockstep_run_early():
     observer = Observer(net)
     FakeAgent(net, 1, STILL_OMNI)
     FakeAgent(net, 2, lambda frame, robot: None if frame.seq >= 10 else (0.0, 0.0, 0.0))
-    run = SimRun(net, scenario(omni(1, 0, 0), omni(2, 1, 0), duration=100.0),
-                 tick_timeout=60.0).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scenario(omni(1, 0, 0), omni(2, 1, 0), duration=100.0),
+                tick_timeout=60.0) as run:
+        observer.start_mission()
         assert observer.wait_for(lambda: observer.frames[-1].seq == 10)
         observer.send_control("stop")  # while the sim waits for robot 2
         assert run.join() == 0
-    finally:
-        run.stop()
     assert observer.events_of("sim_done") == []
 
 
@@ -282,7 +257,7 @@ def test_stop_event_ends_the_loop_like_a_signal():
     net = FakeNetwork()
     observer = Observer(net)
     run = SimRun(net, scenario(omni(1, 0, 0), duration=100.0)).start()
-    assert observer.wait_for(lambda: bool(observer.frames))
+    observer.wait_first_frame()
     run.process.stop_event.set()
     assert run.join() == 0
 
@@ -291,14 +266,11 @@ def test_commands_before_start_are_ignored_unless_early_answers_to_tick_0():
     net = FakeNetwork()
     observer = Observer(net)
     agent = FakeAgent(net, 1, STILL_OMNI)
-    run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1)).start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
+    with SimRun(net, scenario(omni(1, 0, 0), duration=0.1)) as run:
+        observer.wait_first_frame()
         agent.send(5, (0.2, 0.0, 0.0))  # not an answer to the initial frame: ignored
         observer.send_control("start")
         assert run.join() == 0
-    finally:
-        run.stop()
     assert mission_frames(observer.frames)[-1].pose(1) == (0.0, 0.0, 0.0)
     counts = {o.value: n for o, n in run.process.lockstep.counts.items()}
     assert counts["before_start"] == 1 and "early" not in counts
@@ -321,18 +293,13 @@ def test_an_agent_that_saw_start_first_and_answered_the_initial_frame_misses_not
         net = FakeNetwork()
         observer = Observer(net)
         agent = FakeAgent(net, 1, once_per_seq(set()), realtime_divider=1)
-        run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode=mode,
-                     preview_period=0.01).start()
-        try:
+        with SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode=mode,
+                    preview_period=0.01) as run:
             if race:
                 agent.started = True  # as if its start message had arrived first
                 assert observer.wait_for(lambda: len(observer.frames) >= 2)
-            else:
-                assert observer.wait_for(lambda: bool(observer.frames))
-            observer.send_control("start")
+            observer.start_mission()
             assert run.join() == 0
-        finally:
-            run.stop()
         stats = observer.events_of("sim_stats")[0].data
         assert stats["missed"] == 0 and observer.events_of("deadline_miss") == []
         assert stats["early"] == (1 if race else 0)
@@ -350,15 +317,12 @@ def test_realtime_mode_paces_on_wall_time_with_empty_due():
     agents = [FakeAgent(net, 1, constant((0.2, 0.0, 0.0)), realtime_divider=1),
               FakeAgent(net, 2, constant((0.3, 0.0)), realtime_divider=20)]
     scen = scenario(omni(1, 0, 0), unicycle(2, 0, 1), duration=0.3)
-    run = SimRun(net, scen, mode="realtime").start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
+    with SimRun(net, scen, mode="realtime") as run:
+        observer.wait_first_frame()
         started = time.monotonic()
         observer.send_control("start")
         assert run.join() == 0
         wall = time.monotonic() - started
-    finally:
-        run.stop()
     frames = mission_frames(observer.frames)
     assert [f.seq for f in frames] == list(range(31))
     assert all(f.due == () for f in frames)
@@ -386,13 +350,9 @@ def test_realtime_counts_missed_control_deadlines():
     FakeAgent(net, 1, lambda frame, robot: (0.0, 0.0, 0.0) if frame.seq % 2 else None,
               realtime_divider=1)  # answers odd ticks only
     FakeAgent(net, 9, STILL_OMNI, realtime_divider=1)  # an agent of no robot: not counted
-    run = SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode="realtime").start()
-    try:
-        assert observer.wait_for(lambda: bool(observer.frames))
-        observer.send_control("start")
+    with SimRun(net, scenario(omni(1, 0, 0), duration=0.1), mode="realtime") as run:
+        observer.start_mission()
         assert run.join() == 0
-    finally:
-        run.stop()
     stats = observer.events_of("sim_stats")[0].data
     assert (stats["due"], stats["missed"], stats["commands"]) == (10, 5, 5)
     assert stats["ignored"] == {"unknown_robot": 10}
