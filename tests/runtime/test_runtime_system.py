@@ -1,8 +1,9 @@
 """``tlfleet router`` + ``tlfleet agent`` as real processes on loopback zenoh (one smoke test).
 
-Router on a free 127.0.0.1 port, an STL agent (Scenario 1, robot 3) as a client; the test is a
-client too: it waits for ``alive/agent/3``, sends Control(start) and a due frame, receives the
-Command, then SIGTERMs both processes and checks they exit cleanly. Every wait is on a condition
+Router on a free 127.0.0.1 port, an agent of Scenario 1 as a client (robot 3: STL, robot 1: LTL);
+the test is a client too: it waits for ``alive/agent/<id>``, sends Control(start) and a due frame,
+receives the Command, then stops the agent (SIGTERM or SIGINT) and the router (SIGTERM) and checks
+that they exit cleanly. Every wait is on a condition
 with a timeout; process groups are killed in ``finally``.
 """
 
@@ -65,7 +66,11 @@ def open_client(endpoint: str, timeout: float = 15.0) -> ZenohTransport:
 
 
 @pytest.mark.system
-def test_router_and_stl_agent_processes_answer_a_frame_and_stop_on_sigterm():
+@pytest.mark.parametrize("robot, size, stop_signal", [(3, 3, signal.SIGTERM),
+                                                      (1, 2, signal.SIGINT)])
+def test_router_and_agent_processes_answer_a_frame_and_stop_on_a_signal(robot, size,
+                                                                        stop_signal):
+    """Robot 3 is an STL agent (u = (vx, vy, ω)), robot 1 an LTL agent (u = (v, ω))."""
     scenario = load_scenario(SCENARIO)
     fleet = scenario.fleet
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -74,13 +79,13 @@ def test_router_and_stl_agent_processes_answer_a_frame_and_stop_on_sigterm():
     transport = None
     try:
         transport = open_client(endpoint)
-        agent = tlfleet("agent", str(SCENARIO), "--robot", "3", "--connect", endpoint)
+        agent = tlfleet("agent", str(SCENARIO), "--robot", str(robot), "--connect", endpoint)
         alive = {"router": threading.Event(), "agent": threading.Event()}
         commands: list[Command] = []
         answered = threading.Event()
 
         def on_alive(key: str, up: bool) -> None:
-            if up and key == keys.alive(fleet, "agent", 3):
+            if up and key == keys.alive(fleet, "agent", robot):
                 alive["agent"].set()
             if up and key == keys.alive(fleet, "router", 0):
                 alive["router"].set()
@@ -90,22 +95,22 @@ def test_router_and_stl_agent_processes_answer_a_frame_and_stop_on_sigterm():
             answered.set()
 
         transport.watch_alive(keys.all_alive(fleet), on_alive)
-        transport.subscribe(keys.cmd(fleet, 3), on_cmd)
+        transport.subscribe(keys.cmd(fleet, robot), on_cmd)
         assert alive["router"].wait(15), "no liveliness token alive/router/0"
-        assert alive["agent"].wait(30), "no liveliness token alive/agent/3"
+        assert alive["agent"].wait(30), f"no liveliness token alive/agent/{robot}"
 
         transport.publish(keys.control(fleet), encode(Control("start")))
         poses = tuple((r.id, *r.pose) for r in sorted(scenario.robots, key=lambda r: r.id))
-        frame = MocapFrame(0.0, 0, poses, due=(3,))
+        frame = MocapFrame(0.0, 0, poses, due=(robot,))
         deadline = time.monotonic() + 10
         while not answered.is_set() and time.monotonic() < deadline:
             transport.publish(keys.mocap(fleet), encode(frame))  # duplicates are ignored
             answered.wait(0.2)
         assert answered.is_set(), "no command for the due frame"
         command = commands[0]
-        assert (command.robot, command.seq, command.t, len(command.u)) == (3, 0, 0.0, 3)
+        assert (command.robot, command.seq, command.t, len(command.u)) == (robot, 0, 0.0, size)
 
-        agent.send_signal(signal.SIGTERM)
+        agent.send_signal(stop_signal)
         assert agent.wait(10) == 0
         assert {c.seq for c in commands} == {0}  # one frame (then maybe a stale zero command)
         router.send_signal(signal.SIGTERM)
