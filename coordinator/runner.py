@@ -169,6 +169,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         if transport is not None:
             transport.close()
         final = launcher.stop_all(config.kill_grace)
+        info["pids"] = {child.name: child.pid for child in launcher.children}  # = their pgids
         recorder.close()
         info.update(reason=outcome.reason, t_end=outcome.t_end, exit_codes=final,
                     exit_codes_after_stop=codes, frames=recorder.frames_written)

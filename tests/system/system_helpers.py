@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +78,20 @@ def entries(xy: np.ndarray, center, radius: float, hysteresis: float = 0.05) -> 
 def robot_robot_contacts(run_dir: Path) -> list[dict]:
     return [e for e in events(run_dir) if e["kind"] == "contact"
             and "wall" not in (e["data"].get("a"), e["data"].get("b"))]
+
+
+def leftover_in_groups(run_dir: Path) -> list[psutil.Process]:
+    """Live processes in the process groups of a run's children (``run.json`` pids = pgids)."""
+    pgids = set(json.loads((run_dir / "run.json").read_text())["pids"].values())
+    assert pgids, "the run started no child"
+    found = []
+    for proc in psutil.process_iter(["status"]):
+        try:
+            if proc.info["status"] != psutil.STATUS_ZOMBIE and os.getpgid(proc.pid) in pgids:
+                found.append(proc)
+        except (ProcessLookupError, psutil.NoSuchProcess):
+            continue
+    return found
 
 
 def leftover_processes(marker: str) -> list[psutil.Process]:

@@ -8,7 +8,7 @@ import sys
 import time
 
 import pytest
-from system_helpers import HERE, ROOT, leftover_processes
+from system_helpers import HERE, ROOT, leftover_in_groups, leftover_processes
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
@@ -31,7 +31,7 @@ def test_run_prints_the_summary_and_the_run_directory(tmp_path):
     assert out.rstrip().endswith(f"run directory: {tmp_path / 'run'}")
     assert "\r[" not in err  # stderr is not a terminal: no progress bar
     assert (tmp_path / "run" / "summary.txt").read_text().strip() in out
-    assert leftover_processes(str(TWO)) == []
+    assert leftover_in_groups(tmp_path / "run") == []
 
 
 def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
@@ -42,11 +42,12 @@ def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
         while not (trajectory.exists() and len(trajectory.read_text().splitlines()) > 50):
             assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
             time.sleep(0.05)
-        assert len(leftover_processes(str(TWO))) == 4  # tlfleet run, sim, 2 agents (not the router)
+        # tlfleet run itself, the sim and 2 agents (the router has no scenario path)
+        assert len(leftover_processes(str(TWO))) == 4
         proc.send_signal(signal.SIGINT)
         out, _err = proc.communicate(timeout=30)
     finally:
         proc.kill()
     assert proc.returncode == 130
     assert "run directory:" in out
-    assert leftover_processes(str(TWO)) == []
+    assert leftover_in_groups(tmp_path / "run") == []

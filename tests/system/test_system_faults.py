@@ -16,7 +16,14 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
-from system_helpers import HERE, events, leftover_processes, load_trajectory, run
+from system_helpers import (
+    HERE,
+    events,
+    leftover_in_groups,
+    leftover_processes,
+    load_trajectory,
+    run,
+)
 
 from agent.protocol import keys
 from agent.protocol.codec import encode
@@ -96,7 +103,7 @@ def test_killed_agent_is_reported_the_robot_stopped_the_others_finish(tmp_path):
     assert result.exit_codes["agent-1"] == 0 and result.exit_codes["sim"] == 0
     assert result.exit_codes["agent-2"] == -signal.SIGKILL
     assert "process deaths: 1" in result.summary_text
-    assert leftover_processes(str(TWO.resolve())) == []
+    assert leftover_in_groups(run_dir) == []
 
 
 GARBAGE = [
@@ -142,4 +149,4 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
     assert any(k.startswith("coordinator") for k in malformed)
     assert result.summary["deadlines"]["malformed"] == sum(malformed.values())
     assert "malformed messages:" in result.summary_text
-    assert leftover_processes(str(TWO.resolve())) == []
+    assert leftover_in_groups(run_dir) == []

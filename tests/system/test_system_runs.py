@@ -18,7 +18,7 @@ from system_helpers import (
     entries,
     f_rob,
     g_rob,
-    leftover_processes,
+    leftover_in_groups,
     load_trajectory,
     robot_robot_contacts,
     run,
@@ -53,7 +53,7 @@ def test_two_robot_fleet(tmp_path, mode):
     for name in ("a1", "a2"):
         assert entries(s[1][:, :2], reg[name].center, reg[name].radius) >= 1
     assert robot_robot_contacts(tmp_path / "run") == []
-    assert leftover_processes(str(TWO)) == []
+    assert leftover_in_groups(tmp_path / "run") == []
 
 
 def test_lockstep_runs_with_the_same_seed_are_identical(tmp_path):
@@ -91,7 +91,7 @@ def test_scenario1_paper_bounds(tmp_path):
             assert entries(s[robot][:, :2], reg[name].center, reg[name].radius) >= 3, \
                 (robot, name)
     assert robot_robot_contacts(tmp_path / "run") == []
-    assert leftover_processes(str(path)) == []
+    assert leftover_in_groups(tmp_path / "run") == []
 
 
 @pytest.mark.slow
@@ -106,3 +106,4 @@ def test_scenario3_formation_and_all_regions(tmp_path):
     assert robot_robot_contacts(tmp_path / "run") == []
     for robot in (2, 3, 4):  # the summary's robustness is the trajectory's, and finite
         assert math.isfinite(result.summary["stl"][robot]["robustness"])
+    assert leftover_in_groups(tmp_path / "run") == []
