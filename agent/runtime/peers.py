@@ -22,6 +22,7 @@ One :class:`CollabLink` per STL agent process:
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -106,6 +107,8 @@ class CollabLink:
         key = keys.collab(self.fleet, self.robot)
         try:
             msg = decode(CollabMessage, payload)
+            if not math.isfinite(msg.t):
+                raise ProtocolError(f"CollabMessage.t: {msg.t} is not a finite time")
             if msg.receiver != self.robot:
                 raise ProtocolError(f"CollabMessage.receiver: {msg.receiver}, this is robot "
                                     f"{self.robot}")

@@ -197,14 +197,15 @@ def test_malformed_collab_queries_are_rejected_and_counted():
     key = keys.collab(scenario.fleet, 4)
     wrong = CollabMessage("status", 3, 5, 0.0, 0)  # addressed to robot 5
     no_funnel = CollabMessage("request", 3, 4, 0.0, 0)
-    for payload in (b"\x00\x01", encode(wrong), encode(no_funnel)):
+    no_time = CollabMessage("status", 3, 4, float("nan"), 0)
+    for payload in (b"\x00\x01", encode(wrong), encode(no_funnel), encode(no_time)):
         (reply,) = asker.query(key, payload, 0.1)
         answer = decode(CollabReply, reply)
         assert not answer.accepted and answer.reason
     good = CollabMessage("status", 3, 4, 0.0, 0, c=0, task_kind="G", a=21.0, b=30.0)
     (reply,) = asker.query(key, encode(good), 0.1)
     assert decode(CollabReply, reply).accepted
-    assert loop.malformed.counts == {key: 3}
+    assert loop.malformed.counts == {key: 4}
     assert len(loop.link.inbox) == 1
     sim.control("start")
     poses = {r.id: r.pose for r in scenario.robots}
