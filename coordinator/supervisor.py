@@ -166,9 +166,10 @@ class Supervisor:
         if name not in FINISHERS:
             self._died(name, how, returncode)
         elif not self.sim_done:
-            since, old_how, old_code = self._suspects.get(name, (self._clock(), how, returncode))
-            self._suspects[name] = (since, old_how if old_code is not None else how,
-                                    returncode if returncode is not None else old_code)
+            since, first_how, code = self._suspects.get(name, (self._clock(), how, returncode))
+            if code is None and returncode is not None:  # prefer the exit code to the token
+                first_how, code = how, returncode
+            self._suspects[name] = (since, first_how, code)
 
     def _died(self, name: str, how: str, returncode: int | None) -> None:
         if name in self.deaths:
