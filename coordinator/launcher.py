@@ -177,7 +177,7 @@ class Launcher:
 
         Returns each child's exit code. Afterwards no process of any child's group is left.
         """
-        live = [c for c in reversed(self.children) if group_alive(c.pid)]
+        live = [c for c in reversed(self.children) if _reap_and_check(c)]
         for child in live:
             _signal_group(child, signal.SIGTERM)
         deadline = time.monotonic() + grace
@@ -203,6 +203,9 @@ def _signal_group(child: Child, sig: signal.Signals) -> None:
 
 
 def _reap_and_check(child: Child) -> bool:
-    """Reap the leader if it exited; True while any process of its group is alive."""
-    child.process.poll()
-    return group_alive(child.pid)
+    """True while the child is not reaped or any process of its group is alive.
+
+    Both are needed: a grandchild may outlive the leader, and a multi-threaded leader shows as a
+    zombie while its other threads are still being torn down, before ``waitpid`` can reap it.
+    """
+    return child.process.poll() is None or group_alive(child.pid)
