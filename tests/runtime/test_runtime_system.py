@@ -9,10 +9,7 @@ with a timeout; process groups are killed in ``finally``.
 
 from __future__ import annotations
 
-import contextlib
-import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -20,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from process_helpers import free_port, kill_group
 
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
@@ -31,26 +29,12 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
 
 def tlfleet(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "coordinator.cli", *args], cwd=ROOT,
                             start_new_session=True, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
 
-
-def kill_group(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(5)
-    for stream in (proc.stdout, proc.stderr):
-        if stream:
-            stream.close()
 
 
 def open_client(endpoint: str, timeout: float = 15.0) -> ZenohTransport:

@@ -7,9 +7,7 @@ Every wait is on a condition with a timeout, and the process group is killed in 
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -17,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from process_helpers import free_port, kill_group
 
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
@@ -28,11 +27,6 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
 
 def start_sim(endpoint: str, *extra: str) -> subprocess.Popen:
     return subprocess.Popen(
@@ -40,12 +34,6 @@ def start_sim(endpoint: str, *extra: str) -> subprocess.Popen:
          "--listen", endpoint, *extra],
         cwd=ROOT, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
-
-def kill_group(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(5)
 
 
 def open_peer(endpoint: str) -> ZenohTransport:

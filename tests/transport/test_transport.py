@@ -3,10 +3,10 @@ loopback (multicast scouting off, explicit tcp/127.0.0.1 endpoints)."""
 
 from __future__ import annotations
 
-import socket
 import threading
 
 import pytest
+from process_helpers import free_port
 
 from agent.protocol.keys import key_matches
 from agent.runtime.transport import FakeNetwork, TransportConfig, ZenohTransport
@@ -51,11 +51,6 @@ def test_fake_pub_sub_query_and_liveliness():
     a.publish("f/robot/3/cmd", b"z")
     assert got[-1] == ("f/robot/3/cmd", b"x")  # its subscriber died with it
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.mark.system
