@@ -7,9 +7,11 @@ import os
 import signal
 import subprocess
 
+import psutil
+
 from coordinator.launcher import free_port
 
-__all__ = ["free_port", "kill_group"]
+__all__ = ["free_port", "kill_group", "processes_mentioning"]
 
 
 def kill_group(proc: subprocess.Popen) -> None:
@@ -22,3 +24,17 @@ def kill_group(proc: subprocess.Popen) -> None:
     for stream in (proc.stdout, proc.stderr):
         if stream:
             stream.close()
+
+
+def processes_mentioning(marker: str) -> list[psutil.Process]:
+    """Live (non-zombie) processes whose command line mentions ``marker``, e.g. a scenario path
+    unique to one test."""
+    found = []
+    for proc in psutil.process_iter(["cmdline", "status"]):
+        try:
+            if proc.info["status"] != psutil.STATUS_ZOMBIE and \
+                    any(marker in part for part in proc.info["cmdline"] or ()):
+                found.append(proc)
+        except psutil.NoSuchProcess:
+            continue
+    return found

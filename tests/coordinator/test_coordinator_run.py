@@ -14,8 +14,8 @@ import threading
 import time
 from pathlib import Path
 
-import psutil
 import pytest
+from process_helpers import processes_mentioning
 
 from coordinator import cli
 from coordinator.runner import RunConfig, run_fleet
@@ -60,25 +60,13 @@ def standin_argv(extra: dict[str, list[str]] | None = None, sim_duration: float 
     return argv
 
 
-def run_dir_processes(marker: str) -> list[psutil.Process]:
-    """Live processes whose command line mentions ``marker`` (the run's unique scenario path)."""
-    found = []
-    for proc in psutil.process_iter(["cmdline", "status"]):
-        try:
-            if proc.info["status"] != psutil.STATUS_ZOMBIE and \
-                    any(marker in part for part in proc.info["cmdline"] or ()):
-                found.append(proc)
-        except psutil.NoSuchProcess:
-            continue
-    return found
-
 
 @pytest.fixture
 def scenario_path(tmp_path):
     path = tmp_path / "standin.toml"
     path.write_text(SCENARIO)
     yield path
-    for proc in run_dir_processes(str(path)):  # never leave anything behind, even on failure
+    for proc in processes_mentioning(str(path)):  # never leave anything behind, even on failure
         proc.kill()
 
 
@@ -97,7 +85,7 @@ def test_clean_run_records_and_summarises(tmp_path, scenario_path):
     assert "sim_done" in kinds
     assert "robot-wall 1" in result.summary_text
     assert result.summary["stl"][2]["robustness"] is not None
-    assert run_dir_processes(str(scenario_path)) == []
+    assert processes_mentioning(str(scenario_path)) == []
 
 
 def test_killed_agent_is_reported_within_one_second_and_the_run_goes_on(tmp_path,
@@ -111,7 +99,7 @@ def test_killed_agent_is_reported_within_one_second_and_the_run_goes_on(tmp_path
         while time.monotonic() < deadline:
             status = tmp_path / "run" / "status.csv"
             if status.exists() and len(status.read_text().splitlines()) > 1:  # started
-                for proc in run_dir_processes(str(scenario_path)):
+                for proc in processes_mentioning(str(scenario_path)):
                     if "--robot" in proc.cmdline() and proc.cmdline()[-1] == "2":
                         killed["wall"] = time.time()
                         os.kill(proc.pid, signal.SIGKILL)
@@ -132,7 +120,7 @@ def test_killed_agent_is_reported_within_one_second_and_the_run_goes_on(tmp_path
     assert [e["data"]["process"] for e in died] == ["agent-2"]
     assert result.exit_codes["agent-1"] == 0 and result.exit_codes["agent-2"] == -9
     assert "process deaths: 1" in result.summary_text
-    assert run_dir_processes(str(scenario_path)) == []
+    assert processes_mentioning(str(scenario_path)) == []
 
 
 def test_stop_event_interrupts_and_cleans_up(tmp_path, scenario_path):
@@ -149,7 +137,7 @@ def test_stop_event_interrupts_and_cleans_up(tmp_path, scenario_path):
     result = run_fleet(config, stop=stop, progress=progress)
     assert result.outcome.reason == "interrupted" and not result.clean
     assert max(seen) > 0.2
-    assert run_dir_processes(str(scenario_path)) == []
+    assert processes_mentioning(str(scenario_path)) == []
 
 
 def test_an_agent_that_never_comes_up_is_named(tmp_path, scenario_path):
@@ -158,7 +146,7 @@ def test_an_agent_that_never_comes_up_is_named(tmp_path, scenario_path):
                        child_argv=standin_argv({"agent-1": ["--no-token"]}))
     with pytest.raises(Exception, match=r"not up after 2 s .*: agent-1\n.*agent-1.log"):
         run_fleet(config)
-    assert run_dir_processes(str(scenario_path)) == []
+    assert processes_mentioning(str(scenario_path)) == []
 
 
 def test_invalid_scenario_exits_1_before_anything_starts(tmp_path, capsys, monkeypatch):

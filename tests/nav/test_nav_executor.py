@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from nav_scenarios import scenario1, scenario3
 
 from agent.nav.dwa import DwaConfig
 from agent.nav.errors import InvalidPlanError
@@ -28,23 +29,6 @@ from agent.scenario.model import Arena, RectObstacle, Region, Robot, Scenario
 TOLERANCE = DwaConfig().xy_goal_tolerance
 
 
-def scenario1() -> Scenario:
-    """Scenario 1's LTL robot 1 alone (scenarios.md); the other robots are not LTL robots."""
-    regions = (Region("a11", (-2.0, -2.5)), Region("a12", (-2.0, 2.5)))
-    robot = Robot(1, "unicycle", (-2.0, -2.5, math.pi / 2), ltl="G F a11 & G F a12")
-    return Scenario("scenario1", "f", 90.0, Arena(), regions, (robot,))
-
-
-def scenario3() -> Scenario:
-    regions = (
-        Region("a1", (-1.5, -1.5)),
-        Region("a2", (1.5, -1.5)),
-        Region("a3", (1.5, 1.5)),
-        Region("a4", (-1.5, 1.5)),
-        Region("a5", (0.0, 0.0)),
-    )
-    robot = Robot(1, "unicycle", (-2.0, -2.0, 0.0), ltl="F a1 & F a2 & F a3 & F a4 & F a5")
-    return Scenario("scenario3", "f", 100.0, Arena(), regions, (robot,))
 
 
 def planner_plan(scenario: Scenario) -> tuple[tuple[str, ...], tuple[str, ...]]:

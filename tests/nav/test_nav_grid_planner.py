@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from nav_scenarios import scenario3
 
 import agent.nav.grid_planner as grid_planner
 from agent.errors import TlfleetError
@@ -161,20 +162,9 @@ def test_astar_length_equals_dijkstra_on_random_grids(blocked, data):
         assert result[1] == pytest.approx(expected)
 
 
-def _scenario3() -> Scenario:
-    regions = (
-        Region("a1", (-1.5, -1.5)),
-        Region("a2", (1.5, -1.5)),
-        Region("a3", (1.5, 1.5)),
-        Region("a4", (-1.5, 1.5)),
-        Region("a5", (0.0, 0.0)),
-    )
-    robot = Robot(1, "unicycle", (-2.0, -2.0, 0.0), ltl="F a1 & F a2 & F a3 & F a4 & F a5")
-    return Scenario("scenario3", "f", 100.0, Arena(), regions, (robot,))
-
 
 def test_distance_is_euclidean_on_the_papers_obstacle_free_arena():
-    scenario = _scenario3()
+    scenario = scenario3()
     distance = path_length_function(scenario)
     centres = [r.center for r in scenario.regions]
     for p in centres:

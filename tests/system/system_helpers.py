@@ -94,14 +94,4 @@ def leftover_in_groups(run_dir: Path) -> list[psutil.Process]:
     return found
 
 
-def leftover_processes(marker: str) -> list[psutil.Process]:
-    """Live processes whose command line mentions ``marker`` (a scenario path of the test)."""
-    found = []
-    for proc in psutil.process_iter(["cmdline", "status"]):
-        try:
-            if proc.info["status"] != psutil.STATUS_ZOMBIE and \
-                    any(marker in part for part in proc.info["cmdline"] or ()):
-                found.append(proc)
-        except psutil.NoSuchProcess:
-            continue
-    return found
+

@@ -8,7 +8,8 @@ import sys
 import time
 
 import pytest
-from system_helpers import HERE, ROOT, leftover_in_groups, leftover_processes
+from process_helpers import processes_mentioning
+from system_helpers import HERE, ROOT, leftover_in_groups
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
@@ -43,7 +44,7 @@ def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
             assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
             time.sleep(0.05)
         # tlfleet run itself, the sim and 2 agents (the router has no scenario path)
-        assert len(leftover_processes(str(TWO))) == 4
+        assert len(processes_mentioning(str(TWO))) == 4
         proc.send_signal(signal.SIGINT)
         out, _err = proc.communicate(timeout=30)
     finally:

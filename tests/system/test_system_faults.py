@@ -16,11 +16,11 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
+from process_helpers import processes_mentioning
 from system_helpers import (
     HERE,
     events,
     leftover_in_groups,
-    leftover_processes,
     load_trajectory,
     run,
 )
@@ -72,7 +72,7 @@ def wait_until_started(run_dir: Path, t_min: float, timeout: float = 60.0) -> No
 
 
 def agent_process(robot: int):
-    for proc in leftover_processes(str(TWO.resolve())):
+    for proc in processes_mentioning(str(TWO.resolve())):
         cmd = proc.cmdline()
         if "agent" in cmd and "--robot" in cmd and cmd[cmd.index("--robot") + 1] == str(robot):
             return proc
