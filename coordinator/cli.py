@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("coordinator.commands.sim", "run the pymunk simulator process of a scenario"),
     "agent": ("coordinator.commands.agent", "run the agent process of one robot"),
     "run": ("coordinator.commands.run", "launch, supervise and record a whole fleet"),
+    "report": ("coordinator.commands.report", "regenerate report.md/json and figures of a run"),
+    "replay": ("coordinator.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }
 
 
