@@ -43,9 +43,16 @@ REGION_HYSTERESIS = 0.05  # [m] a robot must leave a region by this much before 
 
 def read_events(path: Path) -> list[dict[str, Any]]:
     """The events of ``events.jsonl``; a torn last line (crash) is skipped."""
-    events = []
+    return read_events_checked(path)[0]
+
+
+def read_events_checked(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
+    """The events of ``events.jsonl`` and the 1-based numbers of the lines skipped (not JSON, e.g.
+    a line torn by a crash, or not an object)."""
+    events: list[dict[str, Any]] = []
+    skipped: list[int] = []
     if not path.exists():
-        return events
+        return events, skipped
     for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if not line.strip():
             continue
@@ -53,11 +60,14 @@ def read_events(path: Path) -> list[dict[str, Any]]:
             record = json.loads(line)
         except json.JSONDecodeError:
             logger.warning("%s:%d: not JSON, skipped", path, number)
+            skipped.append(number)
             continue
         if isinstance(record, dict):
             record.setdefault("data", {})
             events.append(record)
-    return events
+        else:
+            skipped.append(number)
+    return events, skipped
 
 
 def read_statuses(path: Path) -> list[dict[str, str]]:
@@ -71,13 +81,20 @@ def region_entries(xy: np.ndarray, center: tuple[float, float], radius: float,
                    hysteresis: float = REGION_HYSTERESIS) -> int:
     """Entries of the points ``xy`` (N, 2) [m] into the disc (center, radius); starting inside
     counts as one; a re-entry counts only after leaving the disc by ``hysteresis``."""
+    return len(region_entry_indices(xy, center, radius, hysteresis))
+
+
+def region_entry_indices(xy: np.ndarray, center: tuple[float, float], radius: float,
+                         hysteresis: float = REGION_HYSTERESIS) -> list[int]:
+    """Sample indices of the entries counted by :func:`region_entries` (0 if starting inside)."""
     if len(xy) == 0:
-        return 0
+        return []
     d = np.hypot(xy[:, 0] - center[0], xy[:, 1] - center[1])
-    entries, inside = 0, False
-    for value in d:
+    entries: list[int] = []
+    inside = False
+    for k, value in enumerate(d):
         if not inside and value <= radius:
-            entries += 1
+            entries.append(k)
             inside = True
         elif inside and value > radius + hysteresis:
             inside = False

@@ -1,0 +1,40 @@
+"""``tlfleet report RUN_DIR [--no-figures] [--json]``: regenerate a run's report and figures.
+
+Writes ``report.md``, ``report.json`` and (unless ``--no-figures``) the PNG figures into the run
+directory (``coordinator.report.write_report``), then prints the console table and the paths, or
+with ``--json`` the report data. A directory that is not a run directory is a one-line error and
+exit code 1 (raised as :class:`coordinator.report.RunDirectoryError`, printed by the CLI).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+NAME = "report"
+HELP = "regenerate report.md/json and figures of a run"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run_dir", help="run directory written by `tlfleet run`")
+    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--json", action="store_true",
+                        help="print report.json's data instead of the table")
+
+
+def run(args: argparse.Namespace) -> int:
+    from coordinator.report import write_report
+
+    report = write_report(args.run_dir, figures=not args.no_figures)
+    if args.json:
+        print(json.dumps(report.data, indent=2, ensure_ascii=False))
+        return 0
+    print(report.table)
+    print(f"wrote {report.run_dir / 'report.md'}")
+    print(f"wrote {report.run_dir / 'report.json'}")
+    for path in report.figures:
+        print(f"wrote {path}" if not args.no_figures else f"kept {path}")
+    return 0
+
+
+main = run  # the name other command modules' callers may expect
