@@ -5,9 +5,8 @@ state, no window. Inputs are plain numbers (a scenario, a trajectory, status arr
 prepared by ``coordinator.report``.
 
 * :func:`trajectory_figure` – the arena (walls, obstacles), the LTL regions (discs, named), and
-  every robot's path during a time window, coloured by time, with start (○) and end (robot disc
-  + id)
-  markers, as Fig. 5(a)/(b), 6(a), 7(a).
+  every robot's path during a time window, coloured by time, with start (○) and end markers
+  (robot disc + id), as Fig. 5(a)/(b), 6(a), 7(a).
 * :func:`robustness_figure` – one STL robot's ρ^ψ(t) with the funnel bounds ρ_max and
   lower = ρ_max − γ(t), the threshold r, its sub-task windows shaded and the repairs marked by
   stage, as Fig. 5(c)–(f), 6(b), 7(b). Rows where the agent is idle (NaN) are gaps.

@@ -382,7 +382,8 @@ def _collect(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
         "process_deaths": summary["process_deaths"],
         "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
     }
-    context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs}
+    context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
+               "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context
 
 
@@ -445,7 +446,7 @@ def _write_figures(run_dir: Path, data: dict[str, Any], context: dict[str, Any])
         path = run_dir / f"robustness_r{rid}.png"
         written.append(figures.robustness_figure(
             int(rid), stl_series(context["statuses"], int(rid)), subtasks,
-            context["repairs"].get(int(rid), []), path, t_end=max(data["t_end"], 1e-9)))
+            context["repairs"].get(int(rid), []), path, t_end=context["t_end"]))
     return written
 
 

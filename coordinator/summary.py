@@ -139,7 +139,10 @@ def _count(event: dict[str, Any]) -> int:
     return int(count) if isinstance(count, (int, float)) and count >= 0 else 1
 
 
-def _number(value: float) -> float | str:
+def _number(value: float) -> float | str | None:
+    """JSON-ready: ±inf (empty window) as "inf"/"-inf"; NaN (not evaluated) as None."""
+    if math.isnan(value):
+        return None
     return value if math.isfinite(value) else ("inf" if value > 0 else "-inf")
 
 
