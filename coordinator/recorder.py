@@ -10,11 +10,13 @@ Layout under ``runs/<scenario>-<YYYYmmdd-HHMMSS>/`` (or ``--out``)::
     events.jsonl     one JSON object per Event: {"t", "source", "kind", "data"}
     logs/<name>.log  each child's stdout and stderr (written by the launcher)
     summary.txt      the plain-text summary (coordinator.summary), at the end
+    run.rrd          the rerun recording (coordinator.visual), at the end
 
 Everything is appended and flushed at least every ``flush_period`` (1 s), so a crash loses at most
 the last second. :class:`Recorder` is a plain consumer of decoded messages (no transport);
 :class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
-(stack-notes.md §0) and decodes in the coordinator's loop.
+(stack-notes.md §0) and decodes in the coordinator's loop. :func:`read_statuses` and
+:func:`read_events` turn ``status.csv`` and ``events.jsonl`` back into typed messages (replay).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
+from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, peek_kind
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
@@ -45,6 +48,15 @@ STATUS_COLUMNS = ("t", "robot", "kind", "subtask", "rho", "rho_max", "lower", "r
 
 
 COORDINATOR_SOURCE = "coordinator"  # Event.source of the events the coordinator makes
+
+
+class RunFileError(TlfleetError, ValueError):
+    """A run-directory file that cannot be read back: names the file, the 1-based line (0: the
+    whole file) and what is wrong."""
+
+    def __init__(self, file: str | Path, line: int, reason: str):
+        self.file, self.line, self.reason = str(file), line, reason
+        super().__init__(f"{file}:{line}: {reason}" if line else f"{file}: {reason}")
 
 
 def default_run_dir(scenario_name: str, root: Path = Path("runs"),
@@ -277,3 +289,118 @@ class RecorderTap:
         for handle in self._handles:
             handle.close()
         self._handles.clear()
+
+
+# --------------------------------------------------------------------------------- reading back
+
+def _read_lines(path: Path) -> list[str]:
+    try:
+        return path.read_text(encoding="utf-8").splitlines(keepends=True)
+    except FileNotFoundError:
+        raise RunFileError(path, 0, "missing") from None
+    except OSError as exc:
+        raise RunFileError(path, 0, f"cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise RunFileError(path, 0, f"not UTF-8 text: {exc.reason}") from None
+
+
+def _torn(lines: list[str], index: int) -> bool:
+    """The last line without a newline: a write cut short by a crash, skipped when unreadable."""
+    return index == len(lines) - 1 and not lines[index].endswith("\n")
+
+
+def read_events(path: str | Path) -> list[Event]:
+    """The events of ``events.jsonl`` as :class:`Event` messages, in file order.
+
+    A line that is not a JSON object with a number ``t``, strings ``source`` and ``kind`` and an
+    object ``data`` raises :class:`RunFileError`, except a torn last line (logged and skipped).
+    """
+    path = Path(path)
+    lines = _read_lines(path)
+    events: list[Event] = []
+    for index, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+            if not isinstance(record, dict):
+                raise ValueError("not a JSON object")
+            t, source, kind = record.get("t"), record.get("source"), record.get("kind")
+            data = record.get("data", {})
+            if isinstance(t, bool) or not isinstance(t, (int, float)):
+                raise ValueError(f"'t' must be a number, found {t!r}")
+            if not isinstance(source, str) or not isinstance(kind, str):
+                raise ValueError(f"'source' and 'kind' must be strings, found {source!r}, {kind!r}")
+            if not isinstance(data, dict):
+                raise ValueError(f"'data' must be an object, found {type(data).__name__}")
+        except ValueError as exc:  # json.JSONDecodeError is a ValueError
+            if _torn(lines, index):
+                logger.warning("%s:%d: torn last line skipped", path, index + 1)
+                continue
+            raise RunFileError(path, index + 1, str(exc)) from None
+        events.append(Event(t=float(t), source=source, kind=kind, data=data))
+    return events
+
+
+def _status_from_row(row: dict[str, str]) -> LtlStatus | StlStatus:
+    def number(col: str) -> float:
+        cell = row[col]
+        return math.nan if cell == "" else float(cell)
+
+    def integer(col: str, default: int = 0) -> int:
+        return default if row[col] == "" else int(row[col])
+
+    def json_list(col: str) -> list[Any]:
+        value = json.loads(row[col]) if row[col] else []
+        if not isinstance(value, list):
+            raise ValueError(f"{col} must be a JSON list, found {row[col]!r}")
+        return value
+
+    t, robot = float(row["t"]), int(row["robot"])
+    if row["kind"] == "stl":
+        events = tuple(int(v) for v in json_list("events")) or (0, 0, 0)
+        if len(events) != 3:
+            raise ValueError(f"events must list 3 counts, found {row['events']!r}")
+        return StlStatus(robot=robot, t=t, subtask=integer("subtask"), rho=number("rho"),
+                         rho_max=number("rho_max"), lower=number("lower"), r=number("r"),
+                         stage=integer("stage"), ce=integer("ce"), c=integer("c"),
+                         follow=integer("follow", -1), events=events)  # type: ignore[arg-type]
+    if row["kind"] == "ltl":
+        visits = tuple((str(name), int(count)) for name, count in json_list("visits"))
+        return LtlStatus(robot=robot, t=t, prefix=tuple(str(v) for v in json_list("prefix")),
+                         suffix=tuple(str(v) for v in json_list("suffix")),
+                         target=row["target"] or None,
+                         buchi_states=tuple(int(v) for v in json_list("buchi_states")),
+                         visits=visits, rounds=integer("rounds"), mode=row["mode"])
+    raise ValueError(f"kind must be 'ltl' or 'stl', found {row['kind']!r}")
+
+
+def read_statuses(path: str | Path) -> list[LtlStatus | StlStatus]:
+    """The rows of ``status.csv`` (header :data:`STATUS_COLUMNS`) as status messages.
+
+    A row that does not convert back raises :class:`RunFileError` naming the line, except a torn
+    last row (logged and skipped).
+    """
+    path = Path(path)
+    lines = _read_lines(path)
+    if not lines:
+        raise RunFileError(path, 1, f"empty: expected the header {','.join(STATUS_COLUMNS)}")
+    header = next(csv.reader([lines[0]]))
+    missing = [col for col in STATUS_COLUMNS if col not in header]
+    if missing:
+        raise RunFileError(path, 1, f"header lacks the column(s) {', '.join(missing)}")
+    statuses: list[LtlStatus | StlStatus] = []
+    for index in range(1, len(lines)):
+        if not lines[index].strip():
+            continue
+        try:
+            cells = next(csv.reader([lines[index]]))
+            if len(cells) != len(header):
+                raise ValueError(f"expected {len(header)} values, found {len(cells)}")
+            statuses.append(_status_from_row(dict(zip(header, cells, strict=True))))
+        except (ValueError, TypeError) as exc:
+            if _torn(lines, index):
+                logger.warning("%s:%d: torn last row skipped", path, index + 1)
+                continue
+            raise RunFileError(path, index + 1, str(exc)) from None
+    return statuses

@@ -11,7 +11,15 @@
 5. wait for every liveliness token, send ``Control(start)``, supervise until the end of the
    mission (:mod:`coordinator.supervisor`), send ``Control(stop)``;
 6. close the session, stop every process group (SIGTERM, then SIGKILL), close the files and write
-   ``summary.txt`` (:mod:`coordinator.summary`).
+   ``summary.txt`` (:mod:`coordinator.summary`);
+7. write ``run.rrd`` by replaying the recorded files (:func:`coordinator.visual.replay_run`, the
+   code path of ``tlfleet replay``). Logging after the run keeps rerun off the CPU the agents
+   share while they run; a failure here is reported and never fails the run.
+
+With ``viewer`` set, a :class:`coordinator.visual.LiveView` also serves the fleet live while it
+runs (gRPC + web viewer on 127.0.0.1, URL reported), fed by the recorder tap on the loop thread
+at a decimated rate; it is returned in :attr:`RunResult.viewer` still serving (the caller closes
+it). rerun (0.9 s to import) is imported only for 7 and the live view.
 
 Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind.
 """
@@ -64,6 +72,11 @@ class RunConfig:
     sim_args: tuple[str, ...] = ()  # extra flags for `tlfleet sim`
     agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
     child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
+    rrd: bool = True  # write run.rrd after the run
+    rrd_every: int = 5  # log every n-th trajectory row to run.rrd
+    viewer: bool = False  # serve the run live to a web viewer
+    grpc_port: int = 0  # viewer ports on 127.0.0.1 (0: free ones)
+    web_port: int = 0
 
 
 @dataclass
@@ -75,6 +88,8 @@ class RunResult:
     summary_text: str = ""
     summary: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    rrd: Path | None = None  # run.rrd, when written
+    viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
@@ -111,11 +126,41 @@ def _router_clean(code: int | None) -> bool:
     return code in (0, -signal.SIGTERM, 128 + signal.SIGTERM)
 
 
+def _start_viewer(scenario: Scenario, config: RunConfig,
+                  say: Callable[[str], None]) -> Any:
+    """A serving LiveView, or None (reported) when it cannot start: the run goes on without."""
+    try:
+        from coordinator.visual import HOST as VIEW_HOST
+        from coordinator.visual import LiveView
+
+        view = LiveView.serve(scenario, grpc_port=config.grpc_port or free_port(VIEW_HOST),
+                        web_port=config.web_port or free_port(VIEW_HOST))
+    except Exception as exc:  # rerun missing, port taken…: never a reason to fail the run
+        say(f"no live viewer ({type(exc).__name__}: {exc})")
+        return None
+    say(f"viewer: {view.url}")
+    return view
+
+
+def _write_rrd(run_dir: Path, every: int, say: Callable[[str], None]) -> dict[str, Any]:
+    """Step 7: ``run.rrd`` from the recorded files; failures are reported, never raised."""
+    try:
+        from coordinator.visual import replay_run
+
+        result = replay_run(run_dir, every=every)
+    except Exception as exc:
+        say(f"run.rrd not written ({type(exc).__name__}: {exc})")
+        return {"error": f"{type(exc).__name__}: {exc}"}
+    return {"path": str(result.path), "seconds": round(result.seconds, 3),
+            "frames": result.frames}
+
+
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               progress: Callable[[float, float], None] | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
     """Run the fleet of ``config`` to the end; see the module docstring."""
     scenario = load_scenario(config.scenario_path)
+    say = report or (lambda text: logger.warning("%s", text))
     duration = float(config.duration or scenario.duration)
     run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
     recorder = Recorder(run_dir, [r.id for r in scenario.robots])
@@ -136,12 +181,14 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     outcome = Outcome("error", 0.0)
     codes: dict[str, int | None] = {}
     wall_start = time.monotonic()
+    viewer = _start_viewer(scenario, config, say) if config.viewer else None
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
         transport = _open_client(endpoint, router, config.router_timeout)
         transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
-        tap = RecorderTap(transport, scenario.fleet, recorder)
+        tap = RecorderTap(transport, scenario.fleet, recorder,
+                          on_message=None if viewer is None else viewer.on_message)
         supervisor = Supervisor(transport, scenario, tap, {"router": router}, duration=duration,
                                 config=config.supervisor, report=report)
         supervisor.children["sim"] = launcher.start(
@@ -159,6 +206,10 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
             outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
         info["wall_time"] = time.monotonic() - wall_start
         codes = supervisor.finish()
+    except BaseException:
+        if viewer is not None:
+            viewer.close()
+        raise
     finally:
         if tap is not None:
             tap.drain()
@@ -183,4 +234,9 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     info["clean"] = clean
     recorder.write_run_info(info)
     text, data = write_summary(run_dir)
-    return RunResult(run_dir, outcome, final, clean, text, data, info)
+    rrd_path: Path | None = None
+    if config.rrd:
+        info["rrd"] = _write_rrd(run_dir, config.rrd_every, say)
+        rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
+        recorder.write_run_info(info)
+    return RunResult(run_dir, outcome, final, clean, text, data, info, rrd_path, viewer)

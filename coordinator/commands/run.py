@@ -1,8 +1,11 @@
-"""``tlfleet run SCENARIO [--lockstep|--realtime] [--out DIR] [--duration S] [--seed N] [--quiet]``.
+"""``tlfleet run SCENARIO [--lockstep|--realtime] [--out DIR] [--duration S] [--seed N] [--viewer]``
+(and ``--quiet``, ``--no-rrd``).
 
 Validates the scenario (an invalid file exits 1 before any process starts), launches router → sim
 → agents, supervises and records the run (:mod:`coordinator.runner`), shows a progress bar in sim
-time on stderr when it is a terminal, then prints the summary and the run directory.
+time on stderr when it is a terminal, then prints the summary and the run directory. The run
+directory gets ``run.rrd`` (rerun) at the end. ``--viewer`` also serves the run live to a web
+viewer on 127.0.0.1 (its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
 
 Exit codes: 0 every process ended cleanly; 1 invalid scenario or launch failure; 3 the run
 finished but a process died, did not stop cleanly, or the run ended early; 130 interrupted.
@@ -15,10 +18,13 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from coordinator.runner import RunConfig, run_fleet
 from coordinator.supervisor import SupervisorConfig
+
+if TYPE_CHECKING:
+    from coordinator.visual import LiveView
 
 NAME = "run"
 HELP = "launch, supervise and record a whole fleet"
@@ -45,6 +51,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--viewer", action="store_true",
+                        help="serve the run live to a web viewer (URL on stderr); after the run, "
+                             "keep serving until Ctrl-C")
+    parser.add_argument("--grpc-port", type=int, default=0, metavar="PORT",
+                        help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
+    parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
+                        help="--viewer: web viewer port (default: a free one)")
+    parser.add_argument("--no-rrd", dest="rrd", action="store_false",
+                        help="do not write run.rrd (rerun) at the end")
 
 
 class ProgressBar:
@@ -72,6 +87,27 @@ class ProgressBar:
             self.stream.flush()
 
 
+def _linger(viewer: LiveView, interrupted: bool) -> None:
+    """Keep the live viewer serving the finished run until Ctrl-C / SIGTERM (not after an
+    interrupted run: that Ctrl-C already meant "stop")."""
+    if interrupted:
+        viewer.close()
+        return
+    stop = threading.Event()
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig in previous:
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        print(f"tlfleet run: viewer still serving at {viewer.url} until Ctrl-C", file=sys.stderr,
+              flush=True)
+        while not stop.wait(0.5):
+            pass
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        viewer.close()
+
+
 def run(args: argparse.Namespace) -> int:
     duration = args.duration
     wall_timeout = args.wall_timeout
@@ -82,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     config = RunConfig(
         scenario_path=Path(args.scenario), mode=args.mode, out=args.out, duration=duration,
         seed=args.seed, tick_timeout=args.tick_timeout,
-        supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout))
+        supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
+        rrd=args.rrd, viewer=args.viewer, grpc_port=args.grpc_port, web_port=args.web_port)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:
@@ -103,7 +140,9 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.end()
     print(result.summary_text)
-    print(f"run directory: {result.run_dir}")
+    print(f"run directory: {result.run_dir}", flush=True)
+    if result.viewer is not None:
+        _linger(result.viewer, interrupted=result.outcome.reason == "interrupted")
     if result.outcome.reason == "interrupted":
         return 130
     if not result.clean:
