@@ -33,6 +33,21 @@ def test_run_prints_the_summary_and_the_run_directory(tmp_path):
     assert "\r[" not in err  # stderr is not a terminal: no progress bar
     assert (tmp_path / "run" / "summary.txt").read_text().strip() in out
     assert leftover_in_groups(tmp_path / "run") == []
+    assert_rrd_matches_trajectory(tmp_path / "run")
+
+
+def assert_rrd_matches_trajectory(run_dir) -> None:
+    """run.rrd (written after the run) reads back with rerun's reader: robots over the
+    trajectory's whole sim-time range."""
+    from rerun.chunk import RrdReader
+
+    times = [float(line.split(",", 1)[0])
+             for line in (run_dir / "trajectory.csv").read_text().splitlines()[1:]]
+    robots = [chunk for chunk in RrdReader(str(run_dir / "run.rrd")).stream().to_chunks()
+              if chunk.entity_path == "/world/robots" and "sim_time" in chunk.timeline_names]
+    ns = [v for c in robots for v in c.to_record_batch().column("sim_time").cast("int64")
+          .to_pylist()]
+    assert (min(ns), max(ns)) == (round(times[0] * 1e9), round(times[-1] * 1e9))
 
 
 def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):

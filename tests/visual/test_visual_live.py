@@ -1,0 +1,123 @@
+"""The live path: LiveView decimates frames, never raises into the run; runner step 7 never fails
+the run; rerun stays out of every module but coordinator.visual and out of `tlfleet run`'s imports.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+from visual_helpers import ROOT, SCENARIO, read_rrd
+
+from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from agent.scenario import load_scenario
+
+
+def _live_view(path: Path, frame_period: float = 0.05):
+    from coordinator import visual
+
+    scenario = load_scenario(SCENARIO)
+    recording = visual.new_recording(scenario)
+    recording.save(path)
+    log = visual.FleetLog(scenario, recording)
+    log.log_static()
+    return visual.LiveView(log, frame_period=frame_period)
+
+
+def _frame(t: float, seq: int) -> MocapFrame:
+    return MocapFrame(t=t, seq=seq, poses=((1, 0.1 * t, 0.0, 0.0), (2, -0.1 * t, 0.5, 1.0)))
+
+
+def test_live_view_logs_frames_at_the_decimated_rate(tmp_path: Path) -> None:
+    view = _live_view(tmp_path / "live.rrd", frame_period=0.05)
+    for seq in range(100):  # 1 s of sim time at 100 Hz
+        view.on_message("mocap", _frame(round(seq * 0.01, 10), seq))
+    view.on_message("status", StlStatus(robot=2, t=0.5, subtask=0, rho=0.1, rho_max=0.8,
+                                        lower=-0.4, r=0.2, stage=1, ce=0, c=0, follow=-1))
+    view.on_message("status", LtlStatus(robot=1, t=0.5, prefix=("a1",), suffix=("a2", "a1"),
+                                        target="a2", buchi_states=(0,), visits=(), rounds=0,
+                                        mode="navigate"))
+    view.on_message("event", Event(t=0.6, source="coordinator", kind="process_died",
+                                   data={"process": "agent-2"}))
+    view.close()
+    assert view.failed is None
+    rrd = read_rrd(tmp_path / "live.rrd")
+    assert rrd["timed"]["/world/robots"] == 20  # t = 0, 0.05, …, 0.95
+    assert rrd["timed"]["/rho/r2/rho"] == 1
+    assert rrd["timed"]["/world/plans/r1/target"] == 1
+    assert rrd["timed"]["/events/coordinator"] == 1
+    assert rrd["t_range"] == (0.0, 0.95)
+
+
+def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
+                                                                 caplog) -> None:
+    view = _live_view(tmp_path / "live.rrd")
+    calls = []
+
+    def broken(*args):
+        calls.append(args)
+        raise RuntimeError("disk full")
+
+    view.log.frame = broken
+    view.on_message("mocap", _frame(0.0, 0))
+    view.on_message("mocap", _frame(1.0, 100))
+    view.close()
+    assert view.failed == "RuntimeError: disk full"
+    assert len(calls) == 1  # off after the first failure
+    assert "live viewer: logging failed" in caplog.text
+
+
+def test_runner_step_7_reports_a_failure_and_returns(tmp_path: Path) -> None:
+    from coordinator.runner import _write_rrd
+
+    said: list[str] = []
+    result = _write_rrd(tmp_path, 5, said.append)  # no scenario.toml there
+    assert "error" in result and "scenario.toml" in result["error"]
+    assert len(said) == 1 and said[0].startswith("run.rrd not written (RunFileError: ")
+
+
+def test_runner_step_7_writes_run_rrd(run_dir: Path) -> None:
+    from coordinator.runner import _write_rrd
+
+    result = _write_rrd(run_dir, 5, lambda text: None)
+    assert result["path"] == str(run_dir / "run.rrd") and result["frames"] == 51
+    assert read_rrd(run_dir / "run.rrd")["timed"]["/world/robots"] == 51
+
+
+def _imports(path: Path) -> set[str]:
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def test_only_coordinator_visual_imports_rerun_and_nothing_below_imports_it() -> None:
+    importers, visual_users = [], []
+    for folder in ("agent", "sim", "coordinator"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            names = _imports(path)
+            rel = path.relative_to(ROOT).as_posix()
+            if any(n == "rerun" or n.startswith("rerun.") for n in names):
+                importers.append(rel)
+            if "coordinator.visual" in names and not rel.startswith("coordinator/"):
+                visual_users.append(rel)
+    assert importers == ["coordinator/visual.py"]
+    assert visual_users == []
+
+
+def test_run_and_replay_commands_import_rerun_only_when_they_log() -> None:
+    code = ("import sys\n"
+            "import coordinator.cli, coordinator.runner, coordinator.recorder\n"
+            "import coordinator.commands.run, coordinator.commands.replay\n"
+            "import agent.runtime.process, agent.runtime.stl_agent, sim.process\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', "
+            "'rerun_bindings') or m == 'coordinator.visual'))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         timeout=60, check=True).stdout
+    assert out.strip() == "[]"
