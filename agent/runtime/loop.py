@@ -13,10 +13,11 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
   the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
 * per due frame: one ``step``; in lockstep the step's collaboration messages are sent by query
-  and their replies awaited **before** ``Command(robot, t=frame.t, seq=frame.seq, u)`` is
-  published (so they are in their receivers' inboxes before the next frame: a deterministic
-  one-step latency); in realtime the command goes first, so query round trips never delay it;
-  then status and events;
+  (all in flight together) and their replies awaited **before**
+  ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published (so they are in their receivers'
+  inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
+  first and the queries are only issued, so round trips delay neither this command nor the
+  next frame; then status and events;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start → the zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
@@ -102,7 +103,7 @@ class LoopStats:
     step_time: float = 0.0  # [s] wall, total time inside core.step
     max_step_time: float = 0.0  # [s] wall
     collab_failures: int = 0
-    collab_time: float = 0.0  # [s] wall, total time in collaboration queries
+    collab_time: float = 0.0  # [s] wall, total time the loop spent sending (lockstep: + replies)
     max_collab_time: float = 0.0  # [s] wall
 
 
@@ -290,23 +291,23 @@ class AgentLoop:
                             "has no CollabLink")
         lockstep = bool(frame.due)
         if lockstep:  # every message in its receiver's inbox before the sim's next frame
-            self._send(out.messages)
+            self._send(out.messages, wait=True)
         self._publish_command(frame, out.u)
-        if not lockstep:  # realtime: the command must not wait for query round trips
-            self._send(out.messages)
+        if not lockstep:  # realtime: neither the command nor the next frame waits for replies
+            self._send(out.messages, wait=False)
         if out.status is not None:
             self.transport.publish(self._keys["status"], encode(out.status))
         for event in out.events:
             self.publish_event(event)
 
-    def _send(self, messages: tuple[CollabMessage, ...]) -> None:
-        for msg in messages:
-            began = time.perf_counter()
-            if not self.link.send(msg):
-                self.stats.collab_failures += 1
-            spent = time.perf_counter() - began
-            self.stats.collab_time += spent
-            self.stats.max_collab_time = max(self.stats.max_collab_time, spent)
+    def _send(self, messages: tuple[CollabMessage, ...], *, wait: bool) -> None:
+        if not messages:
+            return
+        began = time.perf_counter()
+        self.stats.collab_failures += self.link.send_all(messages, wait=wait)
+        spent = time.perf_counter() - began
+        self.stats.collab_time += spent
+        self.stats.max_collab_time = max(self.stats.max_collab_time, spent)
 
     def _publish_command(self, frame: MocapFrame, u: tuple[float, ...]) -> None:
         command = Command(self.config.robot, frame.t, frame.seq, tuple(float(x) for x in u))

@@ -6,9 +6,12 @@ One :class:`CollabLink` per STL agent process:
   core's message, appends it to the :class:`~agent.runtime.inbox.CollabInbox` and replies
   ``CollabReply(accepted=True)``; a malformed payload is counted and answered
   ``CollabReply(False, reason)`` (architecture.md §2);
-* sends each outgoing message by ``query`` to ``robot/<receiver>/collab`` and waits for the reply
-  (at most ``timeout`` [s] wall): in lockstep every message is in its receiver's inbox before the
-  next frame;
+* sends each outgoing message by query to ``robot/<receiver>/collab``, all of a step's queries in
+  flight together (:meth:`CollabLink.send_all`): in lockstep it waits for the replies (at most
+  ``timeout`` [s] wall), so every message is in its receiver's inbox before the next frame; in
+  realtime it does not wait (a round trip per peer would hold the agent's loop for several
+  control periods: with 29 peers, ~30 ms every status period), the replies are handled when
+  they come;
 * keeps the set of *unreachable* peers, which the pure STL step forgets (``StepInput.unreachable``,
   so a dead partner cannot enable stage 2): a peer is unreachable while its liveliness token
   ``alive/agent/<id>`` is gone (until it is declared again), and for ``retry_after`` [s] wall
@@ -25,7 +28,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, encode
@@ -124,24 +127,89 @@ class CollabLink:
 
     def send(self, msg: CollabMessage) -> bool:
         """Query the receiver and wait for its reply; True when it accepted the message."""
-        receiver = msg.receiver
-        if receiver in self.unreachable:
-            self.failed += 1
-            return False
-        self.sent += 1
-        replies = self.transport.query(keys.collab(self.fleet, receiver), encode(msg),
-                                       self.timeout)
+        return self.send_all((msg,), wait=True) == 0
+
+    def send_all(self, messages: Sequence[CollabMessage], *, wait: bool) -> int:
+        """Send every message by query to its receiver, the queries in flight together.
+
+        ``wait`` (lockstep): return once every query is finished, so each accepted message is
+        in its receiver's inbox; messages to the same receiver go in *waves* (the second one
+        after the first one's reply), so a receiver sees one sender's messages in send order
+        whatever the transport does. Without ``wait`` (realtime) the queries are only issued:
+        the loop never waits for a round trip, and the replies update the counters and the
+        unreachable set from the transport thread. A message to an unreachable peer is not
+        sent and counts as failed at once. Returns how many messages are known to have failed
+        on return (all failures when ``wait``).
+        """
+        failures = 0
+        waves: list[list[CollabMessage]] = []
+        per_receiver: dict[int, int] = {}
+        for msg in messages:
+            n = per_receiver.get(msg.receiver, 0)
+            per_receiver[msg.receiver] = n + 1
+            if n == len(waves):
+                waves.append([])
+            waves[n].append(msg)
+        batch = _Batch()
+        for wave in waves if wait else [list(messages)]:
+            unreachable = self.unreachable
+            for msg in wave:
+                if msg.receiver in unreachable:
+                    with self._lock:
+                        self.failed += 1
+                    failures += 1
+                    continue
+                with self._lock:
+                    self.sent += 1
+                batch.add()
+                self.transport.query_async(
+                    keys.collab(self.fleet, msg.receiver), encode(msg), self.timeout,
+                    lambda replies, msg=msg: batch.done(self._finish(msg, replies)))
+            if wait and not batch.wait(self.timeout + _DONE_GRACE):
+                logger.warning("robot %d: %d collaboration queries not finished after %g s",
+                               self.robot, batch.pending, self.timeout + _DONE_GRACE)
+        return failures + batch.failures
+
+    def _finish(self, msg: CollabMessage, replies: list[bytes]) -> bool:
+        """The replies of one message's query (any thread): True when it was accepted."""
         reasons = []
         for raw in replies:
             try:
                 reply = decode(CollabReply, raw)
             except ProtocolError as exc:
-                self.malformed.record(keys.collab(self.fleet, receiver), exc, msg.t)
+                self.malformed.record(keys.collab(self.fleet, msg.receiver), exc, msg.t)
                 continue
             if reply.accepted:
                 return True
             reasons.append(reply.reason)
-        self.failed += 1
+        with self._lock:
+            self.failed += 1
         why = f"{msg.kind} rejected: {'; '.join(reasons)}" if reasons else f"{msg.kind}: no reply"
-        self._mark(receiver, failed=True, why=why)
+        self._mark(msg.receiver, failed=True, why=why)
         return False
+
+
+_DONE_GRACE = 1.0  # [s] wall beyond the query timeout before a lockstep send gives up waiting
+
+
+class _Batch:
+    """Countdown of the queries of one ``send_all`` (their replies arrive on any thread)."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self.pending = 0
+        self.failures = 0
+
+    def add(self) -> None:
+        with self._cond:
+            self.pending += 1
+
+    def done(self, accepted: bool) -> None:
+        with self._cond:
+            self.pending -= 1
+            self.failures += not accepted
+            self._cond.notify_all()
+
+    def wait(self, timeout: float) -> bool:
+        with self._cond:
+            return self._cond.wait_for(lambda: self.pending <= 0, timeout)

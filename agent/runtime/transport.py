@@ -28,6 +28,7 @@ logger = logging.getLogger(__name__)
 
 SampleCallback = Callable[[str, bytes], None]
 QueryHandler = Callable[[bytes], bytes | None]
+RepliesCallback = Callable[[list[bytes]], None]
 AliveCallback = Callable[[str, bool], None]
 
 
@@ -45,6 +46,9 @@ class Transport(Protocol):
     def serve(self, key: str, handler: QueryHandler) -> Closeable: ...
 
     def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]: ...
+
+    def query_async(self, key_expr: str, payload: bytes, timeout: float,
+                    on_done: RepliesCallback) -> None: ...
 
     def declare_alive(self, key: str) -> Closeable: ...
 
@@ -197,6 +201,34 @@ class ZenohTransport:
                 replies.append(reply.ok.payload.to_bytes())
         return replies
 
+    def query_async(self, key_expr: str, payload: bytes, timeout: float,
+                    on_done: RepliesCallback) -> None:
+        """Send a query and return at once; ``on_done(replies)`` runs on a zenoh network thread
+        when the query is finished (every matching queryable answered, or ``timeout`` [s]).
+
+        The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
+        Python thread per query (stack-notes.md §1.7); ``on_done`` must be quick and must not
+        block on the session. Its ``drop`` fires when zenoh finalises the query, also without
+        any reply (no matching queryable: at once).
+        """
+        import zenoh
+
+        replies: list[bytes] = []
+
+        def on_reply(reply: Any) -> None:
+            ok = reply.ok
+            if ok is not None:
+                replies.append(ok.payload.to_bytes())
+
+        def on_drop() -> None:
+            try:
+                on_done(replies)
+            except Exception:
+                logger.exception("reply callback of a query on %s failed", key_expr)
+
+        self._session.get(key_expr, zenoh.handlers.Callback(on_reply, on_drop, indirect=False),
+                          payload=payload, timeout=timeout)
+
     def declare_alive(self, key: str) -> Closeable:
         token = self._session.liveliness().declare_token(key)
         self._entities.append(token)
@@ -311,6 +343,10 @@ class FakeTransport:
     def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]:
         del timeout  # synchronous: a missing or dead peer answers nothing at once
         return [] if self.closed else self.network._query(key_expr, payload)
+
+    def query_async(self, key_expr: str, payload: bytes, timeout: float,
+                    on_done: RepliesCallback) -> None:
+        on_done(self.query(key_expr, payload, timeout))  # finished before it returns
 
     def declare_alive(self, key: str) -> Closeable:
         self.network._set_token(self, key, True)

@@ -86,3 +86,53 @@ def test_zenoh_round_trip_on_loopback():
     finally:
         for t in (a, b, router):
             t.close()
+
+
+def test_fake_query_async_is_finished_before_it_returns():
+    net = FakeNetwork()
+    a, b = net.transport("a"), net.transport("b")
+    b.serve("f/robot/4/collab", lambda p: b"ok:" + p)
+    done: list[list[bytes]] = []
+    a.query_async("f/robot/4/collab", b"req", 1.0, done.append)
+    a.query_async("f/robot/5/collab", b"req", 1.0, done.append)
+    assert done == [[b"ok:req"], []]
+
+
+@pytest.mark.system
+def test_zenoh_query_async_returns_before_the_reply():
+    """The asker is not held while the queryable works; ``on_done`` gets the replies later, and
+    a query nobody serves finishes with none."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = ZenohTransport.open(TransportConfig(mode="router", listen=(endpoint,)))
+    a = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+    b = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+    try:
+        release = threading.Event()
+
+        def slow(payload: bytes) -> bytes:
+            release.wait(10.0)
+            return b"ack " + payload
+
+        b.serve("t/robot/2/collab", slow)
+        assert a.query("t/robot/9/collab", b"x", timeout=0.5) == []
+        results: dict[str, list[bytes]] = {}
+        finished = {name: threading.Event() for name in ("served", "nobody")}
+
+        def on_done(name: str):
+            return lambda replies: (results.setdefault(name, replies), finished[name].set())
+
+        release.set()
+        for _ in range(50):  # the remote queryable may take a moment to propagate
+            if a.query("t/robot/2/collab", b"probe", timeout=0.1):
+                break
+        release.clear()
+        a.query_async("t/robot/2/collab", b"help", 5.0, on_done("served"))
+        a.query_async("t/robot/9/collab", b"help", 5.0, on_done("nobody"))
+        assert finished["nobody"].wait(5.0) and results["nobody"] == []
+        assert not finished["served"].is_set()  # the queryable is still holding its reply
+        release.set()
+        assert finished["served"].wait(5.0) and results["served"] == [b"ack help"]
+    finally:
+        release.set()
+        for t in (a, b, router):
+            t.close()
