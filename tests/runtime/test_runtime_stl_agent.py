@@ -234,3 +234,40 @@ def test_messages_go_before_the_command_in_lockstep_and_after_it_in_realtime(loc
     loop3.run_once(0.0)  # its first step announces its status to robot 4
     assert seen == [1 if lockstep else 0]
     assert len(loop4.link.inbox) == 1
+
+
+def test_status_readers_of_scenario_1():
+    agents = build_agents(load_scenario("scenarios/scenario1.toml"))
+    assert {i: stl_agent.status_readers(a) for i, a in agents.items()} == {3: (4,), 4: (3,),
+                                                                           5: (4,)}
+    assert stl_agent.announcing_to_readers(agents[5]).cfg.peers == (4,)
+
+
+def test_announcing_only_to_readers_changes_no_command():
+    """§11.7 again: robot 4 reads no announcement (its task is its own), so robot 3 stops
+    sending them to it; repairs, the stage-2 request, the follow and the trajectory stay the
+    same, with fewer messages."""
+    runs = {}
+    for readers_only in (False, True):
+        network = FakeNetwork()
+        sim = FakeSim(network, FLEET)
+        agents = make_pair()
+        if readers_only:
+            agents = tuple(stl_agent.announcing_to_readers(a) for a in agents)
+        loops = [stl_loop(network, FLEET, a)[0] for a in agents]
+        poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
+        sim.control("start")
+        trajectory = drive(sim, loops, poses, 3000, 2800)
+        runs[readers_only] = (trajectory, [(e.t, e.source, e.kind) for e in sim.events],
+                              loops[0].link.sent)
+    assert make_pair()[0].cfg.peers == (4,)
+    assert stl_agent.announcing_to_readers(make_pair()[0]).cfg.peers == ()
+    (traj_all, events_all, sent_all), (traj_readers, events_readers, sent_readers) = (
+        runs[False], runs[True])
+    assert ("collab_request" in {k for _, _, k in events_all}
+            and "collab_follow" in {k for _, _, k in events_all})
+    assert events_readers == events_all
+    for j in (3, 4):
+        np.testing.assert_array_equal([row[j] for row in traj_readers],
+                                      [row[j] for row in traj_all])
+    assert sent_readers < sent_all
