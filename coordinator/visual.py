@@ -141,19 +141,29 @@ class FleetLog:
     """Logs one fleet to ``recording`` (see the module docstring for the entities).
 
     Call :meth:`log_static` once, then :meth:`frame`, :meth:`ltl_status`, :meth:`stl_status` and
-    :meth:`event` in (roughly) increasing sim time, all on one thread.
+    :meth:`event` in (roughly) increasing sim time, all on one thread, and :meth:`flush` at the
+    end: the STL series are buffered and sent every ``series_period`` of sim time.
     """
 
     def __init__(self, scenario: Scenario, recording: rr.RecordingStream, *,
-                 trail_period: float = 0.1):
+                 trail_period: float = 0.1, series_period: float = math.inf):
         self.scenario = scenario
         self.rec = recording
         self.trail_period = trail_period  # [s] sim time between two trail points
+        # [s] sim time between two sends of the buffered frames and STL series: one send_columns
+        # per entity instead of one log per row (rows built one by one cost 4× more CPU)
+        self.series_period = series_period
+        self._series: dict[str, tuple[list[float], list[float]]] = {}  # entity -> (t, value)
+        self._series_sent_t = -math.inf
+        self._frame_t: list[float] = []  # buffered frames: times [s], poses (n, 3) each
+        self._frame_xyth: list[np.ndarray] = []
+        self._trail_times: list[float] = []  # buffered trail segments: times, (n, 2, 2) each
+        self._trail_segments: list[np.ndarray] = []
         self.ids = scenario.robot_ids
         self._radii = np.array([scenario.robot(i).radius for i in self.ids], dtype=np.float32)
         self._colors = np.array([robot_color(i) for i in self.ids], dtype=np.uint8)
         self._labels = [robot_label(scenario, i) for i in self.ids]
-        self._trail_last: dict[int, tuple[float, float]] = {}
+        self._trail_last: np.ndarray | None = None  # (n, 2) [m]
         self._trail_t = -math.inf
         self._poses: dict[int, tuple[float, float, float]] = {
             r.id: r.pose for r in scenario.robots}
@@ -194,7 +204,14 @@ class FleetLog:
                 half_sizes=[(r.radius, r.radius) for r in scenario.regions],
                 labels=[r.name for r in scenario.regions], colors=REGION_COLOR,
                 show_labels=True), static=True)
-        rec.log("world/trails", rr.LineStrips2D([], colors=self._colors, radii=0.01), static=True)
+        # styling is static, positions temporal (static data of a component hides temporal data)
+        rec.log("world/robots", rr.Points2D.from_fields(
+            radii=self._radii, colors=self._colors, labels=self._labels, show_labels=True),
+            static=True)
+        rec.log("world/headings", rr.Arrows2D.from_fields(colors=self._colors, radii=0.015),
+                static=True)
+        rec.log("world/trails", rr.LineStrips2D.from_fields(colors=self._colors, radii=0.01),
+                static=True)
         for robot in scenario.robots:
             if not robot.is_stl:
                 continue
@@ -216,20 +233,40 @@ class FleetLog:
             self._poses[int(row[0])] = (float(row[1]), float(row[2]), float(row[3]))
         xyth = np.array([self._poses[i] for i in self.ids], dtype=np.float64)  # (n, 3)
         self._at(t)
-        xy = xyth[:, :2]
-        self.rec.log("world/robots", rr.Points2D(xy, radii=self._radii, colors=self._colors,
-                                                 labels=self._labels, show_labels=True))
-        heading = np.column_stack((np.cos(xyth[:, 2]), np.sin(xyth[:, 2])))
-        self.rec.log("world/headings", rr.Arrows2D(origins=xy,
-                                                   vectors=heading * (1.6 * self._radii[:, None]),
-                                                   colors=self._colors, radii=0.015))
-        if t - self._trail_t >= self.trail_period - 1e-9 or not self._trail_last:
-            strips = [[self._trail_last.get(i, tuple(p)), tuple(p)] for i, p in zip(
-                self.ids, xy.tolist(), strict=True)]
-            self.rec.log("world/trails", rr.LineStrips2D(strips))
-            self._trail_last = {i: tuple(p) for i, p in zip(self.ids, xy.tolist(), strict=True)}
+        self._frame_t.append(t)
+        self._frame_xyth.append(xyth)
+        if self._trail_last is None or t - self._trail_t >= self.trail_period - 1e-9:
+            xy = xyth[:, :2]
+            start = xy if self._trail_last is None else self._trail_last
+            self._trail_times.append(t)
+            self._trail_segments.append(np.stack((start, xy), axis=1))  # (n, 2, 2)
+            self._trail_last = xy
             self._trail_t = t
         self.frames += 1
+        if t - self._series_sent_t >= self.series_period:
+            self.flush()
+
+    def _send_frames(self) -> None:
+        n = len(self.ids)
+        if self._frame_t:
+            xyth = np.concatenate(self._frame_xyth)  # (k·n, 3)
+            xy = xyth[:, :2]
+            heading = np.column_stack((np.cos(xyth[:, 2]), np.sin(xyth[:, 2])))
+            length = np.tile(1.6 * self._radii, len(self._frame_t))[:, None]  # [m]
+            times = [rr.TimeColumn(TIMELINE, duration=self._frame_t)]
+            lengths = [n] * len(self._frame_t)
+            self.rec.send_columns("world/robots", indexes=times,
+                                  columns=rr.Points2D.columns(positions=xy).partition(lengths))
+            self.rec.send_columns("world/headings", indexes=times, columns=rr.Arrows2D.columns(
+                origins=xy, vectors=heading * length).partition(lengths))
+            self._frame_t, self._frame_xyth = [], []
+        if self._trail_times:
+            segments = np.concatenate(self._trail_segments)  # (k·n, 2, 2)
+            self.rec.send_columns(
+                "world/trails", indexes=[rr.TimeColumn(TIMELINE, duration=self._trail_times)],
+                columns=rr.LineStrips2D.columns(strips=list(segments)).partition(
+                    [n] * len(self._trail_times)))
+            self._trail_times, self._trail_segments = [], []
 
     def _point(self, robot_id: int, name: str) -> tuple[float, float] | None:
         """Centre of region ``name``; ``start`` (not a region) is the robot's start position."""
@@ -273,7 +310,22 @@ class FleetLog:
         for name, _title, _color in STL_SERIES:
             value = getattr(status, name)
             if math.isfinite(value):
-                self.rec.log(f"rho/r{status.robot}/{name}", rr.Scalars(value))
+                times, values = self._series.setdefault(f"rho/r{status.robot}/{name}", ([], []))
+                times.append(status.t)
+                values.append(value)
+        if status.t - self._series_sent_t >= self.series_period:
+            self.flush()
+
+    def flush(self) -> None:
+        """Send the buffered frames, trail segments and STL series."""
+        self._send_frames()
+        for entity, (times, values) in self._series.items():
+            if times:
+                self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+                                      columns=rr.Scalars.columns(scalars=values))
+                times.clear()
+                values.clear()
+        self._series_sent_t = self.t_last
 
     def event(self, event: Event) -> None:
         """A line of text per event; critical events and repairs also mark the ρ plot."""
@@ -361,6 +413,7 @@ def log_run(data: RunData, recording: rr.RecordingStream, *, every: int = 5) -> 
             log.ltl_status(message)
         else:
             log.event(message)
+    log.flush()
     return log
 
 
@@ -392,12 +445,15 @@ class LiveView:
     """Live logging while the fleet runs, fed by ``RecorderTap(on_message=view.on_message)`` on
     the coordinator's loop thread; :meth:`serve` makes one that serves a web viewer.
 
-    Frames are logged at most every ``frame_period`` of sim time (the run must not slow down:
-    the coordinator shares the CPU with the agents); statuses and events all. The first failure
+    Frames are logged at most every ``frame_period`` of sim time and the STL series sent in
+    batches (the run must not slow down: the coordinator shares the CPU with the agents);
+    every status and event is logged. The first failure
     is logged as a warning and switches the view off: it never reaches the run.
     """
 
     def __init__(self, log: FleetLog, *, url: str = "", frame_period: float = 0.05):
+        if not math.isfinite(log.series_period):
+            log.series_period = 0.25  # [s] sim time: the live view lags at most this much
         self.log = log
         self.url = url
         self.frame_period = frame_period  # [s] sim time
@@ -436,6 +492,8 @@ class LiveView:
         """Flush and disconnect: stops the gRPC server (the web viewer's HTTP server lives until
         the process exits)."""
         try:
+            if self.failed is None:
+                self.log.flush()
             self.log.rec.disconnect()
         except Exception as exc:
             logger.warning("live viewer: closing failed: %s", exc)

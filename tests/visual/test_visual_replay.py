@@ -51,8 +51,13 @@ def test_replay_logs_the_recorded_poses(run_dir: Path) -> None:
     times = batch.column("sim_time").cast("int64").to_pylist()
     assert times[-1] == round(T1 * 1e9)
     np.testing.assert_allclose(np.array(last), [pose(1, T1)[:2], pose(2, T1)[:2]], atol=1e-6)
-    labels = batch.column("Points2D:labels").to_pylist()[-1]
-    assert labels == ["1 LTL", "2 STL"]
+    arrows = rrd["batches"]["/world/headings"][-1].column("Arrows2D:vectors").to_pylist()[-1]
+    np.testing.assert_allclose(np.array(arrows), [
+        [0.32 * math.cos(pose(r, T1)[2]), 0.32 * math.sin(pose(r, T1)[2])] for r in (1, 2)],
+        atol=1e-6)  # 1.6 radii along θ
+    static = rrd["static"]["/world/robots"][0]
+    assert static.column("Points2D:labels").to_pylist() == [["1 LTL", "2 STL"]]
+    assert static.column("Points2D:radii").to_pylist() == [[pytest.approx(0.2)] * 2]
     rho = rrd["batches"]["/rho/r2/repairs"][0].column("Scalars:scalars").to_pylist()
     assert rho == [[pytest.approx(0.15)]]  # the r̄ of the repair event
 

@@ -70,13 +70,14 @@ def write_run(run_dir: Path) -> dict[str, Any]:
 
 def read_rrd(path: Path) -> dict[str, Any]:
     """What rerun's own reader finds: rows per entity (``rows``: all; ``timed``: on the sim_time
-    timeline, i.e. not static), the sim_time range, and the record batches of the timed chunks per
-    entity."""
+    timeline, i.e. not static), the sim_time range, and the record batches of the timed
+    (``batches``) and ``static`` chunks per entity."""
     from rerun.chunk import RrdReader
 
     rows: Counter[str] = Counter()
     timed: Counter[str] = Counter()
     batches: dict[str, list[Any]] = {}
+    static: dict[str, list[Any]] = {}
     lo, hi = math.inf, -math.inf
     timelines: set[str] = set()
     for chunk in RrdReader(str(path)).stream().to_chunks():
@@ -88,5 +89,7 @@ def read_rrd(path: Path) -> dict[str, Any]:
             timed[chunk.entity_path] += chunk.num_rows
             ns = np.array(batch.column("sim_time").cast("int64").to_pylist(), dtype=np.int64)
             lo, hi = min(lo, ns.min() / 1e9), max(hi, ns.max() / 1e9)
-    return {"rows": rows, "timed": timed, "batches": batches, "t_range": (lo, hi),
-            "timelines": timelines}
+        elif chunk.is_static:
+            static.setdefault(chunk.entity_path, []).append(chunk.to_record_batch())
+    return {"rows": rows, "timed": timed, "batches": batches, "static": static,
+            "t_range": (lo, hi), "timelines": timelines}
