@@ -51,6 +51,27 @@ def test_live_view_logs_frames_at_the_decimated_rate(tmp_path: Path) -> None:
     assert rrd["t_range"] == (0.0, 0.95)
 
 
+def test_live_view_sends_buffered_rows_every_flush_period_of_wall_time(tmp_path: Path) -> None:
+    from coordinator import visual
+
+    now = [100.0]
+    scenario = load_scenario(SCENARIO)
+    recording = visual.new_recording(scenario)
+    recording.save(tmp_path / "live.rrd")
+    view = visual.LiveView(visual.FleetLog(scenario, recording), flush_period=0.2,
+                           clock=lambda: now[0])
+    for seq in range(10):
+        view.on_message("mocap", _frame(seq * 0.05, seq))
+    assert view.log.pending == 10 + 5  # 10 frames, 5 trail segments (every 0.1 s)
+    now[0] += 0.2
+    view.on_message("mocap", _frame(0.5, 10))
+    assert view.log.pending == 0
+    view.on_message("mocap", _frame(0.55, 11))
+    assert view.log.pending == 1
+    view.close()
+    assert read_rrd(tmp_path / "live.rrd")["timed"]["/world/robots"] == 12
+
+
 def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
                                                                  caplog) -> None:
     view = _live_view(tmp_path / "live.rrd")
