@@ -197,7 +197,7 @@ def _converter(hint: Any) -> Converter:
                 raise _Bad(f"expected an array, got {_show(value)}")
             return tuple(_at(item, v, i) for i, v in enumerate(value))
 
-        return variadic
+        return _with_fast_path(args[0], variadic)
     if origin is tuple:
         items = tuple(_converter(a) for a in args)
         size = len(items)
@@ -221,6 +221,40 @@ def _converter(hint: Any) -> Converter:
     if dataclasses.is_dataclass(hint):
         return _dataclass_converter(hint)
     raise TypeError(f"unsupported annotation {hint!r}")  # a bug in messages.py
+
+
+_EXACT = (int, float, str)  # a value of exactly this type converts to itself
+
+
+def _with_fast_path(item_hint: Any, general: Converter) -> Converter:
+    """``general`` (a variadic tuple converter) behind a check that needs no per-item Python
+    call when every item already has its exact wire type: an array of ``int``/``float``/``str``,
+    or of fixed arrays of them (mocap rows ``[id, x, y, θ]``). Anything else (an int where a
+    float is expected, a bool, a short row, garbage) goes through ``general``, which converts or
+    raises the usual error, so the result is the same either way."""
+    if item_hint in _EXACT:
+        allowed = frozenset((item_hint,))
+
+        def scalars(value: Any) -> tuple:
+            if type(value) is list and allowed.issuperset(map(type, value)):
+                return tuple(value)
+            return general(value)
+
+        return scalars
+    if (typing.get_origin(item_hint) is tuple and (row := typing.get_args(item_hint))
+            and Ellipsis not in row and all(t in _EXACT for t in row)):
+
+        def rows(value: Any) -> tuple:
+            if type(value) is list:
+                for r in value:
+                    if type(r) is not list or tuple(map(type, r)) != row:
+                        break
+                else:
+                    return tuple(map(tuple, value))
+            return general(value)
+
+        return rows
+    return general
 
 
 def _at(convert: Converter, value: Any, index: int) -> Any:

@@ -86,6 +86,15 @@ BAD = [
                         t=1.0, subtask=0, funnel={"kind": "F"}),
      r"CollabMessage.funnel.a: missing"),
     (Control, raw(v=SCHEMA_VERSION, k="Control", cmd="pause"), "Control.cmd: expected one of"),
+    (MocapFrame, raw(v=SCHEMA_VERSION, k="MocapFrame", t=0.0, seq=1,
+                     poses=[[1, 0.0, 0.0, 0.0], [True, 0.0, 0.0, 0.0]]),
+     r"MocapFrame.poses\[1\]\[0\]: expected an integer, got bool True"),
+    (MocapFrame, raw(v=SCHEMA_VERSION, k="MocapFrame", t=0.0, seq=1, poses=[(1, 0.0, 0.0, "x")]),
+     r"MocapFrame.poses\[0\]\[3\]: expected a number, got str 'x'"),
+    (MocapFrame, raw(v=SCHEMA_VERSION, k="MocapFrame", t=0.0, seq=1, poses=[[1, 0.0, 0.0, 0.0]],
+                     due=[3, 4.0]), r"MocapFrame.due\[1\]: expected an integer, got float 4.0"),
+    (Command, raw(v=SCHEMA_VERSION, k="Command", robot=1, t=0.0, seq=1, u=[0.0, None]),
+     r"Command.u\[1\]: expected a number, got NoneType None"),
 ]
 
 
@@ -93,6 +102,18 @@ BAD = [
 def test_malformed_payloads_are_rejected_with_a_specific_error(cls, payload, message):
     with pytest.raises(ProtocolError, match=message):
         decode(cls, payload)
+
+
+def test_integers_where_numbers_are_expected_decode_as_floats():
+    """The fast path for arrays of exact wire types must not change what the general one
+    gives: an integer coordinate or command value still becomes a float."""
+    frame = decode(MocapFrame, raw(v=SCHEMA_VERSION, k="MocapFrame", t=0, seq=1,
+                                   poses=[[1, 0.5, 2, 0.0], [2, 1.0, 1.0, 1.0]], due=[]))
+    assert frame == MocapFrame(0.0, 1, ((1, 0.5, 2.0, 0.0), (2, 1.0, 1.0, 1.0)))
+    assert [type(x) for x in frame.poses[0]] == [int, float, float, float]
+    command = decode(Command, raw(v=SCHEMA_VERSION, k="Command", robot=1, t=0.0, seq=1,
+                                  u=[1, 0.5, 0]))
+    assert command.u == (1.0, 0.5, 0.0) and all(type(x) is float for x in command.u)
 
 
 def test_encode_refuses_non_messages():
