@@ -5,7 +5,7 @@
 loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of its own:
 
 * inputs: the frame's poses of *every* robot (LTL robots included, for collision avoidance,
-  eq. (6)) as ``{id: array([x, y, θ])}``, the collaboration messages delivered for this tick and
+  eq. (6)) as ``{id: (x, y, θ)}``, the collaboration messages delivered for this tick and
   the peers the runtime cannot reach (``StepInput.unreachable``);
 * outputs: the world-frame command (v_x, v_y [m/s], ω [rad/s]), the step's messages as
   ``CollabMessage`` stamped with the frame's time (the loop sends them by query before the
@@ -24,8 +24,6 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import dataclass, replace
-
-import numpy as np
 
 from agent.protocol.messages import Event, StlStatus
 from agent.runtime.collab import to_wire
@@ -64,7 +62,9 @@ class StlCore:
              ) -> tuple[StlRuntimeState, TickOutput]:
         frame = inputs.frame
         t = frame.t
-        poses = {int(row[0]): np.array(row[1:4], dtype=float) for row in frame.poses}
+        # (x, y, θ) tuples as decoded: the pure step reads them as it reads arrays (it would
+        # turn arrays back into lists), and 30 small arrays per tick cost more than the step
+        poses = {row[0]: row[1:] for row in frame.poses}
         before = state.agent
         after, out = self.agent.step(before, StepInput(t, poses, inputs.inbox,
                                                        inputs.unreachable))
