@@ -15,7 +15,8 @@ Protocol (architecture.md §3 and the issue-5 contract):
     ``deadline_miss`` event per missing robot; a dead agent is dropped at once), applies them,
     then steps the physics by one mocap period;
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
-    (:class:`sim.clock.Pacer`) with the newest command of each robot;
+    (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
+    from tick 1 (tick 0 looks like the preview frame, which agents do not answer);
 * after every step: ``contact`` and ``watchdog_stop`` events;
 * at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_stats")`` (counters,
   frame → command latency, missed control deadlines: :meth:`SimProcess.summary`), then
@@ -249,7 +250,11 @@ class SimProcess:
             if self.stopping:
                 break
             pacer.advance()
-            self._advance(k, self.latest.take(), due_robots(k, self.dividers, self.alive))
+            # Tick 0 owes no command: its frame (t = 0, seq = 0, due = ()) cannot be told from
+            # the preview frame, which agents never answer (agent.runtime.loop), so counting it
+            # would charge every robot one missed deadline per run.
+            due = due_robots(k, self.dividers, self.alive) if k > 0 else ()
+            self._advance(k, self.latest.take(), due)
             k += 1
         self.stats.overruns = pacer.overruns
 

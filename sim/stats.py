@@ -6,7 +6,8 @@
 * **Control deadline** of robot r at tick k (r due at k): its ``Command(seq=k)`` must have
   arrived before the sim steps the physics from t_k to t_{k+1}. In lockstep the sim waits (up
   to the tick timeout), so only timeouts miss; in realtime the step happens one mocap period
-  after the frame, whatever arrived.
+  after the frame, whatever arrived, and tick 0 owes nothing (agents cannot tell its frame from
+  the preview frame, which they never answer).
 """
 
 from __future__ import annotations

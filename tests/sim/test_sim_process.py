@@ -332,9 +332,10 @@ def test_realtime_mode_paces_on_wall_time_with_empty_due():
     assert len([f for f in agents[1].frames if f.seq % 20 == 0]) >= 2
     assert [e.kind for e in observer.events] == ["sim_stats", "sim_done"]
     stats = observer.events_of("sim_stats")[0].data
-    # The fake agents answer inside the frame's publication: no deadline is missed.
+    # The fake agents answer inside the frame's publication: no deadline is missed. Deadlines
+    # count from tick 1 (ticks 1..29 for robot 1, tick 20 for robot 2).
     assert (stats["mode"], stats["ticks"], stats["due"], stats["missed"]) == (
-        "realtime", 30, 30 + 2, 0)
+        "realtime", 30, 29 + 1, 0)
 
 
 def test_sim_thread_leaves_no_thread_behind():
@@ -354,5 +355,6 @@ def test_realtime_counts_missed_control_deadlines():
         observer.start_mission()
         assert run.join() == 0
     stats = observer.events_of("sim_stats")[0].data
-    assert (stats["due"], stats["missed"], stats["commands"]) == (10, 5, 5)
+    # ticks 1..9 are due (tick 0 looks like the preview frame); the even ones 2..8 are missed
+    assert (stats["due"], stats["missed"], stats["commands"]) == (9, 4, 5)
     assert stats["ignored"] == {"unknown_robot": 10}
