@@ -31,6 +31,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import socket
 import time
 import urllib.parse
 import uuid
@@ -129,6 +130,12 @@ def serve(recording: rr.RecordingStream, scenario: Scenario, grpc_port: int, web
     The gRPC server keeps everything logged in memory for late viewers and stops when the
     recording is disconnected. The web viewer's HTTP server lives until the process exits.
     """
+    # rerun only logs a gRPC bind failure, from its server thread: find out here instead
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((HOST, grpc_port))
+        except OSError as exc:
+            raise OSError(f"gRPC port {HOST}:{grpc_port} is not free: {exc.strerror}") from None
     sink = rr.GrpcServerSink(bind_ip=HOST, port=grpc_port)
     sinks: list[Any] = [sink] if save is None else [sink, rr.FileSink(save)]
     recording.set_sinks(*sinks, default_blueprint=blueprint(scenario))

@@ -73,8 +73,12 @@ def run(args: argparse.Namespace) -> int:
     for sig in previous:
         signal.signal(sig, lambda *_: stop.set())
     try:
-        url = visual.serve(recording, data.scenario, args.grpc_port or free_port(visual.HOST),
-                           args.web_port or free_port(visual.HOST), save=out)
+        try:
+            url = visual.serve(recording, data.scenario,
+                               args.grpc_port or free_port(visual.HOST),
+                               args.web_port or free_port(visual.HOST), save=out)
+        except (OSError, RuntimeError) as exc:  # a port taken
+            raise TlfleetError(f"cannot serve the viewer: {exc}") from None
         with recording:  # on exit: run.rrd finalised (footer), the gRPC server goes on
             log = visual.log_run(data, recording, every=args.every)
         print(f"{out}: {log.frames} frames, {len(data.statuses)} statuses, "

@@ -90,6 +90,20 @@ def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
     assert "live viewer: logging failed" in caplog.text
 
 
+def test_runner_reports_a_viewer_that_cannot_start_and_goes_on() -> None:
+    import socket
+
+    from coordinator.runner import RunConfig, _start_viewer
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        said: list[str] = []
+        config = RunConfig(SCENARIO, viewer=True, grpc_port=taken.getsockname()[1])
+        assert _start_viewer(load_scenario(SCENARIO), config, said.append) is None
+    assert len(said) == 1 and said[0].startswith("no live viewer (OSError: gRPC port 127.0.0.1:")
+
+
 def test_runner_step_7_reports_a_failure_and_returns(tmp_path: Path) -> None:
     from coordinator.runner import _write_rrd
 
