@@ -241,3 +241,54 @@ def test_same_seed_same_world_different_seed_different_world():
     assert first == trace(5)
     assert first != trace(6)
     assert any(contacts for _, contacts in first)
+
+
+def _reference_track(robot, body, _gravity, _damping, dt):
+    """The tracking law through pymunk's public ``Body`` API (as ``body.velocity_func``): the
+    definition the fast Chipmunk callback of ``SimRobot`` must reproduce bit for bit."""
+    old_wx, old_wy, old_ww = robot._applied
+    vel = body.velocity
+    vx, vy = vel.x - old_wx, vel.y - old_wy
+    omega = body.angular_velocity - old_ww
+    gain = dt / max(robot._tau, dt)
+    dv_max, dw_max = robot.acc_lin * dt, robot.acc_ang * dt
+    if robot.kind == "omni":
+        ux, uy, uw = robot.target
+        norm = math.hypot((ux - vx) * gain, (uy - vy) * gain)
+        dvx, dvy = (ux - vx) * gain, (uy - vy) * gain
+        if norm > dv_max:
+            scale = dv_max / norm
+            while math.hypot(dvx * scale, dvy * scale) > dv_max:
+                scale = math.nextafter(scale, 0.0)
+            dvx, dvy = dvx * scale, dvy * scale
+        vx, vy = vx + dvx, vy + dvy
+    else:
+        u_lin, uw = robot.target
+        c, s = math.cos(body.angle), math.sin(body.angle)
+        v = vx * c + vy * s
+        v += min(dv_max, max(-dv_max, (u_lin - v) * gain))
+        vx, vy = v * c, v * s
+    omega += min(dw_max, max(-dw_max, (uw - omega) * gain))
+    wx, wy, ww = robot._applied = robot.disturbance
+    body.velocity = (vx + wx, vy + wy)
+    body.angular_velocity = omega + ww
+
+
+def test_the_chipmunk_velocity_callback_equals_the_public_api_law():
+    """Robots crossing, pushing each other and a wall, both kinds, with disturbance: the same
+    poses to the last bit as with the law written against ``body.velocity_func``."""
+    robots = (omni(1, -1.0, 0.0), omni(2, 1.0, 0.05), unicycle(3, 0.0, -1.0, math.pi / 2),
+              unicycle(4, 3.0, 2.0))
+    commands = {1: (1.0, 0.0, 0.5), 2: (-1.0, 0.0, -0.3), 3: (0.8, 0.2), 4: (0.5, 0.0)}
+    trajectories = []
+    for reference in (False, True):
+        w = world(*robots, seed=7, disturbance=0.05)
+        if reference:
+            for robot in w.robots.values():
+                robot.body.velocity_func = (
+                    lambda body, g, d, dt, robot=robot: _reference_track(robot, body, g, d, dt))
+        for rid, u in commands.items():
+            w.set_command(rid, u, 0.0)
+        trajectories.append(run(w, 3.0))
+        assert w.drain_contacts()  # they did collide
+    assert trajectories[0] == trajectories[1]
