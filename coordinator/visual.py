@@ -15,7 +15,7 @@ Importing rerun costs ≈ 0.9 s, so callers import this module lazily, when they
     /world/trails          one segment per robot every ``trail_period`` of sim time (LineStrips2D),
                            accumulated by the blueprint's visible time range (−∞, cursor]
     /world/plans/r<id>     LTL plan: prefix and suffix paths through region centres (LineStrips2D)
-    /world/plans/r<id>/target   the current target region (Points2D ring + label)
+    /world/plans/r<id>/target   the current target region (Points2D + label "1 → a2")
     /rho/r<id>/{rho,rho_max,lower,r}   STL funnel and robustness (Scalars; NaN = idle, not logged)
     /rho/r<id>/critical    ρ at each critical event (SeriesPoints)
     /rho/r<id>/repairs     r̄ after each repair (SeriesPoints)
@@ -112,7 +112,7 @@ def blueprint(scenario: Scenario) -> rrb.Blueprint:
                          rrb.TimePanel(timeline=TIMELINE), collapse_panels=False)
 
 
-def new_recording(scenario: Scenario) -> rr.RecordingStream:
+def new_recording() -> rr.RecordingStream:
     """A fresh recording (its own id), not the global one."""
     return rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
 
@@ -433,7 +433,7 @@ def replay_run(run_dir: str | Path, out: str | Path | None = None, *,
     started = time.monotonic()
     data = load_run(run_dir)
     path = Path(out) if out is not None else data.run_dir / "run.rrd"
-    rec = new_recording(data.scenario)
+    rec = new_recording()
     rec.save(path, default_blueprint=blueprint(data.scenario))
     try:
         log = log_run(data, rec, every=every)
@@ -473,7 +473,7 @@ class LiveView:
     @classmethod
     def serve(cls, scenario: Scenario, *, grpc_port: int, web_port: int,
               frame_period: float = 0.05, flush_period: float = 0.2) -> LiveView:
-        recording = new_recording(scenario)
+        recording = new_recording()
         url = serve(recording, scenario, grpc_port, web_port)
         log = FleetLog(scenario, recording)  # flushed by the view, on the wall clock
         log.log_static()

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
 
     data = visual.load_run(run_dir)  # errors before anything is served or written
-    recording = visual.new_recording(data.scenario)
+    recording = visual.new_recording()
     out = args.out if args.out is not None else run_dir / "run.rrd"
     stop = threading.Event()
     previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}

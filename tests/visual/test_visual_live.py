@@ -19,7 +19,7 @@ def _live_view(path: Path, frame_period: float = 0.05):
     from coordinator import visual
 
     scenario = load_scenario(SCENARIO)
-    recording = visual.new_recording(scenario)
+    recording = visual.new_recording()
     recording.save(path)
     log = visual.FleetLog(scenario, recording)
     log.log_static()
@@ -56,7 +56,7 @@ def test_live_view_sends_buffered_rows_every_flush_period_of_wall_time(tmp_path:
 
     now = [100.0]
     scenario = load_scenario(SCENARIO)
-    recording = visual.new_recording(scenario)
+    recording = visual.new_recording()
     recording.save(tmp_path / "live.rrd")
     view = visual.LiveView(visual.FleetLog(scenario, recording), flush_period=0.2,
                            clock=lambda: now[0])
@@ -70,6 +70,40 @@ def test_live_view_sends_buffered_rows_every_flush_period_of_wall_time(tmp_path:
     assert view.log.pending == 1
     view.close()
     assert read_rrd(tmp_path / "live.rrd")["timed"]["/world/robots"] == 12
+
+
+def test_static_scene_with_obstacles(tmp_path: Path) -> None:
+    from coordinator import visual
+
+    path = tmp_path / "obstacles.toml"
+    path.write_text(SCENARIO.read_text().replace("[sim]", """[[arena.obstacles]]
+shape = "rect"
+name = "wall"
+xmin = 0.0
+xmax = 0.5
+ymin = 1.0
+ymax = 2.0
+
+[[arena.obstacles]]
+shape = "disc"
+name = "pillar"
+center = [-2.0, 2.0]
+radius = 0.3
+
+[sim]"""))
+    recording = visual.new_recording()
+    recording.save(tmp_path / "static.rrd")
+    visual.FleetLog(load_scenario(path), recording).log_static()
+    recording.disconnect()
+    static = read_rrd(tmp_path / "static.rrd")["static"]
+    rects = static["/world/obstacles/rects"][0]
+    assert rects.column("Boxes2D:labels").to_pylist() == [["wall"]]
+    assert rects.column("Boxes2D:half_sizes").to_pylist() == [[[0.25, 0.5]]]
+    assert static["/world/obstacles/discs"][0].column("Ellipses2D:labels").to_pylist() == [
+        ["pillar"]]
+    regions = static["/world/regions"][0]
+    assert regions.column("Ellipses2D:labels").to_pylist() == [["a1", "a2"]]
+    assert regions.column("Ellipses2D:centers").to_pylist() == [[[-1.0, 0.0], [1.0, 0.0]]]
 
 
 def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
