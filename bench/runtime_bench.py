@@ -16,6 +16,13 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
 * ``max_fleet``: the largest generated fleet of STL robots (omni, a reach task each, on a grid)
   whose realtime runs at 100 Hz miss ≤ 1 % of their deadlines (median over the runs; sizes
   tried in ``--sizes`` order, stopping at the first that fails; target ≥ 30).
+
+Besides, for every run, the CPU time of each child process per wall second of the supervised
+phase (``psutil`` user + system, sampled every 0.25 s; ``cpu_pct``: mean per role, % of one
+core). Wall-clock figures (latency, missed deadlines) depend on whatever else the machine runs;
+CPU per process much less so, which makes it the figure to compare changes with on a shared
+machine. Realtime tick 0 owes no command (``sim.stats``), so a run misses nothing by
+construction.
 """
 
 from __future__ import annotations
@@ -27,8 +34,11 @@ import platform
 import statistics
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
+
+import psutil
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -59,12 +69,73 @@ def generated_fleet(n: int, duration: float) -> str:
     return "\n".join(lines) + "\n"
 
 
+class CpuSampler:
+    """Samples the CPU time (user + system [s]) of every descendant process, by role (the
+    ``tlfleet`` subcommand: router, sim, agent), in a background thread."""
+
+    def __init__(self, period: float = 0.25):
+        self.period = period
+        self.samples: dict[int, tuple[str, list[tuple[float, float]]]] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="cpu-sampler", daemon=True)
+
+    def __enter__(self) -> CpuSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _run(self) -> None:
+        me = psutil.Process()
+        procs: dict[int, tuple[psutil.Process, str]] = {}
+        while not self._stop.is_set():
+            now = time.monotonic()
+            try:
+                children = me.children(recursive=True)
+            except psutil.Error:
+                children = []
+            for child in children:
+                if child.pid not in procs:
+                    try:
+                        argv = child.cmdline()
+                    except psutil.Error:
+                        continue
+                    if "coordinator.cli" in argv[:-1]:
+                        procs[child.pid] = (child, argv[argv.index("coordinator.cli") + 1])
+            for pid, (proc, role) in list(procs.items()):
+                try:
+                    times = proc.cpu_times()
+                except psutil.Error:
+                    del procs[pid]
+                    continue
+                self.samples.setdefault(pid, (role, []))[1].append(
+                    (now, times.user + times.system))
+            self._stop.wait(self.period)
+
+    def cpu_pct(self, begin: float, end: float) -> dict[str, float]:
+        """Mean CPU per process of each role over [begin, end] (monotonic [s]), % of a core."""
+        per_role: dict[str, list[float]] = {}
+        for role, series in self.samples.values():
+            inside = [(t, c) for t, c in series if begin <= t <= end]
+            if len(inside) >= 2 and inside[-1][0] > inside[0][0]:
+                (t0, c0), (t1, c1) = inside[0], inside[-1]
+                per_role.setdefault(role, []).append(100.0 * (c1 - c0) / (t1 - t0))
+        return {role: statistics.mean(v) for role, v in sorted(per_role.items())}
+
+
 def run_once(scenario: Path, mode: str, duration: float, out: Path,
              ready_timeout: float = 120.0) -> dict:
-    """One run; its sim_stats plus the coordinator's wall time and speed-up."""
-    result = run_fleet(RunConfig(scenario, mode=mode, out=out, duration=duration,
-                                 supervisor=SupervisorConfig(ready_timeout=ready_timeout,
-                                                             wall_timeout=20 * duration + 120)))
+    """One run; its sim_stats, the coordinator's wall time and speed-up, CPU per role."""
+    marks: list[float] = []
+    with CpuSampler() as sampler:
+        result = run_fleet(RunConfig(scenario, mode=mode, out=out, duration=duration,
+                                     supervisor=SupervisorConfig(
+                                         ready_timeout=ready_timeout,
+                                         wall_timeout=20 * duration + 120)),
+                           progress=lambda _t, _total: marks.append(time.monotonic()))
+    cpu = sampler.cpu_pct(marks[0] + 0.5, marks[-1]) if len(marks) >= 2 else {}
     stats = next((e["data"] for e in reversed(read_events(out / "events.jsonl"))
                   if e["kind"] == "sim_stats"), {})
     due = stats.get("due", 0)
@@ -77,6 +148,9 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
         "latency_p99_ms": stats.get("latency_p99_ms", math.nan),
         "due": due, "missed": stats.get("missed", 0),
         "missed_fraction": stats.get("missed", 0) / due if due else math.nan,
+        "cpu_pct": cpu,
+        "agent_cpu_pct": cpu.get("agent", math.nan), "sim_cpu_pct": cpu.get("sim", math.nan),
+        "router_cpu_pct": cpu.get("router", math.nan),
     }
 
 
@@ -113,7 +187,10 @@ def main(argv: list[str] | None = None) -> int:
                          for k in range(runs)]
             miss = median(fleets[n], "missed_fraction")
             print(f"  fleet of {n:>3} STL robots: missed {100 * miss:.2f} % (median of {runs}), "
-                  f"ready in {median(fleets[n], 'ready_time'):.1f} s", flush=True)
+                  f"ready in {median(fleets[n], 'ready_time'):.1f} s, CPU per agent "
+                  f"{median(fleets[n], 'agent_cpu_pct'):.1f} %, sim "
+                  f"{median(fleets[n], 'sim_cpu_pct'):.1f} %, router "
+                  f"{median(fleets[n], 'router_cpu_pct'):.1f} % of a core", flush=True)
             if not miss <= FLEET_MISS_LIMIT or not all(r["clean"] for r in fleets[n]):
                 break
             max_fleet = n
@@ -123,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         "missed_fraction": median(realtime, "missed_fraction"),
         "lockstep_speedup": median(lockstep, "speedup"),
         "max_fleet": max_fleet,
+        "agent_cpu_pct": median(realtime, "agent_cpu_pct"),
+        "sim_cpu_pct": median(realtime, "sim_cpu_pct"),
     }
     meets = {
         "latency_p99_ms": results["latency_p99_ms"] <= TARGETS["latency_p99_ms"],
@@ -141,11 +220,14 @@ def main(argv: list[str] | None = None) -> int:
          f"{results['lockstep_speedup']:.1f}×", "≥ 5×"),
         ("largest STL fleet at 100 Hz with ≤ 1 % missed", f"{results['max_fleet']} robots",
          "≥ 30"),
+        ("Scenario 1 realtime: CPU per agent process",
+         f"{results['agent_cpu_pct']:.1f} %", "-"),
+        ("Scenario 1 realtime: CPU of the simulator", f"{results['sim_cpu_pct']:.1f} %", "-"),
     ]
     print(f"runtime_bench ({'quick' if args.quick else 'full'}, median of {runs} runs, "
           f"python {platform.python_version()}, {time.monotonic() - started:.0f} s)")
     print(f"{'measure':<50} {'value':>12} {'target':>8}  met")
-    for (name, value, target), ok in zip(rows, [None, *meets.values()], strict=True):
+    for (name, value, target), ok in zip(rows, [None, *meets.values(), None, None], strict=True):
         print(f"{name:<50} {value:>12} {target:>8}  {'' if ok is None else 'yes' if ok else 'NO'}")
     payload = {
         "quick": args.quick, "runs": runs, "python": platform.python_version(),
@@ -155,7 +237,9 @@ def main(argv: list[str] | None = None) -> int:
         "per_run": {"realtime": realtime, "lockstep": lockstep,
                     "fleets": {str(n): r for n, r in fleets.items()}},
         "units": {"latency_p50_ms": "ms", "latency_p99_ms": "ms", "missed_fraction": "fraction",
-                  "lockstep_speedup": "sim s / wall s", "max_fleet": "robots"},
+                  "lockstep_speedup": "sim s / wall s", "max_fleet": "robots",
+                  "agent_cpu_pct": "% of one core (user + system)",
+                  "sim_cpu_pct": "% of one core (user + system)"},
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(payload, indent=2, default=str) + "\n")
