@@ -244,9 +244,12 @@ class SimProcess:
             if k >= last:
                 self._finish()
                 break
-            self._pump(0.0)
+            # Commands only take effect at the tick and their arrival is stamped in the transport
+            # callback, so the loop sleeps through the period and takes them all at once: one
+            # wake-up per tick instead of one per command (30 robots: 3000 a second).
             while not self.stopping and (left := pacer.remaining()) > 0.0:
-                self._pump(min(left, self.config.poll))
+                self.stop_event.wait(min(left, self.config.poll))
+            self._pump(0.0)
             if self.stopping:
                 break
             pacer.advance()
