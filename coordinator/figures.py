@@ -119,6 +119,9 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
     ax = fig.add_subplot()
     for k, (label, a, b) in enumerate(subtasks):
         ax.axvspan(a, b, color="gray" if k % 2 == 0 else "silver", alpha=0.18, linewidth=0)
+        a, b = max(a, 0.0), min(b, t_end)  # label the visible part (a run may end early)
+        if a >= b:
+            continue
         ax.annotate(label, ((a + b) / 2, 1.0), xycoords=("data", "axes fraction"),
                     xytext=(0, -3), textcoords="offset points", ha="center", va="top",
                     fontsize=9)

@@ -12,14 +12,17 @@
    mission (:mod:`coordinator.supervisor`), send ``Control(stop)``;
 6. close the session, stop every process group (SIGTERM, then SIGKILL), close the files and write
    ``summary.txt`` (:mod:`coordinator.summary`);
-7. write ``run.rrd`` by replaying the recorded files (:func:`coordinator.visual.replay_run`, the
+7. write ``report.md``, ``report.json`` and the PNG figures
+   (:func:`coordinator.report.write_report`, the code path of ``tlfleet report``); a failure
+   here is reported and never fails the run;
+8. write ``run.rrd`` by replaying the recorded files (:func:`coordinator.visual.replay_run`, the
    code path of ``tlfleet replay``). Logging after the run keeps rerun off the CPU the agents
    share while they run; a failure here is reported and never fails the run.
 
 With ``viewer`` set, a :class:`coordinator.visual.LiveView` also serves the fleet live while it
 runs (gRPC + web viewer on 127.0.0.1, URL reported), fed by the recorder tap on the loop thread
 at a decimated rate; it is returned in :attr:`RunResult.viewer` still serving (the caller closes
-it). rerun (0.9 s to import) is imported only for 7 and the live view.
+it). rerun (0.9 s to import) is imported only for 8 and the live view; matplotlib only for 7.
 
 Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind.
 """
@@ -72,6 +75,8 @@ class RunConfig:
     sim_args: tuple[str, ...] = ()  # extra flags for `tlfleet sim`
     agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
     child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
+    report: bool = True  # write report.md/json after the run
+    figures: bool = True  # ... and the PNG figures
     rrd: bool = True  # write run.rrd after the run
     rrd_every: int = 5  # log every n-th trajectory row to run.rrd
     viewer: bool = False  # serve the run live to a web viewer
@@ -88,6 +93,7 @@ class RunResult:
     summary_text: str = ""
     summary: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    report: Any = None  # coordinator.report.Report, when written
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
 
@@ -142,8 +148,19 @@ def _start_viewer(scenario: Scenario, config: RunConfig,
     return view
 
 
+def _write_report(run_dir: Path, figures: bool, say: Callable[[str], None]) -> tuple[Any, str]:
+    """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
+    try:
+        from coordinator.report import write_report
+
+        return write_report(run_dir, figures=figures), ""
+    except Exception as exc:
+        say(f"report not written ({type(exc).__name__}: {exc})")
+        return None, f"{type(exc).__name__}: {exc}"
+
+
 def _write_rrd(run_dir: Path, every: int, say: Callable[[str], None]) -> dict[str, Any]:
-    """Step 7: ``run.rrd`` from the recorded files; failures are reported, never raised."""
+    """Step 8: ``run.rrd`` from the recorded files; failures are reported, never raised."""
     try:
         from coordinator.visual import replay_run
 
@@ -234,9 +251,17 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     info["clean"] = clean
     recorder.write_run_info(info)
     text, data = write_summary(run_dir)
+    report_result = None
+    if config.report:
+        report_result, error = _write_report(run_dir, config.figures, say)
+        info["report"] = {"error": error} if error else {
+            "path": str(run_dir / "report.md"),
+            "figures": [str(path) for path in report_result.figures]}
+        recorder.write_run_info(info)
     rrd_path: Path | None = None
     if config.rrd:
         info["rrd"] = _write_rrd(run_dir, config.rrd_every, say)
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         recorder.write_run_info(info)
-    return RunResult(run_dir, outcome, final, clean, text, data, info, rrd_path, viewer)
+    return RunResult(run_dir, outcome, final, clean, text, data, info, report_result, rrd_path,
+                     viewer)

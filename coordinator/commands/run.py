@@ -1,11 +1,13 @@
 """``tlfleet run SCENARIO [--lockstep|--realtime] [--out DIR] [--duration S] [--seed N] [--viewer]``
-(and ``--quiet``, ``--no-rrd``).
+(and ``--quiet``, ``--no-report``, ``--no-figures``, ``--no-rrd``).
 
 Validates the scenario (an invalid file exits 1 before any process starts), launches router → sim
 → agents, supervises and records the run (:mod:`coordinator.runner`), shows a progress bar in sim
-time on stderr when it is a terminal, then prints the summary and the run directory. The run
-directory gets ``run.rrd`` (rerun) at the end. ``--viewer`` also serves the run live to a web
-viewer on 127.0.0.1 (its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
+time on stderr when it is a terminal. At the end the run directory gets ``summary.txt``,
+``report.md``/``report.json`` with the PNG figures (:mod:`coordinator.report`) and ``run.rrd``
+(rerun); the command prints the report table, the paths of the report, figures and ``run.rrd``,
+and the run directory last. ``--viewer`` also serves the run live to a web viewer on 127.0.0.1
+(its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
 
 Exit codes: 0 every process ended cleanly; 1 invalid scenario or launch failure; 3 the run
 finished but a process died, did not stop cleanly, or the run ended early; 130 interrupted.
@@ -20,7 +22,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from coordinator.runner import RunConfig, run_fleet
+from coordinator.runner import RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
 
 if TYPE_CHECKING:
@@ -58,6 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
     parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
                         help="--viewer: web viewer port (default: a free one)")
+    parser.add_argument("--no-report", dest="report", action="store_false",
+                        help="do not write report.md/json and figures at the end")
+    parser.add_argument("--no-figures", dest="figures", action="store_false",
+                        help="write report.md/json but no PNG figures")
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
 
@@ -108,6 +114,22 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
         viewer.close()
 
 
+def print_outputs(result: RunResult) -> None:
+    """The report table (the summary if no report was written), the files a person opens next, and
+    the run directory last."""
+    if result.report is not None:
+        print(result.report.table)
+        print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
+        for path in result.report.figures:
+            print(f"figure:  {path}")
+    else:
+        print(result.summary_text)
+        print(f"summary: {result.run_dir / 'summary.txt'}")
+    if result.rrd is not None:
+        print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`)")
+    print(f"run directory: {result.run_dir}", flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     duration = args.duration
     wall_timeout = args.wall_timeout
@@ -119,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
         scenario_path=Path(args.scenario), mode=args.mode, out=args.out, duration=duration,
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
-        rrd=args.rrd, viewer=args.viewer, grpc_port=args.grpc_port, web_port=args.web_port)
+        report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
+        grpc_port=args.grpc_port, web_port=args.web_port)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:
@@ -139,8 +162,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
         if bar is not None:
             bar.end()
-    print(result.summary_text)
-    print(f"run directory: {result.run_dir}", flush=True)
+    print_outputs(result)
     if result.viewer is not None:
         _linger(result.viewer, interrupted=result.outcome.reason == "interrupted")
     if result.outcome.reason == "interrupted":

@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ from agent.ltl.buchi import translate
 from agent.ltl.lasso import holds
 from coordinator import paper_values
 from coordinator.cli import main as cli_main
+from coordinator.figures import robustness_figure
 from coordinator.report import (
     RunDirectoryError,
     buchi_accepts_lasso,
@@ -340,6 +342,20 @@ def test_figures_written_and_not_blank(scenarios, name) -> None:
         assert f"]({path.name})" in (run_dir / "report.md").read_text(encoding="utf-8")
     assert json.loads((run_dir / "report.json").read_text())["figures"] == [
         p.name for p in report.figures]
+
+
+def test_robustness_figure_of_a_run_shorter_than_its_subtask(tmp_path: Path) -> None:
+    """A run stopped at 2 s of a G[0,20] task: the window's label lies beyond the axis; it must
+    not collapse the layout (matplotlib warned and drew an empty figure before the fix)."""
+    t = np.linspace(0.0, 2.0, 21)
+    series = {"t": t, "rho": 0.1 - 0.05 * t, "rho_max": np.full_like(t, 0.2),
+              "lower": -0.1 + 0.1 * t, "r": np.full_like(t, 0.05), "subtask": np.zeros_like(t)}
+    path = tmp_path / "robustness_r2.png"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        robustness_figure(2, series, [("r2.1", 0.0, 20.0)], [{"t": 1.0, "stage": 1, "r": 0.05}],
+                          path, t_end=2.0)
+    assert non_background_fraction(path) > 0.03
 
 
 def test_build_report_writes_nothing(tmp_path: Path) -> None:

@@ -11,6 +11,8 @@ import pytest
 from process_helpers import processes_mentioning
 from system_helpers import HERE, ROOT, leftover_in_groups
 
+from coordinator.report import build_report
+
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
 
@@ -27,11 +29,17 @@ def test_run_prints_the_summary_and_the_run_directory(tmp_path):
     finally:
         proc.kill()
     assert proc.returncode == 0, err
-    assert out.startswith("run two_robots")
-    assert "STL robots (standard robustness" in out and "process deaths: 0" in out
-    assert out.rstrip().endswith(f"run directory: {tmp_path / 'run'}")
+    run_dir = tmp_path / "run"
+    assert out.startswith("report two_robots")
+    # the printed table is the one the run directory's files give when the report is rebuilt
+    assert build_report(run_dir).table in out
+    assert f"report:  {run_dir / 'report.md'}" in out
+    figures = sorted(run_dir.glob("*.png"))
+    assert figures and all(f"figure:  {path}" in out for path in figures)
+    assert f"rerun:   {run_dir / 'run.rrd'}" in out
+    assert out.rstrip().endswith(f"run directory: {run_dir}")
     assert "\r[" not in err  # stderr is not a terminal: no progress bar
-    assert (tmp_path / "run" / "summary.txt").read_text().strip() in out
+    assert (run_dir / "summary.txt").read_text().startswith("run two_robots")
     assert leftover_in_groups(tmp_path / "run") == []
     assert_rrd_matches_trajectory(tmp_path / "run")
 
