@@ -13,9 +13,7 @@ Exit codes: 0 written (with ``--viewer``: served until Ctrl-C or SIGTERM, the no
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from pathlib import Path
 
 from agent.errors import TlfleetError
@@ -58,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
         raise TlfleetError(f"{run_dir}: not a run directory")
     from coordinator import visual  # rerun: 0.9 s, paid only here
     from coordinator.launcher import free_port
+    from coordinator.signals import stop_on_signals, wait_for_signal
 
     if not args.viewer:
         result = visual.replay_run(run_dir, args.out, every=args.every)
@@ -68,27 +67,21 @@ def run(args: argparse.Namespace) -> int:
     data = visual.load_run(run_dir)  # errors before anything is served or written
     recording = visual.new_recording()
     out = args.out if args.out is not None else run_dir / "run.rrd"
-    stop = threading.Event()
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig in previous:
-        signal.signal(sig, lambda *_: stop.set())
-    try:
+    with stop_on_signals() as stop:
         try:
-            url = visual.serve(recording, data.scenario,
-                               args.grpc_port or free_port(visual.HOST),
-                               args.web_port or free_port(visual.HOST), save=out)
-        except (OSError, RuntimeError) as exc:  # a port taken
-            raise TlfleetError(f"cannot serve the viewer: {exc}") from None
-        with recording:  # on exit: run.rrd finalised (footer), the gRPC server goes on
-            log = visual.log_run(data, recording, every=args.every)
-        print(f"{out}: {log.frames} frames, {len(data.statuses)} statuses, "
-              f"{len(data.events)} events, sim time {log.t_first:g}–{log.t_last:g} s")
-        print(f"viewer: {url}", flush=True)
-        print("serving until Ctrl-C", file=sys.stderr, flush=True)
-        while not stop.wait(0.5):
-            pass
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        recording.disconnect()
+            try:
+                url = visual.serve(recording, data.scenario,
+                                   args.grpc_port or free_port(visual.HOST),
+                                   args.web_port or free_port(visual.HOST), save=out)
+            except (OSError, RuntimeError) as exc:  # a port taken
+                raise TlfleetError(f"cannot serve the viewer: {exc}") from None
+            with recording:  # on exit: run.rrd finalised (footer), the gRPC server goes on
+                log = visual.log_run(data, recording, every=args.every)
+            print(f"{out}: {log.frames} frames, {len(data.statuses)} statuses, "
+                  f"{len(data.events)} events, sim time {log.t_first:g}–{log.t_last:g} s")
+            print(f"viewer: {url}", flush=True)
+            print("serving until Ctrl-C", file=sys.stderr, flush=True)
+            wait_for_signal(stop)
+        finally:
+            recording.disconnect()
     return 0

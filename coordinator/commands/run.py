@@ -16,13 +16,12 @@ finished but a process died, did not stop cleanly, or the run ended early; 130 i
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from coordinator.runner import RunConfig, RunResult, run_fleet
+from coordinator.signals import stop_on_signals, wait_for_signal
 from coordinator.supervisor import SupervisorConfig
 
 if TYPE_CHECKING:
@@ -99,19 +98,13 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
     if interrupted:
         viewer.close()
         return
-    stop = threading.Event()
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig in previous:
-        signal.signal(sig, lambda *_: stop.set())
-    try:
-        print(f"tlfleet run: viewer still serving at {viewer.url} until Ctrl-C", file=sys.stderr,
-              flush=True)
-        while not stop.wait(0.5):
-            pass
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        viewer.close()
+    with stop_on_signals() as stop:
+        try:
+            print(f"tlfleet run: viewer still serving at {viewer.url} until Ctrl-C",
+                  file=sys.stderr, flush=True)
+            wait_for_signal(stop)
+        finally:
+            viewer.close()
 
 
 def print_outputs(result: RunResult) -> None:
@@ -151,17 +144,12 @@ def run(args: argparse.Namespace) -> int:
             bar.drawn = False
         print(f"tlfleet run: {text}", file=sys.stderr, flush=True)
 
-    stop = threading.Event()
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig in previous:
-        signal.signal(sig, lambda *_: stop.set())
-    try:
-        result = run_fleet(config, stop=stop, progress=bar, report=report)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        if bar is not None:
-            bar.end()
+    with stop_on_signals() as stop:
+        try:
+            result = run_fleet(config, stop=stop, progress=bar, report=report)
+        finally:
+            if bar is not None:
+                bar.end()
     print_outputs(result)
     if result.viewer is not None:
         _linger(result.viewer, interrupted=result.outcome.reason == "interrupted")
