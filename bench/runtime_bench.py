@@ -9,7 +9,10 @@ sim's own clock; a control deadline of robot r at tick k is missed when its ``Co
 not arrived when the sim steps past tick k) and from the coordinator's run record. Medians over
 ``--runs`` runs (≥ 3):
 
-* ``latency_p50_ms`` / ``latency_p99_ms``: Scenario 1 in realtime (target p99 ≤ 2 ms);
+* ``latency_p50_ms`` / ``latency_p99_ms``: Scenario 1 in realtime (target p99 ≤ 2 ms), over
+  every command; ``stl_latency_p99_ms``: the worst per-robot p99 of its STL robots (the LTL
+  agents answer 1 frame in 20, so their slower steps are about 3 % of the commands and set the
+  fleet's p99);
 * ``missed_fraction``: missed control deadlines / due ones, same runs (target ≤ 0.1 %);
 * ``lockstep_speedup``: Scenario 1 in lockstep, sim seconds per wall second of the supervised
   phase (target ≥ 5×);
@@ -43,6 +46,7 @@ import psutil
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from agent.scenario import load_scenario  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.summary import read_events  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
@@ -128,6 +132,7 @@ class CpuSampler:
 def run_once(scenario: Path, mode: str, duration: float, out: Path,
              ready_timeout: float = 120.0) -> dict:
     """One run; its sim_stats, the coordinator's wall time and speed-up, CPU per role."""
+    stl_ids = {r.id for r in load_scenario(scenario).robots if r.is_stl}
     marks: list[float] = []
     with CpuSampler() as sampler:
         result = run_fleet(RunConfig(scenario, mode=mode, out=out, duration=duration,
@@ -146,6 +151,9 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
         "speedup": result.info.get("speedup", math.nan),
         "latency_p50_ms": stats.get("latency_p50_ms", math.nan),
         "latency_p99_ms": stats.get("latency_p99_ms", math.nan),
+        "latency_p99_ms_by_robot": stats.get("latency_p99_ms_by_robot", {}),
+        "stl_latency_p99_ms": max((v for r, v in stats.get("latency_p99_ms_by_robot", {}).items()
+                                   if int(r) in stl_ids), default=math.nan),
         "due": due, "missed": stats.get("missed", 0),
         "missed_fraction": stats.get("missed", 0) / due if due else math.nan,
         "cpu_pct": cpu,
@@ -197,6 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     results = {
         "latency_p50_ms": median(realtime, "latency_p50_ms"),
         "latency_p99_ms": median(realtime, "latency_p99_ms"),
+        "stl_latency_p99_ms": median(realtime, "stl_latency_p99_ms"),
         "missed_fraction": median(realtime, "missed_fraction"),
         "lockstep_speedup": median(lockstep, "speedup"),
         "max_fleet": max_fleet,
@@ -214,6 +223,8 @@ def main(argv: list[str] | None = None) -> int:
          f"{results['latency_p50_ms']:.2f} ms", "-"),
         ("Scenario 1 realtime: frame→command latency p99",
          f"{results['latency_p99_ms']:.2f} ms", "≤ 2 ms"),
+        ("  the STL robots alone (worst robot's p99)",
+         f"{results['stl_latency_p99_ms']:.2f} ms", "-"),
         ("Scenario 1 realtime: missed control deadlines",
          f"{100 * results['missed_fraction']:.3f} %", "≤ 0.1 %"),
         ("Scenario 1 lockstep: speed-up over real time",
@@ -227,7 +238,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"runtime_bench ({'quick' if args.quick else 'full'}, median of {runs} runs, "
           f"python {platform.python_version()}, {time.monotonic() - started:.0f} s)")
     print(f"{'measure':<50} {'value':>12} {'target':>8}  met")
-    for (name, value, target), ok in zip(rows, [None, *meets.values(), None, None], strict=True):
+    met = [None, meets["latency_p99_ms"], None, meets["missed_fraction"],
+           meets["lockstep_speedup"], meets["max_fleet"], None, None]
+    for (name, value, target), ok in zip(rows, met, strict=True):
         print(f"{name:<50} {value:>12} {target:>8}  {'' if ok is None else 'yes' if ok else 'NO'}")
     payload = {
         "quick": args.quick, "runs": runs, "python": platform.python_version(),

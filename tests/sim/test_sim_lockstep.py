@@ -173,4 +173,6 @@ def test_timing_stats_latency_and_missed_deadlines():
     assert (summary["commands"], summary["due"], summary["missed"]) == (2, 3, 2)
     assert summary["latency_max_ms"] == pytest.approx(3.0)
     assert summary["latency_p50_ms"] == pytest.approx(2.5)
+    assert summary["latency_p99_ms_by_robot"] == {"1": pytest.approx(2.0),
+                                                  "2": pytest.approx(3.0)}
     assert "latency_p50_ms" not in TimingStats().summary()
