@@ -77,7 +77,7 @@ class CpuSampler:
     """Samples the CPU time (user + system [s]) of every descendant process, by role (the
     ``tlfleet`` subcommand: router, sim, agent), in a background thread."""
 
-    def __init__(self, period: float = 0.25):
+    def __init__(self, period: float = 1.0):  # [s]; every sample scans /proc: keep it rare
         self.period = period
         self.samples: dict[int, tuple[str, list[tuple[float, float]]]] = {}
         self._stop = threading.Event()
