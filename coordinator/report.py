@@ -35,9 +35,9 @@ the planner's transition system):
   completed) ``u = word[0 … n−1)`` and ``v = word[n−1]``: the robot's final label repeated forever.
 * *accepting condition met* ⇔ ``u·v^ω ⊨ φ`` by the exact lasso evaluator ``agent.ltl.lasso.holds``
   **and** the Büchi automaton ``agent.ltl.buchi.translate(φ)`` accepts ``u·v^ω``
-  (:func:`buchi_accepts_lasso`); both are reported and must agree. A robot that never completes
-  the cycle its task needs therefore does not meet it (its final label repeated does not satisfy
-  ``G F a & G F b``).
+  (:func:`agent.ltl.emptiness.accepts_lasso`); both are reported and must agree. A robot that
+  never completes the cycle its task needs therefore does not meet it (its final label repeated
+  does not satisfy ``G F a & G F b``).
 
 Everything else (contacts, closest approach, deadline and latency statistics from ``sim_stats``,
 process deaths) is the summary's.
@@ -55,8 +55,8 @@ from typing import Any
 import numpy as np
 
 from agent.errors import TlfleetError, UnsatisfiableTask
-from agent.ltl.buchi import Buchi, translate
-from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
+from agent.ltl.buchi import translate
+from agent.ltl.emptiness import accepts_lasso
 from agent.ltl.lasso import holds
 from agent.ltl.planner import plan_robot
 from agent.scenario import Scenario, load_scenario
@@ -136,35 +136,6 @@ def completed_cycles(names: list[str], cycle: list[str]) -> list[int]:
     return [j for j in range(k, len(names)) if names[j - k:j + 1] == pattern]
 
 
-def buchi_accepts_lasso(buchi: Buchi, prefix: list[frozenset[str]],
-                        loop: list[frozenset[str]]) -> bool:
-    """Does ``buchi`` accept ``prefix · loop^ω``?
-
-    Product of the automaton with the ``n`` positions of ``prefix + loop`` (position ``i`` has the
-    successor ``i + 1``, the last one ``len(prefix)``): node ``(q, i)`` → ``(q', succ(i))`` for
-    ``q' ∈ Δ(q, letter_i)``. Accepted iff an accepting ``q`` sits on a cycle of the product
-    reachable from ``(q₀, 0)``; cycles can only run through loop positions.
-    """
-    if not loop:
-        raise ValueError("the loop of a lasso word must not be empty")
-    letters = [*prefix, *loop]
-    n = len(letters)
-    succ_pos = [*range(1, n), len(prefix)]
-    states = buchi.num_states
-
-    def node(q: int, i: int) -> int:
-        return q * n + i
-
-    succ: list[list[int]] = [[] for _ in range(states * n)]
-    for q in range(states):
-        for i, letter in enumerate(letters):
-            succ[node(q, i)] = [node(dst, succ_pos[i]) for dst in buchi.successors(q, letter)]
-    comp, components = strongly_connected_components(len(succ), succ)
-    cyclic = nontrivial(comp, components, succ)
-    live = reachable([node(q, 0) for q in buchi.initial], succ)
-    return any(v // n in buchi.accepting and cyclic[comp[v]] for v in live)
-
-
 def _labels(scenario: Scenario, name: str) -> frozenset[str]:
     return frozenset() if name == START else scenario.region(name).labels
 
@@ -215,7 +186,7 @@ def _ltl_robot(scenario: Scenario, robot_id: int, traj: Trajectory | None,
     prefix = [_labels(scenario, n) for n in u]
     loop = [_labels(scenario, n) for n in v]
     by_lasso = holds(formula, prefix, loop)
-    by_buchi = buchi_accepts_lasso(translate(formula), prefix, loop)
+    by_buchi = accepts_lasso(translate(formula), prefix, loop)
     entry.update({
         "word": [{"t": t, "region": name} for t, name in word],
         "cycles_completed": len(ends),

@@ -3,11 +3,15 @@
 The language of a Büchi automaton is non-empty iff some accepting state lies on a cycle and is
 reachable from an initial state. The witness is a lasso word ``prefix · loop^ω`` (letters are
 sets of atoms) read along such a path: BFS to the accepting state, BFS back to it.
+
+:func:`accepts_lasso` is the converse membership test: does the automaton accept a given lasso
+word (the run report checks executed runs with it)?
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 
 from agent.ltl.buchi import Buchi
 from agent.ltl.graphs import bfs_path, nontrivial, reachable, strongly_connected_components
@@ -60,3 +64,32 @@ def find_accepting_lasso(buchi: Buchi) -> Lasso | None:
 
 def is_empty(buchi: Buchi) -> bool:
     return find_accepting_lasso(buchi) is None
+
+
+def accepts_lasso(buchi: Buchi, prefix: Sequence[frozenset[str]],
+                  loop: Sequence[frozenset[str]]) -> bool:
+    """Does ``buchi`` accept the lasso word ``prefix · loop^ω`` (letters: sets of atoms)?
+
+    Product of the automaton with the ``n`` positions of ``prefix + loop`` (position ``i`` has the
+    successor ``i + 1``, the last one ``len(prefix)``): node ``(q, i)`` → ``(q', succ(i))`` for
+    ``q' ∈ Δ(q, letter_i)``. Accepted iff an accepting ``q`` sits on a cycle of the product
+    reachable from ``(q₀, 0)``; cycles can only run through loop positions.
+    """
+    if not loop:
+        raise ValueError("the loop of a lasso word must not be empty")
+    letters = [*prefix, *loop]
+    n = len(letters)
+    succ_pos = [*range(1, n), len(prefix)]
+    states = buchi.num_states
+
+    def node(q: int, i: int) -> int:
+        return q * n + i
+
+    succ: list[list[int]] = [[] for _ in range(states * n)]
+    for q in range(states):
+        for i, letter in enumerate(letters):
+            succ[node(q, i)] = [node(dst, succ_pos[i]) for dst in buchi.successors(q, letter)]
+    comp, components = strongly_connected_components(len(succ), succ)
+    cyclic = nontrivial(comp, components, succ)
+    live = reachable([node(q, 0) for q in buchi.initial], succ)
+    return any(v // n in buchi.accepting and cyclic[comp[v]] for v in live)

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from ltl_helpers import automaton_accepts, formulas, lasso_words
 
 from agent.ltl.buchi import buchi_step, to_dot, to_text, translate, translation_candidates
-from agent.ltl.emptiness import accepting_lassos, find_accepting_lasso, is_empty
+from agent.ltl.emptiness import accepting_lassos, accepts_lasso, find_accepting_lasso, is_empty
 from agent.ltl.hoa import to_hoa
 from agent.ltl.lasso import holds
 from agent.ltl.parser import parse
@@ -258,3 +258,20 @@ def test_too_many_propositions_is_a_clear_error():
     text = " & ".join(f"F p{i}" for i in range(MAX_ATOMS + 1))
     with pytest.raises(TooManyPropositions, match=f"has {MAX_ATOMS + 1} atomic propositions"):
         translate(text)
+
+
+@settings(max_examples=500, deadline=None)
+@given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
+def test_accepts_lasso_equals_the_independent_networkx_check(f, words):
+    """agent.ltl.emptiness.accepts_lasso (the run report's check) against the test helper's
+    networkx product, and both against exact evaluation."""
+    buchi = translate(f)
+    for prefix, loop in words:
+        expected = holds(f, prefix, loop)
+        assert automaton_accepts(buchi, prefix, loop) == expected
+        assert accepts_lasso(buchi, prefix, loop) == expected, f"{f} on {prefix} ({loop})^ω"
+
+
+def test_accepts_lasso_needs_a_loop():
+    with pytest.raises(ValueError, match="loop of a lasso word must not be empty"):
+        accepts_lasso(translate(parse("G F a")), [frozenset({"a"})], [])
