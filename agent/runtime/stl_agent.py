@@ -16,14 +16,14 @@ loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of 
 
 ``main(args)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL robot); its
 :class:`~agent.runtime.peers.CollabLink` serves ``robot/<id>/collab``, and its agent announces
-its status only to the robots that read it (:func:`status_readers`).
+its status only to the robots that read it (``agent.stl.agent.status_readers``).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from agent.protocol.messages import Event, StlStatus
 from agent.runtime.collab import to_wire
@@ -111,32 +111,6 @@ class StlCore:
         return tuple(events)
 
 
-def status_readers(agent: StlAgent) -> tuple[int, ...]:
-    """The STL robots that read this agent's status announcements: the owners of sub-tasks whose
-    V (``Task.v_ctrl``) contains this robot, ids ascending.
-
-    The stage-2 rule (stl-funnel.md §7.4, ``agent.stl.repair.stage2_enabled``) is the only
-    reader of announcements, and robot i reads only those of V_i ∖ {i}; an announcement to any
-    other robot is stored and never read.
-    """
-    me = agent.robot_id
-    return tuple(sorted({owner for (owner, _), task in agent.cfg.library.items()
-                         if owner != me and me in task.v_ctrl}))
-
-
-def announcing_to_readers(agent: StlAgent) -> StlAgent:
-    """``agent`` with its announcements sent to :func:`status_readers` only.
-
-    ``build_agents`` makes every STL robot a peer of every other one, so each agent sends
-    N − 1 queries per ``status_period`` (with 30 robots: 870 queries/s across the fleet, all at
-    the same sim times) that change no command. The commands, repairs and requests are the same.
-    """
-    readers = status_readers(agent)
-    if readers == agent.cfg.peers:
-        return agent
-    return StlAgent(replace(agent.cfg, peers=readers))
-
-
 def _follow(follow: int | None) -> int:
     return -1 if follow is None else int(follow)
 
@@ -158,7 +132,7 @@ def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=N
         agent = build_agents(scenario, robots=[args.robot])[args.robot]
         link = CollabLink(transport, scenario.fleet, args.robot, agent.cfg.peers, malformed,
                           timeout=getattr(args, "collab_timeout", 0.25))
-        core = StlCore(announcing_to_readers(agent))
+        core = StlCore(agent)
         return core, core.initial_state(), (), link
 
     divider = max(1, round(scenario.sim.mocap_rate / scenario.stl.control_rate))

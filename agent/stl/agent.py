@@ -455,6 +455,19 @@ class StlAgent:
 # --------------------------------------------------------------------------- construction
 
 
+def status_readers(robot_id: int, library: Mapping[tuple[int, int], Task]) -> tuple[int, ...]:
+    """The STL robots that read robot ``robot_id``'s status announcements: the owners of the
+    sub-tasks whose V (``Task.v_ctrl``) contains it, ids ascending.
+
+    The stage-2 rule (stl-funnel.md §7.4, ``agent.stl.repair.stage2_enabled``) is the only reader
+    of announcements, and robot i reads only those of V_i ∖ {i}; an announcement to any other
+    robot would be stored and never read (with 30 robots announcing to all: 870 queries/s across
+    the fleet that change no command).
+    """
+    return tuple(sorted({owner for (owner, _), task in library.items()
+                         if owner != robot_id and robot_id in task.v_ctrl}))
+
+
 def build_agents(scenario, *, funnel: FunnelParams | None = None,
                  control: ControlParams | None = None,
                  protocol: ProtocolParams | None = None,
@@ -464,6 +477,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
 
     Parameters come from the scenario's ``[stl]`` table and each robot's limits unless given.
     ``robots`` restricts which STL agents are built (the library still holds every STL task).
+    Each agent announces its status to :func:`status_readers` only.
     """
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
@@ -489,7 +503,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
             robot_id=robot_id,
             subtasks=seq,
             library=library,
-            peers=tuple(v for v in stl_ids if v != robot_id),
+            peers=status_readers(robot_id, library),
             phase_start_times=check_phase_start_times(robot_id, seq, robot.phase_start_times),
             funnel=fparams,
             control=cparams,

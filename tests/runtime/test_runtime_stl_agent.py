@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from agent.protocol.messages import StlStatus
 from agent.runtime import stl_agent
 from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
-from agent.stl.agent import StepInput, build_agents, single_agent
+from agent.stl.agent import StepInput, StlAgent, build_agents, single_agent, status_readers
 from agent.stl.harness import run_closed_loop
 from agent.stl.messages import CollabRelease, CollabRequest
 from agent.stl.sequencer import build_sequence
@@ -89,8 +90,9 @@ def test_one_agent_commands_equal_the_pure_step():
     assert len(statuses) == pytest.approx(n / 10, abs=1)
     assert all(s.robot == 5 for s in statuses)
     assert loop.stats.steps == n
-    # its peers 3 and 4 are absent: their status announcements failed, they count as unreachable
-    assert loop.link.unreachable == frozenset({3, 4})
+    # robot 4, the one reader of its announcements, is absent: they failed, 4 counts as
+    # unreachable (robot 3 reads none of robot 5's, so it was never asked)
+    assert loop.link.unreachable == frozenset({4})
 
 
 def test_two_agents_reproduce_stage2_of_the_pure_harness():
@@ -237,10 +239,15 @@ def test_messages_go_before_the_command_in_lockstep_and_after_it_in_realtime(loc
 
 
 def test_status_readers_of_scenario_1():
+    """build_agents announces only to the robots that read the announcements."""
     agents = build_agents(load_scenario("scenarios/scenario1.toml"))
-    assert {i: stl_agent.status_readers(a) for i, a in agents.items()} == {3: (4,), 4: (3,),
-                                                                           5: (4,)}
-    assert stl_agent.announcing_to_readers(agents[5]).cfg.peers == (4,)
+    assert {i: a.cfg.peers for i, a in agents.items()} == {3: (4,), 4: (3,), 5: (4,)}
+    assert {i: status_readers(i, a.cfg.library) for i, a in agents.items()} == {
+        3: (4,), 4: (3,), 5: (4,)}
+
+
+def readers_only(agent: StlAgent) -> StlAgent:
+    return StlAgent(replace(agent.cfg, peers=status_readers(agent.robot_id, agent.cfg.library)))
 
 
 def test_announcing_only_to_readers_changes_no_command():
@@ -248,20 +255,20 @@ def test_announcing_only_to_readers_changes_no_command():
     sending them to it; repairs, the stage-2 request, the follow and the trajectory stay the
     same, with fewer messages."""
     runs = {}
-    for readers_only in (False, True):
+    for only_readers in (False, True):
         network = FakeNetwork()
         sim = FakeSim(network, FLEET)
         agents = make_pair()
-        if readers_only:
-            agents = tuple(stl_agent.announcing_to_readers(a) for a in agents)
+        if only_readers:
+            agents = tuple(readers_only(a) for a in agents)
         loops = [stl_loop(network, FLEET, a)[0] for a in agents]
         poses = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}
         sim.control("start")
         trajectory = drive(sim, loops, poses, 3000, 2800)
-        runs[readers_only] = (trajectory, [(e.t, e.source, e.kind) for e in sim.events],
+        runs[only_readers] = (trajectory, [(e.t, e.source, e.kind) for e in sim.events],
                               loops[0].link.sent)
     assert make_pair()[0].cfg.peers == (4,)
-    assert stl_agent.announcing_to_readers(make_pair()[0]).cfg.peers == ()
+    assert readers_only(make_pair()[0]).cfg.peers == ()
     (traj_all, events_all, sent_all), (traj_readers, events_readers, sent_readers) = (
         runs[False], runs[True])
     assert ("collab_request" in {k for _, _, k in events_all}
