@@ -83,6 +83,15 @@ NO_REPORTED_BOUND: dict[str, str] = {
 }
 
 
+# Sub-tasks the paper names but reports no bound for: (scenario, robot, task) -> the paper's label.
+S3_FORMATION = ("G[10,100] (dist(p{i} - p1, [{dx}, {dy}]) <= 0.1 & angdist(th{i}, th1) <= 0.09)")
+PAPER_LABELS: dict[tuple[str, int, str], str] = {
+    ("scenario3", 2, S3_FORMATION.format(i=2, dx="sin(th1)", dy="-cos(th1)")): "φ2",
+    ("scenario3", 3, S3_FORMATION.format(i=3, dx="-sin(th1)", dy="cos(th1)")): "φ3",
+    ("scenario3", 4, S3_FORMATION.format(i=4, dx="-cos(th1)", dy="-sin(th1)")): "φ4",
+}
+
+
 def canonical(task: str) -> str | None:
     """The canonical text of an STL sub-task, or ``None`` if it does not parse."""
     try:
@@ -111,3 +120,19 @@ def scenario_note(scenario: str) -> str:
         return (f"{scenario}: the paper's values apply only to the sub-tasks it ran; sub-tasks "
                 f"that differ from them get none")
     return "not one of the paper's scenarios: no reported values"
+
+
+_LABELS: dict[tuple[str, int, str], str] = {
+    (scenario, robot, canonical(task) or task): label
+    for (scenario, robot, task), label in PAPER_LABELS.items()
+}
+
+
+def label(scenario: str, robot: int, task: str) -> str | None:
+    """The paper's name of a sub-task (with or without a reported bound), matched like
+    :func:`lookup`; ``None`` when the paper did not run exactly this sub-task."""
+    value = lookup(scenario, robot, task)
+    if value is not None:
+        return value.label
+    key = canonical(task)
+    return None if key is None else _LABELS.get((scenario, robot, key))

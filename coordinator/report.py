@@ -232,7 +232,8 @@ def _stl_robot(scenario_name: str, robot_id: int, summary_entry: dict[str, Any],
         subtasks.append({
             "index": index, "task": sub["task"], "op": sub["task"].lstrip()[:1],
             "window": window,
-            "label": value.label if value else f"r{robot_id}.{index + 1}",
+            "label": (paper_values.label(scenario_name, robot_id, sub["task"])
+                      or f"r{robot_id}.{index + 1}"),
             "robustness": sub["robustness"], "r_bar": sub["r_last"],
             "robustness_ge_r_bar": None if rho is None or r_bar is None else rho >= r_bar,
             "repairs": {f"stage{s}": (stages[s - 1] if len(stages) >= s else None)
@@ -468,7 +469,8 @@ def render_table(data: dict[str, Any]) -> str:
     for rid, entry in data["stl"].items():
         for s in entry["subtasks"]:
             p = s["paper"]
-            label = f"{s['label']} (r{rid})" if p else s["label"]
+            label = (s["label"] if s["label"] == f"r{rid}.{s['index'] + 1}"
+                     else f"{s['label']} (r{rid})")
             lines.append(f"  {label:<14}{_fmt(s['robustness']):>9}{_fmt(s['r_bar']):>9}"
                          f"{_paper_text(p):>19}"
                          f"{_fmt(p['best'], '+.2f') if p else '–':>8}  "

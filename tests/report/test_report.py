@@ -310,6 +310,10 @@ def test_scenario2_and_3_labels(scenarios) -> None:
     assert labels == ["φ3", "φ4"]
     s3 = scenarios["s3"][1]
     assert all(s["paper"] is None for e in s3.data["stl"].values() for s in e["subtasks"])
+    # the paper names the formation tasks φ2–φ4 (no bound); the table adds the robot
+    assert [s["label"] for e in s3.data["stl"].values() for s in e["subtasks"]] == [
+        "φ2", "φ3", "φ4"]
+    assert "φ3 (r3)" in s3.table
     assert "reports no robustness bound" in s3.markdown
     assert "reports no robustness bound" in s3.table
     r1 = s3.data["ltl"]["1"]
@@ -322,6 +326,11 @@ def test_edited_task_under_a_paper_name_gets_no_paper_value() -> None:
     assert paper_values.lookup("scenario1", 3, "G[21,30] (dist(p3, [0,-2]) <= 0.2)") is None
     assert paper_values.lookup("scenario1", 5, paper_values.S1_P3_FIRST) is None
     assert paper_values.lookup("other", 3, paper_values.S1_P3_FIRST) is None
+    formation = ("G[10,100] (dist(p3 - p1, [-sin(th1), cos(th1)]) <= 0.1 "
+                 "& angdist(th3, th1) <= 0.09)")
+    assert paper_values.label("scenario3", 3, formation) == "φ3"
+    assert paper_values.label("scenario3", 3, formation.replace("0.1 &", "0.2 &")) is None
+    assert paper_values.label("scenario3", 2, formation) is None
 
 
 def non_background_fraction(path: Path) -> float:
