@@ -4,7 +4,8 @@
 ``status.csv``, ``events.jsonl``, ``run.json`` optional) and returns a :class:`Report`;
 :func:`write_report` also writes ``report.md``, ``report.json`` and the PNG figures
 (``coordinator.figures``). The numbers the plain summary already computes come from
-:func:`coordinator.summary.summarise_run`; this module adds:
+:func:`coordinator.summary.summarise` (on the files read once by
+:func:`coordinator.summary.read_run_files`); this module adds:
 
 **STL sub-tasks.** Beside the standard robustness ρ (min/max semantics, from the trajectory) and
 the guaranteed bound r̄ the agent ended the sub-task with, the paper's reported lower bound and the
@@ -59,17 +60,11 @@ from agent.ltl.buchi import translate
 from agent.ltl.emptiness import accepts_lasso
 from agent.ltl.lasso import holds
 from agent.ltl.planner import plan_robot
-from agent.scenario import Scenario, load_scenario
-from agent.stl.monitor import Trajectory, read_trajectory_csv
+from agent.scenario import Scenario
+from agent.stl.monitor import Trajectory
 from agent.stl.parser import parse_task
 from coordinator import paper_values
-from coordinator.summary import (
-    REGION_HYSTERESIS,
-    read_events_checked,
-    read_statuses,
-    region_entry_indices,
-    summarise_run,
-)
+from coordinator.summary import REGION_HYSTERESIS, read_run_files, region_entry_indices, summarise
 
 SCHEMA = 1
 START = "start"  # the planner's name of the state outside every region (ltl-planning.md §3)
@@ -313,13 +308,10 @@ def _collect(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     if not scenario_path.is_file():
         raise RunDirectoryError(scenario_path, "missing: a run directory holds the scenario.toml "
                                                "copy written by `tlfleet run`")
-    scenario = load_scenario(scenario_path)
-    _text, summary = summarise_run(run_dir)
-    events, skipped = read_events_checked(run_dir / "events.jsonl")
-    statuses = read_statuses(run_dir / "status.csv")
-    traj: Trajectory | None = None
-    if not summary["trajectory_error"]:
-        traj = read_trajectory_csv(run_dir / "trajectory.csv")
+    files = read_run_files(run_dir)
+    scenario, events, statuses, traj = files.scenario, files.events, files.statuses, files.traj
+    skipped = files.skipped_event_lines
+    _text, summary = summarise(files)
     run = summary["run"] or {}
     repairs = _repair_events(events)
 

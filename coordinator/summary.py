@@ -1,7 +1,8 @@
 """The plain-text run summary: a pure function of a run directory's files (architecture.md §6).
 
 :func:`summarise_run` reads ``scenario.toml``, ``trajectory.csv``, ``status.csv``,
-``events.jsonl`` and ``run.json`` (all optional but the scenario) and returns ``(text, data)``:
+``events.jsonl`` and ``run.json`` (all optional but the scenario) once (:func:`read_run_files`,
+shared with ``coordinator.report``) and returns ``(text, data)`` (:func:`summarise`):
 
 * per STL robot and sub-task, the **standard** robustness (min/max semantics, stl-funnel.md §3)
   recomputed offline from the trajectory with ``agent.stl.monitor``, the last r̄ reported for the
@@ -26,6 +27,7 @@ import logging
 import math
 import re
 from collections import Counter, defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +36,7 @@ import numpy as np
 from agent.errors import TlfleetError
 from agent.scenario import Scenario, load_scenario
 from agent.stl.monitor import Trajectory, read_trajectory_csv
-from coordinator.commands.monitor import evaluate
+from coordinator.commands.monitor import evaluate_trajectory
 
 logger = logging.getLogger(__name__)
 
@@ -151,21 +153,46 @@ def _ltl_regions(scenario: Scenario, formula: str) -> list[str]:
     return sorted({tok for tok in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", formula) if tok in names})
 
 
-def summarise_run(run_dir: str | Path) -> tuple[str, dict[str, Any]]:
-    """(text, data) summary of the run in ``run_dir``; see the module docstring."""
+@dataclass(frozen=True)
+class RunFiles:
+    """The files of a run directory, each read once (the summary and the report share them)."""
+
+    run_dir: Path
+    scenario: Scenario
+    info: dict[str, Any]  # run.json ({} when missing)
+    events: list[dict[str, Any]]  # events.jsonl, lines that are not JSON objects skipped
+    skipped_event_lines: list[int]  # their 1-based numbers
+    statuses: list[dict[str, str]]  # status.csv rows
+    traj: Trajectory | None  # trajectory.csv, None when it cannot be read
+    traj_error: str  # why not ("" when read)
+
+
+def read_run_files(run_dir: str | Path) -> RunFiles:
+    """Read ``run_dir``'s scenario (required), run.json, events, statuses and trajectory."""
     run_dir = Path(run_dir)
     scenario = load_scenario(run_dir / "scenario.toml")
     info = _json_cell((run_dir / "run.json").read_text(encoding="utf-8")
                       if (run_dir / "run.json").exists() else "", {})
-    events = read_events(run_dir / "events.jsonl")
-    statuses = read_statuses(run_dir / "status.csv")
+    events, skipped = read_events_checked(run_dir / "events.jsonl")
     traj: Trajectory | None = None
     traj_error = ""
     try:
         traj = read_trajectory_csv(run_dir / "trajectory.csv")
     except TlfleetError as exc:
         traj_error = str(exc)
+    return RunFiles(run_dir, scenario, info, events, skipped,
+                    read_statuses(run_dir / "status.csv"), traj, traj_error)
 
+
+def summarise_run(run_dir: str | Path) -> tuple[str, dict[str, Any]]:
+    """(text, data) summary of the run in ``run_dir``; see the module docstring."""
+    return summarise(read_run_files(run_dir))
+
+
+def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
+    """(text, data) summary of a run directory's files (read by :func:`read_run_files`)."""
+    run_dir, scenario, info = files.run_dir, files.scenario, files.info
+    events, statuses, traj, traj_error = files.events, files.statuses, files.traj, files.traj_error
     data: dict[str, Any] = {
         "scenario": scenario.name, "run_dir": str(run_dir), "run": info,
         "frames": 0 if traj is None else len(traj.t),
@@ -201,7 +228,7 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
     error = ""
     if traj is not None:
         try:
-            robust = evaluate(str(run_dir / "scenario.toml"), str(run_dir / "trajectory.csv"))
+            robust = evaluate_trajectory(scenario, traj, run_dir / "trajectory.csv")
         except (TlfleetError, KeyError) as exc:
             error = str(exc)
     out: dict[int, Any] = {}

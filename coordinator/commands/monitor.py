@@ -11,10 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from pathlib import Path
 
-from agent.scenario import load_scenario
+from agent.scenario import Scenario, load_scenario
 from agent.stl.errors import StlTaskError
-from agent.stl.monitor import read_trajectory_csv, task_robustness
+from agent.stl.monitor import Trajectory, read_trajectory_csv, task_robustness
 from agent.stl.parser import parse_task
 from agent.stl.sequencer import merge_and_check
 from agent.stl.syntax import robots_of, to_text
@@ -37,8 +38,14 @@ def _number(value: float) -> float | str:
 
 def evaluate(scenario_path: str, trajectory_path: str, smooth: bool = False) -> dict:
     """{robot id: {"subtasks": [{"task", "window", "robustness"}], "robustness": min}}."""
-    scenario = load_scenario(scenario_path)
-    traj = read_trajectory_csv(trajectory_path)
+    return evaluate_trajectory(load_scenario(scenario_path), read_trajectory_csv(trajectory_path),
+                               trajectory_path, smooth=smooth)
+
+
+def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: str | Path,
+                        smooth: bool = False) -> dict:
+    """:func:`evaluate` of an already loaded scenario and trajectory (``trajectory_path`` only
+    names the file in errors)."""
     report: dict = {}
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         if not robot.is_stl:
