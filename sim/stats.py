@@ -25,7 +25,6 @@ class TimingStats:
         self._published: OrderedDict[int, float] = OrderedDict()  # seq -> wall time [s]
         self._keep = keep_frames
         self._answered: dict[int, int] = {}  # robot -> newest seq answered
-        self.latencies: list[float] = []  # [s]
         self.robot_latencies: dict[int, list[float]] = {}  # robot -> its latencies [s]
         self.expected = 0  # due (robot, tick) pairs
         self.missed = 0
@@ -40,7 +39,6 @@ class TimingStats:
         self.answered(robot, seq)
         published = self._published.get(seq)
         if published is not None:
-            self.latencies.append(wall - published)
             self.robot_latencies.setdefault(robot, []).append(wall - published)
 
     def answered(self, robot: int, seq: int) -> None:
@@ -58,10 +56,11 @@ class TimingStats:
     def summary(self) -> dict[str, object]:
         """Counts and latency percentiles [ms], over all commands and per robot (keys are robot
         ids as strings; NaN-free: absent when nothing was measured)."""
-        out: dict[str, float | int] = {"commands": len(self.latencies),
+        latencies = [v for values in self.robot_latencies.values() for v in values]
+        out: dict[str, float | int] = {"commands": len(latencies),
                                        "due": self.expected, "missed": self.missed}
-        if self.latencies:
-            ms = np.asarray(self.latencies) * 1000.0
+        if latencies:
+            ms = np.asarray(latencies) * 1000.0
             out.update(latency_p50_ms=float(np.percentile(ms, 50)),
                        latency_p99_ms=float(np.percentile(ms, 99)),
                        latency_max_ms=float(ms.max()))

@@ -125,10 +125,6 @@ class CollabLink:
 
     # the loop ---------------------------------------------------------------------------
 
-    def send(self, msg: CollabMessage) -> bool:
-        """Query the receiver and wait for its reply; True when it accepted the message."""
-        return self.send_all((msg,), wait=True) == 0
-
     def send_all(self, messages: Sequence[CollabMessage], *, wait: bool) -> int:
         """Send every message by query to its receiver, the queries in flight together.
 

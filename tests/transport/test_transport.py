@@ -53,39 +53,46 @@ def test_fake_pub_sub_query_and_liveliness():
 
 
 
-@pytest.mark.system
-def test_zenoh_round_trip_on_loopback():
+@pytest.fixture
+def loopback_pair():
+    """Two client sessions ``(a, b)`` through a router on a free loopback port; all closed after."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     router = ZenohTransport.open(TransportConfig(mode="router", listen=(endpoint,)))
     a = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
     b = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
     try:
-        arrived = threading.Event()
-        payloads: list[bytes] = []
-
-        def on_cmd(key: str, payload: bytes) -> None:
-            payloads.append(payload)
-            arrived.set()
-
-        b.subscribe("t/robot/*/cmd", on_cmd)
-        b.serve("t/robot/2/collab", lambda p: b"ack " + p)
-        alive = threading.Event()
-        gone = threading.Event()
-        a.watch_alive("t/alive/**", lambda k, up: (alive if up else gone).set())
-        token = b.declare_alive("t/alive/agent/2")
-        assert alive.wait(5.0)
-        # a subscriber declared by a remote session may take a moment to propagate
-        for _ in range(50):
-            a.publish("t/robot/2/cmd", b"go")
-            if arrived.wait(0.1):
-                break
-        assert payloads and payloads[0] == b"go"
-        assert a.query("t/robot/2/collab", b"help", timeout=2.0) == [b"ack help"]
-        token.close()
-        assert gone.wait(5.0)
+        yield a, b
     finally:
         for t in (a, b, router):
             t.close()
+
+
+@pytest.mark.system
+def test_zenoh_round_trip_on_loopback(loopback_pair):
+    a, b = loopback_pair
+    arrived = threading.Event()
+    payloads: list[bytes] = []
+
+    def on_cmd(key: str, payload: bytes) -> None:
+        payloads.append(payload)
+        arrived.set()
+
+    b.subscribe("t/robot/*/cmd", on_cmd)
+    b.serve("t/robot/2/collab", lambda p: b"ack " + p)
+    alive = threading.Event()
+    gone = threading.Event()
+    a.watch_alive("t/alive/**", lambda k, up: (alive if up else gone).set())
+    token = b.declare_alive("t/alive/agent/2")
+    assert alive.wait(5.0)
+    # a subscriber declared by a remote session may take a moment to propagate
+    for _ in range(50):
+        a.publish("t/robot/2/cmd", b"go")
+        if arrived.wait(0.1):
+            break
+    assert payloads and payloads[0] == b"go"
+    assert a.query("t/robot/2/collab", b"help", timeout=2.0) == [b"ack help"]
+    token.close()
+    assert gone.wait(5.0)
 
 
 def test_fake_query_async_is_finished_before_it_returns():
@@ -99,16 +106,12 @@ def test_fake_query_async_is_finished_before_it_returns():
 
 
 @pytest.mark.system
-def test_zenoh_query_async_returns_before_the_reply():
+def test_zenoh_query_async_returns_before_the_reply(loopback_pair):
     """The asker is not held while the queryable works; ``on_done`` gets the replies later, and
     a query nobody serves finishes with none."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    router = ZenohTransport.open(TransportConfig(mode="router", listen=(endpoint,)))
-    a = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
-    b = ZenohTransport.open(TransportConfig(mode="client", connect=(endpoint,)))
+    a, b = loopback_pair
+    release = threading.Event()
     try:
-        release = threading.Event()
-
         def slow(payload: bytes) -> bytes:
             release.wait(10.0)
             return b"ack " + payload
@@ -133,6 +136,4 @@ def test_zenoh_query_async_returns_before_the_reply():
         release.set()
         assert finished["served"].wait(5.0) and results["served"] == [b"ack help"]
     finally:
-        release.set()
-        for t in (a, b, router):
-            t.close()
+        release.set()  # let a held queryable answer before the sessions close
