@@ -106,8 +106,8 @@ class CpuSampler:
                         argv = child.cmdline()
                     except psutil.Error:
                         continue
-                    if "coordinator.cli" in argv[:-1]:
-                        procs[child.pid] = (child, argv[argv.index("coordinator.cli") + 1])
+                    if "cli.main" in argv[:-1]:
+                        procs[child.pid] = (child, argv[argv.index("cli.main") + 1])
             for pid, (proc, role) in list(procs.items()):
                 try:
                     times = proc.cpu_times()

@@ -62,7 +62,7 @@ def wait_for_port(host: str, port: int, timeout: float, child: Child | None = No
 
 def tlfleet_command(*args: str) -> list[str]:
     """argv running ``tlfleet ARGS`` with this interpreter (independent of PATH)."""
-    return [sys.executable, "-m", "coordinator.cli", *args]
+    return [sys.executable, "-m", "cli.main", *args]
 
 
 @dataclass

@@ -38,7 +38,7 @@ from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, peek_kind
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from agent.runtime.transport import Closeable, Transport
+from bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 

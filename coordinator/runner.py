@@ -39,8 +39,9 @@ from pathlib import Path
 from typing import Any
 
 from agent.protocol import keys
-from agent.runtime.transport import TransportConfig, ZenohTransport, open_transport
 from agent.scenario import Scenario, load_scenario
+from bus.transport import TransportConfig, open_transport
+from bus.zenoh_transport import ZenohTransport
 from coordinator.launcher import (
     Child,
     Launcher,

@@ -35,8 +35,7 @@ import numpy as np
 
 from agent.errors import TlfleetError
 from agent.scenario import Scenario, load_scenario
-from agent.stl.monitor import Trajectory, read_trajectory_csv
-from coordinator.commands.monitor import evaluate_trajectory
+from agent.stl.monitor import Trajectory, evaluate_trajectory, read_trajectory_csv
 
 logger = logging.getLogger(__name__)
 

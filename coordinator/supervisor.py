@@ -33,8 +33,8 @@ from typing import Protocol
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Control, Event
-from agent.runtime.transport import Closeable, Transport
 from agent.scenario import Scenario
+from bus.transport import Closeable, Transport
 from coordinator.launcher import LaunchError
 from coordinator.recorder import COORDINATOR_SOURCE, RecorderTap
 

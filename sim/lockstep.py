@@ -31,12 +31,7 @@ from agent.scenario.model import Scenario
 
 def control_dividers(scenario: Scenario) -> dict[int, int]:
     """Robot id → d_r = round(mocap_rate / f_r) ≥ 1, f_r the robot's control rate [Hz]."""
-    mocap_rate = scenario.sim.mocap_rate
-    out = {}
-    for robot in scenario.robots:
-        rate = scenario.ltl.control_rate if robot.is_ltl else scenario.stl.control_rate
-        out[robot.id] = max(1, round(mocap_rate / rate))
-    return out
+    return {robot.id: scenario.control_divider(robot.id) for robot in scenario.robots}
 
 
 def due_robots(tick: int, dividers: Mapping[int, int], alive: Iterable[int]) -> tuple[int, ...]:

@@ -33,7 +33,6 @@ logged at most once per ``malformed_report_period`` per key, and published as
 
 from __future__ import annotations
 
-import argparse
 import logging
 import queue
 import sys
@@ -42,6 +41,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,8 +50,9 @@ from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
-from agent.runtime.transport import Closeable, Transport, install_signal_handlers, open_transport
 from agent.scenario import Scenario, load_scenario
+from bus.signals import install_signal_handlers
+from bus.transport import Closeable, Transport, TransportConfig, open_transport
 from sim.clock import Pacer, TickClock
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
 from sim.stats import TimingStats
@@ -91,13 +92,25 @@ class SimConfig:
                                      f"{'≥ 0' if name == 'duration' else '> 0'}")
 
     @classmethod
-    def from_args(cls, args: argparse.Namespace, scenario: Scenario) -> SimConfig:
-        return cls(
-            mode="realtime" if getattr(args, "realtime", False) else "lockstep",
-            duration=scenario.duration if args.duration is None else args.duration,
-            seed=scenario.sim.seed if args.seed is None else args.seed,
-            tick_timeout=args.tick_timeout,
-        )
+    def for_scenario(cls, scenario: Scenario, *, mode: TimeMode = "lockstep",
+                     duration: float | None = None, seed: int | None = None,
+                     tick_timeout: float = 2.0) -> SimConfig:
+        """The settings of a run of ``scenario``: duration and seed default to the scenario's."""
+        return cls(mode=mode, duration=scenario.duration if duration is None else duration,
+                   seed=scenario.sim.seed if seed is None else seed, tick_timeout=tick_timeout)
+
+
+@dataclass(frozen=True)
+class SimProcessConfig:
+    """What ``tlfleet sim`` gives :func:`main`: the scenario file, the run's overrides and the
+    transport (style.md §6)."""
+
+    scenario: Path
+    mode: TimeMode = "lockstep"
+    duration: float | None = None  # [s] sim time; None: the scenario's
+    seed: int | None = None  # None: the scenario's
+    tick_timeout: float = 2.0  # [s] wall
+    transport: TransportConfig = field(default_factory=TransportConfig)
 
 
 @dataclass
@@ -426,16 +439,17 @@ def run_sim(transport: Transport, scenario: Scenario, config: SimConfig,
     return SimProcess(transport, scenario, config, stop).run()
 
 
-def main(args: argparse.Namespace) -> int:
+def main(config: SimProcessConfig) -> int:
     """``tlfleet sim``: load the scenario, open the transport, run, close the session."""
-    scenario = load_scenario(args.scenario)
-    config = SimConfig.from_args(args, scenario)
+    scenario = load_scenario(config.scenario)
+    sim_config = SimConfig.for_scenario(scenario, mode=config.mode, duration=config.duration,
+                                        seed=config.seed, tick_timeout=config.tick_timeout)
     sys.setswitchinterval(SWITCH_INTERVAL)
     stop = threading.Event()
     install_signal_handlers(stop)
-    transport = open_transport(args)
+    transport = open_transport(config.transport)
     try:
-        code = run_sim(transport, scenario, config, stop)
+        code = run_sim(transport, scenario, sim_config, stop)
         time.sleep(LINGER)  # let zenoh deliver the last frame and sim_done before closing
         return code
     finally:

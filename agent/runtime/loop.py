@@ -1,6 +1,6 @@
 """The one loop of an agent process: decode → pure ``step`` → encode/publish (style.md §3).
 
-:class:`AgentLoop` is transport-agnostic (a :class:`~agent.runtime.transport.Transport`: zenoh in
+:class:`AgentLoop` is transport-agnostic (a :class:`~bus.transport.Transport`: zenoh in
 processes, ``FakeNetwork`` in tests) and core-agnostic: the LTL and the STL agents are a
 :class:`Core` each, whose ``step(state, TickInput) -> (state, TickOutput)`` holds all the logic.
 The loop implements the time protocol of architecture.md §3 (contract of issue 5):
@@ -39,7 +39,7 @@ from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import CollabMessage, Command, Control, Event, MocapFrame
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
-from agent.runtime.transport import Closeable, Transport
+from bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 

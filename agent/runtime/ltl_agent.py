@@ -15,12 +15,11 @@ then, per due frame (5 Hz, ``scenario.ltl.control_rate``), ``step(state, TickInp
    ``with_penalised_edges``), handed to the executor at the next step, and ``plan_ready``;
 4. an ``LtlStatus`` every due frame (≤ 10 Hz of sim time).
 
-``main(args)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an LTL robot).
+``main(config, scenario)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an LTL robot).
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -35,6 +34,7 @@ from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
 from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
 from agent.nav.grid_planner import path_length_function, with_penalised_edges
 from agent.protocol.messages import Event, LtlStatus
+from agent.runtime.config import AgentConfig
 from agent.runtime.loop import TickInput, TickOutput
 from agent.scenario.model import Scenario
 
@@ -198,18 +198,17 @@ def _plain(value: object) -> object:
 # --------------------------------------------------------------------------- process
 
 
-def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=None) -> int:
-    """The LTL agent process of ``args.robot`` (see ``coordinator.commands.agent``);
+def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) -> int:
+    """The LTL agent process of ``config.robot`` (see ``cli.commands.agent``);
     ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
     from agent.runtime.process import run_agent
 
     def build(_transport, _malformed, _publish):
-        core = LtlCore(scenario, args.robot)
+        core = LtlCore(scenario, config.robot)
         plan = core.plan()  # UnsatisfiableTask → fault event, exit code 1 (run_agent)
         state, event = core.initial_state(plan)
-        logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", args.robot, plan.prefix,
+        logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", config.robot, plan.prefix,
                     plan.suffix, plan.cost, 1e3 * plan.timings.total)
         return core, state, (event,), None
 
-    divider = max(1, round(scenario.sim.mocap_rate / scenario.ltl.control_rate))
-    return run_agent(args, scenario, divider, build, transport=transport, stop=stop)
+    return run_agent(config, scenario, build, transport=transport, stop=stop)

@@ -35,7 +35,7 @@ from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import CollabMessage, CollabReply
 from agent.runtime.collab import from_wire
 from agent.runtime.inbox import CollabInbox, MalformedCounter
-from agent.runtime.transport import Closeable, Transport
+from bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 

@@ -10,7 +10,6 @@ step times, collaboration and malformed counters).
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 import threading
@@ -22,11 +21,14 @@ from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event
+from agent.runtime.config import AgentConfig, AgentConfigError
 from agent.runtime.inbox import MalformedCounter
 from agent.runtime.loop import AgentLoop, Core, LoopConfig
 from agent.runtime.peers import CollabLink
-from agent.runtime.transport import Transport, install_signal_handlers, open_transport
+from agent.scenario import load_scenario
 from agent.scenario.model import Scenario
+from bus.signals import install_signal_handlers
+from bus.transport import Transport, open_transport
 
 logger = logging.getLogger(__name__)
 
@@ -37,14 +39,15 @@ SWITCH_INTERVAL = 0.0005  # [s] stack-notes.md §2.3
 LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 
-def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build: Builder, *,
+def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
               transport: Transport | None = None, stop: threading.Event | None = None) -> int:
     """Run one agent process; 0 on a clean stop, 1 on a fault: ``build`` raising a
     :class:`~agent.errors.TlfleetError` (e.g. an unsatisfiable LTL task) or returning None, or
     the loop failing; each is reported as ``Event(kind="fault", data={"error": ...})``.
 
     ``transport`` and ``stop`` are for tests (a fake transport, a stop event they control);
-    by default the zenoh session is opened from ``args`` and SIGINT/SIGTERM set ``stop``.
+    by default the zenoh session is opened from ``config.transport`` and SIGINT/SIGTERM set
+    ``stop``.
     """
     sys.setswitchinterval(SWITCH_INTERVAL)
     if stop is None:
@@ -52,8 +55,9 @@ def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build:
         install_signal_handlers(stop)
     own_transport = transport is None
     if transport is None:
-        transport = open_transport(args)
-    source = f"agent/{args.robot}"
+        transport = open_transport(config.transport)
+    source = f"agent/{config.robot}"
+    divider = scenario.control_divider(config.robot)
     loop: AgentLoop | None = None
     try:
         malformed = MalformedCounter(source)
@@ -71,9 +75,8 @@ def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build:
         if built is None:
             return 1
         core, state, events, link = built
-        config = LoopConfig(scenario.fleet, args.robot, divider,
-                            getattr(args, "stale_after", 0.5))
-        loop = AgentLoop(transport, config, core, state, link=link, malformed=malformed)
+        loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after)
+        loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)
         loop.open()
         loop.ready()
         for event in events:
@@ -96,3 +99,25 @@ def run_agent(args: argparse.Namespace, scenario: Scenario, divider: int, build:
         if own_transport:
             time.sleep(LINGER)  # let zenoh deliver the last command / event before closing
             transport.close()
+
+
+def main(config: AgentConfig, scenario: Scenario | None = None) -> int:
+    """``tlfleet agent``: the process of ``config.robot``, dispatched on its task — an LTL robot
+    runs :mod:`agent.runtime.ltl_agent` (plan, then navigation), an STL robot
+    :mod:`agent.runtime.stl_agent` (funnel control with stage-2 collaboration). Exit codes: 0
+    after a clean stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault."""
+    if scenario is None:
+        if config.scenario is None:
+            raise TlfleetError("agent: no scenario given")
+        scenario = load_scenario(config.scenario)
+    if config.robot not in scenario.robot_ids:
+        known = ", ".join(str(r) for r in scenario.robot_ids)
+        raise AgentConfigError(f"scenario {scenario.name!r} has no robot {config.robot} "
+                               f"(robots: {known})")
+    if scenario.robot(config.robot).is_ltl:
+        from agent.runtime import ltl_agent
+
+        return ltl_agent.main(config, scenario)
+    from agent.runtime import stl_agent
+
+    return stl_agent.main(config, scenario)

@@ -14,19 +14,20 @@ loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of 
   (data: stage, r, …), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
   starts or stops following a requester) and ``subtask_done``.
 
-``main(args)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL robot); its
+``main(config, scenario)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL
+robot); its
 :class:`~agent.runtime.peers.CollabLink` serves ``robot/<id>/collab``, and its agent announces
 its status only to the robots that read it (``agent.stl.agent.status_readers``).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 
 from agent.protocol.messages import Event, StlStatus
 from agent.runtime.collab import to_wire
+from agent.runtime.config import AgentConfig
 from agent.runtime.loop import TickInput, TickOutput
 from agent.runtime.peers import CollabLink
 from agent.scenario.model import Scenario
@@ -123,17 +124,16 @@ def _status(robot: int, log: LogRecord, state: AgentState) -> StlStatus:
 # --------------------------------------------------------------------------- process
 
 
-def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=None) -> int:
-    """The STL agent process of ``args.robot`` (see ``coordinator.commands.agent``);
+def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) -> int:
+    """The STL agent process of ``config.robot`` (see ``cli.commands.agent``);
     ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
     from agent.runtime.process import run_agent
 
     def build(transport, malformed, _publish_fault):
-        agent = build_agents(scenario, robots=[args.robot])[args.robot]
-        link = CollabLink(transport, scenario.fleet, args.robot, agent.cfg.peers, malformed,
-                          timeout=getattr(args, "collab_timeout", 0.25))
+        agent = build_agents(scenario, robots=[config.robot])[config.robot]
+        link = CollabLink(transport, scenario.fleet, config.robot, agent.cfg.peers, malformed,
+                          timeout=config.collab_timeout)
         core = StlCore(agent)
         return core, core.initial_state(), (), link
 
-    divider = max(1, round(scenario.sim.mocap_rate / scenario.stl.control_rate))
-    return run_agent(args, scenario, divider, build, transport=transport, stop=stop)
+    return run_agent(config, scenario, build, transport=transport, stop=stop)

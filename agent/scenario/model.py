@@ -206,6 +206,16 @@ class Scenario:
                 return region
         raise KeyError(f"scenario {self.name!r} has no region {name!r}")
 
+    def control_rate(self, robot_id: int) -> float:
+        """f_r [Hz]: the LTL loop rate for an LTL robot, the STL loop rate otherwise."""
+        return self.ltl.control_rate if self.robot(robot_id).is_ltl else self.stl.control_rate
+
+    def control_divider(self, robot_id: int) -> int:
+        """d_r = max(1, round(mocap_rate / f_r)): mocap ticks per control period of the robot
+        (architecture.md §3). The one place this is computed: the simulator's due rule and the
+        agent's loop both use it."""
+        return max(1, round(self.sim.mocap_rate / self.control_rate(robot_id)))
+
     @property
     def robot_ids(self) -> tuple[int, ...]:
         return tuple(sorted(r.id for r in self.robots))

@@ -22,6 +22,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,9 @@ from agent.errors import TlfleetError
 from agent.stl.robustness import CompiledPsi, participants, psi_array
 from agent.stl.syntax import Temporal
 from agent.stl.task import Task
+
+if TYPE_CHECKING:
+    from agent.scenario import Scenario
 
 
 class TrajectoryFileError(TlfleetError, ValueError):
@@ -187,3 +191,35 @@ def write_trajectory_csv(path: str | Path, traj: Trajectory) -> None:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows([[repr(float(v)) for v in row] for row in columns])
+
+
+def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: str | Path,
+                        smooth: bool = False) -> dict:
+    """Robustness of every STL robot's sub-tasks (standard min/max, stl-funnel.md §3, §9 item 6)
+    of a loaded scenario on a loaded trajectory: ``{robot id: {"subtasks": [{"task", "window",
+    "robustness"}], "robustness": min}}`` (``trajectory_path`` only
+    names the file in errors)."""
+    from agent.stl.errors import StlTaskError
+    from agent.stl.parser import parse_task
+    from agent.stl.sequencer import merge_and_check
+    from agent.stl.syntax import robots_of, to_text
+
+    report: dict = {}
+    for robot in sorted(scenario.robots, key=lambda r: r.id):
+        if not robot.is_stl:
+            continue
+        tasks = merge_and_check(robot.id, [parse_task(text, scenario.robot_ids)
+                                           for text in robot.stl])
+        missing = sorted(frozenset().union(*(robots_of(t) for t in tasks)) - set(traj.states))
+        if missing:
+            raise StlTaskError(f"{trajectory_path}: no columns for robot {missing[0]}, which robot "
+                               f"{robot.id}'s task needs (columns x{missing[0]},y{missing[0]},"
+                               f"th{missing[0]})")
+        values = [task_robustness(task, traj, smooth=smooth, eta=scenario.stl.eta)
+                  for task in tasks]
+        report[robot.id] = {
+            "subtasks": [{"task": to_text(task), "window": [task.a, task.b], "robustness": value}
+                         for task, value in zip(tasks, values, strict=True)],
+            "robustness": min(values),
+        }
+    return report

@@ -27,8 +27,8 @@ sys.path.insert(0, str(ROOT))
 from agent.protocol import keys  # noqa: E402
 from agent.protocol.codec import decode, encode  # noqa: E402
 from agent.protocol.messages import Control, Event, LtlStatus, MocapFrame, StlStatus  # noqa: E402
-from agent.runtime.transport import TransportConfig, open_transport  # noqa: E402
 from agent.scenario import load_scenario  # noqa: E402
+from bus.transport import TransportConfig, open_transport  # noqa: E402
 
 
 def main() -> int:

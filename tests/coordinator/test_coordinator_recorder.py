@@ -13,8 +13,8 @@ import pytest
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from agent.runtime.transport import FakeNetwork
 from agent.stl.monitor import read_trajectory_csv
+from bus.fake import FakeNetwork
 from coordinator.recorder import STATUS_COLUMNS, Recorder, RecorderTap, default_run_dir
 
 
@@ -134,7 +134,7 @@ def test_default_run_dir_is_unique(tmp_path):
 def test_progress_bar_line():
     import io
 
-    from coordinator.commands.run import ProgressBar
+    from cli.commands.run import ProgressBar
 
     stream = io.StringIO()
     bar = ProgressBar(stream, width=10)

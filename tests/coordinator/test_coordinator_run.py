@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from process_helpers import processes_mentioning
 
-from coordinator import cli
+from cli import main as cli
 from coordinator.runner import RunConfig, run_fleet
 from coordinator.supervisor import SupervisorConfig
 

@@ -14,8 +14,8 @@ import pytest
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
 from agent.protocol.messages import Control, Event, MocapFrame
-from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
+from bus.fake import FakeNetwork
 from coordinator.launcher import Launcher, LaunchError
 from coordinator.recorder import Recorder, RecorderTap
 from coordinator.supervisor import Supervisor, SupervisorConfig, expected_tokens

@@ -24,8 +24,8 @@ from matplotlib.image import imread
 from agent.ltl.buchi import translate
 from agent.ltl.emptiness import accepts_lasso
 from agent.ltl.lasso import holds
+from cli.main import main as cli_main
 from coordinator import paper_values
-from coordinator.cli import main as cli_main
 from coordinator.figures import robustness_figure
 from coordinator.report import (
     RunDirectoryError,

@@ -19,7 +19,7 @@ from agent.protocol.messages import (
     MocapFrame,
     StlStatus,
 )
-from agent.runtime.transport import FakeNetwork
+from bus.fake import FakeNetwork
 
 
 class FakeSim:

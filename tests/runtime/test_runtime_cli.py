@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from coordinator.cli import main
+from cli.main import main
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -3,7 +3,6 @@ payloads, stop — with a recording core, on the fake network."""
 
 from __future__ import annotations
 
-import argparse
 import threading
 import time
 import types
@@ -15,12 +14,13 @@ from runtime_helpers import FakeClock, FakeSim, stl_loop
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
 from agent.protocol.messages import CollabMessage, CollabReply, Command, MocapFrame
+from agent.runtime.config import AgentConfig
 from agent.runtime.inbox import CollabInbox, Mailbox, MalformedCounter
 from agent.runtime.loop import AgentLoop, LoopConfig, TickInput, TickOutput
 from agent.runtime.process import run_agent
-from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
 from agent.stl.agent import build_agents
+from bus.fake import FakeNetwork
 
 FLEET = "loop"
 POSES = {1: (0.0, 0.0, 0.0), 2: (1.0, 0.0, 0.0)}
@@ -304,11 +304,11 @@ def test_a_failing_core_is_a_fault_event_and_exit_code_1():
 
     network = FakeNetwork()
     sim = FakeSim(network, FLEET)
-    args = argparse.Namespace(robot=1, stale_after=0.5)
-    scenario = types.SimpleNamespace(fleet=FLEET)
+    config = AgentConfig(robot=1, stale_after=0.5)
+    scenario = types.SimpleNamespace(fleet=FLEET, control_divider=lambda _robot: 1)
     result = {}
     thread = threading.Thread(target=lambda: result.setdefault("code", run_agent(
-        args, scenario, 1, lambda *_: (BrokenCore(), 0, (), None),
+        config, scenario, lambda *_: (BrokenCore(), 0, (), None),
         transport=network.transport("a1"), stop=threading.Event())))
     thread.start()
     try:

@@ -3,7 +3,6 @@ limits, region visits with Büchi tracking, status, replanning and unsatisfiable
 
 from __future__ import annotations
 
-import argparse
 import math
 import threading
 from dataclasses import replace
@@ -16,10 +15,11 @@ from agent.ltl.buchi import buchi_step
 from agent.nav.events import ReplanRequest
 from agent.protocol.messages import LtlStatus, MocapFrame
 from agent.runtime import ltl_agent
+from agent.runtime.config import AgentConfig
 from agent.runtime.loop import AgentLoop, LoopConfig, TickInput
 from agent.runtime.ltl_agent import LtlCore
-from agent.runtime.transport import FakeNetwork
 from agent.scenario import load_scenario
+from bus.fake import FakeNetwork
 
 RATE = 100.0
 DT = 1.0 / RATE
@@ -150,8 +150,8 @@ def test_an_unsatisfiable_task_is_a_fault_with_exit_code_1(scenario1):
     scenario = replace(scenario1, robots=robots)
     network = FakeNetwork()
     sim = FakeSim(network, scenario.fleet)
-    args = argparse.Namespace(robot=1, stale_after=0.5)
-    code = ltl_agent.main(args, scenario, transport=network.transport("a1"),
+    config = AgentConfig(robot=1, stale_after=0.5)
+    code = ltl_agent.main(config, scenario, transport=network.transport("a1"),
                                       stop=threading.Event())
     assert code == 1
     (fault,) = [e for e in sim.events if e.kind == "fault"]

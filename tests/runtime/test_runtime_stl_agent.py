@@ -3,7 +3,6 @@ dead partner (stl-funnel.md §7.4–§7.5, §11.7; architecture.md §3)."""
 
 from __future__ import annotations
 
-import argparse
 import threading
 import time
 from dataclasses import replace
@@ -16,12 +15,13 @@ from agent.control.collision import CollisionParams
 from agent.protocol import keys
 from agent.protocol.messages import StlStatus
 from agent.runtime import stl_agent
-from agent.runtime.transport import FakeNetwork
+from agent.runtime.config import AgentConfig
 from agent.scenario import load_scenario
 from agent.stl.agent import StepInput, StlAgent, build_agents, single_agent, status_readers
 from agent.stl.harness import run_closed_loop
 from agent.stl.messages import CollabRelease, CollabRequest
 from agent.stl.sequencer import build_sequence
+from bus.fake import FakeNetwork
 
 RATE = 100.0
 DT = 1.0 / RATE
@@ -193,10 +193,10 @@ def test_the_stl_process_main_on_the_fake_network():
     scenario = load_scenario("scenarios/scenario1.toml")
     network = FakeNetwork()
     sim = FakeSim(network, scenario.fleet)
-    args = argparse.Namespace(robot=4, stale_after=0.5, collab_timeout=0.1)
+    config = AgentConfig(robot=4, stale_after=0.5, collab_timeout=0.1)
     result = {}
     thread = threading.Thread(target=lambda: result.setdefault(
-        "code", stl_agent.main(args, scenario, transport=network.transport("a4"),
+        "code", stl_agent.main(config, scenario, transport=network.transport("a4"),
                                stop=threading.Event())))
     thread.start()
     try:

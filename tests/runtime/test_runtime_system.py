@@ -22,8 +22,9 @@ from process_helpers import free_port, kill_group
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
 from agent.protocol.messages import Command, Control, MocapFrame
-from agent.runtime.transport import TransportConfig, ZenohTransport
 from agent.scenario import load_scenario
+from bus.transport import TransportConfig
+from bus.zenoh_transport import ZenohTransport
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -31,7 +32,7 @@ SCENARIO = ROOT / "scenarios" / "scenario1.toml"
 
 
 def tlfleet(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "coordinator.cli", *args], cwd=ROOT,
+    return subprocess.Popen([sys.executable, "-m", "cli.main", *args], cwd=ROOT,
                             start_new_session=True, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
 

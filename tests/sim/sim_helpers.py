@@ -11,7 +11,6 @@ from dataclasses import replace
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Command, Control, Event, MocapFrame
-from agent.runtime.transport import FakeNetwork, FakeTransport
 from agent.scenario.model import (
     Arena,
     LtlParams,
@@ -22,6 +21,7 @@ from agent.scenario.model import (
     StlParams,
     UnicycleLimits,
 )
+from bus.fake import FakeNetwork, FakeTransport
 from sim.process import SimConfig, SimProcess
 
 FLEET = "simtest"

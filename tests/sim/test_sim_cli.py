@@ -7,9 +7,8 @@ import argparse
 import pytest
 
 from agent.scenario import load_scenario
-from coordinator.cli import main
-from coordinator.commands import sim as sim_command
-from sim.process import SimConfig
+from cli.commands import sim as sim_command
+from cli.main import main
 
 
 def parse(*argv: str) -> argparse.Namespace:
@@ -24,11 +23,11 @@ def test_flags_and_defaults(scenarios_dir):
     args = parse(path)
     assert (args.realtime, args.seed, args.duration, args.tick_timeout) == (False, None, None, 2.0)
     assert (args.mode, args.connect, args.listen) == ("client", [], [])
-    config = SimConfig.from_args(args, scenario)
+    config = sim_command.sim_config(args, scenario)
     assert (config.mode, config.seed, config.duration) == ("lockstep", 1, 90.0)
     args = parse(path, "--realtime", "--seed", "7", "--duration", "3.5", "--tick-timeout", "0.5",
                  "--mode", "peer", "--listen", "tcp/127.0.0.1:7999")
-    config = SimConfig.from_args(args, scenario)
+    config = sim_command.sim_config(args, scenario)
     assert (config.mode, config.seed, config.duration, config.tick_timeout) == (
         "realtime", 7, 3.5, 0.5)
     assert args.listen == ["tcp/127.0.0.1:7999"]

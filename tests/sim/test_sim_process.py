@@ -27,7 +27,7 @@ from sim_helpers import (
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
 from agent.protocol.messages import Clock, Command, MocapFrame
-from agent.runtime.transport import FakeNetwork
+from bus.fake import FakeNetwork
 from sim.process import SimConfig, SimConfigError
 
 STILL_OMNI = constant((0.0, 0.0, 0.0))
@@ -181,10 +181,7 @@ def test_seed_defaults_to_the_scenarios():
     net = FakeNetwork()
     run = SimRun(net, scenario(omni(1, 0, 0), seed=42))
     assert run.process.config.seed == 0  # SimConfig's own default when built directly
-    from argparse import Namespace
-
-    config = SimConfig.from_args(Namespace(realtime=False, duration=None, seed=None,
-                                           tick_timeout=2.0), scenario(omni(1, 0, 0), seed=42))
+    config = SimConfig.for_scenario(scenario(omni(1, 0, 0), seed=42))
     assert (config.seed, config.duration, config.mode) == (42, 1.0, "lockstep")
 
 

@@ -20,8 +20,9 @@ from process_helpers import free_port, kill_group
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
 from agent.protocol.messages import Control, Event, MocapFrame
-from agent.runtime.transport import TransportConfig, ZenohTransport
 from agent.scenario import load_scenario
+from bus.transport import TransportConfig
+from bus.zenoh_transport import ZenohTransport
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -30,7 +31,7 @@ SCENARIO = ROOT / "scenarios" / "scenario1.toml"
 
 def start_sim(endpoint: str, *extra: str) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "coordinator.cli", "sim", str(SCENARIO), "--mode", "peer",
+        [sys.executable, "-m", "cli.main", "sim", str(SCENARIO), "--mode", "peer",
          "--listen", endpoint, *extra],
         cwd=ROOT, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 

@@ -11,7 +11,7 @@ from agent.scenario.loader import load_scenario
 from agent.stl.agent import build_agents
 from agent.stl.harness import ScriptedRobot, run_closed_loop
 from agent.stl.monitor import Trajectory, task_robustness, write_trajectory_csv
-from coordinator.cli import main
+from cli.main import main
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ TWO = HERE / "two_robots.toml"
 
 
 def tlfleet_run(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "coordinator.cli", "run", str(TWO), *args],
+    return subprocess.Popen([sys.executable, "-m", "cli.main", "run", str(TWO), *args],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -28,8 +28,8 @@ from system_helpers import (
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event
-from agent.runtime.transport import TransportConfig, open_transport
 from agent.scenario import load_scenario
+from bus.transport import TransportConfig, open_transport
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"

@@ -9,7 +9,9 @@ import pytest
 from process_helpers import free_port
 
 from agent.protocol.keys import key_matches
-from agent.runtime.transport import FakeNetwork, TransportConfig, ZenohTransport
+from bus.fake import FakeNetwork
+from bus.transport import TransportConfig
+from bus.zenoh_transport import ZenohTransport
 
 
 @pytest.mark.parametrize(("expr", "key", "expected"), [

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from visual_helpers import N_FRAMES, T0, T1, pose, read_rrd, write_run
 
-from coordinator.cli import main
+from cli.main import main
 from coordinator.recorder import read_events, read_statuses
 
 EXPECTED = {

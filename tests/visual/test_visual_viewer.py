@@ -17,7 +17,7 @@ from coordinator.launcher import free_port
 def test_replay_viewer_serves_until_ctrl_c(run_dir: Path) -> None:
     grpc_port, web_port = free_port(), free_port()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "coordinator.cli", "replay", str(run_dir), "--viewer",
+        [sys.executable, "-m", "cli.main", "replay", str(run_dir), "--viewer",
          "--grpc-port", str(grpc_port), "--web-port", str(web_port)],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

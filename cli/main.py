@@ -1,4 +1,4 @@
-"""The ``tlfleet`` command line: one sub-command per module in ``coordinator.commands``.
+"""The ``tlfleet`` command line: one sub-command per module in ``cli.commands``.
 
 Each command module exposes ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 Modules are imported only when their command runs, so ``tlfleet agent`` never pays for the
@@ -18,16 +18,16 @@ from agent.errors import TlfleetError
 
 # command name -> (module, one-line help). Kept here so `tlfleet --help` lists them without imports.
 COMMANDS: dict[str, tuple[str, str]] = {
-    "check": ("coordinator.commands.check", "validate a scenario file and summarise it"),
-    "translate": ("coordinator.commands.translate", "LTL formula to Büchi automaton"),
-    "plan": ("coordinator.commands.plan", "optimal prefix–suffix plans of the LTL robots"),
-    "monitor": ("coordinator.commands.monitor", "STL robustness of a recorded trajectory"),
-    "router": ("coordinator.commands.router", "run a zenoh router for a fleet"),
-    "sim": ("coordinator.commands.sim", "run the pymunk simulator process of a scenario"),
-    "agent": ("coordinator.commands.agent", "run the agent process of one robot"),
-    "run": ("coordinator.commands.run", "launch, supervise and record a whole fleet"),
-    "report": ("coordinator.commands.report", "regenerate report.md/json and figures of a run"),
-    "replay": ("coordinator.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "check": ("cli.commands.check", "validate a scenario file and summarise it"),
+    "translate": ("cli.commands.translate", "LTL formula to Büchi automaton"),
+    "plan": ("cli.commands.plan", "optimal prefix–suffix plans of the LTL robots"),
+    "monitor": ("cli.commands.monitor", "STL robustness of a recorded trajectory"),
+    "router": ("cli.commands.router", "run a zenoh router for a fleet"),
+    "sim": ("cli.commands.sim", "run the pymunk simulator process of a scenario"),
+    "agent": ("cli.commands.agent", "run the agent process of one robot"),
+    "run": ("cli.commands.run", "launch, supervise and record a whole fleet"),
+    "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
+    "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }
 
 

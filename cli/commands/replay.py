@@ -54,9 +54,9 @@ def run(args: argparse.Namespace) -> int:
     run_dir: Path = args.run_dir
     if not run_dir.is_dir():
         raise TlfleetError(f"{run_dir}: not a run directory")
+    from bus.signals import stop_on_signals, wait_for_signal
     from coordinator import visual  # rerun: 0.9 s, paid only here
     from coordinator.launcher import free_port
-    from coordinator.signals import stop_on_signals, wait_for_signal
 
     if not args.viewer:
         result = visual.replay_run(run_dir, args.out, every=args.every)

@@ -7,8 +7,9 @@ until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM (``s
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from agent.runtime.transport import add_transport_arguments
+from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
 HELP = "run the pymunk simulator process of a scenario"
@@ -32,7 +33,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_transport_arguments(parser)
 
 
+def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
+    from sim.process import SimProcessConfig
+
+    return SimProcessConfig(scenario=Path(args.scenario),
+                            mode="realtime" if args.realtime else "lockstep",
+                            duration=args.duration, seed=args.seed,
+                            tick_timeout=args.tick_timeout, transport=transport_config(args))
+
+
+def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
+    """The :class:`~sim.process.SimConfig` these flags give for a loaded scenario."""
+    from sim.process import SimConfig
+
+    return SimConfig.for_scenario(scenario, mode="realtime" if args.realtime else "lockstep",
+                                  duration=args.duration, seed=args.seed,
+                                  tick_timeout=args.tick_timeout)
+
+
 def run(args: argparse.Namespace) -> int:
     from sim.process import main
 
-    return main(args)
+    return main(process_config(args))

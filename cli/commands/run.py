@@ -20,8 +20,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from bus.signals import stop_on_signals, wait_for_signal
 from coordinator.runner import RunConfig, RunResult, run_fleet
-from coordinator.signals import stop_on_signals, wait_for_signal
 from coordinator.supervisor import SupervisorConfig
 
 if TYPE_CHECKING:

@@ -11,14 +11,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 
-from agent.scenario import Scenario, load_scenario
-from agent.stl.errors import StlTaskError
-from agent.stl.monitor import Trajectory, read_trajectory_csv, task_robustness
-from agent.stl.parser import parse_task
-from agent.stl.sequencer import merge_and_check
-from agent.stl.syntax import robots_of, to_text
+from agent.scenario import load_scenario
+from agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
 
 NAME = "monitor"
 HELP = "STL robustness of a recorded trajectory"
@@ -40,31 +35,6 @@ def evaluate(scenario_path: str, trajectory_path: str, smooth: bool = False) -> 
     """{robot id: {"subtasks": [{"task", "window", "robustness"}], "robustness": min}}."""
     return evaluate_trajectory(load_scenario(scenario_path), read_trajectory_csv(trajectory_path),
                                trajectory_path, smooth=smooth)
-
-
-def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: str | Path,
-                        smooth: bool = False) -> dict:
-    """:func:`evaluate` of an already loaded scenario and trajectory (``trajectory_path`` only
-    names the file in errors)."""
-    report: dict = {}
-    for robot in sorted(scenario.robots, key=lambda r: r.id):
-        if not robot.is_stl:
-            continue
-        tasks = merge_and_check(robot.id, [parse_task(text, scenario.robot_ids)
-                                           for text in robot.stl])
-        missing = sorted(frozenset().union(*(robots_of(t) for t in tasks)) - set(traj.states))
-        if missing:
-            raise StlTaskError(f"{trajectory_path}: no columns for robot {missing[0]}, which robot "
-                               f"{robot.id}'s task needs (columns x{missing[0]},y{missing[0]},"
-                               f"th{missing[0]})")
-        values = [task_robustness(task, traj, smooth=smooth, eta=scenario.stl.eta)
-                  for task in tasks]
-        report[robot.id] = {
-            "subtasks": [{"task": to_text(task), "window": [task.a, task.b], "robustness": value}
-                         for task, value in zip(tasks, values, strict=True)],
-            "robustness": min(values),
-        }
-    return report
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,0 +1,51 @@
+"""The fleet's zenoh router process (architecture.md §1; stack-notes.md §0: one router, every
+other process a client): a session in ``router`` mode that declares ``alive/router/0`` and waits
+for SIGINT/SIGTERM; the session is closed in ``finally``."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+
+from agent.errors import TlfleetError
+from agent.protocol import keys
+from bus.signals import install_signal_handlers
+from bus.transport import TransportConfig, open_transport
+
+logger = logging.getLogger(__name__)
+
+
+class RouterConfigError(TlfleetError, ValueError):
+    """A router setting that cannot work (names the setting)."""
+
+
+@dataclass(frozen=True)
+class RouterConfig:
+    """How the router runs: its fleet name (for the liveliness token) and its transport."""
+
+    fleet: str = "default"
+    transport: TransportConfig = field(default_factory=lambda: TransportConfig(mode="router"))
+
+    def __post_init__(self) -> None:
+        if self.transport.mode != "router":
+            raise RouterConfigError(f"--mode must be router, got {self.transport.mode}")
+        if not self.transport.listen:
+            raise RouterConfigError("give at least one --listen endpoint, "
+                                    "e.g. tcp/127.0.0.1:7447")
+
+
+def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
+    """Run the router until ``stop`` is set (by default: SIGINT or SIGTERM)."""
+    if stop is None:
+        stop = threading.Event()
+        install_signal_handlers(stop)
+    transport = open_transport(config.transport)
+    try:
+        transport.declare_alive(keys.alive(config.fleet, "router", 0))
+        logger.info("router listening on %s", ", ".join(config.transport.listen))
+        while not stop.wait(0.2):
+            pass
+        return 0
+    finally:
+        transport.close()

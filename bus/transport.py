@@ -1,0 +1,81 @@
+"""The transport interface of every tlfleet process, and its typed configuration.
+
+:class:`Transport` (style.md §4, after dora-rs' ``MockNode``) is what a process needs from its
+middleware: publish/subscribe for poses and commands, ``serve``/``query`` for stage-2
+collaboration, liveliness tokens for presence (architecture.md §1–§2). Two implementations share
+it: :class:`bus.zenoh_transport.ZenohTransport` for real and :class:`bus.fake.FakeTransport` for
+tests.
+
+Callbacks receive ``(key, payload)`` on a transport thread (zenoh) or synchronously inside the
+sender's call (fake); they must be quick: store and return, decode in the process's own loop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from bus.zenoh_transport import ZenohTransport
+
+SampleCallback = Callable[[str, bytes], None]
+QueryHandler = Callable[[bytes], bytes | None]
+RepliesCallback = Callable[[list[bytes]], None]
+AliveCallback = Callable[[str, bool], None]
+
+
+class Closeable(Protocol):
+    def close(self) -> None: ...
+
+
+class Transport(Protocol):
+    """What a tlfleet process needs from its middleware."""
+
+    def publish(self, key: str, payload: bytes) -> None: ...
+
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Closeable: ...
+
+    def serve(self, key: str, handler: QueryHandler) -> Closeable: ...
+
+    def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]: ...
+
+    def query_async(self, key_expr: str, payload: bytes, timeout: float,
+                    on_done: RepliesCallback) -> None: ...
+
+    def declare_alive(self, key: str) -> Closeable: ...
+
+    def watch_alive(self, key_expr: str, callback: AliveCallback) -> Closeable: ...
+
+    def close(self) -> None: ...
+
+
+class Handle:
+    """A ``Closeable`` that runs ``undo`` once."""
+
+    def __init__(self, undo: Callable[[], None]):
+        self._undo: Callable[[], None] | None = undo
+
+    def close(self) -> None:
+        undo, self._undo = self._undo, None
+        if undo is not None:
+            undo()
+
+
+@dataclass(frozen=True)
+class TransportConfig:
+    """How a process opens its session: the transport flags every process shares (style.md §6)."""
+
+    mode: str = "client"  # "client" | "peer" | "router"
+    connect: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ()
+    lease_ms: int | None = None  # [ms] link lease: how fast a hung peer is declared gone
+    multicast_scouting: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
+
+
+def open_transport(config: TransportConfig) -> ZenohTransport:
+    """Open a zenoh session from a :class:`TransportConfig`."""
+    from bus.zenoh_transport import ZenohTransport
+
+    return ZenohTransport.open(config)

@@ -1,0 +1,164 @@
+"""The Zenoh implementation of :class:`bus.transport.Transport` (stack-notes.md §0/§1).
+
+This module is the only place in the tree that imports zenoh. It applies the verified rules of
+stack-notes.md: multicast scouting off unless asked, explicit endpoints, callbacks that only hand
+bytes on (guarded by a ``closing`` flag, since queued callbacks still run after ``close()``), and an
+explicit ``session.close()``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from typing import Any
+
+from bus.transport import (
+    AliveCallback,
+    Closeable,
+    Handle,
+    QueryHandler,
+    RepliesCallback,
+    SampleCallback,
+    TransportConfig,
+)
+
+logger = logging.getLogger(__name__)
+
+
+class ZenohTransport:
+    """:class:`Transport` over an open zenoh session (stack-notes.md §1)."""
+
+    def __init__(self, session: Any):
+        self._session = session
+        self._closing = threading.Event()
+        self._publishers: dict[str, Any] = {}
+        self._entities: list[Any] = []
+
+    @staticmethod
+    def zenoh_config(config: TransportConfig) -> Any:
+        import zenoh
+
+        c = zenoh.Config()
+        c.insert_json5("mode", json.dumps(config.mode))
+        c.insert_json5("listen/endpoints", json.dumps(list(config.listen)))
+        c.insert_json5("connect/endpoints", json.dumps(list(config.connect)))
+        c.insert_json5("scouting/multicast/enabled", json.dumps(config.multicast_scouting))
+        if config.lease_ms:
+            c.insert_json5("transport/link/tx/lease", json.dumps(config.lease_ms))
+        for key, value in config.extra.items():
+            c.insert_json5(key, json.dumps(value))
+        return c
+
+    @classmethod
+    def open(cls, config: TransportConfig) -> ZenohTransport:
+        import zenoh
+
+        return cls(zenoh.open(cls.zenoh_config(config)))
+
+    def publish(self, key: str, payload: bytes) -> None:
+        publisher = self._publishers.get(key)
+        if publisher is None:
+            publisher = self._session.declare_publisher(key)
+            self._publishers[key] = publisher
+        publisher.put(payload)
+
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Closeable:
+        closing = self._closing
+
+        def on_sample(sample: Any) -> None:
+            if closing.is_set():
+                return
+            try:
+                callback(str(sample.key_expr), sample.payload.to_bytes())
+            except Exception:
+                logger.exception("subscriber callback for %s failed", key_expr)
+
+        sub = self._session.declare_subscriber(key_expr, on_sample)
+        self._entities.append(sub)
+        return Handle(sub.undeclare)
+
+    def serve(self, key: str, handler: QueryHandler) -> Closeable:
+        closing = self._closing
+
+        def on_query(query: Any) -> None:
+            if closing.is_set():
+                return
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            try:
+                reply = handler(payload)
+            except Exception:
+                logger.exception("queryable %s failed", key)
+                return
+            if reply is not None:
+                query.reply(key, reply)  # own concrete key: no consolidation surprises
+
+        queryable = self._session.declare_queryable(key, on_query)
+        self._entities.append(queryable)
+        return Handle(queryable.undeclare)
+
+    def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]:
+        replies = []
+        for reply in self._session.get(key_expr, payload=payload, timeout=timeout):
+            if reply.ok is not None:
+                replies.append(reply.ok.payload.to_bytes())
+        return replies
+
+    def query_async(self, key_expr: str, payload: bytes, timeout: float,
+                    on_done: RepliesCallback) -> None:
+        """Send a query and return at once; ``on_done(replies)`` runs on a zenoh network thread
+        when the query is finished (every matching queryable answered, or ``timeout`` [s]).
+
+        The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
+        Python thread per query (stack-notes.md §1.7); ``on_done`` must be quick and must not
+        block on the session. Its ``drop`` fires when zenoh finalises the query, also without
+        any reply (no matching queryable: at once).
+        """
+        import zenoh
+
+        replies: list[bytes] = []
+
+        def on_reply(reply: Any) -> None:
+            ok = reply.ok
+            if ok is not None:
+                replies.append(ok.payload.to_bytes())
+
+        def on_drop() -> None:
+            try:
+                on_done(replies)
+            except Exception:
+                logger.exception("reply callback of a query on %s failed", key_expr)
+
+        self._session.get(key_expr, zenoh.handlers.Callback(on_reply, on_drop, indirect=False),
+                          payload=payload, timeout=timeout)
+
+    def declare_alive(self, key: str) -> Closeable:
+        token = self._session.liveliness().declare_token(key)
+        self._entities.append(token)
+        return Handle(token.undeclare)
+
+    def watch_alive(self, key_expr: str, callback: AliveCallback) -> Closeable:
+        import zenoh
+
+        closing = self._closing
+
+        def on_sample(sample: Any) -> None:
+            if closing.is_set():
+                return
+            try:
+                callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+            except Exception:
+                logger.exception("liveliness callback for %s failed", key_expr)
+
+        sub = self._session.liveliness().declare_subscriber(key_expr, on_sample, history=True)
+        self._entities.append(sub)
+        return Handle(sub.undeclare)
+
+    def close(self) -> None:
+        if self._closing.is_set():
+            return
+        self._closing.set()
+        try:
+            self._session.close()
+        except Exception:
+            logger.exception("closing the zenoh session failed")

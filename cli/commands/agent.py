@@ -1,0 +1,48 @@
+"""``tlfleet agent SCENARIO --robot ID``: the agent process of one robot (architecture.md §1).
+
+A thin wrapper: the flags become an :class:`~agent.runtime.config.AgentConfig` and
+:func:`agent.runtime.process.main` runs the robot's LTL or STL agent. Exit codes: 0 after a clean
+stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault (e.g. an unsatisfiable LTL task, reported
+as ``Event(kind="fault")`` first).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from agent.runtime.config import AgentConfig, AgentConfigError
+from cli.transport_flags import add_transport_arguments, transport_config
+
+NAME = "agent"
+HELP = "run the agent process of one robot"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("--robot", type=int, required=True, metavar="ID", help="robot id")
+    parser.add_argument("--stale-after", type=float, default=0.5, metavar="S",
+                        help="no mocap frame for S seconds (wall) → zero command (default 0.5)")
+    parser.add_argument("--collab-timeout", type=float, default=0.25, metavar="S",
+                        help="wait at most S seconds (wall) for a partner's collab reply "
+                             "(STL robots; default 0.25)")
+    add_transport_arguments(parser)
+
+
+def config_from_args(args: argparse.Namespace) -> AgentConfig:
+    try:
+        return AgentConfig(robot=args.robot, scenario=Path(args.scenario),
+                           stale_after=args.stale_after, collab_timeout=args.collab_timeout,
+                           transport=transport_config(args))
+    except AgentConfigError as exc:
+        raise SystemExit(f"tlfleet agent: {exc}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from agent.runtime.process import main
+
+    config = config_from_args(args)
+    try:
+        return main(config)
+    except AgentConfigError as exc:  # raised before any session is opened
+        raise SystemExit(f"tlfleet agent: {exc}") from None

@@ -1,0 +1,29 @@
+"""``tlfleet router --listen tcp/127.0.0.1:7447``: the fleet's zenoh router (``bus.router``)."""
+
+from __future__ import annotations
+
+import argparse
+import threading
+
+from bus.router import RouterConfig, RouterConfigError
+from cli.transport_flags import add_transport_arguments, transport_config
+
+NAME = "router"
+HELP = "run a zenoh router for a fleet"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--fleet", default="default",
+                        help="fleet name of the liveliness token alive/router/0 (default "
+                             "'default'; a scenario's fleet is its [fleet] or its name)")
+    add_transport_arguments(parser, default_mode="router")
+
+
+def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
+    from bus.router import main
+
+    try:
+        config = RouterConfig(fleet=args.fleet, transport=transport_config(args))
+    except RouterConfigError as exc:
+        raise SystemExit(f"tlfleet router: {exc}") from None
+    return main(config, stop)

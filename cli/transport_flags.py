@@ -1,0 +1,27 @@
+"""The transport flags every process shares (style.md §6): ``--mode``, ``--connect``, ``--listen``,
+``--lease-ms``, ``--multicast-scouting``, turned into a :class:`bus.TransportConfig`."""
+
+from __future__ import annotations
+
+import argparse
+
+from bus.transport import TransportConfig
+
+
+def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
+    group = parser.add_argument_group("transport (zenoh)")
+    group.add_argument("--mode", choices=("client", "peer", "router"), default=default_mode,
+                       help=f"zenoh session mode (default {default_mode})")
+    group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                       help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                       help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    group.add_argument("--lease-ms", type=int, default=None, metavar="MS",
+                       help="link lease in ms (zenoh default 10000)")
+    group.add_argument("--multicast-scouting", action="store_true",
+                       help="join zenoh multicast scouting (off by default)")
+
+
+def transport_config(args: argparse.Namespace) -> TransportConfig:
+    return TransportConfig(mode=args.mode, connect=tuple(args.connect), listen=tuple(args.listen),
+                           lease_ms=args.lease_ms, multicast_scouting=args.multicast_scouting)

@@ -1,1 +1,0 @@
-"""Sub-commands of the tlfleet CLI (see coordinator.cli)."""
