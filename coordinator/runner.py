@@ -251,6 +251,9 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
              and _router_clean(final.get("router")))
     info["clean"] = clean
     recorder.write_run_info(info)
+    note = report or (lambda text: logger.info("%s", text))
+    note(f"writing summary.json{', report.md/json' if config.report else ''}"
+         f"{' and figures' if config.report and config.figures else ''} in {run_dir} …")
     text, data = write_summary(run_dir)
     report_result = None
     if config.report:
@@ -261,6 +264,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         recorder.write_run_info(info)
     rrd_path: Path | None = None
     if config.rrd:
+        note(f"writing {run_dir / 'run.rrd'} (rerun) …")
         info["rrd"] = _write_rrd(run_dir, config.rrd_every, say)
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         recorder.write_run_info(info)

@@ -9,7 +9,9 @@ Importing rerun costs ≈ 0.9 s, so callers import this module lazily, when they
     /world                 static flip y → −y (rerun's 2D views draw y downwards; rerun issue 1387)
     /world/arena           static border (LineStrips2D)
     /world/obstacles/rects, /world/obstacles/discs       static (Boxes2D, Ellipses2D)
-    /world/regions         static discs with names (Ellipses2D)
+    /world/obstacles/names static names at the obstacles' centres (Points2D labels)
+    /world/regions         static discs (Ellipses2D)
+    /world/regions/names   static region names at the discs' centres (Points2D labels)
     /world/robots          every robot: disc of its radius, colour, label "3 STL" (Points2D)
     /world/headings        heading arrows (Arrows2D)
     /world/trails          one segment per robot every ``trail_period`` of sim time (LineStrips2D),
@@ -198,17 +200,29 @@ class FleetLog:
             rec.log("world/obstacles/rects", rr.Boxes2D(
                 mins=[(o.xmin, o.ymin) for o in rects],
                 sizes=[(o.xmax - o.xmin, o.ymax - o.ymin) for o in rects],
-                labels=[o.name for o in rects], colors=OBSTACLE_COLOR), static=True)
+                colors=OBSTACLE_COLOR), static=True)
         if discs:
             rec.log("world/obstacles/discs", rr.Ellipses2D(
                 centers=[o.center for o in discs], half_sizes=[(o.radius, o.radius) for o in discs],
-                labels=[o.name for o in discs], colors=OBSTACLE_COLOR), static=True)
+                colors=OBSTACLE_COLOR), static=True)
         if scenario.regions:
             rec.log("world/regions", rr.Ellipses2D(
                 centers=[r.center for r in scenario.regions],
                 half_sizes=[(r.radius, r.radius) for r in scenario.regions],
-                labels=[r.name for r in scenario.regions], colors=REGION_COLOR,
-                show_labels=True), static=True)
+                colors=REGION_COLOR), static=True)
+        # Names as labelled points at the shapes' centres: rerun draws the labels of Boxes2D and
+        # Ellipses2D without the /world y flip (a region's name stood at its mirror image), while
+        # the points, like the robots' labels, go through it.
+        names = [(o.name, ((o.xmin + o.xmax) / 2, (o.ymin + o.ymax) / 2)) for o in rects if o.name]
+        names += [(o.name, o.center) for o in discs if o.name]
+        if names:
+            rec.log("world/obstacles/names", rr.Points2D(
+                [c for _, c in names], labels=[n for n, _ in names], radii=0.0,
+                colors=OBSTACLE_COLOR, show_labels=True), static=True)
+        if scenario.regions:
+            rec.log("world/regions/names", rr.Points2D(
+                [r.center for r in scenario.regions], labels=[r.name for r in scenario.regions],
+                radii=0.0, colors=REGION_COLOR, show_labels=True), static=True)
         # styling is static, positions temporal (static data of a component hides temporal data)
         rec.log("world/robots", rr.Points2D.from_fields(
             radii=self._radii, colors=self._colors, labels=self._labels, show_labels=True),

@@ -96,13 +96,24 @@ radius = 0.3
     recording.disconnect()
     static = read_rrd(tmp_path / "static.rrd")["static"]
     rects = static["/world/obstacles/rects"][0]
-    assert rects.column("Boxes2D:labels").to_pylist() == [["wall"]]
     assert rects.column("Boxes2D:half_sizes").to_pylist() == [[[0.25, 0.5]]]
-    assert static["/world/obstacles/discs"][0].column("Ellipses2D:labels").to_pylist() == [
-        ["pillar"]]
+    assert static["/world/obstacles/discs"][0].column("Ellipses2D:centers").to_pylist() == [
+        [[-2.0, 2.0]]]
     regions = static["/world/regions"][0]
-    assert regions.column("Ellipses2D:labels").to_pylist() == [["a1", "a2"]]
     assert regions.column("Ellipses2D:centers").to_pylist() == [[[-1.0, 0.0], [1.0, 0.0]]]
+    # Names are labelled points at the shapes' own centres, under the same /world flip as the
+    # shapes; the shapes carry no labels of their own (rerun draws those unflipped: a region's
+    # name stood beside its mirror image).
+    for entity in ("/world/obstacles/rects", "/world/obstacles/discs", "/world/regions"):
+        assert not [c for c in static[entity][0].schema.names if c.endswith(":labels")], entity
+    names = static["/world/regions/names"][0]
+    assert names.column("Points2D:labels").to_pylist() == [["a1", "a2"]]
+    assert names.column("Points2D:positions").to_pylist() == [[[-1.0, 0.0], [1.0, 0.0]]]
+    obstacle_names = static["/world/obstacles/names"][0]
+    assert obstacle_names.column("Points2D:labels").to_pylist() == [["wall", "pillar"]]
+    assert obstacle_names.column("Points2D:positions").to_pylist() == [[[0.25, 1.5], [-2.0, 2.0]]]
+    (flip,) = static["/world"]
+    assert flip.column("Transform3D:scale").to_pylist() == [[[1.0, -1.0, 1.0]]]
 
 
 def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
