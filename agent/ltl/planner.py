@@ -213,16 +213,20 @@ def replan(
     return _search(buchi, ts, pairs, beta, robot, t_parse, t_translate)
 
 
-def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = None) -> Plan:
+def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = None, *,
+               buchi: Buchi | None = None) -> Plan:
     """Optimal plan of LTL robot ``robot_id`` over the scenario's regions (paper Alg. 1).
 
-    ``distance(p, q)`` between region centres defaults to the Euclidean distance [m].
+    ``distance(p, q)`` between region centres defaults to the Euclidean distance [m]. ``buchi``
+    is the robot's automaton when the caller has translated it already (an LTL agent keeps it
+    to track its Büchi states: one translation, one numbering); otherwise the scenario's parsed
+    formula is translated here.
     """
     robot = scenario.robot(robot_id)
     if robot.ltl is None:
         raise ValueError(f"robot {robot_id} has no LTL task")
     ts = from_scenario(scenario, robot_id, distance)
-    buchi, t_parse, t_translate = _automaton(robot.ltl)
+    buchi, t_parse, t_translate = _automaton(robot.ltl_tree if buchi is None else buchi)
     pairs = [(ts.initial, q) for q in buchi.initial]
     try:
         return _search(

@@ -27,7 +27,7 @@ import re
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from agent.errors import FormulaSyntaxError, ScenarioError
 from agent.scenario.model import (
@@ -43,6 +43,10 @@ from agent.scenario.model import (
     StlParams,
     UnicycleLimits,
 )
+
+if TYPE_CHECKING:
+    from agent.ltl.formula import Formula
+    from agent.stl.syntax import Temporal
 
 ATOM_RE = re.compile(r"[a-z_][a-z0-9_]*\Z")
 FLEET_RE = re.compile(r"[A-Za-z0-9_-]+\Z")
@@ -109,10 +113,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
         where = f"robots[{index}]"
+        # parsed here, once: the scenario carries the trees (Robot.ltl_tree / stl_trees)
         if robot.ltl is not None:
-            _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
-        for k, text in enumerate(robot.stl):
+            object.__setattr__(robot, "parsed_ltl",
+                               _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl"))
+        object.__setattr__(robot, "parsed_stl", tuple(
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
+            for k, text in enumerate(robot.stl)))
     return scenario
 
 
@@ -271,7 +278,7 @@ def _check_start_poses(scenario: Scenario, source: str) -> None:
                     f"allow ({a.radius + b.radius:.3f} m)")
 
 
-def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> None:
+def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> Formula:
     """Parse the LTL task and check every proposition it uses is carried by some region."""
     from agent.ltl.parser import atoms, parse
 
@@ -286,9 +293,10 @@ def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> N
             known = ", ".join(sorted(carried)) or "none"
             raise ScenarioError(source, where, f"proposition {atom!r} is carried by no region "
                                                f"(region labels: {known})")
+    return formula
 
 
-def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str) -> None:
+def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str) -> Temporal:
     """Parse an STL sub-task (stl-funnel.md §2) and check every robot it names exists.
 
     Syntax errors and unknown robot ids become ``ScenarioError`` naming the field and the column.
@@ -298,7 +306,7 @@ def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str
     from agent.stl.parser import parse_task
 
     try:
-        parse_task(text, robot_ids)
+        return parse_task(text, robot_ids)
     except FormulaSyntaxError as exc:
         raise ScenarioError(source, where, f"STL task error at column {exc.column}: "
                                            f"{exc.reason} in {text!r}") from None

@@ -10,7 +10,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from agent.ltl.formula import Formula
+    from agent.stl.syntax import Temporal
 
 RobotKind = Literal["unicycle", "omni"]
 
@@ -114,6 +118,10 @@ class Robot:
     Exactly one of ``ltl`` (an LTL formula in Spot syntax) and ``stl`` (a non-empty sequence of
     STL sub-task strings, executed in order: stl-funnel.md §9) is set.
     ``phase_start_times`` forces the activation times of sub-tasks 2..m (stl-funnel.md §9 item 4).
+
+    The texts are what the file says (reports and events quote them); the parsed trees are
+    :attr:`ltl_tree` and :attr:`stl_trees`, which the loader fills once after validating (so no
+    process parses a task twice); a ``Robot`` built in code parses on first use instead.
     """
 
     id: int
@@ -126,6 +134,30 @@ class Robot:
     rho_opt: tuple[float | None, ...] = ()  # per sub-task override of ρ_opt (stl-funnel.md §3)
     unicycle: UnicycleLimits = field(default_factory=UnicycleLimits)
     omni: OmniLimits = field(default_factory=OmniLimits)
+    # init=False: ``dataclasses.replace(robot, ltl=...)`` must not carry the old text's tree over
+    parsed_ltl: Formula | None = field(default=None, init=False, compare=False, repr=False)
+    parsed_stl: tuple[Temporal, ...] = field(default=(), init=False, compare=False, repr=False)
+
+    @property
+    def ltl_tree(self) -> Formula:
+        """The LTL task as a formula tree (parsed by the loader; on first use otherwise)."""
+        if self.ltl is None:
+            raise ValueError(f"robot {self.id} has no LTL task")
+        if self.parsed_ltl is None:
+            from agent.ltl.parser import parse
+
+            object.__setattr__(self, "parsed_ltl", parse(self.ltl))
+        return self.parsed_ltl
+
+    @property
+    def stl_trees(self) -> tuple[Temporal, ...]:
+        """The STL sub-tasks as formula trees, in order (parsed by the loader, which also checks
+        the robot ids they name; on first use otherwise)."""
+        if len(self.parsed_stl) != len(self.stl):
+            from agent.stl.parser import parse_task
+
+            object.__setattr__(self, "parsed_stl", tuple(parse_task(text) for text in self.stl))
+        return self.parsed_stl
 
     @property
     def is_ltl(self) -> bool:

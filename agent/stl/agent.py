@@ -274,17 +274,21 @@ class StlAgent:
     # ----------------------------------------------------------------- step
 
     def step(self, state: AgentState, inputs: StepInput) -> tuple[AgentState, StepOutput]:
-        """One control step (module docstring, stl-funnel.md §12)."""
-        cfg = self.cfg
-        i = cfg.robot_id
-        t = inputs.t
-        poses = {j: p.tolist() if hasattr(p, "tolist") else p for j, p in inputs.poses.items()}
-        fp = cfg.funnel
-        cp = cfg.control
-        out: list[Message] = []
-        changes: dict = {}
+        """One control step: the phases of the module docstring (stl-funnel.md §12), in order,
+        on one scratch :class:`_Tick`; the new state is the old one with the phases' changes."""
+        tick = _Tick(t=inputs.t, poses={j: p.tolist() if hasattr(p, "tolist") else p
+                                        for j, p in inputs.poses.items()})
+        self._read_messages(state, inputs, tick)  # 1.
+        self._sequence(state, tick)  # 2.
+        self._complete(state, tick)  # 3./4.
+        self._control(tick)  # 5.
+        u = self._avoid_and_mix(tick)  # 6.
+        return self._finish(state, tick, u)
 
-        # 1. inbox -----------------------------------------------------------------------
+    def _read_messages(self, state: AgentState, inputs: StepInput, tick: _Tick) -> None:
+        """Phase 1: peer status and collaboration messages (§7.5); unreachable peers forgotten,
+        an unreachable requester released."""
+        i = self.cfg.robot_id
         follow, follow_subtask, follow_funnel, peers, reinit = self._read_inbox(state,
                                                                               inputs.inbox)
         unreachable = inputs.unreachable
@@ -295,161 +299,219 @@ class StlAgent:
                 logger.info("robot %d: requester %d unreachable, released", i, follow)
                 follow, follow_subtask, follow_funnel, reinit = None, -1, None, True
         if follow != state.follow or follow_funnel is not state.follow_funnel:
-            changes.update(follow=follow, follow_subtask=follow_subtask,
-                           follow_funnel=follow_funnel)
+            tick.changes.update(follow=follow, follow_subtask=follow_subtask,
+                                follow_funnel=follow_funnel)
         if peers is not state.peers:
-            changes["peers"] = peers
+            tick.changes["peers"] = peers
+        tick.follow, tick.follow_subtask, tick.follow_funnel = follow, follow_subtask, follow_funnel
+        tick.peers, tick.reinit, tick.unreachable = peers, reinit, unreachable
 
-        # 2. sequencer --------------------------------------------------------------------
+    def _sequence(self, state: AgentState, tick: _Tick) -> None:
+        """Phase 2: activate sub-task k when due (§9) with a new funnel (§5), or re-initialise
+        it after a release; ρ^ψ and ∂ρ^ψ/∂x of the current sub-task; stage 2 left when every
+        helper is unreachable."""
+        cfg = self.cfg
+        i, t, fp, changes = cfg.robot_id, tick.t, cfg.funnel, tick.changes
         tasks = cfg.subtasks
-        k = state.k
-        active = state.active
-        funnel = state.funnel
-        task = tasks[k] if k < len(tasks) else None
-        rho_own = math.nan
-        grad_own = None
-        ce_before = state.ce if active else 0
-        if task is not None and (active or t >= self._activation_time(state)):
-            rho_own, grad_own = task.compiled.value_grad(task.stacked_state(poses))
-            if not active:
-                active = True
-                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
-                                     self._rng(k, ce_before, t))
-                changes.update(active=True, funnel=funnel, ce=0, c=0, stage=0, events=(0, 0, 0),
-                               rho_phi=math.nan)
-                logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, k + 1, t, funnel)
-            elif reinit:
-                funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
-                                     self._rng(k, ce_before, t))
-                changes.update(funnel=funnel, stage=0)
+        tick.k, tick.active, tick.funnel = state.k, state.active, state.funnel
+        task = tick.task = tasks[tick.k] if tick.k < len(tasks) else None
+        ce_before = state.ce if tick.active else 0
+        if task is not None and (tick.active or t >= self._activation_time(state)):
+            tick.rho_own, tick.grad_own = task.compiled.value_grad(task.stacked_state(tick.poses))
+            if not tick.active:
+                tick.active = True
+                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
+                                          t, fp, self._rng(tick.k, ce_before, t))
+                changes.update(active=True, funnel=tick.funnel, ce=0, c=0, stage=0,
+                               events=(0, 0, 0), rho_phi=math.nan)
+                logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, tick.k + 1, t,
+                             tick.funnel)
+            elif tick.reinit:
+                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
+                                          t, fp, self._rng(tick.k, ce_before, t))
+                changes.update(funnel=tick.funnel, stage=0)
                 if cfg.protocol.reset_ce_on_release:
                     changes["ce"] = 0
-
-        ce = changes.get("ce", state.ce)
-        c = changes.get("c", state.c)
-        if (unreachable and c == i and task is not None
-                and all(v in unreachable for v in task.v_ctrl if v != i)):
+        tick.ce = changes.get("ce", state.ce)
+        tick.c = changes.get("c", state.c)
+        if (tick.unreachable and tick.c == i and task is not None
+                and all(v in tick.unreachable for v in task.v_ctrl if v != i)):
             logger.info("robot %d: every helper unreachable, stage 2 left at t=%.2f", i, t)
-            c = 0
+            tick.c = 0
             changes["c"] = 0
-        stage = changes.get("stage", state.stage)
-        events = changes.get("events", state.events)
-        repaired = NO_REPAIR
-        u_nom = (0.0, 0.0, 0.0)
-        done = False
+        tick.stage = changes.get("stage", state.stage)
+        tick.events = changes.get("events", state.events)
 
-        # 3./4. own robustness, completion -----------------------------------------------
-        if active and task is not None:
-            rho_phi = changes.get("rho_phi", state.rho_phi)
-            if task.a <= t <= task.b:
-                if math.isnan(rho_phi):
-                    rho_phi = rho_own
-                elif task.kind == "G":
-                    rho_phi = min(rho_phi, rho_own)
-                else:
-                    rho_phi = max(rho_phi, rho_own)
-                changes["rho_phi"] = rho_phi
-            inside = funnel.r < rho_own < funnel.rho_max
-            by_rule = False
-            if follow is None and inside and cfg.protocol.complete_on_satisfaction and (
-                    (task.kind == "F" and task.a <= t <= task.b)
-                    or (task.kind == "G" and t >= task.b)):
-                done = by_rule = True
-            elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
-                done = True
-                if (task.kind == "G" and follow is None
-                        and not -1.0 < funnel.zeta(rho_own, t) < 0.0):
-                    # [OUR CHOICE] a critical event on the last sample of a G window is still
-                    # repaired (stage 1 or 3: the window is over, nobody can help any more) so
-                    # that the recorded r̄ keeps ρ^φ ≥ r̄ (paper Alg. 2 line 28).
-                    ce += 1
-                    stage = 1 if ce <= fp.n_stage1 else 3
-                    funnel = funnel.repair(stage, rho_own, t, fp, self._rng(k, ce, t))
-                    repaired = stage
-                    events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
-                    changes.update(funnel=funnel, ce=ce, stage=stage, events=events)
-            if done:
-                outcome = SubTaskOutcome(k, t, rho_phi > 0.0, funnel.r, rho_phi, events,
-                                         "satisfaction" if by_rule else "window_end")
-                if c == i and (by_rule or cfg.protocol.release_on_window_end):
-                    out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
-                               for v in task.v_ctrl if v != i)
-                c = -1
-                changes.update(k=k + 1, active=False, c=-1, t_done=t,
-                               outcomes=(*state.outcomes, outcome))
-                logger.info("robot %d: sub-task %d done at t=%.2f (%s), r=%.4f, rho_phi=%.4f, "
-                            "events=%s", i, k + 1, t, outcome.ended_by,
-                            funnel.r, rho_phi, events)
+    def _complete(self, state: AgentState, tick: _Tick) -> None:
+        """Phases 3/4: the running ρ^φ over the samples in [a, b], and completion (§8)."""
+        cfg = self.cfg
+        i, t, task, changes = cfg.robot_id, tick.t, tick.task, tick.changes
+        if not (tick.active and task is not None):
+            return
+        rho_own, funnel = tick.rho_own, tick.funnel
+        rho_phi = changes.get("rho_phi", state.rho_phi)
+        if task.a <= t <= task.b:
+            if math.isnan(rho_phi):
+                rho_phi = rho_own
+            elif task.kind == "G":
+                rho_phi = min(rho_phi, rho_own)
+            else:
+                rho_phi = max(rho_phi, rho_own)
+            changes["rho_phi"] = rho_phi
+        inside = funnel.r < rho_own < funnel.rho_max
+        by_rule = False
+        if tick.follow is None and inside and cfg.protocol.complete_on_satisfaction and (
+                (task.kind == "F" and task.a <= t <= task.b)
+                or (task.kind == "G" and t >= task.b)):
+            tick.done = by_rule = True
+        elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
+            tick.done = True
+            if (task.kind == "G" and tick.follow is None
+                    and not -1.0 < funnel.zeta(rho_own, t) < 0.0):
+                # [OUR CHOICE] a critical event on the last sample of a G window is still
+                # repaired (stage 1 or 3: the window is over, nobody can help any more) so
+                # that the recorded r̄ keeps ρ^φ ≥ r̄ (paper Alg. 2 line 28).
+                tick.ce += 1
+                stage = self._local_stage(tick.ce)
+                funnel = tick.funnel = funnel.repair(stage, rho_own, t, cfg.funnel,
+                                                     self._rng(tick.k, tick.ce, t))
+                _count_repair(tick, stage, funnel=funnel)
+        if tick.done:
+            k = tick.k
+            outcome = SubTaskOutcome(k, t, rho_phi > 0.0, funnel.r, rho_phi, tick.events,
+                                     "satisfaction" if by_rule else "window_end")
+            if tick.c == i and (by_rule or cfg.protocol.release_on_window_end):
+                tick.out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
+                                for v in task.v_ctrl if v != i)
+            tick.c = -1
+            changes.update(k=k + 1, active=False, c=-1, t_done=t,
+                           outcomes=(*state.outcomes, outcome))
+            logger.info("robot %d: sub-task %d done at t=%.2f (%s), r=%.4f, rho_phi=%.4f, "
+                        "events=%s", i, k + 1, t, outcome.ended_by, funnel.r, rho_phi,
+                        tick.events)
 
-        # 5. control ----------------------------------------------------------------------
-        log_funnel = None
-        rho_log = math.nan
-        if follow is not None:
-            ftask = cfg.library[(follow, follow_subtask)]
-            rho, g = ftask.compiled.value_grad(ftask.stacked_state(poses))
-            rho_log = rho
-            log_funnel = follow_funnel
-            z = follow_funnel.zeta(rho, t)
+    def _control(self, tick: _Tick) -> None:
+        """Phase 5: u_nom (§6.1) — of the requester's funnel for a follower (detection only if
+        ``followers_detect``), of the own funnel otherwise (critical event → stage → repair →
+        ζ again; own F above r held), saturated."""
+        cfg = self.cfg
+        i, t, fp, cp = cfg.robot_id, tick.t, cfg.funnel, cfg.control
+        if tick.follow is not None:
+            ftask = cfg.library[(tick.follow, tick.follow_subtask)]
+            rho, g = ftask.compiled.value_grad(ftask.stacked_state(tick.poses))
+            tick.rho_log = rho
+            tick.log_funnel = tick.follow_funnel
+            z = tick.follow_funnel.zeta(rho, t)
             if cfg.protocol.followers_detect and not -1.0 < z < 0.0:
-                ce += 1
-                stage = 1 if ce <= fp.n_stage1 else 3
-                follow_funnel = follow_funnel.repair(stage, rho, t, fp,
-                                                     self._rng(k, ce, t))
-                repaired = stage
-                events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
-                changes.update(follow_funnel=follow_funnel, ce=ce, stage=stage, events=events)
-                log_funnel = follow_funnel
-                z = follow_funnel.zeta(rho, t)
+                tick.ce += 1
+                stage = self._local_stage(tick.ce)
+                tick.follow_funnel = tick.follow_funnel.repair(stage, rho, t, fp,
+                                                               self._rng(tick.k, tick.ce, t))
+                _count_repair(tick, stage, follow_funnel=tick.follow_funnel)
+                tick.log_funnel = tick.follow_funnel
+                z = tick.follow_funnel.zeta(rho, t)
             if g is not None:
                 b0 = ftask.block(i)
                 g = g[b0:b0 + 3]
-            u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), g, cp.normalize_grad, cp.k_eps)
-        elif active and not done:
-            rho = rho_own
-            rho_log = rho
+            tick.u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), g, cp.normalize_grad,
+                                          cp.k_eps)
+        elif tick.active and not tick.done:
+            task, rho = tick.task, tick.rho_own
+            tick.rho_log = rho
+            grad_own = tick.grad_own
             if grad_own is not None:
                 b0 = task.block(i)
                 grad_own = grad_own[b0:b0 + 3]
-            if task.kind == "F" and cp.hold_F_when_above_r and rho > funnel.r:
-                u_nom = (0.0, 0.0, 0.0)
+            if task.kind == "F" and cp.hold_F_when_above_r and rho > tick.funnel.r:
+                tick.u_nom = (0.0, 0.0, 0.0)
             else:
-                z = funnel.zeta(rho, t)
+                z = tick.funnel.zeta(rho, t)
                 if not -1.0 < z < 0.0:
-                    ce += 1
-                    funnel, c, stage, messages = self._repair(task, funnel, rho, t, ce, c, peers)
-                    out.extend(messages)
-                    repaired = stage
-                    events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
-                    changes.update(funnel=funnel, ce=ce, c=c, stage=stage, events=events)
-                    z = funnel.zeta(rho, t)
-                u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
-                                         cp.k_eps)
-            log_funnel = funnel
-        elif done:  # the completion step still logs the finished sub-task's ρ and funnel
-            rho_log = rho_own
-            log_funnel = funnel
-        u_nom = saturate(u_nom, cp.umax_lin, cp.umax_ang, cp.saturation)
+                    tick.ce += 1
+                    tick.funnel, tick.c, stage, messages = self._repair(
+                        task, tick.funnel, rho, t, tick.ce, tick.c, tick.peers)
+                    tick.out.extend(messages)
+                    _count_repair(tick, stage, funnel=tick.funnel, c=tick.c)
+                    z = tick.funnel.zeta(rho, t)
+                tick.u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own,
+                                              cp.normalize_grad, cp.k_eps)
+            tick.log_funnel = tick.funnel
+        elif tick.done:  # the completion step still logs the finished sub-task's ρ and funnel
+            tick.rho_log = tick.rho_own
+            tick.log_funnel = tick.funnel
+        tick.u_nom = saturate(tick.u_nom, cp.umax_lin, cp.umax_ang, cp.saturation)
 
-        # 6. collision avoidance and mixing (eq. (6)) -------------------------------------
-        col = cfg.collision
-        own_pose = poses[i]
-        neighbours = [(p[0], p[1]) for j, p in poses.items() if j != i]
+    def _avoid_and_mix(self, tick: _Tick) -> tuple[float, float, float]:
+        """Phase 6: u = saturate(β·ū_col + ū_nom) over every robot within R (§6.2, eq. (6))."""
+        col, cp, i = self.cfg.collision, self.cfg.control, self.cfg.robot_id
+        own_pose = tick.poses[i]
+        neighbours = [(p[0], p[1]) for j, p in tick.poses.items() if j != i]
         u_col = collision_velocity((own_pose[0], own_pose[1]), neighbours, col)
-        u = mix(u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang, cp.saturation)
+        return mix(tick.u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang, cp.saturation)
 
-        if changes:
-            state = replace(state, **changes)
+    def _finish(self, state: AgentState, tick: _Tick,
+                u: tuple[float, float, float]) -> tuple[AgentState, StepOutput]:
+        """The new state, the status announcements due (§7.4) and the step's log record."""
+        t = tick.t
+        if tick.changes:
+            state = replace(state, **tick.changes)
         announce = self._status(state, t)
         if announce:
-            out.extend(announce)
+            tick.out.extend(announce)
             state = replace(state, announced=(state.c, state.k, state.active), t_announced=t)
-        if log_funnel is not None:
-            record = LogRecord(t, rho_log, log_funnel.rho_max, log_funnel.lower(t), log_funnel.r,
-                               stage, ce, c, follow, k, repaired)
+        if tick.log_funnel is not None:
+            f = tick.log_funnel
+            record = LogRecord(t, tick.rho_log, f.rho_max, f.lower(t), f.r, tick.stage, tick.ce,
+                               tick.c, tick.follow, tick.k, tick.repaired)
         else:
-            record = LogRecord(t, rho_log, math.nan, math.nan, math.nan, stage, ce, c, follow,
-                               k if k < len(tasks) else -1, repaired)
-        return state, StepOutput(u, tuple(out), record)
+            record = LogRecord(t, tick.rho_log, math.nan, math.nan, math.nan, tick.stage,
+                               tick.ce, tick.c, tick.follow,
+                               tick.k if tick.k < len(self.cfg.subtasks) else -1, tick.repaired)
+        return state, StepOutput(u, tuple(tick.out), record)
+
+    def _local_stage(self, ce: int) -> int:
+        """The stage of a critical event nobody can help with: 1 for the first K, then 3."""
+        return 1 if ce <= self.cfg.funnel.n_stage1 else 3
+
+
+@dataclass(slots=True)
+class _Tick:
+    """The scratch of one :meth:`StlAgent.step` (never escapes it): what the phases read and
+    write in turn. ``changes`` collects the fields of the next :class:`AgentState`."""
+
+    t: float  # [s] sim time of the frame
+    poses: dict  # robot id → (x [m], y [m], θ [rad])
+    changes: dict = field(default_factory=dict)
+    out: list = field(default_factory=list)  # outgoing messages
+    follow: int | None = None
+    follow_subtask: int = -1
+    follow_funnel: Funnel | None = None
+    peers: Mapping[int, StatusAnnounce] = field(default_factory=dict)
+    reinit: bool = False
+    unreachable: frozenset[int] = frozenset()
+    k: int = 0
+    active: bool = False
+    funnel: Funnel | None = None
+    task: Task | None = None
+    rho_own: float = math.nan  # ρ^ψ of the own sub-task
+    grad_own: np.ndarray | None = None  # ∂ρ^ψ/∂(stacked state)
+    ce: int = 0
+    c: int = 0
+    stage: int = 0
+    events: tuple[int, int, int] = (0, 0, 0)
+    repaired: int = NO_REPAIR
+    done: bool = False
+    u_nom: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rho_log: float = math.nan
+    log_funnel: Funnel | None = None
+
+
+def _count_repair(tick: _Tick, stage: int, **funnel_changes: object) -> None:
+    """The bookkeeping of one repair, written once: the stage and its counter in ``events``,
+    and the state's new ce, stage, events and repaired funnel (``funnel_changes``)."""
+    tick.stage = tick.repaired = stage
+    tick.events = tuple(n + (s == stage) for s, n in enumerate(tick.events, start=1))
+    tick.changes.update(ce=tick.ce, stage=stage, events=tick.events, **funnel_changes)
 
 
 # --------------------------------------------------------------------------- construction
@@ -486,8 +548,8 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     for robot in scenario.robots:
         if not robot.is_stl:
             continue
-        seq = build_sequence(robot.id, robot.stl, robot_ids=scenario.robot_ids, stl_ids=stl_ids,
-                             rho_opt=robot.rho_opt, eta=p.eta, warn=warn)
+        seq = build_sequence(robot.id, robot.stl_trees, robot_ids=scenario.robot_ids,
+                             stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=p.eta, warn=warn)
         sequences[robot.id] = seq
         for task in seq:
             library[(robot.id, task.index)] = task

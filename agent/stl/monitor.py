@@ -200,7 +200,6 @@ def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: s
     "robustness"}], "robustness": min}}`` (``trajectory_path`` only
     names the file in errors)."""
     from agent.stl.errors import StlTaskError
-    from agent.stl.parser import parse_task
     from agent.stl.sequencer import merge_and_check
     from agent.stl.syntax import robots_of, to_text
 
@@ -208,8 +207,7 @@ def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: s
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         if not robot.is_stl:
             continue
-        tasks = merge_and_check(robot.id, [parse_task(text, scenario.robot_ids)
-                                           for text in robot.stl])
+        tasks = merge_and_check(robot.id, list(robot.stl_trees))
         missing = sorted(frozenset().union(*(robots_of(t) for t in tasks)) - set(traj.states))
         if missing:
             raise StlTaskError(f"{trajectory_path}: no columns for robot {missing[0]}, which robot "

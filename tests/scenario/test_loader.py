@@ -178,3 +178,39 @@ def test_ltl_on_omni_robot_is_rejected():
     data = mutated("robots.0", {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "ltl": "F a1"})
     with pytest.raises(ScenarioError, match=r"robots\[0\].ltl: LTL tasks run on unicycle robots"):
         parse_scenario(data, source="s.toml")
+
+
+def test_the_loaded_scenario_carries_each_task_parsed_once(scenarios_dir, monkeypatch):
+    """The loader parses every task once and the trees travel with the scenario: building the
+    agents and planning parse nothing again; a replaced task text is parsed anew, never served
+    the old text's tree."""
+    import dataclasses
+
+    import agent.ltl.parser as ltl_parser
+    import agent.stl.parser as stl_parser
+    from agent.ltl.agent import LtlAgent
+    from agent.stl.agent import build_agents
+
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    ltl_robot = next(r for r in scenario.robots if r.is_ltl)
+    stl_robot = next(r for r in scenario.robots if r.is_stl)
+    assert ltl_robot.parsed_ltl is not None and ltl_robot.ltl_tree is ltl_robot.parsed_ltl
+    assert len(stl_robot.stl_trees) == len(stl_robot.stl)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("parsed twice")
+
+    import agent.ltl.planner as planner
+    import agent.stl.sequencer as sequencer
+    import agent.stl.task as task
+
+    for module, name in ((ltl_parser, "parse"), (planner, "parse"), (stl_parser, "parse_task"),
+                         (sequencer, "parse_task"), (task, "parse_task")):
+        monkeypatch.setattr(module, name, refuse)
+    build_agents(scenario)
+    LtlAgent(scenario, ltl_robot.id).plan()
+    monkeypatch.undo()
+
+    changed = dataclasses.replace(ltl_robot, ltl="F a12")
+    assert changed.parsed_ltl is None
+    assert ltl_parser.parse("F a12") == changed.ltl_tree != ltl_robot.ltl_tree

@@ -1,0 +1,242 @@
+"""One LTL agent as a pure step function: an optimal prefix–suffix plan (paper Alg. 1) executed by
+the navigation stack (ltl-planning.md §3–§6), beside the STL one of ``agent.stl.agent``.
+
+    agent = LtlAgent(scenario, robot)
+    plan = agent.plan()                       # Algorithm 1; UnsatisfiableTask if none
+    state, ready = agent.initial_state(plan)  # ready: the plan_ready notice
+    state, out = agent.step(state, LtlStepInput(t, pose, others))
+
+The robot's task is translated **once**, here (the scenario carries the parsed formula): the same
+automaton plans (``plan_robot(..., buchi=agent.buchi)``), replans and tracks the Büchi states, so
+no two translations have to number states alike. One step (5 Hz, ``scenario.ltl.control_rate``):
+
+1. the plan executor's step (``agent.nav.executor.Executor.step``, ltl-planning.md §6) with the own
+   pose and every other robot as ``others`` → the command (v [m/s], ω [rad/s]);
+2. the Büchi state set along the regions visited (``agent.ltl.buchi.buchi_step``): each time the
+   executor advances from plan position k ≥ 1 to k + 1, the label of the region at position
+   k − 1 (the one left) is read (the planner's convention, ``agent.ltl.planner``);
+3. navigation events → :class:`Notice` records (``region_visited``, ``cycle_completed``,
+   ``plan_finished``, ``stuck``, ``no_path``, …); a ``ReplanRequest`` → a new plan from the last
+   region and the current Büchi states with the blocked edge penalised
+   (``agent.ltl.planner.replan`` over ``with_penalised_edges``), handed to the executor at the
+   next step, and a ``plan_ready`` notice;
+4. an :class:`LtlProgress` every step.
+
+No I/O, no clock, no wire types: the runtime (``agent.runtime.ltl_agent``) turns notices into
+events and the progress into the status message.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from agent.errors import UnsatisfiableTask
+from agent.ltl.buchi import Buchi, buchi_step, translate
+from agent.ltl.planner import Plan, plan_robot, replan
+from agent.ltl.transition_system import START, from_scenario
+from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
+from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
+from agent.nav.grid_planner import path_length_function, with_penalised_edges
+from agent.scenario.model import Scenario
+
+logger = logging.getLogger(__name__)
+
+Point = tuple[float, float]
+Distance = Callable[[Sequence[float], Sequence[float]], float]
+
+
+@dataclass(frozen=True, eq=False)
+class LtlState:
+    """Executor state, Büchi states consistent with the regions visited, the plan being followed,
+    a new plan waiting for the next step, and the penalised edges ((p, q) [m], penalty [m])."""
+
+    executor: ExecutorState
+    buchi_states: frozenset[int]
+    plan: Plan
+    pending_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+    penalties: tuple[tuple[Point, Point, float], ...] = ()
+    replans: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class LtlStepInput:
+    """One due frame as the agent sees it: sim time [s], the own pose (x [m], y [m], θ [rad])
+    and every other robot's row (id, x, y, θ), shape (n, 4)."""
+
+    t: float
+    pose: tuple[float, float, float]
+    others: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class Notice:
+    """Something the agent reports once (an event on the wire): sim time [s], kind, plain data
+    (msgpack-plain values only: lists, numbers, strings)."""
+
+    t: float
+    kind: str
+    data: dict[str, Any]
+
+
+@dataclass(frozen=True, slots=True)
+class LtlProgress:
+    """Where the agent is in its plan (its status on the wire)."""
+
+    t: float  # [s]
+    prefix: tuple[str, ...]
+    suffix: tuple[str, ...]
+    target: str | None
+    buchi_states: tuple[int, ...]
+    visits: tuple[tuple[str, int], ...]
+    rounds: int
+    mode: str
+
+
+@dataclass(frozen=True, slots=True)
+class LtlStepOutput:
+    """The command (v [m/s], ω [rad/s]), the progress and the notices of one step."""
+
+    u: tuple[float, float]
+    progress: LtlProgress
+    notices: tuple[Notice, ...] = ()
+
+
+class LtlAgent:
+    """Pure LTL agent of robot ``robot`` in ``scenario`` (see the module docstring)."""
+
+    def __init__(self, scenario: Scenario, robot: int, *, distance: Distance | None = None,
+                 executor: Executor | None = None):
+        spec = scenario.robot(robot)
+        if spec.ltl is None:
+            raise ValueError(f"robot {robot} has no LTL task")
+        self.scenario = scenario
+        self.robot = robot
+        self.formula = spec.ltl
+        self.start_point: Point = (float(spec.pose[0]), float(spec.pose[1]))
+        self.distance = distance or path_length_function(scenario)
+        self.executor = executor or Executor.from_scenario(scenario, robot)
+        t0 = time.perf_counter()
+        self.buchi: Buchi = translate(spec.ltl_tree)  # the one translation of this task
+        self.translate_time = time.perf_counter() - t0  # [s]
+        ts = from_scenario(scenario, robot, self.distance)
+        self.labels = dict(zip(ts.names, ts.labels, strict=True))
+        self.initial_region = ts.names[ts.initial]
+
+    # start-up -------------------------------------------------------------------------------
+
+    def plan(self) -> Plan:
+        """Algorithm 1 with this agent's automaton; raises :class:`UnsatisfiableTask`. The plan's
+        timings include this agent's translation."""
+        plan = plan_robot(self.scenario, self.robot, distance=self.distance, buchi=self.buchi)
+        return replace(plan, timings=replace(plan.timings, translate=self.translate_time))
+
+    def initial_state(self, plan: Plan) -> tuple[LtlState, Notice]:
+        """State before the first frame and the ``plan_ready`` notice."""
+        executor = self.executor.initial_state(plan.prefix, plan.suffix, 0.0)
+        state = LtlState(executor, frozenset(self.buchi.initial), plan)
+        return state, self.plan_notice(0.0, plan, replanned=False)
+
+    def plan_notice(self, t: float, plan: Plan, replanned: bool,
+                    reason: dict | None = None) -> Notice:
+        data = {"prefix": list(plan.prefix), "suffix": list(plan.suffix), "cost": plan.cost,
+                "prefix_cost": plan.prefix_cost, "suffix_cost": plan.suffix_cost,
+                "timings": {"parse": plan.timings.parse, "translate": plan.timings.translate,
+                            "product": plan.timings.product, "search": plan.timings.search,
+                            "total": plan.timings.total},
+                "buchi_states": plan.buchi_states, "product_states": plan.product_states,
+                "replan": replanned}
+        if reason:
+            data["reason"] = reason
+        return Notice(t, "plan_ready", data)
+
+    # the step -------------------------------------------------------------------------------
+
+    def step(self, state: LtlState, inputs: LtlStepInput) -> tuple[LtlState, LtlStepOutput]:
+        t = inputs.t
+        prev = state.executor
+        new_plan = state.pending_plan
+        ex_state, ex_out = self.executor.step(prev, ExecutorInputs(t, inputs.pose, inputs.others,
+                                                                   new_plan))
+        if new_plan is not None:
+            first = 1 if new_plan[0] and new_plan[0][0] == prev.last_region else 0
+        else:
+            first = prev.step
+        buchi = self._track(state.buchi_states, ex_state, first)
+        state = replace(state, executor=ex_state, buchi_states=buchi, pending_plan=None)
+        notices: list[Notice] = []
+        for nav_event in ex_out.events:
+            if isinstance(nav_event, ReplanRequest):
+                state, notice = self.replan(state, nav_event, t)
+            else:
+                notice = _notice(nav_event)
+            notices.append(notice)
+        progress = ex_out.progress
+        report = LtlProgress(t, ex_state.prefix, ex_state.suffix, progress.target,
+                             tuple(sorted(buchi)), progress.visits, progress.rounds, progress.mode)
+        return state, LtlStepOutput((ex_out.v, ex_out.omega), report, tuple(notices))
+
+    def _track(self, states: frozenset[int], ex_state: ExecutorState, first: int
+               ) -> frozenset[int]:
+        """Read the label of every region left between plan positions ``first`` and the
+        executor's new position (the planner's convention: the source label is read)."""
+        for k in range(max(first, 1), ex_state.step):
+            left = target_at(ex_state.prefix, ex_state.suffix, k - 1)
+            states = buchi_step(self.buchi, states, self.labels.get(left, frozenset()))
+            if not states:
+                logger.error("robot %d: the regions visited violate %s", self.robot,
+                             self.formula)
+        return states
+
+    def _centre(self, region: str | None) -> Point:
+        if region is None or region not in self.labels or region == START:
+            return self.start_point
+        centre = self.scenario.region(region).center
+        return (float(centre[0]), float(centre[1]))
+
+    def replan(self, state: LtlState, request: ReplanRequest, t: float
+               ) -> tuple[LtlState, Notice]:
+        """A new plan with the edge ``from_region → to_region`` penalised (ltl-planning.md §5)."""
+        edge = (self._centre(request.from_region), self._centre(request.to_region))
+        penalties = (*state.penalties, (*edge, float(request.penalty)))
+        distance = self.distance
+        for p, q, penalty in penalties:
+            distance = with_penalised_edges(distance, [(p, q)], penalty)
+        ts = from_scenario(self.scenario, self.robot, distance)
+        current = state.executor.last_region or self.initial_region
+        reason = {"from": request.from_region, "to": request.to_region,
+                  "penalty": request.penalty}
+        try:
+            plan = replan(self.buchi, ts, current, state.buchi_states,
+                          self.scenario.ltl.suffix_weight, robot=self.robot)
+        except UnsatisfiableTask as exc:
+            logger.warning("robot %d: replanning failed: %s", self.robot, exc)
+            return (replace(state, penalties=penalties),
+                    Notice(t, "replan_failed", {**reason, "error": str(exc)}))
+        logger.info("robot %d: replanned at t=%.2f: %s · (%s)^ω", self.robot, t, plan.prefix,
+                    plan.suffix)
+        state = replace(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
+                        penalties=penalties, replans=state.replans + 1)
+        return state, self.plan_notice(t, plan, replanned=True, reason=reason)
+
+
+def _notice(nav_event: NavEvent) -> Notice:
+    if isinstance(nav_event, RegionVisited):
+        data: dict[str, object] = {"region": nav_event.region, "visits": nav_event.visits}
+    else:
+        data = {name: _plain(value) for name, value in vars(nav_event).items() if name != "t"}
+    return Notice(nav_event.t, nav_event.kind, data)
+
+
+def _plain(value: object) -> object:
+    """Notice data must be msgpack-plain: tuples → lists, numpy scalars → floats."""
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    if hasattr(value, "item"):
+        return value.item()
+    return value

@@ -1,0 +1,72 @@
+"""The pure LTL agent (agent.ltl.agent): planning and stepping with no process, no transport and
+no wire types — a unicycle integrated in the test closes the loop."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import agent.ltl.agent as ltl_agent_module
+from agent.ltl.agent import LtlAgent, LtlStepInput, Notice
+from agent.ltl.buchi import translate
+from agent.scenario import load_scenario
+
+RATE = 5.0  # [Hz] the LTL loop
+
+
+NOBODY = np.zeros((0, 4))  # no other robot in the arena
+
+
+def _drive(agent: LtlAgent, seconds: float, others=NOBODY):
+    """Unicycle kinematics x' = v cos θ, y' = v sin θ, θ' = ω, integrated at 5 Hz."""
+    plan = agent.plan()
+    state, ready = agent.initial_state(plan)
+    x, y, th = agent.scenario.robot(agent.robot).pose
+    notices: list[Notice] = [ready]
+    history = []
+    for k in range(round(seconds * RATE)):
+        t = k / RATE
+        state, out = agent.step(state, LtlStepInput(t, (x, y, th), others))
+        notices += out.notices
+        history.append((t, out.progress))
+        v, w = out.u
+        x, y, th = x + v * math.cos(th) / RATE, y + v * math.sin(th) / RATE, th + w / RATE
+    return plan, state, notices, history
+
+
+def test_one_translation_serves_planning_and_tracking(scenarios_dir, monkeypatch):
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    calls = []
+    real = ltl_agent_module.translate
+
+    def counting(formula):
+        calls.append(formula)
+        return real(formula)
+
+    monkeypatch.setattr(ltl_agent_module, "translate", counting)
+    agent = LtlAgent(scenario, 1)
+    plan = agent.plan()
+    assert len(calls) == 1 and calls[0] is scenario.robot(1).ltl_tree
+    assert plan.buchi_states == agent.buchi.num_states
+    assert plan.timings.translate == agent.translate_time > 0.0
+    # the same automaton a fresh translation gives: the planner's numbering is the agent's
+    assert agent.buchi.num_states == translate(scenario.robot(1).ltl).num_states
+
+
+def test_the_pure_agent_visits_its_regions_and_tracks_the_buchi_states(scenarios_dir):
+    """Scenario 1's robot 1 (`G F a11 & G F a12`-style task) alone in the arena for 60 s."""
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    agent = LtlAgent(scenario, 1)
+    plan, state, notices, history = _drive(agent, 60.0)
+    visited = [n.data["region"] for n in notices if n.kind == "region_visited"]
+    assert visited[:2] == list(plan.prefix)
+    assert set(visited) >= set(plan.suffix) and len(visited) >= 4
+    assert notices[0].kind == "plan_ready" and notices[0].data["suffix"] == list(plan.suffix)
+    assert [t for t, _ in history] == [k / RATE for k in range(300)]
+    assert all(progress.buchi_states for _, progress in history)  # never violated
+    # an accepting state is passed on every completed cycle (Büchi acceptance along the run)
+    assert any(set(p.buchi_states) & agent.buchi.accepting for _, p in history[-50:])
+    assert state.replans == 0
+    assert all(isinstance(v, int | float | str | list | dict | bool | type(None))
+               for n in notices for v in n.data.values())
