@@ -48,7 +48,7 @@ sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.summary import read_events  # noqa: E402
+from coordinator.rundir import read_events  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
@@ -141,8 +141,8 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
                                          wall_timeout=20 * duration + 120)),
                            progress=lambda _t, _total: marks.append(time.monotonic()))
     cpu = sampler.cpu_pct(marks[0] + 0.5, marks[-1]) if len(marks) >= 2 else {}
-    stats = next((e["data"] for e in reversed(read_events(out / "events.jsonl"))
-                  if e["kind"] == "sim_stats"), {})
+    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
+                  if e.kind == "sim_stats"), {})
     due = stats.get("due", 0)
     return {
         "clean": result.clean, "reason": result.outcome.reason, "t_end": result.outcome.t_end,

@@ -1,27 +1,14 @@
-"""The run directory of architecture.md §6, written as the run goes.
-
-Layout under ``runs/<scenario>-<YYYYmmdd-HHMMSS>/`` (or ``--out``)::
-
-    scenario.toml    copy of the scenario file
-    run.json         how the run was started (mode, seed, duration, argv) and how it ended
-    trajectory.csv   t,x1,y1,th1,x2,y2,th2,… (robot ids ascending), one row per mocap frame
-                     after Control(start); readable by agent.stl.monitor.read_trajectory_csv
-    status.csv       one row per LtlStatus / StlStatus
-    events.jsonl     one JSON object per Event: {"t", "source", "kind", "data"}
-    logs/<name>.log  each child's stdout and stderr (written by the launcher)
-    summary.txt      the plain-text summary (coordinator.summary), at the end
-    run.rrd          the rerun recording (coordinator.visual), at the end
+"""Records a run as it goes into the run directory (``coordinator.rundir`` holds the layout,
+the formats, the writers and the readers).
 
 Everything is appended and flushed at least every ``flush_period`` (1 s), so a crash loses at most
 the last second. :class:`Recorder` is a plain consumer of decoded messages (no transport);
 :class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
-(stack-notes.md §0) and decodes in the coordinator's loop. :func:`read_statuses` and
-:func:`read_events` turn ``status.csv`` and ``events.jsonl`` back into typed messages (replay).
+(stack-notes.md §0) and decodes in the coordinator's loop.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import math
@@ -30,61 +17,18 @@ import shutil
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
-from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, peek_kind
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
 from bus.transport import Closeable, Transport
+from coordinator import rundir
 
 logger = logging.getLogger(__name__)
 
-STATUS_COLUMNS = ("t", "robot", "kind", "subtask", "rho", "rho_max", "lower", "r", "stage", "ce",
-                  "c", "follow", "events", "target", "mode", "rounds", "visits", "prefix",
-                  "suffix", "buchi_states")
-
-
 COORDINATOR_SOURCE = "coordinator"  # Event.source of the events the coordinator makes
-
-
-class RunFileError(TlfleetError, ValueError):
-    """A run-directory file that cannot be read back: names the file, the 1-based line (0: the
-    whole file) and what is wrong."""
-
-    def __init__(self, file: str | Path, line: int, reason: str):
-        self.file, self.line, self.reason = str(file), line, reason
-        super().__init__(f"{file}:{line}: {reason}" if line else f"{file}: {reason}")
-
-
-def default_run_dir(scenario_name: str, root: Path = Path("runs"),
-                    now: datetime | None = None) -> Path:
-    """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists."""
-    stamp = (now or datetime.now(UTC)).strftime("%Y%m%d-%H%M%S")
-    base = root / f"{scenario_name}-{stamp}"
-    path, n = base, 1
-    while path.exists():
-        n += 1
-        path = base.with_name(f"{base.name}-{n}")
-    return path
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, bytes):
-        return value.hex()
-    if isinstance(value, (set, frozenset, tuple)):
-        return list(value)
-    return str(value)
-
-
-def _cell(value: Any) -> str:
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, (tuple, list)):
-        return json.dumps(value, default=_json_default, separators=(",", ":"))
-    return "" if value is None else str(value)
 
 
 class Recorder:
@@ -113,28 +57,24 @@ class Recorder:
         self.statuses = 0
         self.events = 0
         self.event_kinds: Counter[str] = Counter()
-        self._traj: IO[str] = open(self.run_dir / "trajectory.csv", "w", newline="",  # noqa: SIM115
-                                   encoding="utf-8")
-        self._traj_csv = csv.writer(self._traj)
-        self._traj_csv.writerow(["t"] + [f"{c}{r}" for r in self.robot_ids
-                                         for c in ("x", "y", "th")])
-        self._status: IO[str] = open(self.run_dir / "status.csv", "w", newline="",  # noqa: SIM115
-                                     encoding="utf-8")
-        self._status_csv = csv.writer(self._status)
-        self._status_csv.writerow(STATUS_COLUMNS)
-        self._events: IO[str] = open(self.run_dir / "events.jsonl", "w",  # noqa: SIM115
+        self._traj_writer = rundir.TrajectoryWriter(self.run_dir / rundir.TRAJECTORY,
+                                                    self.robot_ids)
+        self._status_writer = rundir.StatusWriter(self.run_dir / rundir.STATUS)
+        self._traj: IO[str] = self._traj_writer.handle
+        self._status: IO[str] = self._status_writer.handle
+        self._events: IO[str] = open(self.run_dir / rundir.EVENTS, "w",  # noqa: SIM115
                                      encoding="utf-8")
         self.flush()
 
     # ----------------------------------------------------------------- files beside the stream
 
     def copy_scenario(self, source: Path) -> None:
-        shutil.copyfile(source, self.run_dir / "scenario.toml")
+        shutil.copyfile(source, self.run_dir / rundir.SCENARIO)
 
     def write_run_info(self, info: dict[str, Any]) -> None:
         """(Re)write ``run.json`` with ``info`` (small, rewritten whole)."""
-        path = self.run_dir / "run.json"
-        path.write_text(json.dumps(info, indent=2, default=_json_default) + "\n",
+        path = self.run_dir / rundir.RUN_INFO
+        path.write_text(json.dumps(info, indent=2, default=rundir.json_default) + "\n",
                         encoding="utf-8")
 
     # ----------------------------------------------------------------- stream
@@ -170,28 +110,17 @@ class Recorder:
             logger.warning("mocap frame seq %d has a non-finite value: not recorded", frame.seq)
             self.frames_skipped += 1
             return
-        self._traj_csv.writerow([repr(float(frame.t))] + [repr(v) for v in values])
+        self._traj_writer.write(frame.t, values)
         self._last_written_seq = frame.seq
         self.frames_written += 1
 
     def on_status(self, status: LtlStatus | StlStatus) -> None:
-        row: dict[str, Any] = {"t": status.t, "robot": status.robot}
-        if isinstance(status, StlStatus):
-            row.update(kind="stl", subtask=status.subtask, rho=status.rho,
-                       rho_max=status.rho_max, lower=status.lower, r=status.r,
-                       stage=status.stage, ce=status.ce, c=status.c, follow=status.follow,
-                       events=status.events)
-        else:
-            row.update(kind="ltl", target=status.target, mode=status.mode, rounds=status.rounds,
-                       visits=[list(v) for v in status.visits], prefix=status.prefix,
-                       suffix=status.suffix, buchi_states=status.buchi_states)
-        self._status_csv.writerow([_cell(row.get(col)) for col in STATUS_COLUMNS])
+        self._status_writer.write(status)
         self.statuses += 1
         self._maybe_flush()
 
     def on_event(self, event: Event) -> None:
-        record = {"t": event.t, "source": event.source, "kind": event.kind, "data": event.data}
-        self._events.write(json.dumps(record, default=_json_default, allow_nan=True) + "\n")
+        self._events.write(rundir.event_line(event))
         self.events += 1
         self.event_kinds[event.kind] += 1
         if event.kind in ("process_died", "sim_done"):
@@ -289,118 +218,3 @@ class RecorderTap:
         for handle in self._handles:
             handle.close()
         self._handles.clear()
-
-
-# --------------------------------------------------------------------------------- reading back
-
-def _read_lines(path: Path) -> list[str]:
-    try:
-        return path.read_text(encoding="utf-8").splitlines(keepends=True)
-    except FileNotFoundError:
-        raise RunFileError(path, 0, "missing") from None
-    except OSError as exc:
-        raise RunFileError(path, 0, f"cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise RunFileError(path, 0, f"not UTF-8 text: {exc.reason}") from None
-
-
-def _torn(lines: list[str], index: int) -> bool:
-    """The last line without a newline: a write cut short by a crash, skipped when unreadable."""
-    return index == len(lines) - 1 and not lines[index].endswith("\n")
-
-
-def read_events(path: str | Path) -> list[Event]:
-    """The events of ``events.jsonl`` as :class:`Event` messages, in file order.
-
-    A line that is not a JSON object with a number ``t``, strings ``source`` and ``kind`` and an
-    object ``data`` raises :class:`RunFileError`, except a torn last line (logged and skipped).
-    """
-    path = Path(path)
-    lines = _read_lines(path)
-    events: list[Event] = []
-    for index, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-            if not isinstance(record, dict):
-                raise ValueError("not a JSON object")
-            t, source, kind = record.get("t"), record.get("source"), record.get("kind")
-            data = record.get("data", {})
-            if isinstance(t, bool) or not isinstance(t, (int, float)):
-                raise ValueError(f"'t' must be a number, found {t!r}")
-            if not isinstance(source, str) or not isinstance(kind, str):
-                raise ValueError(f"'source' and 'kind' must be strings, found {source!r}, {kind!r}")
-            if not isinstance(data, dict):
-                raise ValueError(f"'data' must be an object, found {type(data).__name__}")
-        except ValueError as exc:  # json.JSONDecodeError is a ValueError
-            if _torn(lines, index):
-                logger.warning("%s:%d: torn last line skipped", path, index + 1)
-                continue
-            raise RunFileError(path, index + 1, str(exc)) from None
-        events.append(Event(t=float(t), source=source, kind=kind, data=data))
-    return events
-
-
-def _status_from_row(row: dict[str, str]) -> LtlStatus | StlStatus:
-    def number(col: str) -> float:
-        cell = row[col]
-        return math.nan if cell == "" else float(cell)
-
-    def integer(col: str, default: int = 0) -> int:
-        return default if row[col] == "" else int(row[col])
-
-    def json_list(col: str) -> list[Any]:
-        value = json.loads(row[col]) if row[col] else []
-        if not isinstance(value, list):
-            raise ValueError(f"{col} must be a JSON list, found {row[col]!r}")
-        return value
-
-    t, robot = float(row["t"]), int(row["robot"])
-    if row["kind"] == "stl":
-        events = tuple(int(v) for v in json_list("events")) or (0, 0, 0)
-        if len(events) != 3:
-            raise ValueError(f"events must list 3 counts, found {row['events']!r}")
-        return StlStatus(robot=robot, t=t, subtask=integer("subtask"), rho=number("rho"),
-                         rho_max=number("rho_max"), lower=number("lower"), r=number("r"),
-                         stage=integer("stage"), ce=integer("ce"), c=integer("c"),
-                         follow=integer("follow", -1), events=events)  # type: ignore[arg-type]
-    if row["kind"] == "ltl":
-        visits = tuple((str(name), int(count)) for name, count in json_list("visits"))
-        return LtlStatus(robot=robot, t=t, prefix=tuple(str(v) for v in json_list("prefix")),
-                         suffix=tuple(str(v) for v in json_list("suffix")),
-                         target=row["target"] or None,
-                         buchi_states=tuple(int(v) for v in json_list("buchi_states")),
-                         visits=visits, rounds=integer("rounds"), mode=row["mode"])
-    raise ValueError(f"kind must be 'ltl' or 'stl', found {row['kind']!r}")
-
-
-def read_statuses(path: str | Path) -> list[LtlStatus | StlStatus]:
-    """The rows of ``status.csv`` (header :data:`STATUS_COLUMNS`) as status messages.
-
-    A row that does not convert back raises :class:`RunFileError` naming the line, except a torn
-    last row (logged and skipped).
-    """
-    path = Path(path)
-    lines = _read_lines(path)
-    if not lines:
-        raise RunFileError(path, 1, f"empty: expected the header {','.join(STATUS_COLUMNS)}")
-    header = next(csv.reader([lines[0]]))
-    missing = [col for col in STATUS_COLUMNS if col not in header]
-    if missing:
-        raise RunFileError(path, 1, f"header lacks the column(s) {', '.join(missing)}")
-    statuses: list[LtlStatus | StlStatus] = []
-    for index in range(1, len(lines)):
-        if not lines[index].strip():
-            continue
-        try:
-            cells = next(csv.reader([lines[index]]))
-            if len(cells) != len(header):
-                raise ValueError(f"expected {len(header)} values, found {len(cells)}")
-            statuses.append(_status_from_row(dict(zip(header, cells, strict=True))))
-        except (ValueError, TypeError) as exc:
-            if _torn(lines, index):
-                logger.warning("%s:%d: torn last row skipped", path, index + 1)
-                continue
-            raise RunFileError(path, index + 1, str(exc)) from None
-    return statuses

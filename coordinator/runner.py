@@ -42,6 +42,7 @@ from agent.protocol import keys
 from agent.scenario import Scenario, load_scenario
 from bus.transport import TransportConfig, open_transport
 from bus.zenoh_transport import ZenohTransport
+from coordinator import rundir
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -50,7 +51,8 @@ from coordinator.launcher import (
     tlfleet_command,
     wait_for_port,
 )
-from coordinator.recorder import Recorder, RecorderTap, default_run_dir
+from coordinator.recorder import Recorder, RecorderTap
+from coordinator.rundir import default_run_dir
 from coordinator.summary import write_summary
 from coordinator.supervisor import Outcome, Supervisor, SupervisorConfig
 
@@ -149,28 +151,55 @@ def _start_viewer(scenario: Scenario, config: RunConfig,
     return view
 
 
-def _write_report(run_dir: Path, figures: bool, say: Callable[[str], None]) -> tuple[Any, str]:
+def _write_report(files: rundir.RunFiles, summary: dict[str, Any], figures: bool,
+                  say: Callable[[str], None]) -> tuple[Any, str]:
     """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
     try:
         from coordinator.report import write_report
 
-        return write_report(run_dir, figures=figures), ""
+        return write_report(files, figures=figures, summary=summary), ""
     except Exception as exc:
         say(f"report not written ({type(exc).__name__}: {exc})")
         return None, f"{type(exc).__name__}: {exc}"
 
 
-def _write_rrd(run_dir: Path, every: int, say: Callable[[str], None]) -> dict[str, Any]:
+def _write_rrd(run: rundir.RunFiles | Path, every: int,
+               say: Callable[[str], None]) -> dict[str, Any]:
     """Step 8: ``run.rrd`` from the recorded files; failures are reported, never raised."""
     try:
         from coordinator.visual import replay_run
 
-        result = replay_run(run_dir, every=every)
+        result = replay_run(run, every=every)
     except Exception as exc:
         say(f"run.rrd not written ({type(exc).__name__}: {exc})")
         return {"error": f"{type(exc).__name__}: {exc}"}
     return {"path": str(result.path), "seconds": round(result.seconds, 3),
             "frames": result.frames}
+
+
+def write_outputs(run_dir: Path, scenario: Scenario, config: RunConfig, info: dict[str, Any],
+                  write_info: Callable[[dict[str, Any]], None], note: Callable[[str], None],
+                  say: Callable[[str], None]) -> tuple[str, dict[str, Any], Any, Path | None]:
+    """Steps 6–8 after the fleet stopped: the run directory is read once
+    (:func:`rundir.read_run`) and the summary (computed once), the report with its figures and
+    ``run.rrd`` are all made from those files → (summary text, summary data, report, rrd path).
+    ``info`` (run.json) gains the report's and the recording's paths or errors."""
+    files = rundir.read_run(run_dir, scenario=scenario)
+    text, data = write_summary(files)
+    report_result = None
+    if config.report:
+        report_result, error = _write_report(files, data, config.figures, say)
+        info["report"] = {"error": error} if error else {
+            "path": str(run_dir / rundir.REPORT_MD),
+            "figures": [str(path) for path in report_result.figures]}
+        write_info(info)
+    rrd_path: Path | None = None
+    if config.rrd:
+        note(f"writing {run_dir / rundir.RRD} (rerun) …")
+        info["rrd"] = _write_rrd(files, config.rrd_every, say)
+        rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
+        write_info(info)
+    return text, data, report_result, rrd_path
 
 
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
@@ -254,19 +283,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     note = report or (lambda text: logger.info("%s", text))
     note(f"writing summary.json{', report.md/json' if config.report else ''}"
          f"{' and figures' if config.report and config.figures else ''} in {run_dir} …")
-    text, data = write_summary(run_dir)
-    report_result = None
-    if config.report:
-        report_result, error = _write_report(run_dir, config.figures, say)
-        info["report"] = {"error": error} if error else {
-            "path": str(run_dir / "report.md"),
-            "figures": [str(path) for path in report_result.figures]}
-        recorder.write_run_info(info)
-    rrd_path: Path | None = None
-    if config.rrd:
-        note(f"writing {run_dir / 'run.rrd'} (rerun) …")
-        info["rrd"] = _write_rrd(run_dir, config.rrd_every, say)
-        rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
-        recorder.write_run_info(info)
+    text, data, report_result, rrd_path = write_outputs(
+        run_dir, scenario, config, info, recorder.write_run_info, note, say)
     return RunResult(run_dir, outcome, final, clean, text, data, info, report_result, rrd_path,
                      viewer)

@@ -1,8 +1,9 @@
 """The plain-text run summary: a pure function of a run directory's files (architecture.md §6).
 
-:func:`summarise_run` reads ``scenario.toml``, ``trajectory.csv``, ``status.csv``,
-``events.jsonl`` and ``run.json`` (all optional but the scenario) once (:func:`read_run_files`,
-shared with ``coordinator.report``) and returns ``(text, data)`` (:func:`summarise`):
+:func:`summarise` takes the files of a run directory as read once by
+:func:`coordinator.rundir.read_run` (shared with ``coordinator.report``) and returns
+``(text, data)``; ``data`` holds numbers as numbers (an empty window's robustness is ±inf, a value
+not evaluated None) and becomes ``summary.json`` only at the edge (:func:`write_summary`):
 
 * per STL robot and sub-task, the **standard** robustness (min/max semantics, stl-funnel.md §3)
   recomputed offline from the trajectory with ``agent.stl.monitor``, the last r̄ reported for the
@@ -21,61 +22,25 @@ shared with ``coordinator.report``) and returns ``(text, data)`` (:func:`summari
 
 from __future__ import annotations
 
-import csv
-import json
 import logging
 import math
 import re
 from collections import Counter, defaultdict
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agent.errors import TlfleetError
-from agent.scenario import Scenario, load_scenario
-from agent.stl.monitor import Trajectory, evaluate_trajectory, read_trajectory_csv
+from agent.protocol.messages import Event, LtlStatus, StlStatus
+from agent.scenario import Scenario
+from agent.stl.monitor import Trajectory, evaluate_trajectory
+from coordinator import rundir
+from coordinator.rundir import RunFiles
 
 logger = logging.getLogger(__name__)
 
 REGION_HYSTERESIS = 0.05  # [m] a robot must leave a region by this much before re-entering counts
-
-
-def read_events(path: Path) -> list[dict[str, Any]]:
-    """The events of ``events.jsonl``; a torn last line (crash) is skipped."""
-    return read_events_checked(path)[0]
-
-
-def read_events_checked(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
-    """The events of ``events.jsonl`` and the 1-based numbers of the lines skipped (not JSON, e.g.
-    a line torn by a crash, or not an object)."""
-    events: list[dict[str, Any]] = []
-    skipped: list[int] = []
-    if not path.exists():
-        return events, skipped
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            logger.warning("%s:%d: not JSON, skipped", path, number)
-            skipped.append(number)
-            continue
-        if isinstance(record, dict):
-            record.setdefault("data", {})
-            events.append(record)
-        else:
-            skipped.append(number)
-    return events, skipped
-
-
-def read_statuses(path: Path) -> list[dict[str, str]]:
-    if not path.exists():
-        return []
-    with open(path, newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
 
 
 def region_entries(xy: np.ndarray, center: tuple[float, float], radius: float,
@@ -116,35 +81,15 @@ def closest_approach(traj: Trajectory, radii: dict[int, float]) -> dict[str, Any
     return best
 
 
-def _float(text: str | None) -> float:
-    try:
-        return float(text) if text not in (None, "") else math.nan
-    except ValueError:
-        return math.nan
+def _count(event: Event) -> int:
+    count = event.data.get("count", 1)
+    return int(count) if isinstance(count, int | float) and count >= 0 else 1
 
 
-def _int(text: str | None, default: Any) -> Any:
-    value = _float(text)
-    return int(value) if math.isfinite(value) else default
-
-
-def _json_cell(text: str | None, default: Any) -> Any:
-    try:
-        return json.loads(text) if text else default
-    except json.JSONDecodeError:
-        return default
-
-
-def _count(event: dict[str, Any]) -> int:
-    count = event.get("data", {}).get("count", 1)
-    return int(count) if isinstance(count, (int, float)) and count >= 0 else 1
-
-
-def _number(value: float) -> float | str | None:
-    """JSON-ready: ±inf (empty window) as "inf"/"-inf"; NaN (not evaluated) as None."""
-    if math.isnan(value):
-        return None
-    return value if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+def _evaluated(value: float) -> float | None:
+    """A robustness value as the summary keeps it: ±inf (an empty window) as is, NaN (not
+    evaluated) as None."""
+    return None if math.isnan(value) else float(value)
 
 
 def _ltl_regions(scenario: Scenario, formula: str) -> list[str]:
@@ -152,46 +97,16 @@ def _ltl_regions(scenario: Scenario, formula: str) -> list[str]:
     return sorted({tok for tok in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", formula) if tok in names})
 
 
-@dataclass(frozen=True)
-class RunFiles:
-    """The files of a run directory, each read once (the summary and the report share them)."""
-
-    run_dir: Path
-    scenario: Scenario
-    info: dict[str, Any]  # run.json ({} when missing)
-    events: list[dict[str, Any]]  # events.jsonl, lines that are not JSON objects skipped
-    skipped_event_lines: list[int]  # their 1-based numbers
-    statuses: list[dict[str, str]]  # status.csv rows
-    traj: Trajectory | None  # trajectory.csv, None when it cannot be read
-    traj_error: str  # why not ("" when read)
-
-
-def read_run_files(run_dir: str | Path) -> RunFiles:
-    """Read ``run_dir``'s scenario (required), run.json, events, statuses and trajectory."""
-    run_dir = Path(run_dir)
-    scenario = load_scenario(run_dir / "scenario.toml")
-    info = _json_cell((run_dir / "run.json").read_text(encoding="utf-8")
-                      if (run_dir / "run.json").exists() else "", {})
-    events, skipped = read_events_checked(run_dir / "events.jsonl")
-    traj: Trajectory | None = None
-    traj_error = ""
-    try:
-        traj = read_trajectory_csv(run_dir / "trajectory.csv")
-    except TlfleetError as exc:
-        traj_error = str(exc)
-    return RunFiles(run_dir, scenario, info, events, skipped,
-                    read_statuses(run_dir / "status.csv"), traj, traj_error)
-
-
 def summarise_run(run_dir: str | Path) -> tuple[str, dict[str, Any]]:
     """(text, data) summary of the run in ``run_dir``; see the module docstring."""
-    return summarise(read_run_files(run_dir))
+    return summarise(rundir.read_run(run_dir))
 
 
 def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
-    """(text, data) summary of a run directory's files (read by :func:`read_run_files`)."""
+    """(text, data) summary of a run directory's files (read by :func:`rundir.read_run`)."""
     run_dir, scenario, info = files.run_dir, files.scenario, files.info
-    events, statuses, traj, traj_error = files.events, files.statuses, files.traj, files.traj_error
+    events, statuses = files.events, files.statuses
+    traj, traj_error = files.trajectory, files.trajectory_error
     data: dict[str, Any] = {
         "scenario": scenario.name, "run_dir": str(run_dir), "run": info,
         "frames": 0 if traj is None else len(traj.t),
@@ -204,30 +119,28 @@ def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
     radii = {r.id: r.radius for r in scenario.robots}
     data["closest_approach"] = None if traj is None else closest_approach(traj, radii)
     data["deadlines"] = _deadlines(events, info)
-    data["process_deaths"] = [
-        {"t": e.get("t"), **{k: v for k, v in e["data"].items()}}
-        for e in events if e.get("kind") == "process_died"]
+    data["process_deaths"] = [{"t": e.t, **e.data} for e in events if e.kind == "process_died"]
     return format_summary(data), data
 
 
 def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
-                 statuses: list[dict[str, str]], events: list[dict[str, Any]]) -> dict:
-    last: dict[tuple[int, int], dict[str, str]] = {}
-    for row in statuses:
-        if row.get("kind") == "stl":
-            last[(int(row["robot"]), _int(row.get("subtask"), 0))] = row
+                 statuses: tuple[LtlStatus | StlStatus, ...], events: tuple[Event, ...]) -> dict:
+    last: dict[tuple[int, int], StlStatus] = {}
+    for status in statuses:
+        if isinstance(status, StlStatus):
+            last[(status.robot, status.subtask)] = status
     repairs: dict[int, Counter[int]] = defaultdict(Counter)
     for e in events:
-        if e.get("kind") == "repair" and str(e.get("source", "")).startswith("agent/"):
-            robot = int(str(e["source"]).split("/", 1)[1])
-            stage = e["data"].get("stage")
-            if isinstance(stage, int):
+        if e.kind == "repair" and e.source.startswith("agent/"):
+            robot = _agent_id(e.source)
+            stage = e.data.get("stage")
+            if robot is not None and isinstance(stage, int):
                 repairs[robot][stage] += 1
     robust: dict[int, Any] = {}
     error = ""
     if traj is not None:
         try:
-            robust = evaluate_trajectory(scenario, traj, run_dir / "trajectory.csv")
+            robust = evaluate_trajectory(scenario, traj, run_dir / rundir.TRAJECTORY)
         except (TlfleetError, KeyError) as exc:
             error = str(exc)
     out: dict[int, Any] = {}
@@ -240,15 +153,14 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
                                                   "robustness": math.nan} for t in robot.stl]
         for index, sub in enumerate(texts):
             status = last.get((robot.id, index))
-            stages = _json_cell(status.get("events") if status else "", [0, 0, 0])
             subtasks.append({
                 "task": sub["task"], "window": sub["window"],
-                "robustness": _number(sub["robustness"]),
-                "r_last": _number(_float(status.get("r"))) if status else None,
-                "repairs_status": stages,
+                "robustness": _evaluated(sub["robustness"]),
+                "r_last": _evaluated(status.r) if status else None,
+                "repairs_status": list(status.events) if status else [0, 0, 0],
             })
         out[robot.id] = {
-            "robustness": _number(entry["robustness"]) if entry else None,
+            "robustness": _evaluated(entry["robustness"]) if entry else None,
             "subtasks": subtasks,
             "repair_events": {str(s): n for s, n in sorted(repairs[robot.id].items())},
             "error": error,
@@ -256,12 +168,18 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
     return out
 
 
+def _agent_id(source: str) -> int | None:
+    """``agent/4`` → 4; None for any other source."""
+    head, _, tail = source.partition("/")
+    return int(tail) if head == "agent" and tail.isdigit() else None
+
+
 def _ltl_section(scenario: Scenario, traj: Trajectory | None,
-                 statuses: list[dict[str, str]]) -> dict:
-    last: dict[int, dict[str, str]] = {}
-    for row in statuses:
-        if row.get("kind") == "ltl":
-            last[int(row["robot"])] = row
+                 statuses: tuple[LtlStatus | StlStatus, ...]) -> dict:
+    last: dict[int, LtlStatus] = {}
+    for status in statuses:
+        if isinstance(status, LtlStatus):
+            last[status.robot] = status
     regions = {r.name: r for r in scenario.regions}
     out: dict[int, Any] = {}
     for robot in sorted(scenario.robots, key=lambda r: r.id):
@@ -272,10 +190,9 @@ def _ltl_section(scenario: Scenario, traj: Trajectory | None,
         plan: list[str] = []
         rounds = None
         if status:
-            reported = {str(k): int(v) for k, v in _json_cell(status.get("visits"), [])}
-            plan = [name for name in _json_cell(status.get("prefix"), [])
-                    + _json_cell(status.get("suffix"), []) if name in regions]
-            rounds = _int(status.get("rounds"), None)
+            reported = {name: count for name, count in status.visits}
+            plan = [name for name in status.prefix + status.suffix if name in regions]
+            rounds = status.rounds
         names = sorted(set(plan) | set(_ltl_regions(scenario, robot.ltl)))
         recount = {}
         if traj is not None and robot.id in traj.states:
@@ -292,13 +209,13 @@ def _ltl_section(scenario: Scenario, traj: Trajectory | None,
     return out
 
 
-def _contacts(events: list[dict[str, Any]]) -> dict[str, Any]:
+def _contacts(events: tuple[Event, ...]) -> dict[str, Any]:
     pairs: Counter[str] = Counter()
     robot_robot = robot_wall = 0
     for e in events:
-        if e.get("kind") != "contact":
+        if e.kind != "contact":
             continue
-        a, b = e["data"].get("a"), e["data"].get("b")
+        a, b = e.data.get("a"), e.data.get("b")
         if "wall" in (a, b):
             robot_wall += 1
             pairs[f"{a if b == 'wall' else b}-wall"] += 1
@@ -308,17 +225,17 @@ def _contacts(events: list[dict[str, Any]]) -> dict[str, Any]:
     return {"robot_robot": robot_robot, "robot_wall": robot_wall, "pairs": dict(pairs)}
 
 
-def _deadlines(events: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, Any]:
+def _deadlines(events: tuple[Event, ...], info: dict[str, Any]) -> dict[str, Any]:
     misses: Counter[str] = Counter()
     malformed: Counter[str] = Counter()
     counts: Counter[str] = Counter()
     running: dict[tuple[str, str], int] = {}
     for e in events:
-        kind = e.get("kind")
+        kind = e.kind
         if kind == "deadline_miss":
-            misses[str(e["data"].get("robot"))] += _count(e)
+            misses[str(e.data.get("robot"))] += _count(e)
         elif kind == "malformed_message":
-            source, data = str(e.get("source")), e.get("data", {})
+            source, data = e.source, e.data
             count = data.get("count")
             if isinstance(count, int) and count >= 0:  # a running total per (source, key)
                 key = (source, str(data.get("key")))
@@ -331,7 +248,7 @@ def _deadlines(events: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, 
         malformed[source] += n
     for what, n in (info.get("malformed_received") or {}).items():
         malformed[f"coordinator ({what})"] += int(n)
-    stats = next((e["data"] for e in reversed(events) if e.get("kind") == "sim_stats"), None)
+    stats = next((e.data for e in reversed(events) if e.kind == "sim_stats"), None)
     return {"deadline_miss": sum(misses.values()), "deadline_miss_by_robot": dict(misses),
             "sim_stats": stats,
             "watchdog_stop": counts["watchdog_stop"], "stale_mocap": counts["stale_mocap"],
@@ -409,11 +326,12 @@ def format_summary(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_summary(run_dir: str | Path) -> tuple[str, dict[str, Any]]:
-    """Compute the summary and write ``summary.txt`` and ``summary.json`` into ``run_dir``."""
-    text, data = summarise_run(run_dir)
-    run_dir = Path(run_dir)
-    (run_dir / "summary.txt").write_text(text + "\n", encoding="utf-8")
-    (run_dir / "summary.json").write_text(json.dumps(data, indent=2, default=str) + "\n",
-                                          encoding="utf-8")
+def write_summary(files: RunFiles | str | Path) -> tuple[str, dict[str, Any]]:
+    """Compute the summary of a run directory (its files as read by :func:`rundir.read_run`,
+    or its path) and write ``summary.txt`` and ``summary.json`` into it."""
+    if not isinstance(files, RunFiles):
+        files = rundir.read_run(files)
+    text, data = summarise(files)
+    (files.run_dir / rundir.SUMMARY_TEXT).write_text(text + "\n", encoding="utf-8")
+    rundir.write_json(files.run_dir / rundir.SUMMARY_JSON, data)
     return text, data

@@ -47,9 +47,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from agent.scenario import DiscObstacle, RectObstacle, Scenario, load_scenario
-from agent.stl.monitor import Trajectory, read_trajectory_csv
-from coordinator.recorder import RunFileError, read_events, read_statuses
+from agent.scenario import DiscObstacle, RectObstacle, Scenario
+from coordinator.rundir import RunFileError, RunFiles, read_run
 
 logger = logging.getLogger(__name__)
 
@@ -369,17 +368,6 @@ class FleetLog:
 
 
 @dataclass(frozen=True)
-class RunData:
-    """The files of a finished run directory, read and checked."""
-
-    run_dir: Path
-    scenario: Scenario
-    trajectory: Trajectory
-    statuses: list[LtlStatus | StlStatus]
-    events: list[Event]
-
-
-@dataclass(frozen=True)
 class ReplayResult:
     path: Path | None  # the .rrd written (None: logged to a given recording only)
     frames: int  # trajectory rows logged
@@ -390,24 +378,27 @@ class ReplayResult:
     seconds: float  # [s] wall time spent
 
 
-def load_run(run_dir: str | Path) -> RunData:
-    """Read ``scenario.toml``, ``trajectory.csv``, ``status.csv`` and ``events.jsonl``; a missing
-    or unreadable file raises :class:`~agent.errors.TlfleetError` naming it."""
-    run_dir = Path(run_dir)
-    scenario_path = run_dir / "scenario.toml"
-    if not scenario_path.is_file():
-        raise RunFileError(scenario_path, 0, "missing")
-    scenario = load_scenario(scenario_path)
-    traj = read_trajectory_csv(run_dir / "trajectory.csv")
+def load_run(run: RunFiles | str | Path) -> RunFiles:
+    """A finished run directory's files, read strictly (:func:`coordinator.rundir.read_run`),
+    or already read once by the caller and checked here: a missing or unreadable file, or a line
+    that does not convert back, raises :class:`~agent.errors.TlfleetError` naming it."""
+    if not isinstance(run, RunFiles) and not (Path(run) / "scenario.toml").is_file():
+        raise RunFileError(Path(run) / "scenario.toml", 0, "missing")
+    files = run if isinstance(run, RunFiles) else read_run(run, strict=True)
+    problems = [p for p in files.problems if not p.torn]  # a torn last line is a crash's mark
+    if problems:
+        raise RunFileError(files.run_dir / problems[0].file, problems[0].line, problems[0].reason)
+    if files.trajectory is None:
+        raise RunFileError(files.run_dir / "trajectory.csv", 0, files.trajectory_error)
+    traj, scenario = files.trajectory, files.scenario
     if set(traj.robot_ids) != set(scenario.robot_ids):
-        raise RunFileError(run_dir / "trajectory.csv", 1,
+        raise RunFileError(files.run_dir / "trajectory.csv", 1,
                            f"robot columns {list(traj.robot_ids)} do not match the scenario's "
                            f"robots {list(scenario.robot_ids)}")
-    return RunData(run_dir, scenario, traj, read_statuses(run_dir / "status.csv"),
-                   read_events(run_dir / "events.jsonl"))
+    return files
 
 
-def log_run(data: RunData, recording: rr.RecordingStream, *, every: int = 5) -> FleetLog:
+def log_run(data: RunFiles, recording: rr.RecordingStream, *, every: int = 5) -> FleetLog:
     """Log ``data`` to ``recording`` (whose sinks are set): every ``every``-th trajectory row and
     always the first and last (so the ``sim_time`` range is the trajectory's), every status and
     event, in time order."""
@@ -437,15 +428,16 @@ def log_run(data: RunData, recording: rr.RecordingStream, *, every: int = 5) -> 
     return log
 
 
-def replay_run(run_dir: str | Path, out: str | Path | None = None, *,
+def replay_run(run: RunFiles | str | Path, out: str | Path | None = None, *,
                every: int = 5) -> ReplayResult:
-    """Log the finished run in ``run_dir`` to ``out`` (default ``run_dir/run.rrd``).
+    """Log the finished run (its directory, or its files read once) to ``out`` (default
+    ``run_dir/run.rrd``).
 
     Inputs are read (and errors raised) before the file is opened, so a bad run directory never
     clobbers an existing recording.
     """
     started = time.monotonic()
-    data = load_run(run_dir)
+    data = load_run(run)
     path = Path(out) if out is not None else data.run_dir / "run.rrd"
     rec = new_recording()
     rec.save(path, default_blueprint=blueprint(data.scenario))

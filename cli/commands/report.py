@@ -24,10 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from coordinator.report import write_report
+    from coordinator.rundir import json_ready
 
     report = write_report(args.run_dir, figures=not args.no_figures)
     if args.json:
-        print(json.dumps(report.data, indent=2, ensure_ascii=False))
+        print(json.dumps(json_ready(report.data), indent=2, ensure_ascii=False))
         return 0
     print(report.table)
     print(f"wrote {report.run_dir / 'report.md'}")

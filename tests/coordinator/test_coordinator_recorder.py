@@ -15,7 +15,13 @@ from agent.protocol.codec import encode
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
 from agent.stl.monitor import read_trajectory_csv
 from bus.fake import FakeNetwork
-from coordinator.recorder import STATUS_COLUMNS, Recorder, RecorderTap, default_run_dir
+from coordinator.recorder import Recorder, RecorderTap
+from coordinator.rundir import (
+    LTL_STATUS_COLUMNS,
+    STATUS_COLUMNS,
+    STL_STATUS_COLUMNS,
+    default_run_dir,
+)
 
 
 def frame(seq: int, ids=(1, 3), rate: float = 100.0) -> MocapFrame:
@@ -91,10 +97,13 @@ def test_status_and_event_rows(tmp_path):
     stl, ltl = rows
     assert (stl["t"], stl["robot"], stl["kind"], stl["subtask"], stl["stage"]) == \
         ("1.25", "3", "stl", "1", "2")
-    assert float(stl["r"]) == 0.08 and json.loads(stl["events"]) == [2, 1, 0]
+    # no JSON inside cells: lists are space-separated tokens, visits name:count
+    assert float(stl["r"]) == 0.08 and stl["events"] == "2 1 0"
     assert ltl["kind"] == "ltl" and ltl["target"] == "a12"
-    assert json.loads(ltl["visits"]) == [["a11", 2], ["a12", 1]]
-    assert json.loads(ltl["suffix"]) == ["a12", "a11"]
+    assert ltl["visits"] == "a11:2 a12:1"
+    assert (ltl["prefix"], ltl["suffix"], ltl["buchi_states"]) == ("start a11", "a12 a11", "0 2")
+    assert all(stl[c] == "" for c in LTL_STATUS_COLUMNS)  # the other kind's columns are blank
+    assert all(ltl[c] == "" for c in STL_STATUS_COLUMNS)
     events = [json.loads(line) for line in (tmp_path / "events.jsonl").read_text().splitlines()]
     assert events == [{"t": 2.0, "source": "agent/3", "kind": "repair",
                        "data": {"stage": 2, "r": 0.07}}]

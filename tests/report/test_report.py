@@ -27,13 +27,8 @@ from agent.ltl.lasso import holds
 from cli.main import main as cli_main
 from coordinator import paper_values
 from coordinator.figures import robustness_figure
-from coordinator.report import (
-    RunDirectoryError,
-    build_report,
-    completed_cycles,
-    plan_cycle,
-    write_report,
-)
+from coordinator.ltl_trace import completed_cycles, plan_cycle
+from coordinator.report import RunDirectoryError, build_report, write_report
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 DT = 0.1  # [s] sample period of the synthetic run

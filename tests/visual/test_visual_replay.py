@@ -10,7 +10,7 @@ import pytest
 from visual_helpers import N_FRAMES, T0, T1, pose, read_rrd, write_run
 
 from cli.main import main
-from coordinator.recorder import read_events, read_statuses
+from coordinator.rundir import read_events, read_statuses
 
 EXPECTED = {
     "/world", "/world/arena", "/world/regions", "/world/robots", "/world/headings",
