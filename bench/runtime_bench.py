@@ -47,8 +47,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.rundir import read_events  # noqa: E402
+from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
