@@ -21,11 +21,10 @@ from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event
-from agent.runtime.config import AgentConfig, AgentConfigError
+from agent.runtime.config import AgentConfig
 from agent.runtime.inbox import MalformedCounter
 from agent.runtime.loop import AgentLoop, Core, LoopConfig
 from agent.runtime.peers import CollabLink
-from agent.scenario import load_scenario
 from agent.scenario.model import Scenario
 from bus.signals import install_signal_handlers
 from bus.transport import Transport, open_transport
@@ -100,24 +99,3 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             time.sleep(LINGER)  # let zenoh deliver the last command / event before closing
             transport.close()
 
-
-def main(config: AgentConfig, scenario: Scenario | None = None) -> int:
-    """``tlfleet agent``: the process of ``config.robot``, dispatched on its task — an LTL robot
-    runs :mod:`agent.runtime.ltl_agent` (plan, then navigation), an STL robot
-    :mod:`agent.runtime.stl_agent` (funnel control with stage-2 collaboration). Exit codes: 0
-    after a clean stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault."""
-    if scenario is None:
-        if config.scenario is None:
-            raise TlfleetError("agent: no scenario given")
-        scenario = load_scenario(config.scenario)
-    if config.robot not in scenario.robot_ids:
-        known = ", ".join(str(r) for r in scenario.robot_ids)
-        raise AgentConfigError(f"scenario {scenario.name!r} has no robot {config.robot} "
-                               f"(robots: {known})")
-    if scenario.robot(config.robot).is_ltl:
-        from agent.runtime import ltl_agent
-
-        return ltl_agent.main(config, scenario)
-    from agent.runtime import stl_agent
-
-    return stl_agent.main(config, scenario)

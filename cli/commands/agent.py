@@ -1,7 +1,7 @@
 """``tlfleet agent SCENARIO --robot ID``: the agent process of one robot (architecture.md §1).
 
 A thin wrapper: the flags become an :class:`~agent.runtime.config.AgentConfig` and
-:func:`agent.runtime.process.main` runs the robot's LTL or STL agent. Exit codes: 0 after a clean
+:func:`agent.runtime.main.main` runs the robot's LTL or STL agent. Exit codes: 0 after a clean
 stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault (e.g. an unsatisfiable LTL task, reported
 as ``Event(kind="fault")`` first).
 """
@@ -39,7 +39,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agent.runtime.process import main
+    from agent.runtime.main import main
 
     config = config_from_args(args)
     try:
