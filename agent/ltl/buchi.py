@@ -24,7 +24,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from agent.ltl.degeneralize import degeneralize
-from agent.ltl.formula import Atom, Formula, children
+from agent.ltl.formula import Atom, Formula, children, recursion_headroom
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import Alphabet, Guard, valuation
 from agent.ltl.parser import parse
@@ -107,7 +107,8 @@ def translate(formula: Formula | str) -> Buchi:
 
     Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse.
     """
-    candidates = translation_candidates(formula)
+    with recursion_headroom():
+        candidates = translation_candidates(formula)
     return min(candidates, key=lambda b: (b.num_states, b.num_edges))
 
 

@@ -10,6 +10,8 @@ The parser builds binary ``And``/``Or`` nodes (left-nested, as written); the rew
 
 from __future__ import annotations
 
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 
@@ -173,3 +175,21 @@ def atoms(f: Formula) -> frozenset[str]:
 def size(f: Formula) -> int:
     """Number of nodes of ``f``."""
     return 1 + sum(size(child) for child in children(f))
+
+
+@contextmanager
+def recursion_headroom(frames: int = 20_000):
+    """Raise Python's recursion limit to at least ``frames`` for the passes over one formula.
+
+    The parser caps nesting at ``agent.ltl.parser.MAX_DEPTH`` levels; the recursive passes
+    (rewriting, the alternating automaton) use a handful of Python frames per level, which on
+    Python ≥ 3.11 do not consume C stack, so a few thousand frames are safe.
+    """
+    old = sys.getrecursionlimit()
+    if old < frames:
+        sys.setrecursionlimit(frames)
+    try:
+        yield
+    finally:
+        if old < frames:
+            sys.setrecursionlimit(old)
