@@ -17,7 +17,7 @@ The parser is operator-precedence with explicit stacks (no recursion), so nestin
 limited only by :data:`MAX_DEPTH`, which keeps every later recursive pass (printing,
 rewriting, translation) far from Python's recursion limit; deeper formulas get a clear
 :class:`agent.errors.LtlSyntaxError` rather than a ``RecursionError``. ``&`` and ``|`` build
-left-nested binary nodes as written.
+flattened n-ary nodes, as Spot does (a conjunction of 1 000 atoms is depth 2).
 """
 
 from __future__ import annotations
@@ -45,6 +45,8 @@ from agent.ltl.formula import (
     WeakUntil,
     Xor,
     atoms,
+    conj,
+    disj,
 )
 from agent.ltl.lexer import Token, tokenize
 
@@ -57,10 +59,10 @@ MAX_DEPTH = 200
 BINARY_PRECEDENCE = MappingProxyType({
     lx.IMPLIES: (1, True, Implies),
     lx.EQUIV: (1, True, Equiv),
-    lx.OR: (2, False, lambda x, y: Or((x, y))),
+    lx.OR: (2, False, disj),
     lx.XOR: (3, False, Xor),
-    lx.AND: (4, False, lambda x, y: And((x, y))),
-    lx.STAR: (5, False, lambda x, y: And((x, y))),
+    lx.AND: (4, False, conj),
+    lx.STAR: (5, False, conj),
     lx.UNTIL: (6, True, Until),
     lx.RELEASE: (6, True, Release),
     lx.WEAK_UNTIL: (6, True, WeakUntil),
@@ -87,7 +89,7 @@ def _expand_repeat(letter: str, low: int, high: int | None, f: Formula) -> Formu
     else:
         result = f
         for _ in range(high - low):
-            result = Or((f, Next(result))) if letter == "F" else And((f, Next(result)))
+            result = disj(f, Next(result)) if letter == "F" else conj(f, Next(result))
     for _ in range(low):
         result = Next(result)
     return result
@@ -132,7 +134,13 @@ class _Parser:
                 return
             right, rd = operands.pop()
             left, ld = operands.pop()
-            push(BINARY_PRECEDENCE[op.kind][2](left, right), 1 + max(ld, rd), op)
+            tree = BINARY_PRECEDENCE[op.kind][2](left, right)
+            if isinstance(tree, And | Or):  # flattened: a same-kind operand adds no level
+                ld += type(left) is not type(tree)
+                rd += type(right) is not type(tree)
+                push(tree, max(ld, rd), op)
+            else:
+                push(tree, 1 + max(ld, rd), op)
 
         for token in self.tokens:
             kind = token.kind

@@ -98,9 +98,7 @@ def to_string(f: Formula) -> str:
         case And(args) | Or(args):
             level = _level(f)
             symbol = " & " if level == _AND else " | "
-            first = _operand(args[0], level, bare_if_same=True)
-            rest = [_operand(a, level, bare_if_same=False) for a in args[1:]]
-            return symbol.join([first, *rest])
+            return symbol.join(_operand(a, level, bare_if_same=False) for a in args)
         case Binary(left, right):
             symbol, level = _BINARY_SYMBOL[type(f)]
             right_assoc = level != _XOR

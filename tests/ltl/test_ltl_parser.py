@@ -37,7 +37,9 @@ PARSES = [
     ("true", TRUE),
     ("false", FALSE),
     ("1 & 0", And((TRUE, FALSE))),
-    ("a & b & c", And((And((a, b)), c))),
+    ("a & b & c", And((a, b, c))),
+    ("(a & b) & c | a & (b & c)", Or((And((a, b, c)), And((a, b, c))))),
+    ("a | (b | c) | a", Or((a, b, c, a))),
     ("a | b & c", Or((a, And((b, c))))),
     ("a xor b | c", Or((Xor(a, b), c))),  # Spot: xor binds tighter than |
     ("a | b xor c", Or((a, Xor(b, c)))),
@@ -75,7 +77,7 @@ def test_printed_form_reparses_to_the_same_tree(text, tree):
 PRINTS = [
     ("G F a11 & G F a12", "G F a11 & G F a12"),
     ("F(a1 & F(a2 & F a3))", "F(a1 & F(a2 & F a3))"),
-    ("a & (b & c)", "a & (b & c)"),
+    ("a & (b & c)", "a & b & c"),  # n-ary, as in Spot
     ("(a & b) & c", "a & b & c"),
     ("(a U b) U c", "(a U b) U c"),
     ("a V b", "a R b"),
