@@ -25,6 +25,24 @@ class FormulaSyntaxError(TlfleetError, ValueError):
         super().__init__(f"column {column}: {message}\n  {text}\n  {pointer}")
 
 
+class LtlSyntaxError(FormulaSyntaxError):
+    """An LTL formula that does not parse; the message is one line: formula, column, reason."""
+
+    def __init__(self, text: str, column: int, message: str):
+        super().__init__(text, column, message)
+        shown = text if len(text) <= 72 else (
+            ("…" if column > 36 else "") + text[max(0, column - 36): column + 36]
+            + ("…" if column + 36 < len(text) else ""))
+        self.args = (f"LTL formula {shown!r}, column {column}: {message}",)
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+class LtlError(TlfleetError, ValueError):
+    """Any other LTL failure (an automaton file that does not parse, a formula too large …)."""
+
+
 class ScenarioError(TlfleetError, ValueError):
     """A scenario file that is not valid: names the file, the field path and what was expected."""
 

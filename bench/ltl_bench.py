@@ -10,9 +10,16 @@ Measures, as medians over several runs (time.perf_counter):
    ``F r1 & … & F r5`` at 40 regions: ≤ 100 ms; the reference Python implementation P_MAS_TG
    with ltl2ba takes 2.36 s).
 
-Prints a table and writes JSON to ``bench/results/ltl_bench.json``.
+4. (issue 16) per formula family — GF-conjunctions n = 1..12, F-conjunctions, sequential
+   visits, response patterns, GF of sequential visits, random 6-proposition formulas of size
+   20, one formula over 16…64 propositions — states, edges, CPU and wall time; and the state
+   counts against Spot 2.9's ``ltl2tgba -B`` on ``--spot-sizes`` (default
+   ``../shared/ltl/spot_sizes.tsv`` when present): total ratio, formulas larger than Spot, worst.
 
-    .venv/bin/python bench/ltl_bench.py [--quick] [--runs N] [--output PATH]
+Prints a table and writes JSON to ``bench/results/ltl_bench.json``. ``--root DIR`` benchmarks
+another checkout (e.g. the code before a change) with this same script.
+
+    .venv/bin/python bench/ltl_bench.py [--quick] [--runs N] [--output PATH] [--root DIR]
 """
 
 from __future__ import annotations
@@ -29,7 +36,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+_ROOT_ARG = next((sys.argv[i + 1] for i, a in enumerate(sys.argv[:-1]) if a == "--root"), None)
+CODE_ROOT = Path(_ROOT_ARG).resolve() if _ROOT_ARG else ROOT
+sys.path.insert(0, str(CODE_ROOT))
 
 from agent.ltl.buchi import translate  # noqa: E402
 from agent.ltl.parser import parse  # noqa: E402
@@ -95,7 +104,7 @@ def bench_scenarios(runs: int) -> tuple[list[dict], list[dict]]:
     formulas: dict[str, None] = {}
     plans = []
     for i in (1, 2, 3):
-        scenario = load_scenario(ROOT / "scenarios" / f"scenario{i}.toml")
+        scenario = load_scenario(CODE_ROOT / "scenarios" / f"scenario{i}.toml")
         for robot in sorted(scenario.robots, key=lambda r: r.id):
             if robot.ltl is None:
                 continue
@@ -140,6 +149,144 @@ def bench_grid(sizes: list[int], runs: int, seed: int) -> list[dict]:
     return rows
 
 
+def cpu_wall(fn: Callable[[], object], runs: int, slow: float = 2.0) -> tuple[float, float, object]:
+    """Median CPU and wall time [s] of ``fn()``; a run slower than ``slow`` s is not repeated
+    (the code before issue 16 needs ~22 s for GF n = 12). Errors are returned as the result."""
+    cpus, walls, result = [], [], None
+    for _ in range(runs):
+        c0, w0 = time.process_time(), time.perf_counter()
+        try:
+            result = fn()
+        except Exception as exc:  # a benchmark row records the failure
+            result = exc
+        cpus.append(time.process_time() - c0)
+        walls.append(time.perf_counter() - w0)
+        if walls[-1] > slow or isinstance(result, Exception):
+            break
+    return statistics.median(cpus), statistics.median(walls), result
+
+
+def issue16_families(quick: bool) -> dict[str, list[str]]:
+    top = 3 if quick else 12
+    def chain(n: int) -> str:
+        text = f"a{n}"
+        for i in range(n - 1, 0, -1):
+            text = f"(a{i} & F({text}))"
+        return text
+    return {
+        "GF a1 & … & GF an": [" & ".join(f"G F a{i}" for i in range(1, n + 1))
+                              for n in range(1, top + 1)],
+        "F a1 & … & F an": [" & ".join(f"F a{i}" for i in range(1, n + 1))
+                            for n in range(1, min(top, 8) + 1)],
+        "F(a1 & F(a2 & … F an)) (sequential visits)": [f"F({chain(n)})"
+                                                     for n in range(1, top + 1)],
+        "G(a1 -> F b1) & … (response)": [" & ".join(f"G(a{i} -> F b{i})" for i in range(1, n + 1))
+                                       for n in range(1, min(top, 5) + 1)],
+        "GF(a1 & F(a2 & … F an))": [f"G F({chain(n)})" for n in range(1, min(top, 8) + 1)],
+    }
+
+
+def random_formula(rng: np.random.Generator, size: int, atoms: int) -> str:
+    """A random formula with ``size`` nodes over p0…p(atoms-1), fully parenthesised (both
+    grammars, before and after issue 16, read it the same way)."""
+    if size <= 1:
+        return f"p{rng.integers(atoms)}" if rng.random() < 0.95 else "true"
+    if size == 2 or rng.random() < 0.35:
+        op = ["!", "X", "F", "G"][rng.integers(4)]
+        return f"{op}({random_formula(rng, size - 1, atoms)})"
+    op = ["&", "|", "->", "<->", "U", "R", "W", "M", "xor"][rng.integers(9)]
+    left = int(rng.integers(1, size - 1))
+    return (f"({random_formula(rng, left, atoms)}) {op} "
+            f"({random_formula(rng, size - 1 - left, atoms)})")
+
+
+def bench_issue16(quick: bool, runs: int, seed: int) -> dict:
+    rows = []
+    for family, texts in issue16_families(quick).items():
+        for n, text in enumerate(texts, 1):
+            cpu, wall, b = cpu_wall(lambda text=text: translate(text), runs)
+            rows.append(_row(family, n, text, cpu, wall, b))
+    rng = np.random.default_rng(seed)
+    count = 10 if quick else 100
+    randoms = []
+    for k in range(count):
+        text = random_formula(rng, 20, 6)
+        cpu, wall, b = cpu_wall(lambda text=text: translate(text), max(1, runs // 2))
+        randoms.append(_row("random size 20, 6 props", k + 1, text, cpu, wall, b))
+    props = []
+    for n in (16, 20, 40, 64):
+        text = "F(" + " & ".join(f"p{i}" for i in range(n)) + ")"
+        cpu, wall, b = cpu_wall(lambda text=text: translate(text), runs)
+        props.append(_row("F(p0 & … & pn-1)", n, text, cpu, wall, b))
+    return {"families": rows, "random": randoms, "propositions": props}
+
+
+def _row(family: str, n: int, text: str, cpu: float, wall: float, b: object) -> dict:
+    row = {"family": family, "n": n, "formula": text, "cpu_ms": 1e3 * cpu, "wall_ms": 1e3 * wall}
+    if isinstance(b, Exception):
+        row["error"] = f"{type(b).__name__}: {str(b).splitlines()[0][:120]}"
+    else:
+        row.update(states=b.num_states, edges=b.num_edges, initial=len(b.initial))
+    return row
+
+
+def bench_spot(path: Path) -> dict | None:
+    """Our state counts against Spot's ``ltl2tgba -B`` on the reference table."""
+    if not path.is_file():
+        return None
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("#") or not line.strip():
+            continue
+        suite, name, polarity, spot, formula = line.split("\t")
+        b = translate(formula)
+        rows.append({"suite": suite, "name": name, "polarity": polarity, "spot": int(spot),
+                     "states": b.num_states, "initial": len(b.initial), "formula": formula})
+    ours = sum(r["states"] for r in rows)
+    spot = sum(r["spot"] for r in rows)
+    larger = [r for r in rows if r["states"] > r["spot"]]
+    worst = sorted(larger, key=lambda r: (r["spot"] - r["states"], r["name"]))[:8]
+    suites = {}
+    for r in rows:
+        s = suites.setdefault(r["suite"], {"formulas": 0, "states": 0, "spot": 0})
+        s["formulas"] += 1
+        s["states"] += r["states"]
+        s["spot"] += r["spot"]
+    return {"formulas": len(rows), "states": ours, "spot_states": spot, "ratio": ours / spot,
+            "larger": len(larger), "more_than_one_above": sum(
+                r["states"] > r["spot"] + 1 for r in rows),
+            "smaller": sum(r["states"] < r["spot"] for r in rows),
+            "several_initial": sum(r["initial"] > 1 for r in rows),
+            "worst": worst, "suites": suites, "rows": rows}
+
+
+def print_issue16(result: dict) -> None:
+    data = result["issue16"]
+    print("\n== families (issue 16): states / edges / CPU ms / wall ms")
+    for row in data["families"] + data["propositions"]:
+        cells = (f"{row['states']:>5} {row['edges']:>6}" if "error" not in row
+                 else f"{row['error'][:40]:>12}")
+        print(f"{row['family'][:44]:<44} n={row['n']:>2}  {cells} {row['cpu_ms']:>10.2f} "
+              f"{row['wall_ms']:>10.2f}")
+    randoms = data["random"]
+    cpus = sorted(r["cpu_ms"] for r in randoms)
+    print(f"\n== random formulas (size 20, 6 propositions, {len(randoms)}): median "
+          f"{statistics.median(cpus):.2f} ms CPU, max {cpus[-1]:.2f} ms, "
+          f"states total {sum(r.get('states', 0) for r in randoms)}")
+    spot = result.get("spot")
+    if spot:
+        print(f"\n== state counts vs Spot 2.9 ltl2tgba -B ({spot['formulas']} formulas): "
+              f"{spot['states']} vs {spot['spot_states']} = {spot['ratio']:.3f}×; "
+              f"larger on {spot['larger']}, more than 1 above on "
+              f"{spot['more_than_one_above']}, smaller on {spot['smaller']}; "
+              f"several initial states on {spot['several_initial']}")
+        for name, s in spot["suites"].items():
+            print(f"   {name:<12} {s['formulas']:>4} formulas  {s['states']:>5} vs {s['spot']:>5}"
+                  f"  = {s['states'] / s['spot']:.3f}×")
+        for r in spot["worst"]:
+            print(f"   worst: {r['name']} {r['polarity']}: {r['states']} vs {r['spot']}")
+
+
 def print_tables(result: dict) -> None:
     print("== translation: size-target families — states (bound) / median ms")
     names = list(dict.fromkeys(row["family"] for row in result["families"]))
@@ -176,6 +323,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="small smoke run")
     parser.add_argument("--runs", type=int, default=None, help="runs per measurement (>= 5)")
     parser.add_argument("--seed", type=int, default=2024)
+    parser.add_argument("--root", type=Path, default=None,
+                        help="benchmark the code of another checkout (read before imports)")
+    parser.add_argument("--spot-sizes", type=Path,
+                        default=ROOT.parent / "shared" / "ltl" / "spot_sizes.tsv",
+                        help="Spot's reference sizes (TSV); skipped when missing")
     parser.add_argument("--output", type=Path, default=ROOT / "bench" / "results" /
                         "ltl_bench.json")
     args = parser.parse_args(argv)
@@ -192,8 +344,12 @@ def main(argv: list[str] | None = None) -> int:
         "scenario_translations": translations,
         "scenario_plans": plans,
         "grid": bench_grid(sizes, runs, args.seed),
+        "code_root": str(CODE_ROOT),
+        "issue16": bench_issue16(args.quick, runs, args.seed),
+        "spot": None if args.quick else bench_spot(args.spot_sizes),
     }
     print_tables(result)
+    print_issue16(result)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     print(f"\nwrote {args.output}")

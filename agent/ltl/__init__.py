@@ -3,11 +3,13 @@ and networkx only (architecture.md §4).
 
 Modules, from formula to plan:
 
-* ``formula``, ``parser``, ``printer`` — immutable trees and Spot syntax (§1);
+* ``formula``, ``lexer``, ``parser``, ``printer`` — immutable trees and Spot's syntax exactly
+  (§1; the grammar table is docs/ltl.md);
 * ``lasso`` — exact evaluation on lasso words u·v^ω (§2, the reference semantics);
-* ``rewrite`` → ``alternating`` → ``tgba`` → ``degeneralize`` → ``buchi`` — the translator
-  (§2); ``guards`` holds the Boolean guards, ``hoa`` the HOA v1 export, ``emptiness`` the
-  emptiness check with witness;
+* ``rewrite`` → ``alternating`` → ``tgba`` (→ ``branching``) → ``degeneralize`` →
+  ``simulation`` → ``buchi`` — the translator (§2); ``bdd`` and ``guards`` hold the symbolic
+  Boolean guards, ``hoa`` the HOA v1 export, ``hoa_reader`` the HOA import, ``batch`` the
+  ``translate -F`` driver, ``emptiness`` the emptiness check with witness;
 * ``transition_system`` (§3), ``product`` (§4), ``search`` and ``planner`` (§5), ``diagnose``
   (why a task is unsatisfiable); ``graphs`` holds the shared SCC/BFS helpers.
 

@@ -23,16 +23,20 @@ from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from agent.ltl.bdd import FALSE, TRUE, disjoin
+from agent.ltl.branching import postpone_branching
 from agent.ltl.degeneralize import degeneralize
-from agent.ltl.formula import Atom, Formula, children
+from agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
-from agent.ltl.guards import Alphabet, Guard, valuation
+from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
 from agent.ltl.parser import parse
 from agent.ltl.printer import to_string
 from agent.ltl.rewrite import normalize
+from agent.ltl.simulation import reduce_by_simulation, saturate_acceptance, single_initial
 from agent.ltl.tgba import build_tgba
 
 Edge = tuple[int, Guard]
+HOA_TASK_PREFIX = "hoa:"  # the same as agent.ltl.hoa_reader.HOA_TASK_PREFIX
 
 
 @dataclass(frozen=True)
@@ -73,7 +77,7 @@ class Buchi:
         return self.successors_by_valuation(state, self.valuation(letter))
 
     def successors_by_valuation(self, state: int, v: int) -> tuple[int, ...]:
-        return tuple(dst for dst, guard in self.edges[state] if guard >> v & 1)
+        return tuple(dst for dst, guard in self.edges[state] if guard.holds(v))
 
     def guard_text(self, guard: Guard) -> str:
         return self.alphabet.to_string(guard, self.atoms)
@@ -87,7 +91,8 @@ def buchi_step(buchi: Buchi, states: frozenset[int], label: Iterable[str]) -> fr
     ltl-planning.md §4). An empty result means the executed path already violates the task.
     """
     v = buchi.valuation(label)
-    return frozenset(dst for q in states for dst, guard in buchi.edges[q] if guard >> v & 1)
+    return frozenset(dst for q in states for dst, guard in buchi.edges[q]
+                     if guard.holds(v))
 
 
 def _atoms_in_order(f: Formula) -> tuple[str, ...]:
@@ -105,30 +110,78 @@ def _atoms_in_order(f: Formula) -> tuple[str, ...]:
 def translate(formula: Formula | str) -> Buchi:
     """Translate an LTL formula (tree or Spot-syntax text) into a small state-based Büchi automaton.
 
-    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse.
+    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. A scenario's
+    HOA task (``hoa:<path>``, :data:`HOA_TASK_PREFIX`) is read from its file instead.
     """
-    candidates = translation_candidates(formula)
+    if isinstance(formula, str) and formula.startswith(HOA_TASK_PREFIX):
+        from agent.ltl.hoa_reader import read_hoa_file
+
+        return read_hoa_file(formula[len(HOA_TASK_PREFIX):])
+    with recursion_headroom():
+        candidates = translation_candidates(formula, only_best=True)
     return min(candidates, key=lambda b: (b.num_states, b.num_edges))
 
 
-def translation_candidates(formula: Formula | str) -> list[Buchi]:
-    """The automata of the (one or two) TGBA markings of ``build_tgba``, fully reduced.
+def translation_candidates(formula: Formula | str, only_best: bool = False) -> list[Buchi]:
+    """Equivalent automata of ``formula``: the smallest of the TGBA variants (the one or two
+    markings of ``build_tgba``, each also with postponed branching, ``agent.ltl.branching``,
+    when it has several initial states)
+    fully reduced by simulation, first; then every variant with the cheap reductions only.
 
-    All are equivalent to the formula; :func:`translate` keeps the smallest. Exposed so tests
-    can check every candidate, not only the one that happens to win.
+    All are equivalent to the formula; :func:`translate` keeps the smallest (and asks for
+    ``only_best``, the first). Exposed so tests can check every candidate, not only the one
+    that happens to win.
     """
     tree = parse(formula) if isinstance(formula, str) else formula
     atoms = _atoms_in_order(tree)
+    if len(atoms) > MAX_ATOMS:
+        raise TooManyPropositions(len(atoms))
     index = {a: i for i, a in enumerate(atoms)}
     text = to_string(tree)
-    result = []
-    for tgba in build_tgba(normalize(tree), index):
-        n, initial, accepting, edges = degeneralize(tgba)
-        n, initial, accepting, edges = _remove_useless(n, initial, accepting, edges)
-        n, initial, accepting, edges = _merge_bisimilar(n, initial, accepting, edges)
-        n, initial, accepting, edges = _merge_transient(n, initial, accepting, edges)
-        result.append(_renumbered(text, atoms, initial, accepting, edges))
+    variants = list(build_tgba(normalize(tree), index))
+    for tgba in list(variants):
+        # Several initial states (a disjunction at the top): merge the choice into one state.
+        if len(tgba.initial) > 1 and tgba.num_states <= 32:
+            merged = postpone_branching(tgba, limit=2 * tgba.num_states + 4)
+            if merged is not None:
+                variants.append(merged)
+    cheap = [_cheap_reduce(_remove_useless(*degeneralize(tgba))) for tgba in variants]
+    best = min(cheap, key=lambda aut: (aut[0], sum(len(out) for out in aut[3])))
+    full = _reduce(best)
+    if len(full[1]) > 1:  # one initial state, when that costs no state
+        single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
+        if single[0] <= full[0]:
+            full = single
+    result = [_renumbered(text, atoms, *aut[1:])
+              for aut in ((full,) if only_best else (full, *cheap))]
+    if 1 < min(b.num_states for b in result) <= 8 and _is_valid(tree, index, result[0]):
+        return [Buchi(text, atoms, (0,), frozenset({0}), (((0, TRUE),),))]
     return result
+
+
+def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
+    """Whether every word satisfies ``tree`` (its negation has an empty automaton). Only tried
+    for small automata (≤ 8 states) whose initial state reads every letter, a necessary
+    condition, so that it costs little."""
+    if disjoin(g for q in buchi.initial for _d, g in buchi.edges[q]) is not TRUE:
+        return False
+    tgba = build_tgba(normalize(Not(tree)), index)[0]
+    return _remove_useless(*degeneralize(tgba))[0] == 0
+
+
+def _cheap_reduce(aut):
+    """Acceptance saturation, bisimulation quotient, transient-state merging."""
+    return _merge_transient(*_merge_bisimilar(*saturate_acceptance(*aut)))
+
+
+def _reduce(aut):
+    """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`)."""
+    for _round in range(3):
+        before = (aut[0], sum(len(out) for out in aut[3]))
+        aut = _remove_useless(*reduce_by_simulation(*aut))
+        if (aut[0], sum(len(out) for out in aut[3])) == before:
+            break
+    return _merge_transient(*aut)
 
 
 def _remove_useless(n, initial, accepting, edges):
@@ -174,7 +227,7 @@ def _merge_bisimilar(n, initial, accepting, edges):
         for s in range(n):
             grouped: dict[int, Guard] = {}
             for dst, guard in edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], 0) | guard
+                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         if len(signatures) == num_blocks:
@@ -187,7 +240,7 @@ def _merge_bisimilar(n, initial, accepting, edges):
         if merged[block[s]] is None:
             grouped = {}
             for dst, guard in edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], 0) | guard
+                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
             merged[block[s]] = grouped
     new_edges = [list(grouped.items()) for grouped in merged]
     return (
@@ -237,7 +290,7 @@ def _merge_transient(n, initial, accepting, edges):
             grouped: dict[int, Guard] = {}
             for dst, guard in edges[s]:
                 d = find(dst)
-                grouped[d] = grouped.get(d, 0) | guard
+                grouped[d] = grouped.get(d, FALSE) | guard
             new_edges.append(sorted(grouped.items()))
         edges = new_edges
         initial = tuple(dict.fromkeys(find(s) for s in initial))

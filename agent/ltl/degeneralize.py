@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections import deque
 
+from agent.ltl.bdd import disjoin
 from agent.ltl.graphs import strongly_connected_components
 from agent.ltl.guards import Guard
 from agent.ltl.tgba import Tgba
@@ -51,7 +52,7 @@ def degeneralize(
 
     ids: dict[tuple[int, int], int] = {}
     accepting: set[int] = set()
-    edges: list[dict[int, Guard]] = []
+    edges: list[dict[int, list[Guard]]] = []
     queue: deque[tuple[int, int]] = deque()
 
     def intern(q: int, level: int) -> int:
@@ -80,6 +81,6 @@ def degeneralize(
                 while target < len(rel) and marks >> rel[target] & 1:
                     target += 1
             did = intern(dst, target)
-            edges[sid][did] = edges[sid].get(did, 0) | guard
-    out = [list(e.items()) for e in edges]
+            edges[sid].setdefault(did, []).append(guard)
+    out = [[(d, disjoin(gs)) for d, gs in e.items()] for e in edges]  # balanced ORs
     return len(ids), initial, frozenset(accepting), out

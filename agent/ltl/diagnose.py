@@ -31,10 +31,10 @@ def _join(names: list[str]) -> str:
     return ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def _has_accepting_cycle(buchi: Buchi, allowed: int) -> bool:
+def _has_accepting_cycle(buchi: Buchi, letters: list[int]) -> bool:
     """Does an accepting cycle reachable from the initial states survive when edges may only
-    read letters in ``allowed`` (a set of valuations, as a bitmask over valuations)?"""
-    succ = [[dst for dst, g in out if g & allowed] for out in buchi.edges]
+    read the letters (valuations) ``letters``?"""
+    succ = [[dst for dst, g in out if any(g.holds(v) for v in letters)] for out in buchi.edges]
     comp, components = strongly_connected_components(buchi.num_states, succ)
     cyclic = nontrivial(comp, components, succ)
     live = reachable(buchi.initial, succ)
@@ -46,13 +46,10 @@ def _has_accepting_cycle(buchi: Buchi, allowed: int) -> bool:
 def _missing_letters(buchi: Buchi, letters: list[int]) -> list[str]:
     """Descriptions of the cubes on dead edges that no available letter satisfies."""
     atoms = buchi.atoms
-    allowed = 0
-    for v in letters:
-        allowed |= 1 << v
     missing: dict[Cube, str] = {}
     for out in buchi.edges:
         for _dst, guard in out:
-            if guard & allowed:
+            if any(guard.holds(v) for v in letters):
                 continue
             for pos, neg in buchi.alphabet.cubes(guard):
                 if not any(v & pos == pos for v in letters):
@@ -88,10 +85,7 @@ def explain_unsatisfiable(
     if find_accepting_lasso(buchi) is None:
         return "the formula is unsatisfiable: no infinite word satisfies it"
     region_letters = sorted({buchi.valuation(label) for label in ts.labels})
-    allowed = 0
-    for v in region_letters:
-        allowed |= 1 << v
-    if not _has_accepting_cycle(buchi, allowed):
+    if not _has_accepting_cycle(buchi, region_letters):
         reasons = _missing_letters(buchi, region_letters)
         if reasons:
             return "; ".join(reasons)

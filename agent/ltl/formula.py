@@ -4,12 +4,15 @@ Every node is a frozen dataclass with tuple children, so formulas are hashable, 
 safe to cache on. Semantics (printing, evaluation on lasso words, translation to automata) are
 functions over the tree in sibling modules that ``match`` on these node types.
 
-The parser builds binary ``And``/``Or`` nodes (left-nested, as written); the rewriter in
-``agent.ltl.rewrite`` may build n-ary ones. ``str(f)`` prints Spot syntax.
+The parser builds n-ary ``And``/``Or`` nodes, flattened as Spot's parser flattens them
+(``(a & b) & c`` and ``a & (b & c)`` are both ``And((a, b, c))``), so long conjunctions stay
+shallow. ``str(f)`` prints Spot syntax.
 """
 
 from __future__ import annotations
 
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 
@@ -127,23 +130,19 @@ FALSE = Const(False)
 
 
 def conj(*args: Formula) -> Formula:
-    """Left-nested binary conjunction, as the parser builds it (``true`` when empty)."""
-    if not args:
+    """Flattened n-ary conjunction, as the parser builds it (``true`` when empty)."""
+    flat = tuple(x for a in args for x in (a.args if isinstance(a, And) else (a,)))
+    if not flat:
         return TRUE
-    result = args[0]
-    for arg in args[1:]:
-        result = And((result, arg))
-    return result
+    return flat[0] if len(flat) == 1 else And(flat)
 
 
 def disj(*args: Formula) -> Formula:
-    """Left-nested binary disjunction, as the parser builds it (``false`` when empty)."""
-    if not args:
+    """Flattened n-ary disjunction, as the parser builds it (``false`` when empty)."""
+    flat = tuple(x for a in args for x in (a.args if isinstance(a, Or) else (a,)))
+    if not flat:
         return FALSE
-    result = args[0]
-    for arg in args[1:]:
-        result = Or((result, arg))
-    return result
+    return flat[0] if len(flat) == 1 else Or(flat)
 
 
 def children(f: Formula) -> tuple[Formula, ...]:
@@ -173,3 +172,21 @@ def atoms(f: Formula) -> frozenset[str]:
 def size(f: Formula) -> int:
     """Number of nodes of ``f``."""
     return 1 + sum(size(child) for child in children(f))
+
+
+@contextmanager
+def recursion_headroom(frames: int = 20_000):
+    """Raise Python's recursion limit to at least ``frames`` for the passes over one formula.
+
+    The parser caps nesting at ``agent.ltl.parser.MAX_DEPTH`` levels; the recursive passes
+    (rewriting, the alternating automaton) use a handful of Python frames per level, which on
+    Python ≥ 3.11 do not consume C stack, so a few thousand frames are safe.
+    """
+    old = sys.getrecursionlimit()
+    if old < frames:
+        sys.setrecursionlimit(frames)
+    try:
+        yield
+    finally:
+        if old < frames:
+            sys.setrecursionlimit(old)

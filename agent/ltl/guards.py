@@ -7,35 +7,40 @@ Two representations:
 
 * a **cube** (conjunction of literals) is the pair ``(pos, neg)`` of disjoint atom bitmasks; the
   alternating-automaton construction works on cubes;
-* a **guard** on an automaton edge is a *truth table*: an int with ``2^n`` bits whose bit ``v``
-  is set iff the guard holds on the letter with valuation ``v``. Union, intersection, difference
-  and equality are single int operations and evaluation is ``guard >> v & 1``, which keeps the
-  reductions and the product construction fast. Robot missions have a handful of atoms; at
-  ``n = 16`` a table is 8 KiB.
+* a **guard** on an automaton edge is a reduced ordered BDD (``agent.ltl.bdd``): canonical, so
+  equal guards are the same object; union ``|``, intersection ``&``, difference ``-`` and
+  complement ``~`` cost in the size of the diagrams, not in the 2ⁿ letters, and
+  ``guard.holds(v)`` evaluates it on a letter in at most ``n`` steps. (Until issue 16 a guard was
+  a 2ⁿ-bit truth table, limited to 20 atoms.)
 
-``Alphabet.cubes(guard)`` turns a table back into an irredundant sum of cubes (Minato–Morreale
-ISOP) for printing (HOA, text, dot).
+``Alphabet.cubes(guard)`` turns a guard into an irredundant sum of cubes (Minato–Morreale ISOP
+on the BDD) for printing (HOA, text, dot).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+from agent.errors import LtlError
+from agent.ltl import bdd
+from agent.ltl.bdd import FALSE, TRUE, Bdd
+
 Cube = tuple[int, int]
-Guard = int
+Guard = Bdd
 
-MAX_ATOMS = 20  # a guard is then a 2^20-bit (128 KiB) int; robot missions use a handful
+MAX_ATOMS = 4096
+"""Atomic propositions per formula; far beyond any mission, a guard's cost is its BDD size."""
 
 
-class TooManyPropositions(ValueError):
-    """A formula with more atomic propositions than truth-table guards support."""
+class TooManyPropositions(LtlError):
+    """A formula with more atomic propositions than :data:`MAX_ATOMS`."""
 
     def __init__(self, count: int):
         self.count = count
         super().__init__(
-            f"the formula has {count} atomic propositions; at most {MAX_ATOMS} are supported "
-            f"(edge guards are truth tables over the 2^n letters)"
+            f"the formula has {count} atomic propositions; at most {MAX_ATOMS} are supported"
         )
+
 
 TRUE_CUBE: Cube = (0, 0)
 
@@ -56,7 +61,7 @@ def cube_implies(a: Cube, b: Cube) -> bool:
 
 def guard_holds(guard: Guard, valuation: int) -> bool:
     """Whether the letter with bitmask ``valuation`` satisfies ``guard``."""
-    return bool(guard >> valuation & 1)
+    return guard.holds(valuation)
 
 
 def valuation(letter: Iterable[str], index: dict[str, int]) -> int:
@@ -70,79 +75,37 @@ def valuation(letter: Iterable[str], index: dict[str, int]) -> int:
 
 
 class Alphabet:
-    """Truth tables over ``n`` atoms: ``full`` (true), the atoms' tables, cubes ↔ tables."""
+    """Guards over ``n`` atoms: ``full`` (true), the atoms' guards, cubes ↔ guards."""
 
     def __init__(self, n: int):
         if n > MAX_ATOMS:
             raise TooManyPropositions(n)
         self.n = n
-        width = 1 << n
-        self.full = (1 << width) - 1
-        self.atom = []
-        for i in range(n):
-            half = 1 << i
-            block = ((1 << half) - 1) << half  # the upper half of a 2^(i+1)-bit block
-            repeat = self.full // ((1 << (2 * half)) - 1)
-            self.atom.append(block * repeat)
+        self.full = TRUE
+        self.empty = FALSE
+        self.atom = [bdd.var(i) for i in range(n)]
 
-    def cube(self, cube: Cube) -> Guard:
-        """Truth table of a cube."""
-        table = self.full
-        pos, neg = cube
-        i = 0
-        while pos or neg:
-            if pos & 1:
-                table &= self.atom[i]
-            elif neg & 1:
-                table &= ~self.atom[i]
-            pos >>= 1
-            neg >>= 1
-            i += 1
-        return table & self.full
+    @staticmethod
+    def cube(cube: Cube) -> Guard:
+        """The guard of a cube."""
+        return bdd.cube(cube[0], cube[1])
 
     def cubes(self, guard: Guard) -> list[Cube]:
-        """An irredundant sum of cubes equal to ``guard`` (Minato–Morreale ISOP)."""
-        cubes, _cover = self._isop(guard, guard, self.n - 1)
+        """An irredundant sum of cubes equal to ``guard`` (Minato–Morreale ISOP on the BDD)."""
+        memo: dict[tuple[int, int], tuple[list[Cube], Bdd]] = {}
+        cubes, _cover = _isop(guard, guard, memo)
         return sorted(cubes, key=self._literal_order)
 
     def _literal_order(self, cube: Cube) -> tuple[int, ...]:
         """Sort key: by atom index, positive before negative before absent."""
-        return tuple(0 if cube[0] >> i & 1 else 1 if cube[1] >> i & 1 else 2
-                     for i in range(self.n))
-
-    def _cofactors(self, f: int, i: int) -> tuple[int, int]:
-        """(f with atom i false, f with atom i true), each as a table not depending on atom i."""
-        t = self.atom[i]
-        shift = 1 << i
-        low = f & ~t & self.full
-        high = f & t
-        return low | (low << shift), high | (high >> shift)
-
-    def _isop(self, lower: int, upper: int, i: int) -> tuple[list[Cube], int]:
-        if lower == 0:
-            return [], 0
-        if upper == self.full:
-            return [TRUE_CUBE], self.full
-        # Skip atoms both bounds ignore.
-        while i >= 0:
-            l0, l1 = self._cofactors(lower, i)
-            u0, u1 = self._cofactors(upper, i)
-            if l0 != l1 or u0 != u1:
-                break
-            i -= 1
-        t = self.atom[i]
-        c0, r0 = self._isop(l0 & ~u1 & self.full, u0, i - 1)
-        c1, r1 = self._isop(l1 & ~u0 & self.full, u1, i - 1)
-        rest_lower = (l0 & ~r0 | l1 & ~r1) & self.full
-        cs, rs = self._isop(rest_lower, u0 & u1, i - 1)
-        bit = 1 << i
-        cubes = [(p, n | bit) for p, n in c0] + [(p | bit, n) for p, n in c1] + cs
-        cover = (r0 & ~t | r1 & t | rs) & self.full
-        return cubes, cover
+        both = cube[0] | cube[1]
+        top = both.bit_length()
+        return (*(0 if cube[0] >> i & 1 else 1 if cube[1] >> i & 1 else 2
+                  for i in range(top)), 3)
 
     def to_string(self, guard: Guard, atoms: Sequence[str]) -> str:
         """Spot-syntax text of a guard (``true``/``false`` for the constants)."""
-        if guard == 0:
+        if guard is FALSE:
             return "false"
         cubes = self.cubes(guard)
         parts = [cube_to_string(c, atoms) for c in cubes]
@@ -154,9 +117,58 @@ class Alphabet:
         )
 
     def smallest_letter(self, guard: Guard, atoms: Sequence[str]) -> frozenset[str]:
-        """A letter satisfying ``guard`` with as few atoms as possible (guard must be non-zero)."""
-        best = min((v for v in range(1 << self.n) if guard >> v & 1), key=int.bit_count)
-        return frozenset(atoms[i] for i in range(self.n) if best >> i & 1)
+        """A letter satisfying ``guard`` with as few atoms as possible (guard must be non-zero):
+        a shortest path to ``true`` counting only the ``high`` edges."""
+        if guard is FALSE:
+            raise ValueError("the guard false has no letter")
+        cost: dict[int, tuple[int, int]] = {}  # uid -> (atoms needed, valuation)
+
+        def best(node: Bdd) -> tuple[int, int]:
+            if node is TRUE:
+                return 0, 0
+            if node is FALSE:
+                return 1 << 30, 0
+            found = cost.get(node.uid)
+            if found is None:
+                lo = best(node.low)
+                hi = best(node.high)
+                found = lo if lo[0] <= hi[0] + 1 else (hi[0] + 1, hi[1] | 1 << node.var)
+                cost[node.uid] = found
+            return found
+
+        _count, v = best(guard)
+        return frozenset(atoms[i] for i in range(self.n) if v >> i & 1)
+
+
+def _cofactors(f: Bdd, v: int) -> tuple[Bdd, Bdd]:
+    if f.var == v:
+        return f.low, f.high
+    return f, f
+
+
+def _isop(lower: Bdd, upper: Bdd, memo) -> tuple[list[Cube], Bdd]:
+    """Minato–Morreale: an irredundant cover C with lower ≤ C ≤ upper, and its BDD."""
+    if lower is FALSE:
+        return [], FALSE
+    if upper is TRUE:
+        return [TRUE_CUBE], TRUE
+    key = (lower.uid, upper.uid)
+    found = memo.get(key)
+    if found is not None:
+        return found
+    v = min(lower.var, upper.var)
+    l0, l1 = _cofactors(lower, v)
+    u0, u1 = _cofactors(upper, v)
+    c0, r0 = _isop(l0 - u1, u0, memo)
+    c1, r1 = _isop(l1 - u0, u1, memo)
+    rest_lower = (l0 - r0) | (l1 - r1)
+    cs, rs = _isop(rest_lower, u0 & u1, memo)
+    bit = 1 << v
+    cubes = [(p, n | bit) for p, n in c0] + [(p | bit, n) for p, n in c1] + cs
+    x = bdd.var(v)
+    cover = (r0 - x) | (r1 & x) | rs
+    memo[key] = (cubes, cover)
+    return cubes, cover
 
 
 def cube_to_string(cube: Cube, atoms: Sequence[str], *, and_: str = " & ",

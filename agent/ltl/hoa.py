@@ -7,6 +7,7 @@ Boolean expressions over AP indices (``[0&!1 | 2]``), so the output can be fed t
 
 from __future__ import annotations
 
+from agent.ltl.bdd import FALSE, TRUE, disjoin
 from agent.ltl.buchi import Buchi
 from agent.ltl.guards import cube_to_string
 
@@ -16,9 +17,9 @@ def _quote(text: str) -> str:
 
 
 def _label(buchi: Buchi, guard: int) -> str:
-    if guard == buchi.alphabet.full:
+    if guard is TRUE:
         return "t"
-    if guard == 0:
+    if guard is FALSE:
         return "f"
     numbers = [str(i) for i in range(len(buchi.atoms))]
     cubes = buchi.alphabet.cubes(guard)
@@ -30,13 +31,13 @@ def _label(buchi: Buchi, guard: int) -> str:
 def to_hoa(buchi: Buchi, name: str | None = None) -> str:
     """HOA v1 text of ``buchi``; ``name`` defaults to the formula it was translated from."""
     deterministic = len(buchi.initial) <= 1 and all(
-        a & b == 0
+        not a & b
         for out in buchi.edges
         for i, (_d1, a) in enumerate(out)
         for _d2, b in out[i + 1 :]
     )
     complete = all(
-        _union(g for _d, g in out) == buchi.alphabet.full for out in buchi.edges
+        disjoin(g for _d, g in out) is TRUE for out in buchi.edges
     ) and len(buchi.initial) >= 1
     properties = ["trans-labels", "explicit-labels", "state-acc"]
     if deterministic:
@@ -61,9 +62,3 @@ def to_hoa(buchi: Buchi, name: str | None = None) -> str:
     lines.append("--END--")
     return "\n".join(lines) + "\n"
 
-
-def _union(guards) -> int:
-    result = 0
-    for g in guards:
-        result |= g
-    return result

@@ -1,28 +1,31 @@
-"""Parser for Spot-compatible LTL syntax (ltl-planning.md §1).
+"""Parser for Spot's LTL syntax (ltl-planning.md §1; the grammar table is in docs/ltl.md).
 
-Grammar, loosest to tightest binding::
+Binding, loosest to tightest, exactly as Spot's ``parsetl.yy`` declares it::
 
-    equiv    := implies ( '<->' equiv )?                   right-associative
-    implies  := xor ( '->' implies )?                      right-associative
-    xor      := or ( ('xor' | '^') or )*                   left-associative
-    or       := and ( ('|' | '||') and )*                  left-associative
-    and      := temporal ( ('&' | '&&') temporal )*        left-associative
-    temporal := unary ( ('U' | 'R' | 'V' | 'W' | 'M') temporal )?   right-associative
-    unary    := ('!' | 'X' | 'F' | 'G' | '[]' | '<>') unary | primary
-    primary  := ATOM | 'true' | 'false' | '1' | '0' | '(' equiv ')'
+    ->  <->        one level, right-associative   a -> b <-> c  =  a -> (b <-> c)
+    |              left-associative
+    xor            left-associative              a | b xor c   =  a | (b xor c)
+    &              left-associative  (also && /\\ ∧)
+    *              left-associative  (Wring's and, just tighter than &)
+    U R W M        one level, right-associative   a U b R c     =  a U (b R c)
+    F G X !        prefix, tighter than every binary operator: F a U b = (F a) U b
 
-``ATOM`` is ``[a-z_][a-z0-9_]*`` (not a keyword). Upper-case operator letters need no space
-around them (``GFa`` is ``G F a``), as in Spot. Errors raise
-:class:`agent.errors.FormulaSyntaxError` with the 1-based column and what was expected.
+plus ``X[n]``, ``F[n:m]``, ``G[n:m]`` (Spot's sugar, expanded into nested ``X``), postfix
+``=0``/``=1`` on atoms (Wring), and the tokens of :mod:`agent.ltl.lexer`.
+
+The parser is operator-precedence with explicit stacks (no recursion), so nesting depth is
+limited only by :data:`MAX_DEPTH`, which keeps every later recursive pass (printing,
+rewriting, translation) far from Python's recursion limit; deeper formulas get a clear
+:class:`agent.errors.LtlSyntaxError` rather than a ``RecursionError``. ``&`` and ``|`` build
+flattened n-ary nodes, as Spot does (a conjunction of 1 000 atoms is depth 2).
 """
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass
 from types import MappingProxyType
 
-from agent.errors import FormulaSyntaxError
+from agent.errors import LtlSyntaxError
+from agent.ltl import lexer as lx
 from agent.ltl.formula import (
     FALSE,
     TRUE,
@@ -42,200 +45,169 @@ from agent.ltl.formula import (
     WeakUntil,
     Xor,
     atoms,
+    conj,
+    disj,
 )
+from agent.ltl.lexer import Token, tokenize
 
-__all__ = ["Token", "atoms", "parse", "tokenize"]
+__all__ = ["BINARY_PRECEDENCE", "MAX_DEPTH", "Token", "atoms", "parse", "tokenize"]
 
-_IDENT = re.compile(r"[a-z_][a-z0-9_]*")
-_SYMBOLS = ("<->", "->", "&&", "||", "[]", "<>", "&", "|", "!", "(", ")", "^")
-_OPERATOR_LETTERS = frozenset("XFGURVWM")
-_KEYWORDS = MappingProxyType({"true": "true", "false": "false", "xor": "xor"})
+MAX_DEPTH = 200
+"""Deepest operator nesting accepted (``X X … X a`` with 200 ``X`` is depth 201)."""
 
-_UNARY = MappingProxyType(
-    {"!": Not, "X": Next, "F": Finally, "G": Globally, "[]": Globally, "<>": Finally}
-)
-_TEMPORAL = MappingProxyType(
-    {"U": Until, "R": Release, "V": Release, "W": WeakUntil, "M": StrongRelease}
-)
-_AND = frozenset({"&", "&&"})
-_OR = frozenset({"|", "||"})
-_XOR = frozenset({"xor", "^"})
-
-
-@dataclass(frozen=True, slots=True)
-class Token:
-    """``kind`` is ``'atom'``, ``'end'`` or the operator/keyword text; ``column`` is 1-based."""
-
-    kind: str
-    text: str
-    column: int
-
-
-def tokenize(text: str) -> list[Token]:
-    """Split ``text`` into tokens, ending with an ``'end'`` token."""
-    tokens: list[Token] = []
-    i = 0
-    n = len(text)
-    while i < n:
-        ch = text[i]
-        if ch.isspace():
-            i += 1
-            continue
-        match = _IDENT.match(text, i)
-        if match:
-            word = match.group()
-            tokens.append(Token(_KEYWORDS.get(word, "atom"), word, i + 1))
-            i = match.end()
-            continue
-        if ch in "01" and not (i + 1 < n and text[i + 1].isalnum()):
-            tokens.append(Token("true" if ch == "1" else "false", ch, i + 1))
-            i += 1
-            continue
-        if ch in _OPERATOR_LETTERS:
-            tokens.append(Token(ch, ch, i + 1))
-            i += 1
-            continue
-        for symbol in _SYMBOLS:
-            if text.startswith(symbol, i):
-                tokens.append(Token(symbol, symbol, i + 1))
-                i += len(symbol)
-                break
-        else:
-            if ch.isalpha() and ch.isupper():
-                hint = "atoms are lower-case; operators are X F G U R V W M"
-                raise FormulaSyntaxError(text, i + 1, f"unknown operator {ch!r} ({hint})")
-            raise FormulaSyntaxError(text, i + 1, f"unexpected character {ch!r}")
-    tokens.append(Token("end", "", n + 1))
-    return tokens
+# kind → (precedence, right-associative, constructor); larger binds tighter (docs/ltl.md).
+BINARY_PRECEDENCE = MappingProxyType({
+    lx.IMPLIES: (1, True, Implies),
+    lx.EQUIV: (1, True, Equiv),
+    lx.OR: (2, False, disj),
+    lx.XOR: (3, False, Xor),
+    lx.AND: (4, False, conj),
+    lx.STAR: (5, False, conj),
+    lx.UNTIL: (6, True, Until),
+    lx.RELEASE: (6, True, Release),
+    lx.WEAK_UNTIL: (6, True, WeakUntil),
+    lx.STRONG_RELEASE: (6, True, StrongRelease),
+})
+_UNARY = MappingProxyType({lx.NOT: Not, lx.NEXT: Next, lx.FINALLY: Finally,
+                           lx.GLOBALLY: Globally, lx.REPEAT: None})
 
 
 def _describe(token: Token) -> str:
-    return "end of input" if token.kind == "end" else repr(token.text)
+    return "end of input" if token.kind == lx.END else repr(token.text)
+
+
+def _expand_repeat(letter: str, low: int, high: int | None, f: Formula) -> Formula:
+    """Spot's sugar: ``X[n] f`` = X…X f; ``F[n:m] f`` = Xⁿ(f | X(f | … X f)) with m−n more X;
+    ``G[n:m]`` likewise with ``&``; an unbounded ``m`` gives Xⁿ F f / Xⁿ G f."""
+    if letter == "X":
+        result = f
+        for _ in range(low):
+            result = Next(result)
+        return result
+    if high is None:
+        result = Finally(f) if letter == "F" else Globally(f)
+    else:
+        result = f
+        for _ in range(high - low):
+            result = disj(f, Next(result)) if letter == "F" else conj(f, Next(result))
+    for _ in range(low):
+        result = Next(result)
+    return result
+
+
+def _depth_of_repeat(letter: str, low: int, high: int | None) -> int:
+    if letter == "X":
+        return low
+    return low + (1 if high is None else 2 * (high - low))
 
 
 class _Parser:
-    """Recursive descent over the token list; one method per grammar level."""
-
     def __init__(self, text: str):
         self.text = text
         self.tokens = tokenize(text)
-        self.pos = 0
 
-    @property
-    def current(self) -> Token:
-        return self.tokens[self.pos]
-
-    def advance(self) -> Token:
-        token = self.tokens[self.pos]
-        self.pos += 1
-        return token
-
-    def fail(self, token: Token, message: str) -> FormulaSyntaxError:
-        return FormulaSyntaxError(self.text, token.column, message)
+    def fail(self, token: Token, message: str) -> LtlSyntaxError:
+        return LtlSyntaxError(self.text, token.column, message)
 
     def parse(self) -> Formula:
-        if self.current.kind == "end":
-            raise self.fail(self.current, "expected a formula, got end of input")
-        result = self.equiv()
-        if self.current.kind != "end":
-            raise self.fail(
-                self.current,
-                f"expected an operator or end of input, got {_describe(self.current)}",
-            )
-        return result
+        operands: list[tuple[Formula, int]] = []  # (tree, depth)
+        operators: list[Token] = []  # unary, binary and '(' tokens
+        expect_operand = True
+        previous: Token | None = None
 
-    def operand(self, after: Token, level) -> Formula:
-        """Parse the right operand of ``after``, with a clear message when it is missing."""
-        if self.current.kind in ("end", ")") or self.current.kind in _BINARY_KINDS:
-            raise self.fail(
-                self.current,
-                f"expected a formula after {after.text!r}, got {_describe(self.current)}",
-            )
-        return level()
+        def push(tree: Formula, depth: int, where: Token) -> None:
+            if depth > MAX_DEPTH:
+                raise self.fail(where, f"formula nested more than {MAX_DEPTH} levels deep "
+                                       f"(split it or use fewer nested operators)")
+            operands.append((tree, depth))
 
-    def equiv(self) -> Formula:
-        left = self.implies()
-        if self.current.kind == "<->":
-            op = self.advance()
-            return Equiv(left, self.operand(op, self.equiv))
-        return left
+        def reduce_top() -> None:
+            op = operators.pop()
+            if op.kind in _UNARY:
+                arg, depth = operands.pop()
+                if op.kind == lx.REPEAT:
+                    letter, low, high = op.value
+                    tree = _expand_repeat(letter, low, high, arg)
+                    push(tree, depth + _depth_of_repeat(letter, low, high), op)
+                else:
+                    push(_UNARY[op.kind](arg), depth + 1, op)
+                return
+            right, rd = operands.pop()
+            left, ld = operands.pop()
+            tree = BINARY_PRECEDENCE[op.kind][2](left, right)
+            if isinstance(tree, And | Or):  # flattened: a same-kind operand adds no level
+                ld += type(left) is not type(tree)
+                rd += type(right) is not type(tree)
+                push(tree, max(ld, rd), op)
+            else:
+                push(tree, 1 + max(ld, rd), op)
 
-    def implies(self) -> Formula:
-        left = self.xor()
-        if self.current.kind == "->":
-            op = self.advance()
-            return Implies(left, self.operand(op, self.implies))
-        return left
-
-    def xor(self) -> Formula:
-        left = self.disjunction()
-        while self.current.kind in _XOR:
-            op = self.advance()
-            left = Xor(left, self.operand(op, self.disjunction))
-        return left
-
-    def disjunction(self) -> Formula:
-        left = self.conjunction()
-        while self.current.kind in _OR:
-            op = self.advance()
-            left = Or((left, self.operand(op, self.conjunction)))
-        return left
-
-    def conjunction(self) -> Formula:
-        left = self.temporal()
-        while self.current.kind in _AND:
-            op = self.advance()
-            left = And((left, self.operand(op, self.temporal)))
-        return left
-
-    def temporal(self) -> Formula:
-        left = self.unary()
-        if self.current.kind in _TEMPORAL:
-            op = self.advance()
-            return _TEMPORAL[op.kind](left, self.operand(op, self.temporal))
-        return left
-
-    def unary(self) -> Formula:
-        if self.current.kind in _UNARY:
-            op = self.advance()
-            return _UNARY[op.kind](self.operand(op, self.unary))
-        return self.primary()
-
-    def primary(self) -> Formula:
-        token = self.current
-        if token.kind == "atom":
-            self.advance()
-            return Atom(token.text)
-        if token.kind == "true":
-            self.advance()
-            return TRUE
-        if token.kind == "false":
-            self.advance()
-            return FALSE
-        if token.kind == "(":
-            self.advance()
-            if self.current.kind == ")":
-                raise self.fail(self.current, "expected a formula inside '(', got ')'")
-            inner = self.operand(token, self.equiv)
-            if self.current.kind != ")":
-                raise self.fail(
-                    self.current,
-                    f"expected ')' to close '(' at column {token.column}, "
-                    f"got {_describe(self.current)}",
-                )
-            self.advance()
-            return inner
-        raise self.fail(token, f"expected a formula, got {_describe(token)}")
-
-
-_BINARY_KINDS = frozenset({"<->", "->", *_XOR, *_OR, *_AND, *_TEMPORAL})
+        for token in self.tokens:
+            kind = token.kind
+            if expect_operand:
+                if kind in _UNARY or kind == lx.LPAR:
+                    operators.append(token)
+                elif kind == lx.ATOM:
+                    push(Atom(token.value), 1, token)
+                    expect_operand = False
+                elif kind == lx.TRUE or kind == lx.FALSE:
+                    push(TRUE if kind == lx.TRUE else FALSE, 1, token)
+                    expect_operand = False
+                elif previous is None:
+                    raise self.fail(token, f"expected a formula, got {_describe(token)}")
+                elif previous.kind == lx.LPAR and kind == lx.RPAR:
+                    raise self.fail(token, "expected a formula inside '(', got ')'")
+                elif previous.kind == lx.LPAR:
+                    raise self.fail(token, f"expected a formula, got {_describe(token)}")
+                else:
+                    raise self.fail(token, f"expected a formula after {previous.text!r}, "
+                                           f"got {_describe(token)}")
+            elif kind in (lx.POST_NEG, lx.POST_POS):
+                if previous is None or previous.kind != lx.ATOM:
+                    raise self.fail(token, f"{token.text!r} may only follow an atom")
+                if kind == lx.POST_NEG:
+                    tree, depth = operands.pop()
+                    push(Not(tree), depth + 1, token)
+            elif kind in BINARY_PRECEDENCE:
+                level, _right, _make = BINARY_PRECEDENCE[kind]
+                while operators and operators[-1].kind != lx.LPAR:
+                    top = operators[-1].kind
+                    if top in _UNARY:
+                        reduce_top()
+                        continue
+                    top_level, top_right, _ = BINARY_PRECEDENCE[top]
+                    if top_level > level or (top_level == level and not top_right):
+                        reduce_top()
+                    else:
+                        break
+                operators.append(token)
+                expect_operand = True
+            elif kind == lx.RPAR:
+                while operators and operators[-1].kind != lx.LPAR:
+                    reduce_top()
+                if not operators:
+                    raise self.fail(token, "expected an operator or end of input, got ')'")
+                operators.pop()
+            elif kind == lx.END:
+                while operators:
+                    if operators[-1].kind == lx.LPAR:
+                        opening = operators[-1]
+                        raise self.fail(token, f"expected ')' to close '(' at column "
+                                               f"{opening.column}, got end of input")
+                    reduce_top()
+            else:
+                raise self.fail(token, f"expected an operator or end of input, "
+                                       f"got {_describe(token)}")
+            previous = token
+        (tree, _depth), = operands
+        return tree
 
 
 def parse(text: str) -> Formula:
-    """Parse ``text`` (Spot syntax, ltl-planning.md §1) into an immutable formula tree.
+    """Parse ``text`` (Spot syntax, docs/ltl.md) into an immutable formula tree.
 
-    Raises :class:`agent.errors.FormulaSyntaxError` naming the 1-based column and what was
-    expected there.
+    Raises :class:`agent.errors.LtlSyntaxError` (a ``FormulaSyntaxError``) whose one-line
+    message names the formula, the 1-based column and what was expected there.
     """
     if not isinstance(text, str):
         raise TypeError(f"expected a formula string, got {type(text).__name__}")

@@ -1,9 +1,10 @@
-"""Printer for LTL formulas in Spot syntax (ltl-planning.md §1).
+"""Printer for LTL formulas in Spot syntax (ltl-planning.md §1; docs/ltl.md).
 
-Parentheses are added where the grammar of ``agent.ltl.parser`` needs them, and also where Spot's
-grammar would read the text differently (Spot binds ``xor`` tighter than ``|`` and puts ``->`` and
-``<->`` on one level), so printed formulas can be pasted into Spot/ltlfilt unchanged.
-``parse(to_string(f)) == f`` for every tree the parser builds.
+The printer uses Spot's precedence table (``agent.ltl.parser.BINARY_PRECEDENCE``) and adds
+parentheses only where Spot's parser would otherwise read a different tree, so printed formulas
+paste into Spot/ltlfilt unchanged and ``parse(to_string(f)) == f`` for every tree the parser
+builds. Atoms that Spot would not read back as that one atom (``"door open"``, ``Fa``, ``true``)
+are printed between double quotes.
 """
 
 from __future__ import annotations
@@ -30,13 +31,14 @@ from agent.ltl.formula import (
     WeakUntil,
     Xor,
 )
+from agent.ltl.lexer import is_bare_atom
 
-# Binding strength: larger binds tighter.
-_EQUIV, _IMPLIES, _XOR, _OR, _AND, _TEMPORAL, _UNARY, _PRIMARY = range(8)
+# Binding strength, as in Spot's parser: larger binds tighter.
+_ARROW, _OR, _XOR, _AND, _TEMPORAL, _UNARY, _PRIMARY = 1, 2, 3, 4, 6, 7, 8
 
 _BINARY_SYMBOL: Mapping[type, tuple[str, int]] = MappingProxyType({
-    Equiv: ("<->", _EQUIV),
-    Implies: ("->", _IMPLIES),
+    Equiv: ("<->", _ARROW),
+    Implies: ("->", _ARROW),
     Xor: ("xor", _XOR),
     Until: ("U", _TEMPORAL),
     Release: ("R", _TEMPORAL),
@@ -63,63 +65,44 @@ def _level(f: Formula) -> int:
     raise TypeError(f"not an LTL formula: {f!r}")
 
 
-def _wrap(text: str) -> str:
+def atom_text(name: str) -> str:
+    """``name`` bare when Spot reads it back as that atom, else double-quoted."""
+    if is_bare_atom(name):
+        return name
+    return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _operand(child: Formula, parent_level: int, *, bare_if_same: bool) -> str:
+    """``child`` printed under an operator of ``parent_level``: bare when it binds tighter, or
+    equally tight on the side the operator associates to (``bare_if_same``)."""
+    text = to_string(child)
+    level = _level(child)
+    if level > parent_level or (level == parent_level and bare_if_same):
+        return text
     return f"({text})"
 
 
-def _operand(child: Formula, parent_level: int, *, same_level_ok: bool) -> str:
-    """Print ``child`` under an operator of ``parent_level``.
-
-    ``same_level_ok`` says whether a child of the same level may stay bare (associativity).
-    Children at the ``<->``/``->``/``xor``/``|`` levels are always wrapped under one another
-    when the two grammars (ours and Spot's) could disagree.
-    """
-    text = to_string(child)
-    level = _level(child)
-    if level > parent_level:
-        # Spot reads `a xor b | c` as `(a xor b) | c`; we read it as `a xor (b | c)`.
-        if parent_level == _XOR and level == _OR:
-            return _wrap(text)
-        return text
-    if level == parent_level and same_level_ok:
-        return text
-    return _wrap(text)
-
-
 def to_string(f: Formula) -> str:
-    """Spot-syntax text of ``f`` with the fewest safe parentheses."""
+    """Spot-syntax text of ``f`` with the fewest parentheses Spot needs to read the same tree."""
     match f:
         case Const(value):
             return "true" if value else "false"
         case Atom(name):
-            return name
+            return atom_text(name)
         case Not(arg) | Next(arg) | Finally(arg) | Globally(arg):
             symbol = _UNARY_SYMBOL[type(f)]
             inner = to_string(arg)
             if _level(arg) < _UNARY:
-                return symbol.strip() + _wrap(inner)
+                return f"{symbol.strip()}({inner})"
             return symbol + inner
         case And(args) | Or(args):
             level = _level(f)
             symbol = " & " if level == _AND else " | "
-            first = _operand(args[0], level, same_level_ok=True)
-            rest = [_operand(a, level, same_level_ok=False) for a in args[1:]]
-            return symbol.join([first, *rest])
+            return symbol.join(_operand(a, level, bare_if_same=False) for a in args)
         case Binary(left, right):
             symbol, level = _BINARY_SYMBOL[type(f)]
-            if level == _XOR:
-                left_text = _operand(left, level, same_level_ok=True)
-                right_text = _operand(right, level, same_level_ok=False)
-            elif level == _TEMPORAL:
-                left_text = _operand(left, level, same_level_ok=False)
-                right_text = _operand(right, level, same_level_ok=True)
-            else:
-                # `->` and `<->`: right-associative, only with themselves.
-                left_text = _operand(left, level, same_level_ok=False)
-                right_text = _operand(right, level, same_level_ok=type(right) is type(f))
-                if _level(right) == _IMPLIES and level == _EQUIV:
-                    right_text = _wrap(to_string(right))  # Spot puts -> and <-> on one level
-            if level in (_EQUIV, _IMPLIES) and _level(left) in (_EQUIV, _IMPLIES):
-                left_text = _wrap(to_string(left))
+            right_assoc = level != _XOR
+            left_text = _operand(left, level, bare_if_same=not right_assoc)
+            right_text = _operand(right, level, bare_if_same=right_assoc)
             return f"{left_text} {symbol} {right_text}"
     raise TypeError(f"not an LTL formula: {f!r}")

@@ -24,9 +24,11 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
+from agent.ltl import bdd
 from agent.ltl.alternating import Vwaa, is_acceptance_state
+from agent.ltl.bdd import FALSE
 from agent.ltl.formula import Formula
-from agent.ltl.guards import TRUE_CUBE, Alphabet, Cube, Guard, cube_and, cube_implies
+from agent.ltl.guards import TRUE_CUBE, Cube, Guard, cube_and, cube_implies
 
 # (cube, targets, bad) where bad is the bitmask of acceptance states whose chosen
 # transition was not good.
@@ -43,22 +45,48 @@ class Tgba:
     num_marks: int
 
 
+_CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
+
+
 def _prune(partials: list[_Partial]) -> list[_Partial]:
+    """Drop partial products dominated by another (GO §4.2: a weaker cube, fewer targets and
+    fewer unfulfilled marks)."""
     unique = list(dict.fromkeys(partials))
     if len(unique) < 2:
         return unique
-    unique.sort(key=lambda t: (t[1].bit_count(), t[2].bit_count(), (t[0][0] | t[0][1]).bit_count()))
+    unique.sort(key=lambda t: (t[1].bit_count(), t[2].bit_count(),
+                               (t[0][0] | t[0][1]).bit_count()))
     kept: list[_Partial] = []
     for t in unique:
         cube, targets, bad = t
-        dominated = False
-        for k in kept:
-            if not k[1] & ~targets and not k[2] & ~bad and cube_implies(cube, k[0]):
-                dominated = True
-                break
-        if not dominated:
+        if not any(not k[1] & ~targets and not k[2] & ~bad and cube_implies(cube, k[0])
+                   for k in kept):
             kept.append(t)
     return kept
+
+
+def _groups_of(partials: list[_Partial]) -> list[_Group]:
+    """Partial products grouped by (targets, bad), in order of first occurrence."""
+    grouped: dict[tuple[int, int], list] = {}
+    for cube, targets, bad in partials:
+        lits = (cube[0] | cube[1]).bit_count()
+        entry = grouped.get((targets, bad))
+        if entry is None:
+            grouped[(targets, bad)] = [bdd.cube(*cube), lits]
+        else:
+            entry[0] = entry[0] | bdd.cube(*cube)
+            entry[1] = min(entry[1], lits)
+    return [(t, b, g, lits) for (t, b), (g, lits) in grouped.items()]
+
+
+def _disjoint(groups: list[_Group]) -> bool:
+    """Whether no letter is read by two groups."""
+    seen = FALSE
+    for _t, _b, guard, _l in groups:
+        if guard & seen is not FALSE:
+            return False
+        seen = seen | guard
+    return True
 
 
 def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
@@ -73,7 +101,6 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     acceptance state the variants coincide and only one is returned.
     """
     vwaa = Vwaa(index)
-    alphabet = Alphabet(len(index))
     mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
     state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
     raw_edges: list[list[tuple[int, Guard, int]]] = []
@@ -103,22 +130,46 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         return sid
 
     initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula)))
+    option_cache: dict[int, tuple[list[_Group], bool]] = {}
     while queue:
         s = queue.popleft()
         sid = state_id[s]
+        # Cube by cube (GO's products with domination pruning) while few; symbolic groups
+        # (one BDD guard per (targets, bad)) once the products pile up, e.g. the 2^n
+        # transitions of G F a1 & … & G F an, where pairwise pruning would cost 4^n.
         partials: list[_Partial] = [(TRUE_CUBE, 0, 0)]
-        for q in ordered(s):
-            bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            product: list[_Partial] = []
-            for cube, targets, bad in partials:
-                for c2, e2, good in vwaa.state_delta(q):
-                    c = cube_and(cube, c2)
-                    if c is not None:
-                        product.append((c, targets | e2, bad if good else bad | bad_bit))
-            partials = _prune(product)
-        raw_edges[sid] = [
-            (intern(e), g, b) for e, g, b in _per_letter_domination(partials, alphabet)
-        ]
+        groups: list[_Group] | None = None
+        disjoint = False
+        members = ordered(s)
+        for k, q in enumerate(members):
+            if groups is None:
+                bad_bit = 1 << mark_of[q] if q in mark_of else 0
+                product: list[_Partial] = []
+                for cube, targets, bad in partials:
+                    for c2, e2, good in vwaa.state_delta(q):
+                        c = cube_and(cube, c2)
+                        if c is not None:
+                            product.append((c, targets | e2, bad if good else bad | bad_bit))
+                partials = _prune(product)
+                if len(partials) > _CUBE_LIMIT:
+                    groups = _minimal_per_letter(_groups_of(partials))
+                    disjoint = _disjoint(groups)
+                    groups.sort(key=_group_order)
+                continue
+            options = option_cache.get(q)
+            if options is None:
+                bad_bit = 1 << mark_of[q] if q in mark_of else 0
+                options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+            groups = _combine(groups, options[0])
+            disjoint = disjoint and options[1]
+            # Dominated groups are removed at the end, and on the way when they pile up.
+            if not disjoint and (k == len(members) - 1 or len(groups) > 24):
+                groups = _minimal_per_letter(groups)
+                disjoint = _disjoint(groups)
+            groups.sort(key=_group_order)
+        if groups is None:
+            groups = _minimal_per_letter(_groups_of(partials))
+        raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
     for s, sid in state_id.items():
@@ -139,23 +190,74 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     return tuple(variants)
 
 
-def _per_letter_domination(
-    partials: list[_Partial], alphabet: Alphabet
-) -> list[tuple[int, Guard, int]]:
-    """Group transitions by (targets, bad) and remove letters read by a dominating group."""
-    groups: dict[tuple[int, int], Guard] = {}
-    for cube, targets, bad in partials:
-        key = (targets, bad)
-        groups[key] = groups.get(key, 0) | alphabet.cube(cube)
+# A group of transitions of a TGBA state under construction: (targets, bad, guard, literals),
+# every letter of ``guard`` leading to the conjunction ``targets`` of VWAA states with the
+# acceptance states ``bad`` not fulfilled; ``literals`` (the fewest literals of a cube of the
+# group, estimated) only orders the edges, hence the numbering of the states.
+_Group = tuple[int, int, Guard, int]
+
+
+def _group_order(group: _Group) -> tuple[int, int, int]:
+    """Fewer targets, fewer unfulfilled marks, fewer literals first (GO's order of
+    transitions); it decides the order in which successor states are numbered."""
+    return group[0].bit_count(), group[1].bit_count(), group[3]
+
+
+def _state_options(transitions, bad_bit: int) -> tuple[list[_Group], bool]:
+    """The transitions of one VWAA state grouped by (targets, bad), minimal per letter; and
+    whether their guards are pairwise disjoint."""
+    grouped: dict[tuple[int, int], list] = {}
+    for cube, targets, good in transitions:
+        key = (targets, 0 if good else bad_bit)
+        entry = grouped.get(key)
+        lits = (cube[0] | cube[1]).bit_count()
+        if entry is None:
+            grouped[key] = [bdd.cube(*cube), lits]
+        else:
+            entry[0] = entry[0] | bdd.cube(*cube)
+            entry[1] = min(entry[1], lits)
+    groups = _minimal_per_letter([(t, b, g, lits) for (t, b), (g, lits) in grouped.items()])
+    return groups, _disjoint(groups)
+
+
+def _combine(xs: list[_Group], ys: list[_Group]) -> list[_Group]:
+    """The product of two sets of groups: union of targets and of bad marks, conjunction of
+    guards, merging equal (targets, bad). If, for every letter, each side's groups are minimal,
+    the minimal groups of the product are among these (union is monotone), so only the
+    non-minimal ones may have to be removed afterwards (:func:`_minimal_per_letter`); when both
+    sides are partitions of the letters the product is one too and nothing is removed."""
+    out: dict[tuple[int, int], list] = {}
+    for tx, bx, gx, lx in xs:
+        for ty, by, gy, ly in ys:
+            g = gx & gy
+            if g is FALSE:
+                continue
+            key = (tx | ty, bx | by)
+            entry = out.get(key)
+            if entry is None:
+                out[key] = [g, lx + ly]
+            else:
+                entry[0] = entry[0] | g
+                entry[1] = min(entry[1], lx + ly)
+    return [(t, b, g, lits) for (t, b), (g, lits) in out.items()]
+
+
+def _minimal_per_letter(groups: list[_Group]) -> list[_Group]:
+    """Remove from each group's guard the letters read by a *dominating* group (fewer targets
+    and fewer unfulfilled acceptance states, GO §4.2 applied letter by letter); this makes most
+    automata of robot missions deterministic and keeps the product small."""
+    if len(groups) < 2:
+        return groups
+    shift = max(b for _t, b, _g, _l in groups).bit_length()
+    keys = [t << shift | b for t, b, _g, _l in groups]  # domination = subset of this mask
     result = []
-    for key, table in groups.items():
-        targets, bad = key
-        guard = table
-        for other, other_table in groups.items():
-            if other is not key and not other[0] & ~targets and not other[1] & ~bad:
-                guard &= ~other_table
-        if guard:
-            result.append((targets, guard, bad))
+    for i, (targets, bad, guard, lits) in enumerate(groups):
+        ki = keys[i]
+        dominators = [groups[j][2] for j, kj in enumerate(keys) if not kj & ~ki and j != i]
+        if dominators:
+            guard = guard - bdd.disjoin(dominators)
+        if guard is not FALSE:
+            result.append((targets, bad, guard, lits))
     return result
 
 
@@ -184,7 +286,7 @@ def _merge_bisimilar(tgba: Tgba) -> Tgba:
         done.add(b)
         for dst, guard, marks in tgba.edges[s]:
             key = (block[dst], marks)
-            edges[b][key] = edges[b].get(key, 0) | guard
+            edges[b][key] = edges[b].get(key, FALSE) | guard
     out = tuple(tuple((dst, guard, marks) for (dst, marks), guard in e.items()) for e in edges)
     initial = tuple(dict.fromkeys(block[i] for i in tgba.initial))
     return Tgba(num_blocks, initial, out, tgba.num_marks)
@@ -194,5 +296,5 @@ def _signature(edges, block):
     grouped: dict[tuple[int, int], Guard] = {}
     for dst, guard, marks in edges:
         key = (block[dst], marks)
-        grouped[key] = grouped.get(key, 0) | guard
+        grouped[key] = grouped.get(key, FALSE) | guard
     return grouped.items()

@@ -187,7 +187,8 @@ def _robot(table: _Table, arena: Arena) -> Robot:
         table.fail("pose", f"position ({pose[0]}, {pose[1]}) lies outside the arena "
                            f"[{arena.xmin}, {arena.xmax}] × [{arena.ymin}, {arena.ymax}]")
     radius = table.number("radius", default=0.2, positive=True)
-    ltl = table.string("ltl", default=None)
+    ltl = _hoa_task(table) if isinstance(table.raw("ltl"), dict) else table.string("ltl",
+                                                                                   default=None)
     stl_value = table.raw("stl")
     if isinstance(stl_value, str):
         stl: tuple[str, ...] = (stl_value,)
@@ -278,17 +279,44 @@ def _check_start_poses(scenario: Scenario, source: str) -> None:
                     f"allow ({a.radius + b.radius:.3f} m)")
 
 
-def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> Formula:
-    """Parse the LTL task and check every proposition it uses is carried by some region."""
+def _hoa_task(table: _Table) -> str:
+    """``ltl = { hoa = "file.hoa" }``: a Büchi automaton from another tool (docs/ltl.md), carried
+    as ``hoa:<absolute path>`` (``agent.ltl.hoa_reader.HOA_TASK_PREFIX``); the path is relative
+    to the scenario file."""
+    from agent.ltl.hoa_reader import HOA_TASK_PREFIX
+
+    sub = table.table("ltl")
+    name = sub.string("hoa")
+    sub.finish()
+    base = Path(table.source).parent if table.source and table.source != "<scenario>" else Path()
+    path = (base / name).resolve()
+    if not path.is_file():
+        sub.fail("hoa", f"no such HOA file: {path}")
+    return HOA_TASK_PREFIX + str(path)
+
+
+def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> Formula | None:
+    """Parse the LTL task (or read its HOA automaton) and check every proposition it uses is
+    carried by some region; the parsed formula (None for a HOA task: it has no formula)."""
+    from agent.errors import LtlError
+    from agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa_file
     from agent.ltl.parser import atoms, parse
 
-    try:
-        formula = parse(text)
-    except FormulaSyntaxError as exc:
-        raise ScenarioError(source, where, f"LTL syntax error at column {exc.column}: "
-                                           f"{exc.reason} in {text!r}") from None
+    formula = None
+    if text.startswith(HOA_TASK_PREFIX):
+        try:
+            used = frozenset(read_hoa_file(text[len(HOA_TASK_PREFIX):]).atoms)
+        except LtlError as exc:
+            raise ScenarioError(source, f"{where}.hoa", str(exc)) from None
+    else:
+        try:
+            formula = parse(text)
+            used = atoms(formula)
+        except FormulaSyntaxError as exc:
+            raise ScenarioError(source, where, f"LTL syntax error at column {exc.column}: "
+                                               f"{exc.reason} in {text!r}") from None
     carried = scenario.propositions
-    for atom in sorted(atoms(formula)):
+    for atom in sorted(used):
         if atom not in carried:
             known = ", ".join(sorted(carried)) or "none"
             raise ScenarioError(source, where, f"proposition {atom!r} is carried by no region "

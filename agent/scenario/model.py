@@ -139,10 +139,14 @@ class Robot:
     parsed_stl: tuple[Temporal, ...] = field(default=(), init=False, compare=False, repr=False)
 
     @property
-    def ltl_tree(self) -> Formula:
-        """The LTL task as a formula tree (parsed by the loader; on first use otherwise)."""
+    def ltl_tree(self) -> Formula | str:
+        """The LTL task as a formula tree (parsed by the loader; on first use otherwise). A task
+        given as an automaton (``ltl = { hoa = "file.hoa" }``, carried as ``hoa:<path>``) has no
+        formula: its text is returned, which ``agent.ltl.buchi.translate`` reads as the file."""
         if self.ltl is None:
             raise ValueError(f"robot {self.id} has no LTL task")
+        if self.ltl.startswith("hoa:"):
+            return self.ltl
         if self.parsed_ltl is None:
             from agent.ltl.parser import parse
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from agent.ltl.buchi import translate
 from agent.scenario import Scenario, load_scenario
 
 NAME = "check"
@@ -19,7 +20,11 @@ def run(args: argparse.Namespace) -> int:
     for index, path in enumerate(args.scenario):
         if index:
             print()
-        print(summarise(load_scenario(path)))
+        scenario = load_scenario(path)
+        for robot in scenario.robots:
+            if robot.ltl is not None:
+                translate(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
+        print(summarise(scenario))
     return 0
 
 

@@ -13,11 +13,11 @@ import math
 import networkx as nx
 from hypothesis import strategies as st
 
+from agent.ltl import bdd
 from agent.ltl.buchi import Buchi
 from agent.ltl.formula import (
     FALSE,
     TRUE,
-    And,
     Atom,
     Equiv,
     Finally,
@@ -26,12 +26,13 @@ from agent.ltl.formula import (
     Implies,
     Next,
     Not,
-    Or,
     Release,
     StrongRelease,
     Until,
     WeakUntil,
     Xor,
+    conj,
+    disj,
 )
 from agent.ltl.transition_system import TransitionSystem
 
@@ -42,14 +43,14 @@ BINARY = (Implies, Equiv, Xor, Until, Release, WeakUntil, StrongRelease)
 
 def formulas(atoms: tuple[str, ...] = ATOMS, max_depth: int = 5) -> st.SearchStrategy[Formula]:
     """Random formulas over ``atoms`` with every operator, nesting depth ≤ ``max_depth``,
-    shaped as the parser builds them (binary ``And``/``Or``)."""
+    shaped as the parser builds them (flattened n-ary ``And``/``Or``)."""
     leaves = st.sampled_from([Atom(a) for a in atoms] + [TRUE, FALSE])
 
     def extend(children: st.SearchStrategy[Formula]) -> st.SearchStrategy[Formula]:
         return st.one_of(
             st.builds(lambda op, x: op(x), st.sampled_from(UNARY), children),
-            st.builds(lambda x, y: And((x, y)), children, children),
-            st.builds(lambda x, y: Or((x, y)), children, children),
+            st.builds(conj, children, children),
+            st.builds(disj, children, children),
             st.builds(lambda op, x, y: op(x, y), st.sampled_from(BINARY), children, children),
         )
 
@@ -68,6 +69,15 @@ def lasso_words(atoms: tuple[str, ...] = ATOMS):
     return st.tuples(
         st.lists(letters(atoms), max_size=3), st.lists(letters(atoms), min_size=1, max_size=4)
     )
+
+
+def guard_holds(guard, v: int) -> bool:
+    """Evaluate a BDD guard on the letter with bitmask ``v`` by walking its nodes (the guard's
+    public ``var``/``low``/``high`` fields; independent of the library's evaluation)."""
+    node = guard
+    while node.low is not None:
+        node = node.high if v >> node.var & 1 else node.low
+    return node is bdd.TRUE
 
 
 def automaton_accepts(buchi: Buchi, prefix, loop) -> bool:
@@ -90,7 +100,7 @@ def automaton_accepts(buchi: Buchi, prefix, loop) -> bool:
         v = valuation(word[i])
         j = i + 1 if i + 1 < n else len(prefix)
         for dst, guard in buchi.edges[q]:
-            if guard >> v & 1:
+            if guard_holds(guard, v):
                 graph.add_edge((q, i), (dst, j))
                 if (dst, j) not in seen:
                     seen.add((dst, j))
@@ -113,7 +123,7 @@ def brute_force_optimum(buchi: Buchi, ts: TransitionSystem, beta: float) -> floa
     for r, q in nodes:
         v = sum(1 << buchi.atoms.index(a) for a in ts.labels[r] if a in buchi.atoms)
         for dst, guard in buchi.edges[q]:
-            if guard >> v & 1:
+            if guard_holds(guard, v):
                 for r2, w in ts.edges[r]:
                     if not graph.has_edge((r, q), (r2, dst)) or graph[(r, q)][(r2, dst)][
                         "weight"

@@ -8,7 +8,7 @@ import re
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from ltl_helpers import automaton_accepts, formulas, lasso_words
+from ltl_helpers import automaton_accepts, formulas, guard_holds, lasso_words
 
 from agent.ltl.buchi import buchi_step, to_dot, to_text, translate, translation_candidates
 from agent.ltl.emptiness import accepting_lassos, accepts_lasso, find_accepting_lasso, is_empty
@@ -209,7 +209,7 @@ def test_hoa_labels_parse_back_to_the_same_guards():
             assert int(dst) == edge_dst
             for v in range(1 << len(buchi.atoms)):
                 letter = frozenset(a for i, a in enumerate(buchi.atoms) if v >> i & 1)
-                assert holds(ltl, [letter], [E]) == bool(guard >> v & 1)
+                assert holds(ltl, [letter], [E]) == guard_holds(guard, v)
             k += 1
 
 
@@ -253,11 +253,37 @@ def test_translation_does_not_depend_on_string_hashing(tmp_path):
 
 
 def test_too_many_propositions_is_a_clear_error():
+    from agent.errors import TlfleetError
     from agent.ltl.guards import MAX_ATOMS, TooManyPropositions
 
-    text = " & ".join(f"F p{i}" for i in range(MAX_ATOMS + 1))
+    text = "G(" + " | ".join(f"p{i}" for i in range(MAX_ATOMS + 1)) + ")"
     with pytest.raises(TooManyPropositions, match=f"has {MAX_ATOMS + 1} atomic propositions"):
         translate(text)
+    assert issubclass(TooManyPropositions, TlfleetError)
+
+
+@pytest.mark.parametrize("n", [21, 40, 64])
+def test_many_propositions_translate_and_accept_the_right_words(n):
+    """Symbolic guards: 21–64 atoms (a truth table would need 2^n bits per guard)."""
+    ps = [f"p{i}" for i in range(n)]
+    f = parse("G(" + " | ".join(ps) + ") & F(" + " & ".join(ps) + ")")
+    buchi = translate(f)
+    assert buchi.num_states == 2
+    every = frozenset(ps)
+    one = frozenset({ps[-1]})
+    for prefix, loop in [([], [every]), ([one], [every]), ([], [one]), ([every], [frozenset()]),
+                         ([one, one], [one, every])]:
+        assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop)
+        assert accepts_lasso(buchi, prefix, loop) == holds(f, prefix, loop)
+
+
+def test_valid_and_unsatisfiable_formulas_collapse_to_one_state():
+    for text in ("G p0 | F !p0", "a U b | !b W (!a & !b)", "G F a | F G !a"):
+        buchi = translate(text)
+        assert buchi.num_states == 1 and buchi.accepting == {0}
+        assert buchi.edges[0] == ((0, buchi.alphabet.full),)
+    for text in ("G p0 & F !p0", "F G a & G F !a"):
+        assert translate(text).num_states == 1 and not translate(text).accepting
 
 
 @settings(max_examples=500, deadline=None)

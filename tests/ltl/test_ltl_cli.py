@@ -28,7 +28,7 @@ def test_translate_text_and_dot_formats(capsys):
 def test_translate_syntax_error_names_the_column(capsys):
     assert main(["translate", "G F a &"]) == 1
     _out, err = capsys.readouterr()
-    assert "tlfleet translate: column 8: expected a formula after '&'" in err
+    assert "tlfleet translate: LTL formula 'G F a &', column 8: expected a formula after '&'" in err
 
 
 def test_plan_prints_every_ltl_robot(scenarios_dir, capsys):

@@ -1,0 +1,241 @@
+"""Reading Büchi automata in the Hanoi Omega-Automata format, HOA v1 (docs/ltl.md "Tools").
+
+So that a user can plan with an automaton produced by another tool (Spot's ``ltl2tgba``,
+``autfilt``, Owl …): ``read_hoa(text)`` returns an :class:`agent.ltl.buchi.Buchi`.
+
+Supported: ``Acceptance: 1 Inf(0)`` (Büchi) or ``0 t`` (all runs accept), state-based or
+transition-based marks (transition marks are moved onto a copy of the target state: a run sees
+infinitely many marked edges iff it visits infinitely many marked copies), explicit labels
+(``[0 & !1 | t]``) or implicit labels (one edge per letter, in valuation order), several
+``Start:`` lines, aliases (``Alias: @a 0&1``). Anything else — generalised or parity
+acceptance, alternation (``Start: 0&1``) — is refused with a :class:`agent.errors.LtlError`
+naming the line. Format: https://adl.github.io/hoaf/
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from agent.errors import LtlError
+from agent.ltl import bdd
+from agent.ltl.bdd import FALSE, TRUE, Bdd
+
+
+def _fail(source: str, line: int, what: str) -> LtlError:
+    return LtlError(f"{source}: line {line}: {what}")
+
+
+class _Label:
+    """Recursive-descent parser of a HOA label expression: ``or := and ('|' and)*`` …"""
+
+    def __init__(self, text: str, aliases: dict[str, Bdd], num_ap: int, fail):
+        self.tokens = re.findall(r"\d+|@[\w\-.]+|[tf]|[&|!()]|\S", text)
+        self.pos = 0
+        self.aliases = aliases
+        self.num_ap = num_ap
+        self.fail = fail
+
+    def parse(self) -> Bdd:
+        result = self.disjunction()
+        if self.pos != len(self.tokens):
+            raise self.fail(f"unexpected {self.tokens[self.pos]!r} in label")
+        return result
+
+    def peek(self) -> str | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def disjunction(self) -> Bdd:
+        result = self.conjunction()
+        while self.peek() == "|":
+            self.pos += 1
+            result = result | self.conjunction()
+        return result
+
+    def conjunction(self) -> Bdd:
+        result = self.atom()
+        while self.peek() == "&":
+            self.pos += 1
+            result = result & self.atom()
+        return result
+
+    def atom(self) -> Bdd:
+        token = self.peek()
+        if token is None:
+            raise self.fail("label ends early")
+        self.pos += 1
+        if token == "!":
+            return ~self.atom()
+        if token == "(":
+            inner = self.disjunction()
+            if self.peek() != ")":
+                raise self.fail("expected ')' in label")
+            self.pos += 1
+            return inner
+        if token == "t":
+            return TRUE
+        if token == "f":
+            return FALSE
+        if token.isdigit():
+            i = int(token)
+            if i >= self.num_ap:
+                raise self.fail(f"AP number {i} out of range (AP: {self.num_ap})")
+            return bdd.var(i)
+        if token.startswith("@"):
+            if token not in self.aliases:
+                raise self.fail(f"unknown alias {token}")
+            return self.aliases[token]
+        raise self.fail(f"unexpected {token!r} in label")
+
+
+def read_hoa(text: str, source: str = "<hoa>"):
+    """The first automaton of ``text`` as a state-based Büchi automaton."""
+    from agent.ltl.buchi import Buchi  # buchi imports this module's users, not this module
+
+    lines = text.splitlines()
+    if not any(line.strip().startswith("HOA:") for line in lines):
+        raise _fail(source, 1, "not a HOA file (no 'HOA: v1' header)")
+    header: dict[str, list[tuple[int, str]]] = {}
+    body_start = None
+    for number, raw in enumerate(lines, 1):
+        line = raw.strip()
+        if line == "--BODY--":
+            body_start = number
+            break
+        if not line:
+            continue
+        name, _, value = line.partition(":")
+        header.setdefault(name.strip(), []).append((number, value.strip()))
+    if body_start is None:
+        raise _fail(source, len(lines), "missing --BODY--")
+
+    def one(name: str, required: bool = True) -> tuple[int, str] | None:
+        entries = header.get(name)
+        if not entries:
+            if required:
+                raise _fail(source, 1, f"missing header {name}:")
+            return None
+        return entries[0]
+
+    ap_line, ap_text = one("AP")
+    ap_tokens = re.findall(r'"((?:[^"\\]|\\.)*)"|(\d+)', ap_text)
+    if not ap_tokens:
+        raise _fail(source, ap_line, "AP: expected a count and names")
+    num_ap = int(ap_tokens[0][1])
+    names = [re.sub(r"\\(.)", r"\1", s) for s, _n in ap_tokens[1:]]
+    if len(names) != num_ap:
+        raise _fail(source, ap_line, f"AP: {num_ap} announced, {len(names)} names given")
+    acc_line, acc_text = one("Acceptance")
+    acceptance = " ".join(acc_text.split())
+    if acceptance in ("0 t", "1 t"):
+        all_accept = True
+    elif acceptance == "1 Inf(0)":
+        all_accept = False
+    else:
+        raise _fail(source, acc_line, f"acceptance {acc_text!r} is not supported "
+                                      "(Büchi 'Acceptance: 1 Inf(0)' only; use autfilt -B)")
+    starts = []
+    for number, value in header.get("Start", []):
+        if not value.isdigit():
+            raise _fail(source, number, f"Start: {value!r} (alternating automata are not "
+                                        "supported)")
+        starts.append(int(value))
+    aliases: dict[str, Bdd] = {}
+    for number, value in header.get("Alias", []):
+        alias, _, expression = value.partition(" ")
+        aliases[alias] = _Label(expression, aliases, num_ap,
+                                lambda what, n=number: _fail(source, n, what)).parse()
+    declared = one("States", required=False)
+
+    # Body: State: n ["name"] [{marks}] then edges "[label] dst [{marks}]" or implicit "dst".
+    states: dict[int, dict] = {}
+    current = None
+    implicit_index = 0
+    for number in range(body_start + 1, len(lines) + 1):
+        line = lines[number - 1].strip()
+        if not line:
+            continue
+
+        def fail(what: str, n: int = number) -> LtlError:
+            return _fail(source, n, what)
+
+        if line == "--END--":
+            break
+        if line.startswith("State:"):
+            m = re.fullmatch(r'State:\s*(?:\[(?P<label>[^\]]*)\]\s*)?(?P<id>\d+)'
+                             r'(?:\s*"(?:[^"\\]|\\.)*")?\s*(?:\{(?P<marks>[\d\s]*)\})?', line)
+            if not m:
+                raise fail(f"cannot read {line!r}")
+            if m.group("label"):
+                raise fail("state labels are not supported (use transition labels)")
+            current = int(m.group("id"))
+            marks = set(map(int, (m.group("marks") or "").split()))
+            states[current] = {"acc": 0 in marks, "edges": []}
+            implicit_index = 0
+            continue
+        if current is None:
+            raise fail("edge before any 'State:'")
+        m = re.fullmatch(r'(?:\[(?P<label>[^\]]*)\]\s*)?(?P<dst>\d+(?:\s*&\s*\d+)*)'
+                         r'\s*(?:\{(?P<marks>[\d\s]*)\})?', line)
+        if not m:
+            raise fail(f"cannot read edge {line!r}")
+        if "&" in m.group("dst"):
+            raise fail("universal branching (alternating automata) is not supported")
+        if m.group("label") is not None:
+            guard = _Label(m.group("label"), aliases, num_ap, fail).parse()
+        else:  # implicit labels: the k-th edge reads the k-th valuation
+            v = implicit_index
+            implicit_index += 1
+            guard = bdd.cube(v, ((1 << num_ap) - 1) & ~v)
+        marks = set(map(int, (m.group("marks") or "").split()))
+        states[current]["edges"].append((int(m.group("dst")), guard, 0 in marks))
+    if declared is not None and not declared[1].isdigit():
+        raise _fail(source, declared[0], f"States: {declared[1]!r}")
+    if not starts:
+        raise _fail(source, 1, "no Start: state")
+    # State-based Büchi: a state copy (q, 1) stands for "entered q by a marked edge".
+    # A state's mark is a mark on all its outgoing edges (HOA semantics).
+    transition_marks = any(m for s in states.values() for _d, _g, m in s["edges"])
+    ids: dict[tuple[int, bool], int] = {}
+    order: list[tuple[int, bool]] = []
+
+    def intern(key: tuple[int, bool]) -> int:
+        if key not in ids:
+            ids[key] = len(order)
+            order.append(key)
+        return ids[key]
+
+    initial = tuple(intern((q, False)) for q in starts)
+    edges: list[list[tuple[int, Bdd]]] = []
+    k = 0
+    while k < len(order):
+        q, _marked = order[k]
+        spec = states.get(q, {"acc": False, "edges": []})
+        grouped: dict[int, Bdd] = {}
+        for dst, guard, mark in spec["edges"]:
+            d = intern((dst, transition_marks and (mark or spec["acc"])))
+            grouped[d] = grouped.get(d, FALSE) | guard
+        edges.append([(d, g) for d, g in grouped.items() if g is not FALSE])
+        k += 1
+    accepting = frozenset(
+        i for i, (q, marked) in enumerate(order)
+        if all_accept or marked or (not transition_marks and states.get(q, {}).get("acc"))
+    )
+    name = one("name", required=False)
+    formula = name[1].strip('"') if name else f"HOA automaton {source}"
+    return Buchi(formula, tuple(names), initial, accepting, tuple(tuple(e) for e in edges))
+
+
+HOA_TASK_PREFIX = "hoa:"  # also agent.ltl.buchi.HOA_TASK_PREFIX (no import cycle)
+"""A scenario task ``ltl = { hoa = "file.hoa" }`` is carried as the text ``hoa:<absolute path>``
+(``agent.scenario.loader``); :func:`agent.ltl.buchi.translate` and the planner read the file."""
+
+
+def read_hoa_file(path: str | Path):
+    """:func:`read_hoa` of a file; unreadable files are an :class:`agent.errors.LtlError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise LtlError(f"{path}: cannot read the HOA automaton: {exc.strerror}") from None
+    return read_hoa(text, str(path))
