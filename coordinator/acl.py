@@ -24,9 +24,9 @@ Everything else is denied by the router (``default_permission: "deny"``).
 
 Every identity that publishes may *discover* the subscriptions under ``tlfleet/<fleet>/**``
 (zenoh's write-side filtering needs the declarations, :mod:`bus.security`); that shows who
-subscribes what, never a sample. Beyond the issue's list, the sim subscribes ``control`` (it stops on ``Control(stop)``) and the
-coordinator publishes ``event`` (supervision events), as the code does today; watching
-``alive/**`` (liveliness) is read-only presence.
+subscribes what, never a sample. Beyond the issue's list, the sim subscribes ``control`` (it
+stops on ``Control(stop)``) and the coordinator publishes ``event`` (supervision events), as the
+code does today; watching ``alive/**`` (liveliness) is read-only presence.
 """
 
 from __future__ import annotations
