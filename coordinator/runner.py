@@ -3,7 +3,10 @@
 :func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks:
 
 1. load the scenario (``ScenarioError`` before any process starts);
-2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port;
+2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port; with
+   ``secure`` (a key directory of ``tlfleet keys``) the keys are checked first, every link is
+   ``tls/`` with mutual authentication, every child gets ``--secure`` and ``run.json`` records
+   ``secure`` and the certificates' fingerprints (:mod:`bus.security`);
 3. start the router, wait until it listens, open the coordinator's own client session, declare
    ``alive/coordinator/0`` and subscribe the recorder;
 4. start the simulator, then one agent per robot (each its own process group,
@@ -188,13 +191,13 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
     """Run the fleet of ``config`` to the end; see the module docstring."""
     scenario = load_scenario(config.scenario_path)
+    if config.secure is not None:
+        check_keys(scenario, config.secure)  # before the run directory exists
     say = report or (lambda text: logger.warning("%s", text))
     duration = float(config.duration or scenario.duration)
     run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
     recorder = Recorder(run_dir, [r.id for r in scenario.robots])
     recorder.copy_scenario(Path(config.scenario_path))
-    if config.secure is not None:
-        check_keys(scenario, config.secure)
     endpoint = f"{'tls' if config.secure else 'tcp'}/{HOST}:{free_port(HOST)}"
     info: dict[str, Any] = {
         "scenario": scenario.name, "scenario_path": str(config.scenario_path),
