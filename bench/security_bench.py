@@ -14,6 +14,9 @@ machine put on it falls on both alike. Per pair and as medians over ``--runs`` (
 * CPU per process role (``psutil`` user + system per wall second, % of one core) — the figure
   least disturbed by the machine's load; the router pays for TLS, the ACL and reading its own
   ACL trace (``bus.acl_log``);
+* attribution: a third lockstep run per pair, secured with the router's ACL trace off
+  (``RUST_LOG=warn`` in the children's environment: zenoh's own filter wins over the router's,
+  so no denial is logged) — what the denial log costs, beside TLS and the ACL themselves;
 * whether every secured lockstep trajectory is byte-identical to the plain ones (and to
   ``--baseline``, e.g. a run of the original code).
 
@@ -49,21 +52,32 @@ SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"lockstep_speedup_ratio": 0.9, "latency_p99_ratio": 1.1}
 
 
-def run_once(mode: str, duration: float, out: Path, secure: Path | None) -> dict:
+def run_once(mode: str, duration: float, out: Path, secure: Path | None,
+             acl_trace: bool = True) -> dict:
     load = os.getloadavg()[0]
     marks: list[float] = []
-    with CpuSampler() as sampler:
-        result = run_fleet(RunConfig(SCENARIO1, mode=mode, out=out, duration=duration, seed=1,
-                                     secure=secure, report=False, figures=False, rrd=False,
-                                     supervisor=SupervisorConfig(
-                                         ready_timeout=120.0,
-                                         wall_timeout=20 * duration + 120)),
-                           progress=lambda _t, _total: marks.append(time.monotonic()))
+    saved = os.environ.get("RUST_LOG")
+    if not acl_trace:
+        os.environ["RUST_LOG"] = "warn"  # inherited by the children started by run_fleet
+    try:
+        with CpuSampler() as sampler:
+            result = run_fleet(RunConfig(SCENARIO1, mode=mode, out=out, duration=duration,
+                                         seed=1, secure=secure, report=False, figures=False,
+                                         rrd=False, supervisor=SupervisorConfig(
+                                             ready_timeout=120.0,
+                                             wall_timeout=20 * duration + 120)),
+                               progress=lambda _t, _total: marks.append(time.monotonic()))
+    finally:
+        if saved is None:
+            os.environ.pop("RUST_LOG", None)
+        else:
+            os.environ["RUST_LOG"] = saved
     cpu = sampler.cpu_pct(marks[0] + 0.5, marks[-1]) if len(marks) >= 2 else {}
     stats = next((e["data"] for e in reversed(read_events(out / "events.jsonl"))
                   if e["kind"] == "sim_stats"), {})
     return {
-        "secure": secure is not None, "mode": mode, "clean": result.clean,
+        "secure": secure is not None, "acl_trace": acl_trace, "mode": mode,
+        "clean": result.clean,
         "reason": result.outcome.reason, "load_1min": load,
         "wall_time": result.info.get("wall_time", math.nan),
         "speedup": result.info.get("speedup", math.nan),
@@ -72,6 +86,12 @@ def run_once(mode: str, duration: float, out: Path, secure: Path | None) -> dict
         "missed": stats.get("missed", 0), "due": stats.get("due", 0),
         "cpu_pct": cpu, "trajectory": str(out / "trajectory.csv"),
     }
+
+
+def show(name: str, row: dict) -> None:
+    print(f"  {name:<22} clean={row['clean']!s:<5} speed-up {row['speedup']:.2f}×  p99 "
+          f"{row['latency_p99_ms']:.2f} ms  load {row['load_1min']:.1f}  router CPU "
+          f"{row['cpu_pct'].get('router', math.nan):.1f} %", flush=True)
 
 
 def median(runs: list[dict], key: str) -> float:
@@ -97,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     runs = max(3, args.runs)
     lockstep_s, realtime_s = (30.0, 10.0) if args.quick else (90.0, 30.0)
     started = time.monotonic()
-    per_run: dict[str, list[dict]] = {"lockstep": [], "realtime": []}
+    per_run: dict[str, list[dict]] = {"lockstep": [], "realtime": [], "lockstep_no_trace": []}
     with tempfile.TemporaryDirectory(prefix="security_bench-") as tmp:
         tmpdir = Path(tmp)
         keydir = tmpdir / "keys"
@@ -108,20 +128,23 @@ def main(argv: list[str] | None = None) -> int:
                     name = f"{mode}-{'tls' if secure else 'tcp'}-{k}"
                     row = run_once(mode, duration, tmpdir / name, secure)
                     per_run[mode].append(row)
-                    print(f"  {name:<16} clean={row['clean']!s:<5} speed-up "
-                          f"{row['speedup']:.2f}×  p99 {row['latency_p99_ms']:.2f} ms  load "
-                          f"{row['load_1min']:.1f}  router CPU "
-                          f"{row['cpu_pct'].get('router', math.nan):.1f} %", flush=True)
+                    show(name, row)
+            row = run_once("lockstep", lockstep_s, tmpdir / f"lockstep-tls-notrace-{k}", keydir,
+                           acl_trace=False)
+            per_run["lockstep_no_trace"].append(row)
+            show(f"lockstep-tls-notrace-{k}", row)
         lock = per_run["lockstep"]
         plain_traj = [Path(r["trajectory"]).read_bytes() for r in lock if not r["secure"]]
-        secure_traj = [Path(r["trajectory"]).read_bytes() for r in lock if r["secure"]]
+        secure_traj = [Path(r["trajectory"]).read_bytes()
+                       for r in lock + per_run["lockstep_no_trace"] if r["secure"]]
         identical = all(t == plain_traj[0] for t in plain_traj + secure_traj)
         baseline_identical = None
         if args.baseline is not None:
             reference = args.baseline.read_bytes()
             baseline_identical = all(t == reference for t in secure_traj)
-    split = {mode: ([r for r in rows if not r["secure"]], [r for r in rows if r["secure"]])
-             for mode, rows in per_run.items()}
+    split = {mode: ([r for r in per_run[mode] if not r["secure"]],
+                    [r for r in per_run[mode] if r["secure"]]) for mode in ("lockstep", "realtime")}
+    notrace = per_run["lockstep_no_trace"]
     lp, ls = split["lockstep"]
     rp, rs = split["realtime"]
     pair_speed = [s["speedup"] / p["speedup"] for p, s in zip(lp, ls, strict=True)]
@@ -131,6 +154,10 @@ def main(argv: list[str] | None = None) -> int:
         "lockstep_speedup_secure": median(ls, "speedup"),
         "lockstep_speedup_ratio": median(ls, "speedup") / median(lp, "speedup"),
         "lockstep_speedup_ratio_pairs_median": statistics.median(pair_speed),
+        "lockstep_speedup_secure_no_acl_trace": median(notrace, "speedup"),
+        "lockstep_speedup_ratio_no_acl_trace": median(notrace, "speedup")
+        / median(lp, "speedup"),
+        "router_cpu_pct_lockstep_secure_no_acl_trace": cpu_median(notrace, "router"),
         "latency_p99_ms_plain": median(rp, "latency_p99_ms"),
         "latency_p99_ms_secure": median(rs, "latency_p99_ms"),
         "latency_p99_ratio": median(rs, "latency_p99_ms") / median(rp, "latency_p99_ms"),
@@ -158,6 +185,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'Scenario 1 lockstep speed-up [×]':<44} {results['lockstep_speedup_plain']:>9.2f} "
           f"{results['lockstep_speedup_secure']:>9.2f} {results['lockstep_speedup_ratio']:>7.3f} "
           f"{'≥ 0.9':>7}  {'yes' if meets['lockstep_speedup_ratio'] else 'NO'}")
+    print(f"{'  … secured, router ACL trace off':<44} {'':>9} "
+          f"{results['lockstep_speedup_secure_no_acl_trace']:>9.2f} "
+          f"{results['lockstep_speedup_ratio_no_acl_trace']:>7.3f}")
     print(f"{'Scenario 1 realtime latency p99 [ms]':<44} {results['latency_p99_ms_plain']:>9.2f} "
           f"{results['latency_p99_ms_secure']:>9.2f} {results['latency_p99_ratio']:>7.3f} "
           f"{'≤ 1.1':>7}  {'yes' if meets['latency_p99_ratio'] else 'NO'}")
@@ -170,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
             b = results["cpu_pct"][f"{mode}_secure"][role]
             print(f"{f'{mode}: CPU per {role} process [% of a core]':<44} {a:>9.1f} {b:>9.1f} "
                   f"{b / a if a else math.nan:>7.3f}")
+    print(f"{'lockstep: CPU of the router, ACL trace off':<44} {'':>9} "
+          f"{results['router_cpu_pct_lockstep_secure_no_acl_trace']:>9.1f}")
     print(f"per-pair ratios: speed-up {[round(x, 3) for x in pair_speed]}, "
           f"p99 {[round(x, 3) for x in pair_p99]}")
     print(f"secured lockstep trajectories byte-identical to the plain ones: {identical}"

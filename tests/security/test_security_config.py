@@ -277,9 +277,11 @@ def test_parse_line_reads_zenoh_110_acl_lines():
     assert not parse_line("2026 INFO ThreadId(01) zenoh::net::runtime: Using ZID: 1").important
 
 
-def test_denial_filter_drops_cache_lines_and_reports_each_denial_once():
+@pytest.mark.parametrize("fast", [False, True])
+def test_denial_filter_drops_cache_lines_and_reports_each_denial_once(fast):
     f = DenialFilter()
-    out = [f.feed(parse_line(line)) for line in (
+    feed = f.feed_raw if fast else (lambda line: f.feed(parse_line(line)))
+    out = [feed(line) for line in (
         zline("09", "ACL (ingress): caching permissions for `tlfleet/f/robot/3/cmd` ..."),
         zline("09", f"{SUBJ} is authorized to Put (ingress) on tlfleet/f/robot/3/cmd"),
         zline("09", f"{SUBJ} is unauthorized to Query (ingress) on tlfleet/f/robot/3/cmd"),
@@ -291,6 +293,9 @@ def test_denial_filter_drops_cache_lines_and_reports_each_denial_once():
                     "tlfleet/f/robot/4/cmd"),
         zline("08", f"Using cached result: {ZID} is authorized to Put (ingress) on "
                     "tlfleet/f/robot/3/cmd"),
+        zline("09", "ACL (ingress): caching permissions for `tlfleet/f/event` ..."),
+        zline("09", f"{SUBJ} is authorized to Put (ingress) on tlfleet/f/event"),
+        zline("09", f"{SUBJ} is unauthorized to Query (ingress) on tlfleet/f/event"),
         zline("09", f"{SUBJ} is unauthorized to Put (ingress) on tlfleet/f/control"),
     )]
     assert [m for m in out if m] == [
@@ -298,3 +303,4 @@ def test_denial_filter_drops_cache_lines_and_reports_each_denial_once():
         "ACL denied: robot3 Put (ingress) on tlfleet/f/control"]
     assert f.denied == {("robot3", "Put (ingress)", "tlfleet/f/robot/4/cmd"): 2,
                         ("robot3", "Put (ingress)", "tlfleet/f/control"): 1}
+    assert f.lines == 12
