@@ -46,8 +46,6 @@ from agent.scenario import Scenario, load_scenario
 from bus.security import fingerprints, secure_transport
 from bus.transport import TransportConfig, open_transport
 from bus.zenoh_transport import ZenohTransport
-from coordinator.acl import identities
-from coordinator.keys import check_keys
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -191,8 +189,11 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
     """Run the fleet of ``config`` to the end; see the module docstring."""
     scenario = load_scenario(config.scenario_path)
-    if config.secure is not None:
-        check_keys(scenario, config.secure)  # before the run directory exists
+    if config.secure is not None:  # checked before the run directory exists
+        from coordinator.acl import identities
+        from coordinator.keys import check_keys  # cryptography: imported for secured runs only
+
+        check_keys(scenario, config.secure)
     say = report or (lambda text: logger.warning("%s", text))
     duration = float(config.duration or scenario.duration)
     run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)

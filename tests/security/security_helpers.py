@@ -87,3 +87,13 @@ def wait_until(predicate, timeout: float, step: float = 0.02) -> bool:
             return True
         time.sleep(step)
     return bool(predicate())
+
+
+def robot_path(run_dir: Path, robot: int):
+    """(N, 2) positions [m] of ``robot`` from a run's ``trajectory.csv``."""
+    import numpy as np
+
+    lines = (run_dir / "trajectory.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    cols = [header.index(f"x{robot}"), header.index(f"y{robot}")]
+    return np.array([[float(row.split(",")[c]) for c in cols] for row in lines[1:]])

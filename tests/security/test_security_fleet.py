@@ -23,7 +23,7 @@ from pathlib import Path
 import msgpack
 import pytest
 import zenoh
-from security_helpers import SCENARIO1, make_keys, wait_until
+from security_helpers import SCENARIO1, make_keys, robot_path, wait_until
 
 from agent.protocol import keys
 from agent.protocol.codec import ProtocolError, decode, encode
@@ -34,6 +34,7 @@ from agent.protocol.messages import (
     Control,
     Event,
     LtlStatus,
+    MocapFrame,
     StlStatus,
 )
 from bus.security import secure_transport
@@ -85,7 +86,7 @@ def events(run_dir: Path) -> list[dict]:
 class Hostile(threading.Thread):
     """A client session holding robot 3's certificate, opened as soon as the router listens."""
 
-    def __init__(self, keydir: Path):
+    def __init__(self, keydir: Path | None):
         super().__init__(daemon=True, name="hostile")
         self.keydir = keydir
         self.endpoint: str | None = None
@@ -99,8 +100,9 @@ class Hostile(threading.Thread):
         self.start()
 
     def open(self):
-        config = secure_transport(TransportConfig(mode="client", connect=(self.endpoint,)),
-                                  self.keydir, "robot3")
+        config = TransportConfig(mode="client", connect=(self.endpoint,))
+        if self.keydir is not None:  # None: a plain fleet, no certificate to hold
+            config = secure_transport(config, self.keydir, "robot3")
         deadline = time.monotonic() + 30.0
         while True:
             try:
@@ -144,11 +146,15 @@ class Hostile(threading.Thread):
 
 
 class Rogue(Hostile):
-    """Commands robot 4, sends stop, serves robot 4's collab, claims robot 4's token."""
+    """Answers every frame that robot 4 owes with its own command for robot 4, at once (ahead of
+    robot 4's, which computes first), sends ``Control(stop)``, serves robot 4's collab and claims
+    robot 4's token. Without the ACL its commands would win the race at the sim."""
 
-    def __init__(self, keydir: Path):
+    def __init__(self, keydir: Path | None, send_stop: bool = True):
         super().__init__(keydir)
+        self.send_stop = send_stop
         self.sent = 0
+        self.frames = 0
         self.served = 0
 
     def attack(self, session) -> None:
@@ -163,15 +169,19 @@ class Rogue(Hostile):
         session.liveliness().declare_token(keys.alive(F, "agent", 4))
         cmd4 = session.declare_publisher(keys.cmd(F, 4))
         control = session.declare_publisher(keys.control(F))
-        seq = 0
-        deadline = time.monotonic() + 240.0
-        while not self.stop.is_set() and time.monotonic() < deadline:
-            for due in range(seq, seq + 10):  # plausible commands for the next frames
-                cmd4.put(encode(Command(4, 0.01 * due, due, (1.0, 1.0, 0.0))))
-            control.put(encode(Control("stop")))
-            self.sent += 11
-            seq += 5
-            time.sleep(0.01)
+
+        def on_frame(sample) -> None:
+            frame = decode(MocapFrame, sample.payload.to_bytes())
+            self.frames += 1
+            if 4 in frame.due:
+                cmd4.put(encode(Command(4, frame.t, frame.seq, (0.3, -0.3, 0.0))))
+                self.sent += 1
+            if self.send_stop and self.frames % 100 == 0:
+                control.put(encode(Control("stop")))
+                self.sent += 1
+
+        session.declare_subscriber(keys.mocap(F), on_frame)  # robot 3 may read mocap
+        self.stop.wait(300.0)
 
 
 def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
@@ -183,7 +193,9 @@ def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
         rogue.stop.set()
         rogue.join(30)
     assert rogue.error is None, repr(rogue.error)
-    assert rogue.ready.is_set() and rogue.sent > 1000, rogue.sent  # it attacked the whole run
+    # it attacked the whole mission: a command for robot 4 on every frame robot 4 owed
+    assert rogue.ready.is_set() and rogue.frames >= 1000 and rogue.sent > 1000, \
+        (rogue.frames, rogue.sent)
     assert rogue.served == 0  # no query for robot/4/collab ever reached it
     assert result.clean, result.summary_text
     assert result.outcome.reason == "duration"  # its Control(stop) never arrived
@@ -203,6 +215,22 @@ def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
     # the real fleet was never denied anything
     for name in ("sim", "coordinator", "robot1", "robot2", "robot4", "robot5"):
         assert f"ACL denied: {name} " not in log, log
+
+
+def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
+    """The positive control of the test above: on a plain fleet the rogue's commands (no stop
+    this time) reach the sim and robot 4's path changes, so an identical trajectory is proof."""
+    rogue = Rogue(None, send_stop=False)
+    try:
+        result = fleet_run(tmp_path / "run", None, rogue.on_endpoint)
+    finally:
+        rogue.stop.set()
+        rogue.join(30)
+    assert rogue.error is None, repr(rogue.error)
+    assert result.outcome.reason == "duration"
+    attacked, reference = robot_path(tmp_path / "run", 4), robot_path(plain.run_dir, 4)
+    assert attacked.shape == reference.shape
+    assert abs(attacked - reference).max() > 0.1  # [m] robot 4 was driven off its path
 
 
 # --------------------------------------------------------------------------- fuzzing
