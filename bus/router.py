@@ -1,6 +1,13 @@
 """The fleet's zenoh router process (architecture.md §1; stack-notes.md §0: one router, every
 other process a client): a session in ``router`` mode that declares ``alive/router/0`` and waits
-for SIGINT/SIGTERM; the session is closed in ``finally``."""
+for SIGINT/SIGTERM; the session is closed in ``finally``.
+
+A secured router (``--secure DIR``: ``access_control`` in its transport's entries,
+:mod:`bus.security`) logs every distinct ACL denial on stderr (:mod:`bus.acl_log`).
+
+The router has no default endpoint: ``--listen`` is required (``tlfleet run`` gives it
+``tcp/127.0.0.1:<free port>``, or ``tls/…`` when secured); zenoh's own default for a router
+without endpoints would be every interface (``tcp/[::]:7447``), which tlfleet never uses."""
 
 from __future__ import annotations
 
@@ -40,7 +47,20 @@ def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
     if stop is None:
         stop = threading.Event()
         install_signal_handlers(stop)
-    transport = open_transport(config.transport)
+    denials = None
+    if "access_control" in config.transport.extra:
+        from bus.acl_log import LOG_SPEC, DenialLog
+        from bus.zenoh_transport import init_log
+
+        denials = DenialLog()
+        denials.start()
+        init_log(LOG_SPEC)
+    try:
+        transport = open_transport(config.transport)
+    except BaseException:
+        if denials is not None:
+            denials.close()
+        raise
     try:
         transport.declare_alive(keys.alive(config.fleet, "router", 0))
         logger.info("router listening on %s", ", ".join(config.transport.listen))
@@ -49,3 +69,5 @@ def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
         return 0
     finally:
         transport.close()
+        if denials is not None:
+            denials.close()

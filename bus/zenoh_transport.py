@@ -26,6 +26,14 @@ from bus.transport import (
 logger = logging.getLogger(__name__)
 
 
+def init_log(spec: str) -> None:
+    """Install zenoh's own log subscriber (Rust ``tracing``, written to standard output) with the
+    filter ``spec`` (``RUST_LOG`` syntax) unless ``RUST_LOG`` is set; once per process."""
+    import zenoh
+
+    zenoh.init_log_from_env_or(spec)
+
+
 class ZenohTransport:
     """:class:`Transport` over an open zenoh session (stack-notes.md §1)."""
 

@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("cli.commands.sim", "run the pymunk simulator process of a scenario"),
     "agent": ("cli.commands.agent", "run the agent process of one robot"),
     "run": ("cli.commands.run", "launch, supervise and record a whole fleet"),
+    "keys": ("cli.commands.keys", "write a fleet CA, per-process certificates and the router's "
+                                  "ACL policy"),
     "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
     "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }

@@ -1,9 +1,15 @@
 """The transport flags every process shares (style.md §6): ``--mode``, ``--connect``, ``--listen``,
-``--lease-ms``, ``--multicast-scouting``, turned into a :class:`bus.TransportConfig`."""
+``--lease-ms``, ``--multicast-scouting``, ``--secure``, turned into a :class:`bus.TransportConfig`.
+
+``--secure DIR`` (a key directory of ``tlfleet keys``) puts every endpoint on ``tls/`` with mutual
+authentication as the process's identity, and gives a router the directory's access-control
+policy (:func:`bus.security.secure_transport`).
+"""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from bus.transport import TransportConfig
 
@@ -20,8 +26,22 @@ def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str =
                        help="link lease in ms (zenoh default 10000)")
     group.add_argument("--multicast-scouting", action="store_true",
                        help="join zenoh multicast scouting (off by default)")
+    group.add_argument("--secure", type=Path, default=None, metavar="DIR",
+                       help="mutual TLS with the keys of DIR (`tlfleet keys`): endpoints become "
+                            "tls/…; a router also enforces DIR/acl.json")
 
 
-def transport_config(args: argparse.Namespace) -> TransportConfig:
-    return TransportConfig(mode=args.mode, connect=tuple(args.connect), listen=tuple(args.listen),
-                           lease_ms=args.lease_ms, multicast_scouting=args.multicast_scouting)
+def transport_config(args: argparse.Namespace, identity: str | None = None) -> TransportConfig:
+    """The flags' :class:`TransportConfig`; with ``--secure``, secured as ``identity`` (the
+    process's certificate name: ``router``, ``sim``, ``robot3``…)."""
+    config = TransportConfig(mode=args.mode, connect=tuple(args.connect),
+                             listen=tuple(args.listen), lease_ms=args.lease_ms,
+                             multicast_scouting=args.multicast_scouting)
+    secure = getattr(args, "secure", None)
+    if secure is None:
+        return config
+    from bus.security import secure_transport
+
+    if identity is None:
+        raise SystemExit("--secure: this command has no process identity")
+    return secure_transport(config, secure, identity)

@@ -3,7 +3,10 @@
 :func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks:
 
 1. load the scenario (``ScenarioError`` before any process starts);
-2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port;
+2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port; with
+   ``secure`` (a key directory of ``tlfleet keys``) the keys are checked first, every link is
+   ``tls/`` with mutual authentication, every child gets ``--secure`` and ``run.json`` records
+   ``secure`` and the certificates' fingerprints (:mod:`bus.security`);
 3. start the router, wait until it listens, open the coordinator's own client session, declare
    ``alive/coordinator/0`` and subscribe the recorder;
 4. start the simulator, then one agent per robot (each its own process group,
@@ -40,6 +43,7 @@ from typing import Any
 
 from agent.protocol import keys
 from agent.scenario import Scenario, load_scenario
+from bus.security import fingerprints, secure_transport
 from bus.transport import TransportConfig, open_transport
 from bus.zenoh_transport import ZenohTransport
 from coordinator import rundir
@@ -85,6 +89,7 @@ class RunConfig:
     viewer: bool = False  # serve the run live to a web viewer
     grpc_port: int = 0  # viewer ports on 127.0.0.1 (0: free ones)
     web_port: int = 0
+    secure: Path | None = None  # key directory (`tlfleet keys`): mutual TLS + the router's ACL
 
 
 @dataclass
@@ -105,8 +110,10 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
                        endpoint: str) -> list[str]:
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
     path = str(Path(config.scenario_path).resolve())
+    secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
     if role == "router":
-        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint)
+        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
+                               *secure)
     if role == "sim":
         argv = ["sim", path, f"--{config.mode}", "--duration",
                 repr(float(config.duration or scenario.duration))]
@@ -114,16 +121,20 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
             argv += ["--seed", str(config.seed)]
         if config.tick_timeout is not None:
             argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint)
+        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *secure)
     return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint)
+                           "--connect", endpoint, *secure)
 
 
-def _open_client(endpoint: str, router: Child, timeout: float) -> ZenohTransport:
+def _open_client(endpoint: str, router: Child, timeout: float,
+                 secure: Path | None = None) -> ZenohTransport:
     deadline = time.monotonic() + timeout
+    client = TransportConfig(mode="client", connect=(endpoint,))
+    if secure is not None:
+        client = secure_transport(client, secure, "coordinator")
     while True:
         try:
-            return open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+            return open_transport(client)
         except Exception as exc:  # zenoh raises ZError, not a stable type
             if router.returncode is not None or time.monotonic() > deadline:
                 raise LaunchError(f"cannot open a client session to the router at {endpoint}: "
@@ -207,18 +218,27 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
     """Run the fleet of ``config`` to the end; see the module docstring."""
     scenario = load_scenario(config.scenario_path)
+    if config.secure is not None:  # checked before the run directory exists
+        from coordinator.acl import identities
+        from coordinator.keys import check_keys  # cryptography: imported for secured runs only
+
+        check_keys(scenario, config.secure)
     say = report or (lambda text: logger.warning("%s", text))
     duration = float(config.duration or scenario.duration)
     run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
     recorder = Recorder(run_dir, [r.id for r in scenario.robots])
     recorder.copy_scenario(Path(config.scenario_path))
-    endpoint = f"tcp/{HOST}:{free_port(HOST)}"
+    endpoint = f"{'tls' if config.secure else 'tcp'}/{HOST}:{free_port(HOST)}"
     info: dict[str, Any] = {
         "scenario": scenario.name, "scenario_path": str(config.scenario_path),
         "mode": config.mode, "duration": duration,
         "seed": scenario.sim.seed if config.seed is None else config.seed,
         "endpoint": endpoint, "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "secure": config.secure is not None,
     }
+    if config.secure is not None:
+        info["keys"] = str(Path(config.secure).resolve())
+        info["fingerprints"] = fingerprints(config.secure, identities(scenario))
     recorder.write_run_info(info)
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(run_dir / "logs")
@@ -232,7 +252,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
-        transport = _open_client(endpoint, router, config.router_timeout)
+        transport = _open_client(endpoint, router, config.router_timeout, config.secure)
         transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
         tap = RecorderTap(transport, scenario.fleet, recorder,
                           on_message=None if viewer is None else viewer.on_message)

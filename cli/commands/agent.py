@@ -33,7 +33,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
     try:
         return AgentConfig(robot=args.robot, scenario=Path(args.scenario),
                            stale_after=args.stale_after, collab_timeout=args.collab_timeout,
-                           transport=transport_config(args))
+                           transport=transport_config(args, f"robot{args.robot}"))
     except AgentConfigError as exc:
         raise SystemExit(f"tlfleet agent: {exc}") from None
 

@@ -23,7 +23,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     from bus.router import main
 
     try:
-        config = RouterConfig(fleet=args.fleet, transport=transport_config(args))
+        config = RouterConfig(fleet=args.fleet, transport=transport_config(args, "router"))
     except RouterConfigError as exc:
         raise SystemExit(f"tlfleet router: {exc}") from None
     return main(config, stop)

@@ -1,5 +1,5 @@
 """``tlfleet run SCENARIO [--lockstep|--realtime] [--out DIR] [--duration S] [--seed N] [--viewer]``
-(and ``--quiet``, ``--no-report``, ``--no-figures``, ``--no-rrd``).
+(and ``--quiet``, ``--no-report``, ``--no-figures``, ``--no-rrd``, ``--secure DIR``).
 
 Validates the scenario (an invalid file exits 1 before any process starts), launches router → sim
 → agents, supervises and records the run (:mod:`coordinator.runner`), shows a progress bar in sim
@@ -59,6 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
     parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
                         help="--viewer: web viewer port (default: a free one)")
+    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
+                        help="mutual TLS with the keys of DIR (`tlfleet keys SCENARIO --out DIR`) "
+                             "and the router's access control; without it the links are plain "
+                             "TCP on 127.0.0.1")
     parser.add_argument("--no-report", dest="report", action="store_false",
                         help="do not write report.md/json and figures at the end")
     parser.add_argument("--no-figures", dest="figures", action="store_false",
@@ -135,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
-        grpc_port=args.grpc_port, web_port=args.web_port)
+        grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:
@@ -144,6 +148,9 @@ def run(args: argparse.Namespace) -> int:
             bar.drawn = False
         print(f"tlfleet run: {text}", file=sys.stderr, flush=True)
 
+    if args.secure is None:
+        report("links are plain TCP on 127.0.0.1, unauthenticated (use --secure DIR from "
+               "`tlfleet keys` for mutual TLS and access control)")
     with stop_on_signals() as stop:
         try:
             result = run_fleet(config, stop=stop, progress=bar, report=report)

@@ -39,7 +39,8 @@ def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
     return SimProcessConfig(scenario=Path(args.scenario),
                             mode="realtime" if args.realtime else "lockstep",
                             duration=args.duration, seed=args.seed,
-                            tick_timeout=args.tick_timeout, transport=transport_config(args))
+                            tick_timeout=args.tick_timeout,
+                            transport=transport_config(args, "sim"))
 
 
 def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig

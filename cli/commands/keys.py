@@ -1,0 +1,36 @@
+"""``tlfleet keys SCENARIO --out DIR [--force] [--host NAME] [--days N]``: a fleet CA, one key pair
+and certificate per process and the router's access-control policy (``coordinator.keys``)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "keys"
+HELP = "write a fleet CA, per-process certificates and the router's ACL policy"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
+                        help="key directory (created; private keys are mode 0600)")
+    parser.add_argument("--force", action="store_true", help="overwrite existing key files")
+    parser.add_argument("--host", action="append", default=[], metavar="NAME",
+                        help="another DNS name or IP address clients use to reach the router "
+                             "(repeatable; localhost, 127.0.0.1 and ::1 are always in)")
+    parser.add_argument("--days", type=int, default=365,
+                        help="validity of the process certificates in days (default 365)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from agent.scenario import load_scenario
+    from coordinator.keys import write_keys
+
+    keyset = write_keys(load_scenario(args.scenario), args.out, force=args.force,
+                        hosts=tuple(args.host), days=args.days)
+    print(f"fleet CA: {keyset.path / 'ca.pem'}  {keyset.fingerprints['ca']}")
+    for name in keyset.identities:
+        print(f"{name:>12}: {keyset.path / (name + '.pem')}  {keyset.fingerprints[name]}")
+    print(f"router policy: {keyset.path / 'acl.json'}")
+    print(f"use: tlfleet run SCENARIO --secure {keyset.path}")
+    return 0

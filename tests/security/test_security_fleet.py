@@ -1,0 +1,450 @@
+"""Secured Scenario 1 fleets (``run_fleet(secure=…)``: real router, sim and agent processes on
+loopback, mutual TLS, the generated ACL) with a hostile client holding robot 3's certificate.
+
+* rogue: while the fleet runs it commands robot 4, sends ``Control(stop)``, serves
+  ``robot/4/collab`` and declares robot 4's liveliness token; the run must end by its duration
+  with a trajectory byte-identical to a plain run of the same seed (lockstep), and the router's
+  log must name the denials;
+* fuzzer: ≥ 10 000 malformed payloads on every key robot 3 may write (its ``cmd`` and ``status``,
+  ``event``, and queries to the ``collab`` of robot 4, which it is coupled with); every process
+  must end cleanly and every payload be counted as malformed by its receiver. Each payload is
+  checked malformed by the codec before it is sent (a payload the codec accepted would be a real
+  message, not a malformed one).
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import threading
+import time
+from pathlib import Path
+
+import msgpack
+import pytest
+import zenoh
+from security_helpers import SCENARIO1, make_keys, robot_path, wait_until
+
+from agent.protocol import keys
+from agent.protocol.codec import ProtocolError, decode, encode
+from agent.protocol.messages import (
+    CollabMessage,
+    CollabReply,
+    Command,
+    Control,
+    Event,
+    LtlStatus,
+    MocapFrame,
+    StlStatus,
+)
+from bus.security import secure_transport
+from bus.transport import TransportConfig
+from bus.zenoh_transport import ZenohTransport
+from coordinator.runner import RunConfig, RunResult, default_child_argv, run_fleet
+from coordinator.supervisor import SupervisorConfig
+
+pytestmark = [pytest.mark.system, pytest.mark.slow]
+F = "scenario1"
+DURATION = 30.0  # [s] sim time: robot 4's G[5,30] formation sub-task and its collaboration
+FUZZ_PER_KEY = 10_000
+IN_FLIGHT = 64  # collab queries in flight at once
+
+
+def fleet_run(out: Path, secure: Path | None = None, on_endpoint=None) -> RunResult:
+    """Scenario 1, lockstep, seed 1; ``on_endpoint(endpoint)`` runs when the router starts."""
+
+    def child_argv(role, config, scenario, robot, endpoint):
+        if role == "router" and on_endpoint is not None:
+            on_endpoint(endpoint)
+        return default_child_argv(role, config, scenario, robot, endpoint)
+
+    return run_fleet(RunConfig(SCENARIO1, mode="lockstep", out=out, duration=DURATION, seed=1,
+                               secure=secure, child_argv=child_argv, report=False,
+                               figures=False, rrd=False,
+                               supervisor=SupervisorConfig(ready_timeout=60.0,
+                                                           wall_timeout=300.0)))
+
+
+@pytest.fixture(scope="module")
+def fleet_keys(tmp_path_factory):
+    return make_keys(SCENARIO1, tmp_path_factory.mktemp("keys"))
+
+
+@pytest.fixture(scope="module")
+def plain(tmp_path_factory) -> RunResult:
+    result = fleet_run(tmp_path_factory.mktemp("plain") / "run")
+    assert result.clean, result.summary_text
+    assert result.info["secure"] is False
+    return result
+
+
+def events(run_dir: Path) -> list[dict]:
+    return [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()
+            if line.strip()]
+
+
+class Hostile(threading.Thread):
+    """A client session holding robot 3's certificate, opened as soon as the router listens."""
+
+    def __init__(self, keydir: Path | None):
+        super().__init__(daemon=True, name="hostile")
+        self.keydir = keydir
+        self.endpoint: str | None = None
+        self.stop = threading.Event()
+        self.ready = threading.Event()
+        self.session = None
+        self.error: BaseException | None = None
+
+    def on_endpoint(self, endpoint: str) -> None:
+        self.endpoint = endpoint
+        self.start()
+
+    def open(self):
+        config = TransportConfig(mode="client", connect=(self.endpoint,))
+        if self.keydir is not None:  # None: a plain fleet, no certificate to hold
+            config = secure_transport(config, self.keydir, "robot3")
+        deadline = time.monotonic() + 30.0
+        while True:
+            try:
+                return zenoh.open(ZenohTransport.zenoh_config(config))
+            except zenoh.ZError:
+                if time.monotonic() > deadline or self.stop.is_set():
+                    raise
+                time.sleep(0.1)
+
+    def run(self) -> None:
+        try:
+            self.session = self.open()
+            self.attack(self.session)
+        except BaseException as exc:  # reported by the test
+            self.error = exc
+        finally:
+            if self.session is not None:
+                self.session.close()
+
+    def wait_for_fleet(self, session, timeout: float = 60.0) -> None:
+        """Until the sim and robot 4 declared their tokens (their subscriptions exist); from
+        then on ``self.gone`` collects the tokens that disappear."""
+        seen: set[str] = set()
+        self.gone: set[str] = set()
+
+        def on_token(sample) -> None:
+            key = str(sample.key_expr)
+            if sample.kind == zenoh.SampleKind.PUT:
+                seen.add(key)
+            else:
+                self.gone.add(key)
+
+        session.liveliness().declare_subscriber(keys.all_alive(F), on_token, history=True)
+        needed = {keys.alive(F, "sim", 0), keys.alive(F, "agent", 4)}
+        if not wait_until(lambda: needed <= seen or self.stop.is_set(), timeout):
+            raise TimeoutError(f"fleet not up: saw {sorted(seen)}")
+        self.ready.set()
+
+    def attack(self, session) -> None:
+        raise NotImplementedError
+
+
+class Rogue(Hostile):
+    """Answers every frame that robot 4 owes with its own command for robot 4, at once (ahead of
+    robot 4's, which computes first), sends ``Control(stop)``, serves robot 4's collab and claims
+    robot 4's token. Without the ACL its commands would win the race at the sim."""
+
+    def __init__(self, keydir: Path | None, send_stop: bool = True):
+        super().__init__(keydir)
+        self.send_stop = send_stop
+        self.sent = 0
+        self.frames = 0
+        self.served = 0
+
+    def attack(self, session) -> None:
+        self.wait_for_fleet(session)
+        collab4 = keys.collab(F, 4)
+
+        def answer(query) -> None:
+            self.served += 1
+            query.reply(collab4, encode(CollabReply(True)))
+
+        session.declare_queryable(collab4, answer)
+        session.liveliness().declare_token(keys.alive(F, "agent", 4))
+        cmd4 = session.declare_publisher(keys.cmd(F, 4))
+        control = session.declare_publisher(keys.control(F))
+
+        def on_frame(sample) -> None:
+            frame = decode(MocapFrame, sample.payload.to_bytes())
+            self.frames += 1
+            if 4 in frame.due:
+                cmd4.put(encode(Command(4, frame.t, frame.seq, (0.3, -0.3, 0.0))))
+                self.sent += 1
+            if self.send_stop and self.frames % 100 == 0:
+                control.put(encode(Control("stop")))
+                self.sent += 1
+
+        session.declare_subscriber(keys.mocap(F), on_frame)  # robot 3 may read mocap
+        self.stop.wait(300.0)
+
+
+def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
+        plain, fleet_keys, tmp_path):
+    rogue = Rogue(fleet_keys.path)
+    try:
+        result = fleet_run(tmp_path / "run", fleet_keys.path, rogue.on_endpoint)
+    finally:
+        rogue.stop.set()
+        rogue.join(30)
+    assert rogue.error is None, repr(rogue.error)
+    # it attacked the whole mission: a command for robot 4 on every frame robot 4 owed
+    assert rogue.ready.is_set() and rogue.frames >= 1000 and rogue.sent > 1000, \
+        (rogue.frames, rogue.sent)
+    assert rogue.served == 0  # no query for robot/4/collab ever reached it
+    assert result.clean, result.summary_text
+    assert result.outcome.reason == "duration"  # its Control(stop) never arrived
+    secured = (tmp_path / "run" / "trajectory.csv").read_bytes()
+    assert secured == (plain.run_dir / "trajectory.csv").read_bytes()  # robot 4 untouched
+    info = result.info
+    assert info["secure"] is True and info["endpoint"].startswith("tls/127.0.0.1:")
+    manifest = json.loads((fleet_keys.path / "fleet.json").read_text())
+    assert info["fingerprints"] == {k: manifest["fingerprints"][k]
+                                    for k in ("ca", *manifest["identities"])}
+    log = (tmp_path / "run" / "logs" / "router.log").read_text()
+    for denial in (f"robot3 Put (ingress) on {keys.cmd(F, 4)}",
+                   f"robot3 Put (ingress) on {keys.control(F)}",
+                   f"robot3 Declare Queryable (ingress) on {keys.collab(F, 4)}",
+                   f"robot3 Liveliness Token (ingress) on {keys.alive(F, 'agent', 4)}"):
+        assert f"ACL denied: {denial}" in log, log
+    # the real fleet was never denied anything
+    for name in ("sim", "coordinator", "robot1", "robot2", "robot4", "robot5"):
+        assert f"ACL denied: {name} " not in log, log
+
+
+def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
+    """The positive control of the test above: on a plain fleet the rogue's commands (no stop
+    this time) reach the sim and robot 4's path changes, so an identical trajectory is proof."""
+    rogue = Rogue(None, send_stop=False)
+    try:
+        result = fleet_run(tmp_path / "run", None, rogue.on_endpoint)
+    finally:
+        rogue.stop.set()
+        rogue.join(30)
+    assert rogue.error is None, repr(rogue.error)
+    assert result.outcome.reason == "duration"
+    attacked, reference = robot_path(tmp_path / "run", 4), robot_path(plain.run_dir, 4)
+    assert attacked.shape == reference.shape
+    assert abs(attacked - reference).max() > 0.1  # [m] robot 4 was driven off its path
+
+
+# --------------------------------------------------------------------------- fuzzing
+
+def _rubbish(rng: random.Random, depth: int = 0):
+    choice = rng.randrange(9 if depth < 3 else 6)
+    if choice == 0:
+        return rng.randrange(-2**63, 2**64)
+    if choice == 1:
+        return rng.choice([float("nan"), float("inf"), -float("inf"), -0.0, 1e308, 5e-324])
+    if choice == 2:
+        return "".join(chr(rng.randrange(32, 0x2FFF)) for _ in range(rng.randrange(12)))
+    if choice == 3:
+        return bytes(rng.randrange(256) for _ in range(rng.randrange(12)))
+    if choice == 4:
+        return rng.choice([None, True, False])
+    if choice == 5:
+        return rng.choice(["v", "k", "robot", "t", "u", "seq", "Command", "StlStatus"])
+    if choice == 6:
+        return [_rubbish(rng, depth + 1) for _ in range(rng.randrange(5))]
+    if choice == 7:
+        return {str(_rubbish(rng, depth + 1)): _rubbish(rng, depth + 1)
+                for _ in range(rng.randrange(4))}
+    return tuple(_rubbish(rng, depth + 1) for _ in range(rng.randrange(3)))
+
+
+def _candidate(rng: random.Random, valid: bytes) -> bytes:
+    """One payload of a random family (most of them are malformed; the caller checks)."""
+    family = rng.randrange(8)
+    if family == 0:  # random bytes
+        return bytes(rng.randrange(256) for _ in range(rng.randrange(48)))
+    if family == 1:  # a valid message cut short
+        return valid[:rng.randrange(len(valid))]
+    if family == 2:  # msgpack of anything
+        return msgpack.packb(_rubbish(rng), use_bin_type=True)
+    body = msgpack.unpackb(valid, raw=False)
+    if family == 3:  # one field of the right message replaced by rubbish
+        field = rng.choice([k for k in body if k not in ("v", "k")])
+        body[field] = _rubbish(rng)
+    elif family == 4:  # a field missing
+        del body[rng.choice([k for k in body if k not in ("v", "k")])]
+    elif family == 5:  # another schema version or kind
+        body[rng.choice(["v", "k"])] = _rubbish(rng)
+    elif family == 6:  # nested deeply
+        value: object = 0
+        for _ in range(rng.randrange(50, 400)):
+            value = [value]
+        body[rng.choice([k for k in body if k not in ("v", "k")])] = value
+    else:  # a wrapper around a valid message
+        return msgpack.packb([body], use_bin_type=True)
+    return msgpack.packb(body, use_bin_type=True)
+
+
+def malformed_payloads(seed: int, valid: bytes, types: tuple[type, ...], n: int
+                       ) -> tuple[list[bytes], list[str]]:
+    """``n`` payloads that no type in ``types`` decodes (each is rejected with ``ProtocolError``
+    or makes ``decode`` raise something else), and those other exceptions: payloads on which the
+    codec is not total (issue 11). They stay in the stream: a receiver must count them too."""
+    rng = random.Random(seed)
+    out: list[bytes] = []
+    crashes: list[str] = []
+    while len(out) < n:
+        payload = _candidate(rng, valid)
+        accepted = False
+        for cls in types:
+            try:
+                decode(cls, payload)
+                accepted = True
+            except ProtocolError:
+                pass
+            except Exception as exc:
+                crashes.append(f"{cls.__name__}: {type(exc).__name__}: {exc}"[:200])
+        if not accepted:
+            out.append(payload)
+    return out, crashes
+
+
+STATUS = encode(StlStatus(robot=3, t=1.0, subtask=0, rho=0.5, rho_max=1.0, lower=0.1, r=0.1,
+                          stage=1, ce=1, c=-1, follow=-1))
+
+
+def valid_examples() -> dict[str, tuple[bytes, tuple[type, ...]]]:
+    return {
+        keys.cmd(F, 3): (encode(Command(3, 1.0, 100, (0.1, 0.0, 0.0))), (Command,)),
+        keys.status(F, 3): (STATUS, (StlStatus, LtlStatus)),
+        keys.event(F): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})), (Event,)),
+        keys.collab(F, 4): (encode(CollabMessage("release", 3, 4, 1.0, 0)), (CollabMessage,)),
+    }
+
+
+class Fuzzer(Hostile):
+    """Sends the malformed payloads with congestion control BLOCK (zenoh's default, DROP, lets
+    the router drop them when a receiver's queue is full: they could not be counted), queries at
+    most ``IN_FLIGHT`` at once; counts the replies robot 4 gives."""
+
+    def __init__(self, keydir: Path, payloads: dict[str, list[bytes]]):
+        super().__init__(keydir)
+        self.payloads = payloads
+        self.sent: dict[str, int] = dict.fromkeys(payloads, 0)
+        self.rejected_replies = 0
+        self.finished = threading.Event()
+        self.gone_before_finish: set[str] = set()
+        self.seconds: dict[str, float] = {}
+
+    def attack(self, session) -> None:
+        self.wait_for_fleet(session)
+        lock = threading.Lock()
+        in_flight = threading.Semaphore(IN_FLIGHT)
+        started = time.monotonic()
+        for key, payloads in self.payloads.items():
+            if key.endswith("/collab"):
+                continue
+            pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+            for payload in payloads:
+                pub.put(payload)
+                self.sent[key] += 1
+        self.seconds["puts"] = time.monotonic() - started
+        collab = keys.collab(F, 4)
+
+        def on_reply(reply) -> None:
+            if reply.ok is not None:
+                try:
+                    accepted = decode(CollabReply, reply.ok.payload.to_bytes()).accepted
+                except ProtocolError:
+                    return
+                if not accepted:
+                    with lock:
+                        self.rejected_replies += 1
+
+        for payload in self.payloads.get(collab, ()):
+            if not in_flight.acquire(timeout=10.0):
+                raise TimeoutError("collab queries do not finish")
+            session.get(collab, zenoh.handlers.Callback(on_reply, in_flight.release),
+                        payload=payload, timeout=5.0,
+                        congestion_control=zenoh.CongestionControl.BLOCK)
+            self.sent[collab] += 1
+        for _ in range(IN_FLIGHT):  # every query finished
+            in_flight.acquire(timeout=10.0)
+        self.seconds["all"] = time.monotonic() - started
+        self.gone_before_finish = set(self.gone)  # receivers that stopped before the end
+        self.finished.set()
+        self.stop.wait(240.0)
+
+
+@pytest.fixture(scope="module")
+def fuzzed(fleet_keys, tmp_path_factory):
+    payloads, crashes = {}, {}
+    for index, (key, (valid, types)) in enumerate(valid_examples().items()):
+        payloads[key], crashes[key] = malformed_payloads(index, valid, types, FUZZ_PER_KEY)
+    fuzzer = Fuzzer(fleet_keys.path, payloads)
+    out = tmp_path_factory.mktemp("fuzzed") / "run"
+    try:
+        result = fleet_run(out, fleet_keys.path, fuzzer.on_endpoint)
+    finally:
+        fuzzer.stop.set()
+        fuzzer.join(60)
+    return result, fuzzer, crashes
+
+
+def test_fuzzer_sent_every_payload_on_every_key_robot3_may_write(fuzzed):
+    _result, fuzzer, crashes = fuzzed
+    assert fuzzer.error is None, repr(fuzzer.error)
+    assert fuzzer.finished.is_set(), "the fuzzer did not finish"
+    assert fuzzer.gone_before_finish == set(), (fuzzer.gone_before_finish, fuzzer.seconds)
+    assert fuzzer.sent == {key: FUZZ_PER_KEY for key in valid_examples()}
+    # the codec raises something other than ProtocolError only on robot 4's CollabMessage
+    # (see the xfail below); every other key's payloads are rejected as ProtocolError
+    assert {key for key, found in crashes.items() if found} <= {keys.collab(F, 4)}
+
+
+def test_fuzzing_crashes_no_process(fuzzed):
+    result, _fuzzer, _crashes = fuzzed
+    assert result.clean, result.summary_text  # every process ended by the duration, code 0
+    assert not [e for e in events(result.run_dir) if e["kind"] == "fault"]
+
+
+def test_the_sim_counts_every_malformed_command(fuzzed):
+    result, _fuzzer, _crashes = fuzzed
+    counts = [e["data"]["count"] for e in events(result.run_dir)
+              if e["kind"] == "malformed_message" and e["source"] == "sim"
+              and e["data"]["key"] == keys.cmd(F, 3)]
+    assert counts and max(counts) == FUZZ_PER_KEY
+
+
+def test_the_coordinator_counts_every_malformed_status_and_event(fuzzed):
+    result, _fuzzer, _crashes = fuzzed
+    assert result.info["malformed_received"] == {"status": FUZZ_PER_KEY, "event": FUZZ_PER_KEY}
+
+
+@pytest.mark.xfail(strict=True, reason="codec not total (issue 11): for some payloads "
+                   "decode(CollabMessage) raises TypeError (a list in the Literal field 'kind': "
+                   "unhashable) instead of ProtocolError, so robot 4's collab handler neither "
+                   "counts nor answers them (the transport's guard logs the exception; robot 4 "
+                   "keeps running)")
+def test_robot4_counts_and_rejects_every_malformed_collab_query(fuzzed):
+    result, fuzzer, crashes = fuzzed
+    assert crashes[keys.collab(F, 4)] == []
+    stats4 = [e["data"] for e in events(result.run_dir)
+              if e["kind"] == "agent_stats" and e["source"] == "agent/4"]
+    assert stats4 and stats4[0]["malformed"] == FUZZ_PER_KEY
+    assert fuzzer.rejected_replies == FUZZ_PER_KEY
+
+
+def test_robot4_counts_the_collab_queries_the_codec_rejects(fuzzed):
+    """What holds today: every payload the codec rejects with ProtocolError is counted."""
+    result, fuzzer, crashes = fuzzed
+    expected = FUZZ_PER_KEY - len(crashes[keys.collab(F, 4)])
+    stats4 = [e["data"] for e in events(result.run_dir)
+              if e["kind"] == "agent_stats" and e["source"] == "agent/4"]
+    assert stats4 and stats4[0]["malformed"] == expected
+    assert fuzzer.rejected_replies == expected
+
+
+def test_the_malformed_flood_changes_nothing_of_the_mission(fuzzed, plain):
+    result, _fuzzer, _crashes = fuzzed
+    assert (result.run_dir / "trajectory.csv").read_bytes() == \
+        (plain.run_dir / "trajectory.csv").read_bytes()
