@@ -24,7 +24,12 @@ runs (gRPC + web viewer on 127.0.0.1, URL reported), fed by the recorder tap on 
 at a decimated rate; it is returned in :attr:`RunResult.viewer` still serving (the caller closes
 it). rerun (0.9 s to import) is imported only for 8 and the live view; matplotlib only for 7.
 
-Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind.
+Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Issue 11: step 6
+is exception-safe and bounded in time (:mod:`coordinator.cleanup`); the recorder tap drops
+implausible frames and flags events whose claimed identity does not hold
+(:mod:`coordinator.trust`); silent (frozen/partitioned) agents are noticed
+(:mod:`coordinator.health`); the run's verdict — clean, degraded, failed or interrupted, with its
+exit code (:mod:`coordinator.outcome`) — goes into ``run.json`` and ``summary.txt``.
 """
 
 from __future__ import annotations
@@ -39,9 +44,13 @@ from pathlib import Path
 from typing import Any
 
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
+from agent.protocol.plausibility import max_jump_ticks
 from agent.scenario import Scenario, load_scenario
 from bus.transport import TransportConfig, open_transport
 from bus.zenoh_transport import ZenohTransport
+from coordinator.cleanup import Cleanup
+from coordinator.health import Health
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -50,7 +59,8 @@ from coordinator.launcher import (
     tlfleet_command,
     wait_for_port,
 )
-from coordinator.recorder import Recorder, RecorderTap, default_run_dir
+from coordinator.outcome import Verdict, classify, mission_event_kinds
+from coordinator.recorder import Recorder, RecorderTap, default_run_dir, read_events
 from coordinator.summary import write_summary
 from coordinator.supervisor import Outcome, Supervisor, SupervisorConfig
 
@@ -83,6 +93,9 @@ class RunConfig:
     viewer: bool = False  # serve the run live to a web viewer
     grpc_port: int = 0  # viewer ports on 127.0.0.1 (0: free ones)
     web_port: int = 0
+    lease_ms: int | None = None  # [ms] zenoh link lease of every session (None: zenoh's 10 s)
+    silence: float = 2.0  # [s] wall: an agent without status this long is silent (health)
+    close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
 
 
 @dataclass
@@ -97,14 +110,16 @@ class RunResult:
     report: Any = None  # coordinator.report.Report, when written
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
+    verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
                        endpoint: str) -> list[str]:
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
     path = str(Path(config.scenario_path).resolve())
+    lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
     if role == "router":
-        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint)
+        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint, *lease)
     if role == "sim":
         argv = ["sim", path, f"--{config.mode}", "--duration",
                 repr(float(config.duration or scenario.duration))]
@@ -112,16 +127,18 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
             argv += ["--seed", str(config.seed)]
         if config.tick_timeout is not None:
             argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint)
+        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *lease)
     return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint)
+                           "--connect", endpoint, *lease)
 
 
-def _open_client(endpoint: str, router: Child, timeout: float) -> ZenohTransport:
+def _open_client(endpoint: str, router: Child, timeout: float,
+                 lease_ms: int | None = None) -> ZenohTransport:
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+            return open_transport(TransportConfig(mode="client", connect=(endpoint,),
+                                                  lease_ms=lease_ms))
         except Exception as exc:  # zenoh raises ZError, not a stable type
             if router.returncode is not None or time.monotonic() > deadline:
                 raise LaunchError(f"cannot open a client session to the router at {endpoint}: "
@@ -173,6 +190,31 @@ def _write_rrd(run_dir: Path, every: int, say: Callable[[str], None]) -> dict[st
             "frames": result.frames}
 
 
+def _tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
+    """The recorder tap's plausibility checks for this run (issue 11)."""
+    a = scenario.arena
+    dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
+                                  scenario.sim.mocap_rate, scenario.speed_limits()),
+            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
+            "robot_ids": scenario.robot_ids}
+
+
+def _verdict(run_dir: Path, info: dict[str, Any], outcome: Outcome, data: dict[str, Any],
+             router_clean: bool, codes: dict[str, int | None],
+             findings: list[str]) -> Verdict:
+    try:
+        events = [{"t": e.t, "kind": e.kind} for e in read_events(run_dir / "events.jsonl")]
+    except Exception as exc:  # a torn or unreadable file must not hide the verdict
+        logger.warning("events.jsonl unreadable for the verdict: %s", exc)
+        events = []
+    return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
+                    exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
+                    deadlines=data.get("deadlines") or {},
+                    event_kinds=mission_event_kinds(events, outcome.t_end),
+                    findings=findings + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])])
+
+
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               progress: Callable[[float, float], None] | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
@@ -190,6 +232,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         "seed": scenario.sim.seed if config.seed is None else config.seed,
         "endpoint": endpoint, "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+    if config.lease_ms:
+        info["lease_ms"] = config.lease_ms
     recorder.write_run_info(info)
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(run_dir / "logs")
@@ -198,15 +242,28 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     supervisor: Supervisor | None = None
     outcome = Outcome("error", 0.0)
     codes: dict[str, int | None] = {}
+    final: dict[str, int | None] = {}
     wall_start = time.monotonic()
     viewer = _start_viewer(scenario, config, say) if config.viewer else None
+    health = Health(scenario.robot_ids, recorder.on_event, say, silence=config.silence)
+
+    def on_message(what: str, message: Any) -> None:
+        health.on_message(what, message)
+        if viewer is not None:
+            viewer.on_message(what, message)
+
+    def step(t: float, d: float) -> None:
+        health.poll()
+        if progress is not None:
+            progress(t, d)
+
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
-        transport = _open_client(endpoint, router, config.router_timeout)
+        transport = _open_client(endpoint, router, config.router_timeout, config.lease_ms)
         transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
-        tap = RecorderTap(transport, scenario.fleet, recorder,
-                          on_message=None if viewer is None else viewer.on_message)
+        tap = RecorderTap(transport, scenario.fleet, recorder, on_message=on_message,
+                          **_tap_checks(scenario, duration))
         supervisor = Supervisor(transport, scenario, tap, {"router": router}, duration=duration,
                                 config=config.supervisor, report=report)
         supervisor.children["sim"] = launcher.start(
@@ -217,41 +274,56 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
                 name, argv_of("agent", config, scenario, robot.id, endpoint))
         info["ready_time"] = supervisor.wait_ready(stop)
         supervisor.start()
+        health.start()
         wall_start = time.monotonic()
         try:
-            outcome = supervisor.supervise(stop, progress)
+            outcome = supervisor.supervise(stop, step)
         except KeyboardInterrupt:
             outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
         info["wall_time"] = time.monotonic() - wall_start
         codes = supervisor.finish()
     except BaseException:
         if viewer is not None:
-            viewer.close()
+            Cleanup().step("viewer", viewer.close)
         raise
     finally:
+        cleanup = Cleanup()
         if tap is not None:
-            tap.drain()
-            tap.close()
+            cleanup.step("drain the recorder tap", tap.drain)
+            cleanup.step("close the recorder tap", tap.close)
             info["malformed_received"] = dict(tap.malformed)
+            info["malformed_received_by_source"] = {
+                f"{what} from {source}": n for (what, source), n in tap.malformed_by_source.items()}
+            info["flagged_events"] = tap.flagged
         if supervisor is not None:
-            supervisor.close()
+            cleanup.step("close the supervisor", supervisor.close)
+            info["recovered"] = [d.process for d in supervisor.recovered]
         if transport is not None:
-            transport.close()
-        final = launcher.stop_all(config.kill_grace)
+            cleanup.step("close the session", transport.close, timeout=config.close_timeout)
+        final = cleanup.step("stop the children", lambda: launcher.stop_all(config.kill_grace)) \
+            or {c.name: c.returncode for c in launcher.children}
         info["pids"] = {child.name: child.pid for child in launcher.children}  # = their pgids
-        recorder.close()
+        cleanup.step("close the recorder", recorder.close)
         info.update(reason=outcome.reason, t_end=outcome.t_end, exit_codes=final,
                     exit_codes_after_stop=codes, frames=recorder.frames_written)
         info.setdefault("wall_time", time.monotonic() - wall_start)
         if info["wall_time"] > 0:
             info["speedup"] = outcome.t_end / info["wall_time"]
-        recorder.write_run_info(info)
+        if cleanup.errors:
+            info["cleanup_errors"] = cleanup.errors
+        cleanup.step("write run.json", lambda: recorder.write_run_info(info))
+    router_clean = _router_clean(final.get("router"))
     clean = (outcome.reason in ("sim_done", "duration") and not outcome.deaths
-             and all(code == 0 for code in codes.values())
-             and _router_clean(final.get("router")))
+             and all(code == 0 for code in codes.values()) and router_clean)
     info["clean"] = clean
     recorder.write_run_info(info)
     text, data = write_summary(run_dir)
+    verdict = _verdict(run_dir, info, outcome, data, router_clean, codes, health.findings())
+    info["outcome"] = verdict.to_json()
+    recorder.write_run_info(info)
+    text = f"{text}\n{verdict.line}"
+    with open(run_dir / "summary.txt", "a", encoding="utf-8") as summary_file:
+        summary_file.write(verdict.line + "\n")
     report_result = None
     if config.report:
         report_result, error = _write_report(run_dir, config.figures, say)
@@ -265,4 +337,4 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         recorder.write_run_info(info)
     return RunResult(run_dir, outcome, final, clean, text, data, info, report_result, rrd_path,
-                     viewer)
+                     viewer, verdict)

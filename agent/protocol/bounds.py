@@ -274,8 +274,8 @@ class FleetBounds:
             if why:
                 return why
         limit = self.limits.get(command.robot)
-        if limit is None:
-            return None if not self.limits else f"unknown robot {command.robot}"
+        if limit is None:  # an unknown robot: the simulator counts it as such
+            return None
         lin, ang = limit
         caps = (lin, lin, ang) if len(command.u) == 3 else (lin, ang)
         for value, cap in zip(command.u, caps, strict=False):
