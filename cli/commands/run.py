@@ -114,8 +114,8 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
 
 
 def print_outputs(result: RunResult) -> None:
-    """The report table (the summary if no report was written), the files a person opens next, and
-    the run directory last."""
+    """The report table (the summary if no report was written), the files a person opens next, the
+    verdict (``outcome: …``) and the run directory last."""
     if result.report is not None:
         print(result.report.table)
         print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
@@ -126,6 +126,7 @@ def print_outputs(result: RunResult) -> None:
         print(f"summary: {result.run_dir / 'summary.txt'}")
     if result.rrd is not None:
         print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`)")
+    print(result.verdict.line)
     print(f"run directory: {result.run_dir}", flush=True)
 
 
@@ -158,7 +159,6 @@ def run(args: argparse.Namespace) -> int:
                 bar.end()
     print_outputs(result)
     verdict = result.verdict
-    print(verdict.line, flush=True)
     if result.viewer is not None:
         _linger(result.viewer, interrupted=verdict.label == "interrupted")
     if verdict.label == "interrupted":
