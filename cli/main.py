@@ -78,6 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"tlfleet {args.command}: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
+        print(f"tlfleet {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         # the reader went away (`tlfleet plan ... | head`): not an error; silence the final flush

@@ -21,8 +21,10 @@ from pathlib import Path
 from typing import IO, Any
 
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, peek_kind
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from agent.protocol.plausibility import FrameGate, Verdict
 from bus.transport import Closeable, Transport
 from coordinator import rundir
 
@@ -154,13 +156,28 @@ class RecorderTap:
 
     Transport callbacks only queue ``(key, payload)``; :meth:`drain` (called from the coordinator's
     loop) decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
-    logged once per kind, never raised.
+    per (kind, claimed source) in ``malformed_by_source``, logged at most once a second per kind,
+    never raised. With ``bounds``/``max_jump`` (issue 11), implausible frames (outside the run,
+    the arena, or a sequence jump not confirmed by the next frame: ``FrameGate``) count as
+    malformed and are not recorded, so a spoofed frame neither ends the run (t = 10⁹) nor makes the
+    recorder drop real rows (a high seq). With ``robot_ids``, events and statuses whose claimed
+    identity does not hold (:mod:`coordinator.trust`) are recorded as ``flagged_event`` instead.
     """
 
+    LOG_PERIOD = 1.0  # [s] wall between two log lines of one kind
+
     def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
-                 on_message: Callable[[str, Any], None] | None = None):
+                 on_message: Callable[[str, Any], None] | None = None, *,
+                 bounds: FleetBounds | None = None, max_jump: int | None = None,
+                 robot_ids: Sequence[int] | None = None):
         self.recorder = recorder
         self.fleet = fleet
+        self.bounds = bounds
+        self.gate = FrameGate(max_jump) if max_jump else None
+        self.robot_ids = frozenset(robot_ids) if robot_ids is not None else None
+        self.flagged = 0
+        self.malformed_by_source: Counter[tuple[str, str]] = Counter()
+        self._logged: dict[str, float] = {}
         self.malformed: Counter[str] = Counter()
         self.latest_frame: MocapFrame | None = None
         self._on_message = on_message
@@ -194,25 +211,81 @@ class RecorderTap:
         try:
             if what == "mocap":
                 frame = decode(MocapFrame, payload)
+                self._check_frame(frame)
                 self.latest_frame = frame
                 self.recorder.on_mocap(frame)
                 message: Any = frame
             elif what == "status":
                 cls = StlStatus if peek_kind(payload) == "StlStatus" else LtlStatus
                 message = decode(cls, payload)
+                if self.robot_ids is not None:
+                    from coordinator.trust import status_problem
+
+                    problem = status_problem(keys.robot_of(key), message)
+                    if problem is None and message.robot not in self.robot_ids:
+                        problem = f"status of robot {message.robot}, not in this fleet"
+                    if problem:
+                        raise ProtocolError(f"{type(message).__name__}: implausible: {problem}")
                 self.recorder.on_status(message)
             else:
                 message = decode(Event, payload)
-                if message.source != COORDINATOR_SOURCE:  # ours are recorded when made
-                    self.recorder.on_event(message)
+                if message.source == COORDINATOR_SOURCE:  # ours are recorded when made
+                    return
+                if self._flag(message):
+                    return
+                self.recorder.on_event(message)
         except ProtocolError as exc:
-            if not self.malformed[what]:
-                logger.warning("malformed payload on %s (further ones only counted): %s", key,
-                               exc)
-            self.malformed[what] += 1
+            self._count(what, key, payload, exc)
             return
         if self._on_message is not None:
             self._on_message(what, message)
+
+    def _check_frame(self, frame: MocapFrame) -> None:
+        problem = self.bounds.frame_problem(frame) if self.bounds is not None else None
+        if problem is None and self.gate is not None and self.gate.offer(frame.seq) is \
+                Verdict.HELD:
+            problem = f"seq {frame.seq} jumps from {self.gate.last}: held until confirmed"
+        if problem is not None:
+            raise ProtocolError(f"MocapFrame: implausible: {problem}")
+
+    def _flag(self, event: Event) -> bool:
+        """Record an event whose claimed identity does not hold as ``flagged_event``."""
+        if self.robot_ids is None:
+            return False
+        from coordinator.trust import FLAGGED, event_problem
+
+        problem = event_problem(event, self.robot_ids)
+        if problem is None:
+            return False
+        self.flagged += 1
+        if self._may_log("flagged"):
+            logger.warning("flagged event %r from %r: %s (%d so far)", event.kind[:40],
+                           event.source[:40], problem, self.flagged)
+        self.recorder.on_event(Event(
+            t=event.t, source=COORDINATOR_SOURCE, kind=FLAGGED,
+            data={"claimed_source": event.source[:80], "claimed_kind": event.kind[:80],
+                  "reason": problem}))
+        return True
+
+    def _count(self, what: str, key: str, payload: bytes, exc: Exception) -> None:
+        if what == "status":
+            source = f"agent/{keys.robot_of(key)}"
+        elif what == "event":
+            source = "?"
+        else:
+            source = "sim"
+        self.malformed[what] += 1
+        self.malformed_by_source[(what, source)] += 1
+        if self._may_log(what):
+            logger.warning("malformed payload on %s (%d of this kind so far): %s", key,
+                           self.malformed[what], exc)
+
+    def _may_log(self, what: str) -> bool:
+        now = time.monotonic()
+        if now - self._logged.get(what, -float("inf")) < self.LOG_PERIOD:
+            return False
+        self._logged[what] = now
+        return True
 
     def close(self) -> None:
         for handle in self._handles:

@@ -72,9 +72,17 @@ class RunDirectoryError(TlfleetError, ValueError):
 
 def default_run_dir(scenario_name: str, root: Path = Path("runs"),
                     now: datetime | None = None) -> Path:
-    """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists."""
+    """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists.
+
+    Always a direct child of ``root`` (issue 11): a name that would leave it (a path separator,
+    ``..``) is refused even if the loader let it through.
+    """
     stamp = (now or datetime.now(UTC)).strftime("%Y%m%d-%H%M%S")
     base = root / f"{scenario_name}-{stamp}"
+    if ("/" in scenario_name or "\\" in scenario_name or ".." in scenario_name
+            or "\0" in scenario_name or base.parent != root):
+        raise RunFileError(base, 0, f"scenario name {scenario_name[:40]!r} would put the run "
+                                    f"directory outside {root}")
     path, n = base, 1
     while path.exists():
         n += 1

@@ -27,7 +27,12 @@ runs (gRPC + web viewer on 127.0.0.1, URL reported), fed by the recorder tap on 
 at a decimated rate; it is returned in :attr:`RunResult.viewer` still serving (the caller closes
 it). rerun (0.9 s to import) is imported only for 8 and the live view; matplotlib only for 7.
 
-Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind.
+Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Issue 11: step 6
+is exception-safe and bounded in time (:mod:`coordinator.cleanup`); the recorder tap drops
+implausible frames and flags events whose claimed identity does not hold
+(:mod:`coordinator.trust`); silent (frozen/partitioned) agents are noticed
+(:mod:`coordinator.health`); the run's verdict — clean, degraded, failed or interrupted, with its
+exit code (:mod:`coordinator.outcome`) — goes into ``run.json`` and ``summary.txt``.
 """
 
 from __future__ import annotations
@@ -42,11 +47,15 @@ from pathlib import Path
 from typing import Any
 
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
+from agent.protocol.plausibility import max_jump_ticks
 from agent.scenario import Scenario, load_scenario
 from bus.security import fingerprints, secure_transport
 from bus.transport import TransportConfig, open_transport
 from bus.zenoh_transport import ZenohTransport
 from coordinator import rundir
+from coordinator.cleanup import Cleanup
+from coordinator.health import Health
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -55,8 +64,9 @@ from coordinator.launcher import (
     tlfleet_command,
     wait_for_port,
 )
+from coordinator.outcome import Verdict, classify, mission_event_kinds
 from coordinator.recorder import Recorder, RecorderTap
-from coordinator.rundir import default_run_dir
+from coordinator.rundir import RunFiles, default_run_dir
 from coordinator.summary import write_summary
 from coordinator.supervisor import Outcome, Supervisor, SupervisorConfig
 
@@ -90,6 +100,9 @@ class RunConfig:
     grpc_port: int = 0  # viewer ports on 127.0.0.1 (0: free ones)
     web_port: int = 0
     secure: Path | None = None  # key directory (`tlfleet keys`): mutual TLS + the router's ACL
+    lease_ms: int | None = None  # [ms] zenoh link lease of every session (None: zenoh's 10 s)
+    silence: float = 2.0  # [s] wall: an agent without status this long is silent (health)
+    close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
 
 
 @dataclass
@@ -104,6 +117,7 @@ class RunResult:
     report: Any = None  # coordinator.report.Report, when written
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
+    verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
@@ -111,9 +125,10 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
     path = str(Path(config.scenario_path).resolve())
     secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
+    lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
-                               *secure)
+                               *secure, *lease)
     if role == "sim":
         argv = ["sim", path, f"--{config.mode}", "--duration",
                 repr(float(config.duration or scenario.duration))]
@@ -121,15 +136,15 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
             argv += ["--seed", str(config.seed)]
         if config.tick_timeout is not None:
             argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *secure)
+        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *secure, *lease)
     return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint, *secure)
+                           "--connect", endpoint, *secure, *lease)
 
 
 def _open_client(endpoint: str, router: Child, timeout: float,
-                 secure: Path | None = None) -> ZenohTransport:
+                 secure: Path | None = None, lease_ms: int | None = None) -> ZenohTransport:
     deadline = time.monotonic() + timeout
-    client = TransportConfig(mode="client", connect=(endpoint,))
+    client = TransportConfig(mode="client", connect=(endpoint,), lease_ms=lease_ms)
     if secure is not None:
         client = secure_transport(client, secure, "coordinator")
     while True:
@@ -190,13 +205,24 @@ def _write_rrd(run: rundir.RunFiles | Path, every: int,
 
 def write_outputs(run_dir: Path, scenario: Scenario, config: RunConfig, info: dict[str, Any],
                   write_info: Callable[[dict[str, Any]], None], note: Callable[[str], None],
-                  say: Callable[[str], None]) -> tuple[str, dict[str, Any], Any, Path | None]:
+                  say: Callable[[str], None],
+                  judge: Callable[[RunFiles, dict[str, Any]], Verdict] | None = None,
+                  ) -> tuple[str, dict[str, Any], Any, Path | None, Verdict | None]:
     """Steps 6–8 after the fleet stopped: the run directory is read once
-    (:func:`rundir.read_run`) and the summary (computed once), the report with its figures and
-    ``run.rrd`` are all made from those files → (summary text, summary data, report, rrd path).
-    ``info`` (run.json) gains the report's and the recording's paths or errors."""
+    (:func:`rundir.read_run`) and the summary (computed once), the run's verdict (``judge``),
+    the report with its figures and ``run.rrd`` are all made from those files → (summary text,
+    summary data, report, rrd path, verdict). ``info`` (run.json) gains the verdict and the
+    report's and the recording's paths or errors."""
     files = rundir.read_run(run_dir, scenario=scenario)
     text, data = write_summary(files)
+    verdict = None
+    if judge is not None:
+        verdict = judge(files, data)
+        info["outcome"] = verdict.to_json()
+        write_info(info)
+        text = f"{text}\n{verdict.line}"
+        with open(run_dir / rundir.SUMMARY_TEXT, "a", encoding="utf-8") as summary_file:
+            summary_file.write(verdict.line + "\n")
     report_result = None
     if config.report:
         report_result, error = _write_report(files, data, config.figures, say)
@@ -210,7 +236,28 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: RunConfig, info: di
         info["rrd"] = _write_rrd(files, config.rrd_every, say)
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         write_info(info)
-    return text, data, report_result, rrd_path
+    return text, data, report_result, rrd_path, verdict
+
+
+def _tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
+    """The recorder tap's plausibility checks for this run (issue 11)."""
+    a = scenario.arena
+    dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
+                                  scenario.sim.mocap_rate, scenario.speed_limits()),
+            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
+            "robot_ids": scenario.robot_ids}
+
+
+def _verdict(files: RunFiles, info: dict[str, Any], outcome: Outcome, data: dict[str, Any],
+             router_clean: bool, codes: dict[str, int | None],
+             findings: list[str]) -> Verdict:
+    events = [{"t": e.t, "kind": e.kind} for e in files.events]  # read once (lenient)
+    return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
+                    exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
+                    deadlines=data.get("deadlines") or {},
+                    event_kinds=mission_event_kinds(events, outcome.t_end),
+                    findings=findings + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])])
 
 
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
@@ -239,6 +286,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     if config.secure is not None:
         info["keys"] = str(Path(config.secure).resolve())
         info["fingerprints"] = fingerprints(config.secure, identities(scenario))
+    if config.lease_ms:
+        info["lease_ms"] = config.lease_ms
     recorder.write_run_info(info)
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(run_dir / "logs")
@@ -247,15 +296,29 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     supervisor: Supervisor | None = None
     outcome = Outcome("error", 0.0)
     codes: dict[str, int | None] = {}
+    final: dict[str, int | None] = {}
     wall_start = time.monotonic()
     viewer = _start_viewer(scenario, config, say) if config.viewer else None
+    health = Health(scenario.robot_ids, recorder.on_event, say, silence=config.silence)
+
+    def on_message(what: str, message: Any) -> None:
+        health.on_message(what, message)
+        if viewer is not None:
+            viewer.on_message(what, message)
+
+    def step(t: float, d: float) -> None:
+        health.poll()
+        if progress is not None:
+            progress(t, d)
+
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
-        transport = _open_client(endpoint, router, config.router_timeout, config.secure)
+        transport = _open_client(endpoint, router, config.router_timeout, config.secure,
+                                 config.lease_ms)
         transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
-        tap = RecorderTap(transport, scenario.fleet, recorder,
-                          on_message=None if viewer is None else viewer.on_message)
+        tap = RecorderTap(transport, scenario.fleet, recorder, on_message=on_message,
+                          **_tap_checks(scenario, duration))
         supervisor = Supervisor(transport, scenario, tap, {"router": router}, duration=duration,
                                 config=config.supervisor, report=report)
         supervisor.children["sim"] = launcher.start(
@@ -266,44 +329,55 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
                 name, argv_of("agent", config, scenario, robot.id, endpoint))
         info["ready_time"] = supervisor.wait_ready(stop)
         supervisor.start()
+        health.start()
         wall_start = time.monotonic()
         try:
-            outcome = supervisor.supervise(stop, progress)
+            outcome = supervisor.supervise(stop, step)
         except KeyboardInterrupt:
             outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
         info["wall_time"] = time.monotonic() - wall_start
         codes = supervisor.finish()
     except BaseException:
         if viewer is not None:
-            viewer.close()
+            Cleanup().step("viewer", viewer.close)
         raise
     finally:
+        cleanup = Cleanup()
         if tap is not None:
-            tap.drain()
-            tap.close()
+            cleanup.step("drain the recorder tap", tap.drain)
+            cleanup.step("close the recorder tap", tap.close)
             info["malformed_received"] = dict(tap.malformed)
+            info["malformed_received_by_source"] = {
+                f"{what} from {source}": n for (what, source), n in tap.malformed_by_source.items()}
+            info["flagged_events"] = tap.flagged
         if supervisor is not None:
-            supervisor.close()
+            cleanup.step("close the supervisor", supervisor.close)
+            info["recovered"] = [d.process for d in supervisor.recovered]
         if transport is not None:
-            transport.close()
-        final = launcher.stop_all(config.kill_grace)
+            cleanup.step("close the session", transport.close, timeout=config.close_timeout)
+        final = cleanup.step("stop the children", lambda: launcher.stop_all(config.kill_grace)) \
+            or {c.name: c.returncode for c in launcher.children}
         info["pids"] = {child.name: child.pid for child in launcher.children}  # = their pgids
-        recorder.close()
+        cleanup.step("close the recorder", recorder.close)
         info.update(reason=outcome.reason, t_end=outcome.t_end, exit_codes=final,
                     exit_codes_after_stop=codes, frames=recorder.frames_written)
         info.setdefault("wall_time", time.monotonic() - wall_start)
         if info["wall_time"] > 0:
             info["speedup"] = outcome.t_end / info["wall_time"]
-        recorder.write_run_info(info)
+        if cleanup.errors:
+            info["cleanup_errors"] = cleanup.errors
+        cleanup.step("write run.json", lambda: recorder.write_run_info(info))
+    router_clean = _router_clean(final.get("router"))
     clean = (outcome.reason in ("sim_done", "duration") and not outcome.deaths
-             and all(code == 0 for code in codes.values())
-             and _router_clean(final.get("router")))
+             and all(code == 0 for code in codes.values()) and router_clean)
     info["clean"] = clean
     recorder.write_run_info(info)
     note = report or (lambda text: logger.info("%s", text))
     note(f"writing summary.json{', report.md/json' if config.report else ''}"
          f"{' and figures' if config.report and config.figures else ''} in {run_dir} …")
-    text, data, report_result, rrd_path = write_outputs(
-        run_dir, scenario, config, info, recorder.write_run_info, note, say)
+    text, data, report_result, rrd_path, verdict = write_outputs(
+        run_dir, scenario, config, info, recorder.write_run_info, note, say,
+        judge=lambda files, summary: _verdict(files, info, outcome, summary, router_clean, codes,
+                                              health.findings()))
     return RunResult(run_dir, outcome, final, clean, text, data, info, report_result, rrd_path,
-                     viewer)
+                     viewer, verdict)

@@ -18,6 +18,14 @@ Protocol (architecture.md §1–§3, the runtime contract):
 Deaths are detected twice (token DELETE, ``Popen.poll()``) and reported once per process. The
 simulator exits by itself after ``sim_done``: its end counts as a death only when ``sim_done`` has
 not arrived ``end_grace`` later.
+
+Issue 11: a ``sim_done`` ends the run only when it is plausible (:attr:`Supervisor.sim_done`: the
+simulator has ended, the frames reached the end of the run, or no newer frame followed it for
+``end_grace``); one followed by newer frames is reported and recorded as ``flagged_event``.
+When the router is gone, the other processes' lost tokens are its consequence: reported as one
+router loss, not as deaths of everybody. An agent whose token comes back while its process still
+runs (a partition longer than the lease) is reported as recovered (``Event(process_recovered)``)
+and is no longer counted as dead.
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ from agent.scenario import Scenario
 from bus.transport import Closeable, Transport
 from coordinator.launcher import LaunchError
 from coordinator.recorder import COORDINATOR_SOURCE, RecorderTap
+from coordinator.trust import FLAGGED, sim_done_plausible
 
 logger = logging.getLogger(__name__)
 
@@ -112,6 +121,9 @@ class Supervisor:
         self.alive: set[str] = set()
         self.deaths: dict[str, Death] = {}
         self._suspects: dict[str, tuple[float, str, int | None]] = {}
+        self.recovered: list[Death] = []  # deaths that came back (token declared again)
+        self._sim_done_count = 0  # sim_done events judged so far
+        self._sim_done_pending: tuple[float, float] | None = None  # (wall, sim time) of the last
         self.stopping = False
         self._alive_queue: queue.SimpleQueue[tuple[str, bool]] = queue.SimpleQueue()
         self._handles: list[Closeable] = [
@@ -126,8 +138,34 @@ class Supervisor:
 
     @property
     def sim_done(self) -> bool:
-        """True once the simulator's ``Event(kind="sim_done")`` has been recorded."""
-        return self.tap.recorder.event_kinds["sim_done"] > 0
+        """True once a plausible ``Event(kind="sim_done")`` has been recorded (issue 11).
+
+        A ``sim_done`` counts at once when the simulator has ended or the frames reached the end
+        of the run (:func:`coordinator.trust.sim_done_plausible`); otherwise when no newer frame
+        follows it for ``end_grace`` (the simulator publishes none after its ``sim_done``). One
+        followed by newer frames is flagged and ignored: the fleet is still running.
+        """
+        seen = self.tap.recorder.event_kinds["sim_done"]
+        if seen > self._sim_done_count:  # a new one: judge it from now
+            self._sim_done_count = seen
+            self._sim_done_pending = (self._clock(), self.sim_time)
+        if self._sim_done_pending is None:
+            return False
+        since, t_then = self._sim_done_pending
+        sim = self.children.get("sim")
+        ended = (sim is not None and sim.returncode is not None) or "sim" not in self.alive
+        if sim_done_plausible(self.sim_time, self.duration, ended):
+            return True
+        if self.sim_time > t_then + 1e-9:
+            self._sim_done_pending = None
+            reason = (f"sim_done at t = {t_then:.2f} s of {self.duration:g} s, followed by "
+                      f"newer frames (now t = {self.sim_time:.2f} s): the simulator still runs")
+            self._report(f"ignored a sim_done: {reason} (spoofed?)")
+            self.tap.recorder.on_event(Event(t=t_then, source=COORDINATOR_SOURCE, kind=FLAGGED,
+                                             data={"claimed_kind": "sim_done",
+                                                   "reason": reason}))
+            return False
+        return self._clock() - since >= self.config.end_grace
 
     def _process_alive_queue(self) -> None:
         while True:
@@ -140,6 +178,7 @@ class Supervisor:
                 continue
             if alive:
                 self.alive.add(name)
+                self._maybe_recovered(name)
             else:
                 self.alive.discard(name)
                 if not self.stopping:
@@ -171,8 +210,31 @@ class Supervisor:
                 first_how, code = how, returncode
             self._suspects[name] = (since, first_how, code)
 
+    def _maybe_recovered(self, name: str) -> None:
+        death = self.deaths.get(name)
+        child = self.children.get(name)
+        if (death is None or name in ("sim", "router") or child is None
+                or child.returncode is not None or self.stopping):
+            return
+        del self.deaths[name]
+        self.recovered.append(death)
+        self._report(f"{name} is back at t = {self.sim_time:.2f} s (liveliness token declared "
+                     f"again; lost at t = {death.t:.2f} s)")
+        event = Event(t=self.sim_time, source=COORDINATOR_SOURCE, kind="process_recovered",
+                      data={"process": name, "lost_at": death.t, "how": death.how})
+        self.tap.recorder.on_event(event)
+
+    def _router_lost(self) -> bool:
+        router = self.children.get("router")
+        return router is not None and router.returncode is not None
+
     def _died(self, name: str, how: str, returncode: int | None) -> None:
         if name in self.deaths:
+            return
+        if name != "router" and self._router_lost():
+            # everybody's token goes with the router: one router loss, not N deaths
+            router = self.children["router"]
+            self._died("router", f"exited with code {router.returncode}", router.returncode)
             return
         death = Death(name, how, self.sim_time, time.time(), returncode)
         self.deaths[name] = death

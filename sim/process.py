@@ -26,6 +26,13 @@ Protocol (architecture.md §3 and the issue-5 contract):
 A ``seq = 0`` command that arrives before the sim has processed the start is an agent's answer
 to a republished initial frame and is held for tick 0 (``sim.lockstep``, "early answers").
 
+Commands have an age (issue 11, :mod:`sim.command_age`): in realtime a command older than its
+robot's bound (``SimConfig.max_command_age``; default 5 control periods) is not applied, counted in
+``sim_stats`` (``stale_commands``) and reported once per episode as ``Event(stale_command)``; the
+watchdog then stops the robot. A decoded command outside the fleet's bounds
+(:class:`agent.protocol.bounds.FleetBounds`: time/seq disagreement, speeds far above the robot's
+limits) is treated like a malformed one.
+
 A payload that does not decode (or a command whose key, robot or values do not fit) is counted,
 logged at most once per ``malformed_report_period`` per key, and published as
 ``Event(kind="malformed_message", data={"key", "count"})``; it never stops the process.
@@ -48,12 +55,14 @@ import numpy as np
 
 from agent.errors import TlfleetError
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
 from agent.scenario import Scenario, load_scenario
 from bus.signals import install_signal_handlers
 from bus.transport import Closeable, Transport, TransportConfig, open_transport
 from sim.clock import Pacer, TickClock
+from sim.command_age import CommandAge
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
 from sim.stats import TimingStats
 from sim.world import WALL, World, WorldConfig
@@ -80,6 +89,7 @@ class SimConfig:
     preview_period: float = 0.1  # [s] wall between initial frames before start
     malformed_report_period: float = 1.0  # [s] wall between reports of one key's malformed count
     poll: float = 0.05  # [s] wall: longest wait before the stop flag is checked again
+    max_command_age: float | None = None  # [s] sim time; None: 5 control periods per robot
     world: WorldConfig = field(default_factory=WorldConfig)
 
     def __post_init__(self) -> None:
@@ -94,10 +104,11 @@ class SimConfig:
     @classmethod
     def for_scenario(cls, scenario: Scenario, *, mode: TimeMode = "lockstep",
                      duration: float | None = None, seed: int | None = None,
-                     tick_timeout: float = 2.0) -> SimConfig:
+                     tick_timeout: float = 2.0, max_command_age: float | None = None) -> SimConfig:
         """The settings of a run of ``scenario``: duration and seed default to the scenario's."""
         return cls(mode=mode, duration=scenario.duration if duration is None else duration,
-                   seed=scenario.sim.seed if seed is None else seed, tick_timeout=tick_timeout)
+                   seed=scenario.sim.seed if seed is None else seed, tick_timeout=tick_timeout,
+                   max_command_age=max_command_age)
 
 
 @dataclass(frozen=True)
@@ -111,6 +122,7 @@ class SimProcessConfig:
     seed: int | None = None  # None: the scenario's
     tick_timeout: float = 2.0  # [s] wall
     transport: TransportConfig = field(default_factory=TransportConfig)
+    max_command_age: float | None = None  # [s] sim time (None: 5 control periods)
 
 
 @dataclass
@@ -145,6 +157,11 @@ class SimProcess:
                                          config.world)
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
+        self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
+                               max_age=config.max_command_age)
+        a = scenario.arena
+        self.bounds = FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), config.duration,
+                                  scenario.sim.mocap_rate, scenario.speed_limits())
         self.lockstep = LockstepCollector(self.world.ids)
         self.latest = LatestCommands(self.world.ids)
         self.alive: set[int] = set()
@@ -290,6 +307,13 @@ class SimProcess:
         """
         t = self.clock.time(k)
         self.timing.close_tick(k, due)
+        if self.config.mode == "realtime":
+            commands, started = self.ages.fresh(commands, t)
+            for command in started:
+                logger.warning("robot %d: command for t = %.3f s is %.3f s old at t = %.3f s: "
+                               "not applied", command.robot, command.t, t - command.t, t)
+                self._event("stale_command", robot=command.robot, command_t=command.t,
+                            age=t - command.t)
         for command in commands:
             self.world.set_command(command.robot, command.u, t)
         for robot in self.world.check_watchdog(t):
@@ -341,6 +365,10 @@ class SimProcess:
             return
         if keys.robot_of(key) != command.robot:
             self._malformed(key, f"command of robot {command.robot} on another robot's key")
+            return
+        problem = self.bounds.command_problem(command)
+        if problem is not None:
+            self._malformed(key, f"implausible command: {problem}")
             return
         if command.robot in self.world.robots:
             try:
@@ -423,6 +451,8 @@ class SimProcess:
                         if o not in (Offer.ACCEPTED, Offer.EARLY)},
             "early": counts[Offer.EARLY],
             "malformed": sum(self.malformed.values()),
+            "malformed_by_key": dict(self.malformed),
+            "stale_commands": sum(self.ages.stale.values()),
             **self.timing.summary(),
         }
 
@@ -443,7 +473,8 @@ def main(config: SimProcessConfig) -> int:
     """``tlfleet sim``: load the scenario, open the transport, run, close the session."""
     scenario = load_scenario(config.scenario)
     sim_config = SimConfig.for_scenario(scenario, mode=config.mode, duration=config.duration,
-                                        seed=config.seed, tick_timeout=config.tick_timeout)
+                                        seed=config.seed, tick_timeout=config.tick_timeout,
+                                        max_command_age=config.max_command_age)
     sys.setswitchinterval(SWITCH_INTERVAL)
     stop = threading.Event()
     install_signal_handlers(stop)

@@ -5,6 +5,15 @@ Tuples travel as arrays, nested dataclasses as maps, ``None`` as nil. ``decode``
 version, the kind and the type of every field against the dataclass annotations and raises
 ``ProtocolError`` naming the message, the field path and what was expected, so a malformed or
 foreign payload is rejected whole and never half-applied.
+
+``decode`` is *total* (issue 11): whatever the bytes, it returns a valid message or raises
+``ProtocolError``, never anything else. Before unpacking, the payload size is checked against the
+kind's :data:`agent.protocol.bounds.LIMITS`, and msgpack is told the longest array, map and string
+it may build; after conversion, every number is checked against its declared range
+(:func:`agent.protocol.bounds.check_message`: finite, times in [0, MAX_TIME], positions and
+speeds bounded). The schema version must be exactly the integer :data:`SCHEMA_VERSION` (not
+``1.0``, not ``True``). Any other exception on the way (a bug, ``RecursionError``,
+``MemoryError``) is turned into ``ProtocolError`` too, so receivers need one ``except``.
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ import msgpack
 
 from agent.errors import TlfleetError
 from agent.protocol import messages
+from agent.protocol.bounds import DEFAULT_LIMITS, LIMITS, MAX_PAYLOAD, OutOfBounds, check_message
 
 SCHEMA_VERSION = 1
 T = TypeVar("T")
@@ -48,25 +58,58 @@ def encode(msg: Any) -> bytes:
 
 def decode(cls: type[T], data: bytes) -> T:
     """Parse ``data`` as a message of type ``cls``; ``ProtocolError`` on anything else."""
+    name = getattr(cls, "__name__", "message")
     try:
-        body = msgpack.unpackb(data, raw=False, strict_map_key=True)
+        return _decode(cls, data)
+    except ProtocolError:
+        raise
+    except Exception as exc:  # total: RecursionError, MemoryError, a converter bug...
+        raise ProtocolError(f"{name}: undecodable payload ({type(exc).__name__})") from None
+
+
+def _decode(cls: type[T], data: bytes) -> T:
+    name = cls.__name__
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ProtocolError(f"{name}: expected bytes, got {type(data).__name__}")
+    limits = LIMITS.get(name, DEFAULT_LIMITS)
+    if len(data) > limits.max_bytes:
+        raise ProtocolError(f"{name}: payload of {len(data)} bytes exceeds {limits.max_bytes}")
+    try:
+        body = msgpack.unpackb(data, raw=False, strict_map_key=True,
+                               max_str_len=limits.max_str, max_bin_len=limits.max_str,
+                               max_array_len=limits.max_items, max_map_len=limits.max_items,
+                               max_ext_len=0)
     except Exception as exc:  # msgpack raises several unrelated types on garbage
-        raise ProtocolError(f"{cls.__name__}: not a msgpack payload ({exc})") from None
+        raise ProtocolError(f"{name}: not a msgpack payload ({str(exc)[:80]})") from None
     if not isinstance(body, dict):
-        raise ProtocolError(f"{cls.__name__}: expected a map, got {type(body).__name__}")
+        raise ProtocolError(f"{name}: expected a map, got {type(body).__name__}")
     version = body.get("v")
-    if version != SCHEMA_VERSION:
-        raise ProtocolError(f"{cls.__name__}: schema version {version!r}, expected "
+    if type(version) is not int or version != SCHEMA_VERSION:
+        raise ProtocolError(f"{name}: schema version {_show_short(version)}, expected "
                             f"{SCHEMA_VERSION}")
-    if body.get("k") != cls.__name__:
-        raise ProtocolError(f"{cls.__name__}: payload is a {body.get('k')!r} message")
-    return _from_wire(cls, body, cls.__name__)
+    if body.get("k") != name:
+        raise ProtocolError(f"{name}: payload is a {_show_short(body.get('k'))} message")
+    msg = _from_wire(cls, body, name)
+    try:
+        check_message(msg)
+    except OutOfBounds as exc:
+        raise ProtocolError(f"{name}{exc.path}: {exc.reason}") from None
+    return msg
+
+
+def _show_short(value: Any) -> str:
+    if isinstance(value, (dict, list, tuple)):
+        return f"a {type(value).__name__}"
+    return repr(value)[:40]
 
 
 def peek_kind(data: bytes) -> str | None:
     """The message kind of a payload, or ``None`` when it is not a tlfleet message."""
     try:
-        body = msgpack.unpackb(data, raw=False)
+        if len(data) > MAX_PAYLOAD:
+            return None
+        body = msgpack.unpackb(data, raw=False, max_str_len=4096, max_bin_len=4096,
+                               max_array_len=4096, max_map_len=4096, max_ext_len=0)
     except Exception:
         return None
     return body.get("k") if isinstance(body, dict) and isinstance(body.get("k"), str) else None
@@ -167,7 +210,7 @@ def _converter(hint: Any) -> Converter:
         text = ", ".join(repr(a) for a in args)
 
         def literal(value: Any) -> Any:
-            if value in allowed and type(value) is not bool:
+            if type(value) in (str, int, float) and value in allowed:
                 return value
             raise _Bad(f"expected one of {text}, got {_show(value)}")
 
@@ -302,6 +345,8 @@ def _dataclass_converter(cls: type) -> Converter:
 
 
 def _show(value: Any) -> str:
+    if isinstance(value, (dict, list, tuple)):
+        return f"{type(value).__name__} of {len(value)}"
     text = repr(value)
     if isinstance(value, float) and not math.isfinite(value):
         text = str(value)

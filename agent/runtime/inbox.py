@@ -3,13 +3,16 @@
 Transport callbacks run on a transport thread (zenoh) or inside the sender's call (fake) and must
 only store bytes and return (stack-notes.md §0, §1.7). Everything here is built for that:
 
-* :class:`Mailbox`: the newest mocap frame (latest-value slot: older undecoded frames are simply
+* :class:`Mailbox`: the newest mocap frame (latest-value slot: older frames are simply
   overwritten, so a slow loop never works through a backlog of stale poses), pending control
-  payloads, and a stop flag, behind one condition variable the loop waits on.
+  payloads, and a stop flag, behind one condition variable the loop waits on. The agent's
+  callback validates a frame before storing it (issue 11), so garbage never displaces a valid
+  frame: the slot holds the newest *valid* frame, with its decoded message.
 * :class:`CollabInbox`: decoded collaboration messages for the pure STL step, handed over with the
   deterministic one-step latency of the pure harness (``agent.stl.harness``, latency 1).
-* :class:`MalformedCounter`: counts undecodable payloads per key, logs them rate-limited and
-  queues ``Event(kind="malformed_message")`` for the loop to publish; it never raises.
+* :class:`MalformedCounter`: counts undecodable or implausible payloads per key and per claimed
+  source, logs them rate-limited and queues ``Event(kind="malformed_message")`` for the loop to
+  publish; it never raises.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ class Wakeup:
     frame: bytes | None
     controls: tuple[bytes, ...]
     stopped: bool
+    decoded: object = None  # the frame's MocapFrame when the callback already decoded it
 
 
 class Mailbox:
@@ -41,6 +45,7 @@ class Mailbox:
     def __init__(self) -> None:
         self._cond = threading.Condition()
         self._frame: bytes | None = None
+        self._decoded: object = None
         self._controls: list[bytes] = []
         self._stopped = False
         self.frames_received = 0  # every frame payload stored (for statistics)
@@ -48,11 +53,12 @@ class Mailbox:
 
     # callbacks (any thread): store and notify -------------------------------------------
 
-    def put_frame(self, payload: bytes) -> None:
+    def put_frame(self, payload: bytes, decoded: object = None) -> None:
         with self._cond:
             if self._frame is not None:
                 self.frames_overwritten += 1
             self._frame = payload
+            self._decoded = decoded
             self.frames_received += 1
             self._cond.notify_all()
 
@@ -80,8 +86,20 @@ class Mailbox:
             if self._frame is None and not self._controls and not self._stopped and timeout > 0:
                 self._cond.wait(timeout)
             frame, self._frame = self._frame, None
+            decoded, self._decoded = self._decoded, None
             controls, self._controls = tuple(self._controls), []
-            return Wakeup(frame, controls, self._stopped)
+            return Wakeup(frame, controls, self._stopped, decoded)
+
+    def newer_frame(self, timeout: float) -> tuple[bytes, object] | None:
+        """Wait up to ``timeout`` [s] for a frame only (no controls); take it, or None."""
+        with self._cond:
+            if self._frame is None and not self._stopped and timeout > 0:
+                self._cond.wait(timeout)
+            if self._frame is None:
+                return None
+            frame, self._frame = self._frame, None
+            decoded, self._decoded = self._decoded, None
+            return frame, decoded
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,7 +151,10 @@ class MalformedCounter:
     ``record`` may be called from any thread; the loop publishes :meth:`take_events`. The first
     malformed payload on a key is always logged and reported; later ones are folded into the
     next report (``data["count"]`` is the running total on that key, ``data["new"]`` how many
-    since the previous report).
+    since the previous report). ``by_source`` counts per (key, claimed sender): the transport
+    does not say who published a sample, so the sender is what the key or payload claims
+    (``"?"`` when nothing does); ``kinds`` counts ``malformed`` (undecodable) apart from
+    ``implausible`` (decoded, but out of the fleet's bounds or an implausible jump).
     """
 
     def __init__(self, source: str, interval: float = 1.0,
@@ -143,6 +164,8 @@ class MalformedCounter:
         self._clock = clock
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
+        self.by_source: dict[tuple[str, str], int] = {}
+        self.kinds: dict[str, int] = {}
         self._reported: dict[str, tuple[float, int]] = {}  # key -> (wall time, count) of report
         self._events: list[Event] = []
 
@@ -151,12 +174,15 @@ class MalformedCounter:
         with self._lock:
             return sum(self.counts.values())
 
-    def record(self, key: str, error: object, t: float = 0.0) -> None:
+    def record(self, key: str, error: object, t: float = 0.0, *, sender: str = "?",
+               kind: str = "malformed") -> None:
         """One malformed payload on ``key`` (``error``: the decode error); ``t`` sim time [s]."""
         now = self._clock()
         with self._lock:
             count = self.counts.get(key, 0) + 1
             self.counts[key] = count
+            self.by_source[(key, sender)] = self.by_source.get((key, sender), 0) + 1
+            self.kinds[kind] = self.kinds.get(kind, 0) + 1
             last = self._reported.get(key)
             if last is not None and now - last[0] < self.interval:
                 return
@@ -164,6 +190,7 @@ class MalformedCounter:
             self._reported[key] = (now, count)
             self._events.append(Event(t=t, source=self.source, kind="malformed_message",
                                       data={"key": key, "count": count, "new": new,
+                                            "sender": sender, "what": kind,
                                             "error": str(error)[:200]}))
         logger.warning("%s: malformed payload on %s (%d so far): %s", self.source, key, count,
                        error)

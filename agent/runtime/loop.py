@@ -22,7 +22,16 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
 * malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
-  ``Event(malformed_message)``; they never end the loop.
+  ``Event(malformed_message)``; they never end the loop;
+* (issue 11) a mocap frame is decoded and checked in the transport callback, before it reaches
+  the mailbox: undecodable, outside the fleet's bounds (``LoopConfig.bounds``) or an implausible
+  sequence jump (``LoopConfig.max_jump``, :class:`agent.protocol.plausibility.FrameGate`) → counted
+  and dropped, so garbage never displaces the newest valid frame; a frame older than the last one
+  handled is ignored;
+* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_after`` after the
+  previous one (the process was frozen, or the link cut) first drains the backlog the transport
+  delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
+  ``Event(resumed)``.
 """
 
 from __future__ import annotations
@@ -35,8 +44,10 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import CollabMessage, Command, Control, Event, MocapFrame
+from agent.protocol.plausibility import FrameGate, Verdict
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
 from bus.transport import Closeable, Transport
@@ -53,6 +64,9 @@ class LoopConfig:
     divider: int = 1  # mocap ticks per control period: round(mocap_rate / control_rate)
     stale_after: float = 0.5  # no frame for this long → zero command
     wait_slice: float = 0.05  # longest single block, so stop and staleness are noticed
+    bounds: FleetBounds | None = None  # plausibility of frames (None: codec checks only)
+    max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
+    resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
 
     def __post_init__(self) -> None:
         if self.divider < 1:
@@ -105,6 +119,9 @@ class LoopStats:
     collab_failures: int = 0
     collab_time: float = 0.0  # [s] wall, total time the loop spent sending (lockstep: + replies)
     max_collab_time: float = 0.0  # [s] wall
+    resumes: int = 0  # frames that came after a freeze / partition
+    backlog_dropped: int = 0  # frames of the backlog skipped on resumption
+    old_frames: int = 0  # frames older than the last one handled, ignored
 
 
 class AgentLoop:
@@ -138,6 +155,7 @@ class AgentLoop:
         self._last_seq: int | None = None
         self._stale = False
         self._stale_sent = -float("inf")
+        self.gate = FrameGate(config.max_jump) if config.max_jump else None
         fleet, robot = config.fleet, config.robot
         self._keys = {"mocap": keys.mocap(fleet), "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
@@ -147,8 +165,7 @@ class AgentLoop:
 
     def open(self) -> None:
         box = self.mailbox
-        self._handles.append(self.transport.subscribe(self._keys["mocap"],
-                                                      lambda _k, p: box.put_frame(p)))
+        self._handles.append(self.transport.subscribe(self._keys["mocap"], self._receive_frame))
         self._handles.append(self.transport.subscribe(self._keys["control"],
                                                       lambda _k, p: box.put_control(p)))
         if self.link is not None:
@@ -177,7 +194,9 @@ class AgentLoop:
             "mean_step_ms": 1e3 * st.step_time / st.steps if st.steps else 0.0,
             "max_step_ms": 1e3 * st.max_step_time, "stale_episodes": st.stale_episodes,
             "stale_commands": st.stale_commands, "frames_overwritten":
-            self.mailbox.frames_overwritten, "malformed": self.malformed.total}
+            self.mailbox.frames_overwritten, "malformed": self.malformed.total,
+            "malformed_by_kind": dict(self.malformed.kinds), "resumes": st.resumes,
+            "backlog_dropped": st.backlog_dropped, "old_frames": st.old_frames}
         if self.link is not None:
             out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
                        collab_received=self.link.received,
@@ -207,7 +226,7 @@ class AgentLoop:
         if self.stopped:
             return False
         if wake.frame is not None:
-            self._on_frame(wake.frame)
+            self._on_frame(wake.frame, wake.decoded)
         else:
             self._check_stale()
         self._flush_malformed()
@@ -236,13 +255,44 @@ class AgentLoop:
         self.started = True
         self._last_frame_wall = self.clock()  # staleness counts from the start
 
-    def _on_frame(self, payload: bytes) -> None:
+    def _receive_frame(self, key: str, payload: bytes) -> None:
+        """Transport callback: store the frame only when it is valid and plausible."""
         try:
             frame = decode(MocapFrame, payload)
         except ProtocolError as exc:
-            self.malformed.record(self._keys["mocap"], exc, self.last_t)
-            self._check_stale()
+            self.malformed.record(key, exc, self.last_t, sender="sim")
             return
+        bounds = self.config.bounds
+        problem = bounds.frame_problem(frame) if bounds is not None else None
+        if problem is None and self.gate is not None:
+            verdict = self.gate.offer(frame.seq)
+            if verdict is Verdict.HELD:
+                problem = (f"seq {frame.seq} jumps from {self.gate.last} (more than "
+                           f"{self.gate.max_jump} ticks): held until confirmed")
+        if problem is not None:
+            self.malformed.record(key, f"MocapFrame: implausible: {problem}", self.last_t,
+                                  sender="sim", kind="implausible")
+            return
+        self.mailbox.put_frame(payload, frame)
+
+    def _on_frame(self, payload: bytes, decoded: object = None) -> None:
+        if isinstance(decoded, MocapFrame):
+            frame = decoded
+        else:
+            try:
+                frame = decode(MocapFrame, payload)
+            except ProtocolError as exc:
+                self.malformed.record(self._keys["mocap"], exc, self.last_t)
+                self._check_stale()
+                return
+        last = self._last_frame
+        if last is not None and frame.seq < last.seq:
+            self.stats.old_frames += 1  # reordered or late: the newer one was handled
+            return
+        if (not frame.due and self.started and self._last_frame_wall is not None
+                and self.clock() - self._last_frame_wall > self.config.stale_after
+                and frame.seq > 0):
+            frame = self._resume(frame)
         robot = self.config.robot
         listed = robot in frame.due
         if listed and not self.started:
@@ -274,6 +324,36 @@ class AgentLoop:
         self._last_seq = frame.seq
         self._last_period = frame.seq // self.config.divider
         self._tick(frame)
+
+    def _resume(self, frame: MocapFrame) -> MocapFrame:
+        """The first frame after a freeze or a partition (realtime): drop the backlog the
+        transport is still delivering and return the newest frame."""
+        gap = self.clock() - (self._last_frame_wall or self.clock())
+        dropped = 0
+        newest = frame
+        deadline = time.monotonic() + 10 * self.config.resume_settle
+        while time.monotonic() < deadline:
+            got = self.mailbox.newer_frame(self.config.resume_settle)
+            if got is None:
+                break
+            payload, decoded = got
+            candidate = decoded if isinstance(decoded, MocapFrame) else None
+            if candidate is None:
+                try:
+                    candidate = decode(MocapFrame, payload)
+                except ProtocolError:
+                    continue
+            if candidate.seq >= newest.seq:
+                dropped += 1
+                newest = candidate
+        self.stats.resumes += 1
+        self.stats.backlog_dropped += dropped
+        logger.warning("%s: resumed after %.2f s without frames; %d backlog frame(s) dropped, "
+                       "answering t = %.3f", self.source, gap, dropped, newest.t)
+        self.publish_event(Event(newest.t, self.source, "resumed",
+                                 {"gap": gap, "dropped": dropped, "from_t": frame.t,
+                                  "to_t": newest.t}))
+        return newest
 
     def _tick(self, frame: MocapFrame) -> None:
         link = self.link

@@ -19,8 +19,10 @@ from typing import Any
 
 from agent.errors import TlfleetError
 from agent.protocol import keys
+from agent.protocol.bounds import MAX_TIME, FleetBounds
 from agent.protocol.codec import encode
 from agent.protocol.messages import Event
+from agent.protocol.plausibility import max_jump_ticks
 from agent.runtime.config import AgentConfig
 from agent.runtime.inbox import MalformedCounter
 from agent.runtime.loop import AgentLoop, Core, LoopConfig
@@ -36,6 +38,19 @@ Builder = Callable[[Transport, MalformedCounter, Callable[[Event], None]], Built
 
 SWITCH_INTERVAL = 0.0005  # [s] stack-notes.md §2.3
 LINGER = 0.1  # [s] wall between the last publication and closing the session
+
+
+def plausibility(scenario: Scenario) -> dict[str, Any]:
+    """The loop's frame checks for ``scenario`` (issue 11): the arena box and robots, and the
+    sequence gate. The run's duration may be overridden on the simulator's command line, which
+    the agent does not see, so times are only bounded by the codec's MAX_TIME here."""
+    if not isinstance(scenario, Scenario):  # a test double: no plausibility checks
+        return {}
+    a = scenario.arena
+    bounds = FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), MAX_TIME, scenario.sim.mocap_rate,
+                         scenario.speed_limits())
+    dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
+    return {"bounds": bounds, "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers)}
 
 
 def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
@@ -74,7 +89,8 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         if built is None:
             return 1
         core, state, events, link = built
-        loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after)
+        loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after,
+                                 **plausibility(scenario))
         loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)
         loop.open()
         loop.ready()

@@ -24,12 +24,12 @@ import dataclasses
 import itertools
 import math
 import re
-import tomllib
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from agent.errors import FormulaSyntaxError, ScenarioError
+from agent.scenario import validation
 from agent.scenario.model import (
     Arena,
     DiscObstacle,
@@ -56,16 +56,7 @@ RESERVED_ATOMS = frozenset({"true", "false", "xor"})
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; ``ScenarioError`` on any problem."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ScenarioError(str(path), "", "no such file") from None
-    except IsADirectoryError:
-        raise ScenarioError(str(path), "", "is a directory, expected a .toml file") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not UTF-8 text ({exc.reason})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    data = validation.parse_toml(validation.read_text(path), str(path))  # issue 11: file limits
     return parse_scenario(data, source=str(path))
 
 
@@ -75,6 +66,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     name = top.string("name")
     if not name:
         raise ScenarioError(source, "name", "expected a non-empty string")
+    validation.check_name(source, name)
     fleet = top.string("fleet", default=name)
     if not FLEET_RE.match(fleet):
         raise ScenarioError(
@@ -110,6 +102,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         description=description,
         source=Path(source) if source and not source.startswith("<") else None,
     )
+    validation.check_scenario(scenario, source)  # issue 11: sizes, rates, geometry
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
         where = f"robots[{index}]"
@@ -120,6 +113,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         object.__setattr__(robot, "parsed_stl", tuple(
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
             for k, text in enumerate(robot.stl)))
+    validation.check_tasks(scenario, source)  # issue 11: satisfiability, STL windows
     return scenario
 
 
@@ -393,6 +387,9 @@ class _Table:
         if key in self.data:
             return self.data[key]
         if default is _MISSING:
+            typo = validation.misspelling_of(key, self.data)
+            if typo is not None:
+                self.fail(typo, validation.unknown_key_reason(typo, self.read))
             self.fail(key, f"missing, expected {expected}")
         return default
 
@@ -473,8 +470,7 @@ class _Table:
         unknown = sorted(set(self.data) - self.read)
         if unknown:
             key = unknown[0]
-            allowed = ", ".join(sorted(self.read)) or "none"
-            self.fail(key, f"unknown key {key!r} (allowed here: {allowed})")
+            self.fail(key, validation.unknown_key_reason(key, self.read))
 
 
 def _show(value: Any) -> str:

@@ -252,6 +252,12 @@ class Scenario:
         agent's loop both use it."""
         return max(1, round(self.sim.mocap_rate / self.control_rate(robot_id)))
 
+    def speed_limits(self) -> dict[int, tuple[float, float]]:
+        """Robot id → (max linear [m/s], max angular [rad/s]): the plausibility bounds of
+        commands (agent.protocol.bounds.FleetBounds)."""
+        return {r.id: (r.omni.max_lin, r.omni.max_ang) if r.kind == "omni"
+                else (r.unicycle.max_v, r.unicycle.max_omega) for r in self.robots}
+
     @property
     def robot_ids(self) -> tuple[int, ...]:
         return tuple(sorted(r.id for r in self.robots))

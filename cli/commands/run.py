@@ -9,8 +9,11 @@ time on stderr when it is a terminal. At the end the run directory gets ``summar
 and the run directory last. ``--viewer`` also serves the run live to a web viewer on 127.0.0.1
 (its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
 
-Exit codes: 0 every process ended cleanly; 1 invalid scenario or launch failure; 3 the run
-finished but a process died, did not stop cleanly, or the run ended early; 130 interrupted.
+Exit codes (the run's verdict, :mod:`coordinator.outcome`, printed last as ``outcome: …``): 0
+clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost, a
+process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
+missed deadlines, watchdog stops, stale commands, malformed input, flagged events, silent or
+recovered agents: listed); 130 interrupted (a message says so).
 """
 
 from __future__ import annotations
@@ -51,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wall time for every process to come up [s] (default 60)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
+    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
+                        help="zenoh link lease of every process [ms] (default zenoh's 10000): "
+                             "how fast a hung or cut-off peer is declared gone")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--viewer", action="store_true",
                         help="serve the run live to a web viewer (URL on stderr); after the run, "
@@ -112,8 +118,8 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
 
 
 def print_outputs(result: RunResult) -> None:
-    """The report table (the summary if no report was written), the files a person opens next, and
-    the run directory last."""
+    """The report table (the summary if no report was written), the files a person opens next, the
+    verdict (``outcome: …``) and the run directory last."""
     if result.report is not None:
         print(result.report.table)
         print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
@@ -124,6 +130,7 @@ def print_outputs(result: RunResult) -> None:
         print(f"summary: {result.run_dir / 'summary.txt'}")
     if result.rrd is not None:
         print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`)")
+    print(result.verdict.line)
     print(f"run directory: {result.run_dir}", flush=True)
 
 
@@ -139,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
-        grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure)
+        grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
+        lease_ms=args.lease_ms)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:
@@ -158,12 +166,13 @@ def run(args: argparse.Namespace) -> int:
             if bar is not None:
                 bar.end()
     print_outputs(result)
+    verdict = result.verdict
     if result.viewer is not None:
-        _linger(result.viewer, interrupted=result.outcome.reason == "interrupted")
-    if result.outcome.reason == "interrupted":
-        return 130
-    if not result.clean:
-        print(f"tlfleet run: not clean (end: {result.outcome.reason}, exit codes: "
+        _linger(result.viewer, interrupted=verdict.label == "interrupted")
+    if verdict.label == "interrupted":
+        print(f"tlfleet run: the run was interrupted at t = {result.outcome.t_end:.2f} s; the "
+              f"run directory holds what was recorded until then", file=sys.stderr, flush=True)
+    elif verdict.label != "clean":
+        print(f"tlfleet run: {verdict.label} (end: {result.outcome.reason}, exit codes: "
               f"{result.exit_codes})", file=sys.stderr)
-        return 3
-    return 0
+    return verdict.exit_code

@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tick-timeout", type=float, default=2.0, metavar="S",
                         help="lockstep: wall time to wait for the due commands of a tick "
                              "(default 2 s)")
+    parser.add_argument("--max-command-age", type=float, default=None, metavar="S",
+                        help="realtime: ignore commands answering frames older than this [s sim "
+                             "time] (default: 5 control periods of the robot)")
     add_transport_arguments(parser)
 
 
@@ -40,7 +43,8 @@ def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
                             mode="realtime" if args.realtime else "lockstep",
                             duration=args.duration, seed=args.seed,
                             tick_timeout=args.tick_timeout,
-                            transport=transport_config(args, "sim"))
+                            transport=transport_config(args, "sim"),
+                            max_command_age=args.max_command_age)
 
 
 def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
@@ -49,7 +53,8 @@ def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
 
     return SimConfig.for_scenario(scenario, mode="realtime" if args.realtime else "lockstep",
                                   duration=args.duration, seed=args.seed,
-                                  tick_timeout=args.tick_timeout)
+                                  tick_timeout=args.tick_timeout,
+                                  max_command_age=args.max_command_age)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -91,7 +91,9 @@ class FakeAgent:
         if u is not None:
             self.send(frame.seq, u, frame.t)
 
-    def send(self, seq: int, u: tuple[float, ...], t: float = 0.0) -> None:
+    def send(self, seq: int, u: tuple[float, ...], t: float | None = None) -> None:
+        """A command for frame ``seq``, stamped by default with that frame's time (100 Hz)."""
+        t = seq / 100 if t is None else t
         self.transport.publish(keys.cmd(FLEET, self.robot),
                                encode(Command(self.robot, t, seq, u)))
 

@@ -69,9 +69,11 @@ def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
         # tlfleet run itself, the sim and 2 agents (the router has no scenario path)
         assert len(processes_mentioning(str(TWO))) == 4
         proc.send_signal(signal.SIGINT)
-        out, _err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=30)
     finally:
         proc.kill()
     assert proc.returncode == 130
     assert "run directory:" in out
+    assert "outcome: interrupted" in out  # issue 11: the run says it was interrupted
+    assert "the run was interrupted at t = " in err
     assert leftover_in_groups(tmp_path / "run") == []

@@ -1,0 +1,117 @@
+"""The verdict of a run: ``clean``, ``degraded``, ``failed`` or ``interrupted`` (issue 11).
+
+``tlfleet run`` exits with the verdict's code (README "Exit codes"):
+
+* ``clean`` → 0: the mission ran to its end, every process ended cleanly, nothing below happened;
+* ``failed`` → 3: a process died (or the router was lost), a process did not stop cleanly, or
+  the run ended early (simulator gone, wall-clock timeout);
+* ``degraded`` → 4: it ran to the end without a failure, but with missed control deadlines
+  (lockstep: any; realtime: above ``max_missed_fraction`` of those due), watchdog stops, stale
+  commands ignored, stale mocap during the mission, malformed or implausible input, flagged events
+  (claimed identity does not hold), silent (frozen/partitioned) agents, agents that resumed or
+  recovered — each listed;
+* ``interrupted`` → 130: Ctrl-C, SIGTERM or the caller's stop.
+
+Invalid scenarios and launch failures exit 1 before a verdict exists; 2 is a usage error.
+:func:`classify` is pure: it reads what the run recorded (the summary's counters, the events'
+kinds, the supervisor's findings) and returns a :class:`Verdict` with the reasons.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+EXIT_CODES = {"clean": 0, "failed": 3, "degraded": 4, "interrupted": 130}
+MAX_MISSED_FRACTION = 0.05  # realtime: missed control deadlines / due above this → degraded
+FINISHED = ("sim_done", "duration")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    label: str  # clean | degraded | failed | interrupted
+    reasons: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.label]
+
+    @property
+    def line(self) -> str:
+        """One line for the summary and the console: ``outcome: degraded (3 watchdog stops)``."""
+        return f"outcome: {self.label}" + (f" ({'; '.join(self.reasons)})" if self.reasons else "")
+
+    def to_json(self) -> dict[str, Any]:
+        return {"label": self.label, "exit_code": self.exit_code, "reasons": list(self.reasons)}
+
+
+def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
+             router_clean: bool, mode: str, deadlines: Mapping[str, Any],
+             event_kinds: Mapping[str, int], findings: Iterable[str] = (),
+             max_missed_fraction: float = MAX_MISSED_FRACTION) -> Verdict:
+    """The verdict of a run (see the module docstring).
+
+    ``reason``: how supervision ended; ``deaths``: processes reported dead (recovered ones
+    excluded); ``exit_codes``: the children's codes after ``Control(stop)``; ``deadlines``: the
+    summary's ``deadlines`` section (sim_stats, malformed, watchdog_stop…); ``event_kinds``:
+    events per kind *during the mission*; ``findings``: extra degradations already worded
+    (silent agents, recoveries, flagged sim_done…).
+    """
+    if reason == "interrupted":
+        return Verdict("interrupted", (f"stopped at the user's request ({reason})",))
+    failures: list[str] = []
+    deaths = list(deaths)
+    if deaths:
+        failures.append(f"process died: {', '.join(deaths)}")
+    if reason not in FINISHED:
+        failures.append(f"the run ended early ({reason})")
+    unclean = {n: c for n, c in exit_codes.items() if c != 0 and n not in deaths}
+    if unclean:
+        failures.append("did not stop cleanly: " + ", ".join(f"{n} ({c})"
+                                                            for n, c in sorted(unclean.items())))
+    if not router_clean and "router" not in deaths:
+        failures.append("the router did not stop cleanly")
+    if failures:
+        return Verdict("failed", tuple(failures))
+    degraded: list[str] = []
+    stats = deadlines.get("sim_stats") or {}
+    missed, due = int(stats.get("missed", 0) or 0), int(stats.get("due", 0) or 0)
+    lockstep_misses = int(deadlines.get("deadline_miss", 0) or 0)
+    if mode == "lockstep" and lockstep_misses:
+        degraded.append(f"{lockstep_misses} missed deadline(s)")
+    elif due and missed / due > max_missed_fraction:
+        degraded.append(f"{missed} of {due} control deadlines missed "
+                        f"({100.0 * missed / due:.1f} % > {100.0 * max_missed_fraction:g} %)")
+    kinds = Counter(event_kinds)
+    for kind, what in (("watchdog_stop", "watchdog stop(s)"),
+                       ("stale_command", "stale-command episode(s)"),
+                       ("stale_mocap", "stale-mocap episode(s) during the mission"),
+                       ("flagged_event", "flagged event(s): claimed identity does not hold"),
+                       ("resumed", "agent resume(s) after a freeze or partition"),
+                       ("process_recovered", "process recovery(ies)"),
+                       ("agent_silent", "silent agent episode(s)")):
+        if kinds[kind]:
+            degraded.append(f"{kinds[kind]} {what}")
+    malformed = int(deadlines.get("malformed", 0) or 0)
+    if malformed:
+        by_source = deadlines.get("malformed_by_source") or {}
+        degraded.append(f"{malformed} malformed or implausible message(s)"
+                        + (f" ({', '.join(f'{k}: {v}' for k, v in sorted(by_source.items()))})"
+                           if by_source else ""))
+    degraded.extend(findings)
+    return Verdict("degraded", tuple(degraded)) if degraded else Verdict("clean")
+
+
+def mission_event_kinds(events: Iterable[Mapping[str, Any]], t_end: float,
+                        end_slack: float = 0.05) -> Counter[str]:
+    """Events per kind, without the agents' ``stale_mocap`` at the very end of the mission (the
+    simulator has stopped publishing: expected, not a degradation)."""
+    kinds: Counter[str] = Counter()
+    for e in events:
+        kind = e.get("kind")
+        if kind == "stale_mocap" and float(e.get("t", 0.0)) >= t_end - end_slack:
+            continue
+        kinds[str(kind)] += 1
+    return kinds
