@@ -86,7 +86,9 @@ def generated_fleet(n: int, duration: float) -> str:
 
 class CpuSampler:
     """Samples the CPU time (user + system [s]) of every descendant process, by role (the
-    ``tlfleet`` subcommand: router, sim, agent), in a background thread."""
+    ``tlfleet`` subcommand: router, sim, agent-<id>), and of this process (``coordinator``:
+    ``run_fleet`` supervises and records in-process; this sampler's own thread is included), in a
+    background thread."""
 
     def __init__(self, period: float = 1.0):  # [s]; every sample scans /proc: keep it rare
         self.period = period
@@ -122,6 +124,8 @@ class CpuSampler:
                         if "--robot" in argv[:-1]:
                             role += "-" + argv[argv.index("--robot") + 1]
                         procs[child.pid] = (child, role)
+            if me.pid not in procs:  # the coordinator runs in this process (run_fleet)
+                procs[me.pid] = (me, "coordinator")
             for pid, (proc, role) in list(procs.items()):
                 try:
                     times = proc.cpu_times()

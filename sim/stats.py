@@ -17,7 +17,6 @@ from collections.abc import Iterable
 
 import numpy as np
 
-
 #: left edges [ms] of the latency histogram in ``sim_stats`` (the last bin is open-ended)
 HISTOGRAM_EDGES_MS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 7.5, 10.0,
                       15.0, 20.0, 50.0, 100.0)
