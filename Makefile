@@ -25,8 +25,10 @@ run: $(VENV)/.installed
 test: $(VENV)/.installed-test
 	$(PY) -m pytest
 
-bench: $(VENV)/.installed
-	@set -e; for b in bench/*_bench.py; do echo "== $$b"; $(PY) $$b; done
+# Every benchmark prints CPU beside wall and the load average, writes bench/results/*.json; the
+# last table lists every figure with its target and met / not met (issue 17).
+bench: $(VENV)/.installed-test
+	@set -e; for b in bench/*_bench.py; do echo "== $$b"; $(PY) $$b; done; $(PY) bench/summary.py
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .

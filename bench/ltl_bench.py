@@ -1,11 +1,16 @@
 """Benchmark of the LTL planning core (ltl-planning.md §2 and §5). A program, not a test.
 
-Measures, as medians over several runs (time.perf_counter):
+Measures, as medians over several runs, CPU time (``time.thread_time``) beside wall time
+(``time.perf_counter``), with the load average (``bench.common``):
 
 1. translation time and automaton size for the size-target families (n = 1..8) and for the
    scenarios' formulas;
 2. end-to-end planning time (parse + translate + product + search) for every LTL robot of the
-   three scenarios (target: ≤ 5 ms median);
+   three scenarios with straight-line weights, and **Algorithm 1 as the agent runs it**
+   (``agent.runtime.ltl_agent.LtlCore.plan``: the map weights of the global planner, whose
+   region-to-region path lengths are computed once per map when the core is built, issue 17
+   item 3; target ≤ 5 ms CPU for every robot), plus the same with the map built inside the timing
+   (what one ``tlfleet plan`` call pays);
 3. a scaling grid: 10, 20, 40 random disc regions × three mission formulas (target for
    ``F r1 & … & F r5`` at 40 regions: ≤ 100 ms; the reference Python implementation P_MAS_TG
    with ltl2ba takes 2.36 s).
@@ -42,16 +47,22 @@ sys.path.insert(0, str(CODE_ROOT))
 
 from agent.ltl.buchi import translate  # noqa: E402
 from agent.ltl.parser import parse  # noqa: E402
-from agent.ltl.planner import plan, plan_robot  # noqa: E402
-from agent.ltl.transition_system import from_regions  # noqa: E402
+from agent.ltl.planner import plan, plan_robot, replan  # noqa: E402
+from agent.ltl.transition_system import from_regions, from_scenario  # noqa: E402
+from agent.nav.grid_planner import path_length_function  # noqa: E402
+from agent.runtime.ltl_agent import LtlCore  # noqa: E402
 from agent.scenario import load_scenario  # noqa: E402
 from agent.scenario.model import Region  # noqa: E402
+from bench.common import Figure, load_average, print_table, time_calls  # noqa: E402
+
+ALGORITHM1_TARGET_MS = 5.0
 
 REFERENCE_SECONDS = {("F r1 & F r2 & F r3 & F r4 & F r5", 40): 2.36, ("G F r1 & G F r2", 40): 0.27}
 
 
 def median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
-    """Median wall-clock time [s] of ``fn()`` over ``runs`` runs, and its last result."""
+    """Median wall-clock time [s] of ``fn()`` over ``runs`` runs, and its last result (the
+    automaton-size tables; the Algorithm 1 figures use CPU time, ``bench_agent_plans``)."""
     times = []
     result = None
     for _ in range(runs):
@@ -287,6 +298,40 @@ def print_issue16(result: dict) -> None:
             print(f"   worst: {r['name']} {r['polarity']}: {r['states']} vs {r['spot']}")
 
 
+def bench_agent_plans(runs: int) -> list[dict]:
+    """Algorithm 1 on the path the LTL agent uses, for every scenario LTL robot: CPU and wall ms
+    with the map weights cached once per map (``LtlCore`` built untimed, as at agent start-up),
+    and cold (a fresh ``path_length_function`` inside the timing)."""
+    rows = []
+    for i in (1, 2, 3):
+        scenario = load_scenario(ROOT / "scenarios" / f"scenario{i}.toml")
+        for robot in sorted(scenario.robots, key=lambda r: r.id):
+            if robot.ltl is None:
+                continue
+            core = LtlCore(scenario, robot.id)
+            plans = []
+            warm = time_calls(lambda core=core, plans=plans: plans.append(core.plan()), runs)
+            cold = time_calls(lambda s=scenario, r=robot.id: plan_robot(
+                s, r, distance=path_length_function(s)), runs)
+            p = plans[-1]
+            translation = time_calls(lambda text=robot.ltl: translate(text), runs)
+            ts = from_scenario(scenario, robot.id, core.agent.distance)
+            again = time_calls(lambda core=core, ts=ts, s=scenario: replan(
+                core.buchi, ts, core.agent.initial_region, core.buchi.initial,
+                s.ltl.suffix_weight), runs)
+            rows.append({
+                "scenario": scenario.name, "robot": robot.id, "formula": robot.ltl,
+                "cost": p.cost, "prefix": list(p.prefix), "suffix": list(p.suffix),
+                "cpu_ms": 1e3 * warm.cpu, "wall_ms": 1e3 * warm.wall,
+                "cold_cpu_ms": 1e3 * cold.cpu, "cold_wall_ms": 1e3 * cold.wall,
+                "translate_cpu_ms": 1e3 * translation.cpu,
+                "replan_cpu_ms": 1e3 * again.cpu, "replan_wall_ms": 1e3 * again.wall,
+                "translate_ms": 1e3 * p.timings.translate, "product_ms": 1e3 * p.timings.product,
+                "search_ms": 1e3 * p.timings.search,
+            })
+    return rows
+
+
 def print_tables(result: dict) -> None:
     print("== translation: size-target families — states (bound) / median ms")
     names = list(dict.fromkeys(row["family"] for row in result["families"]))
@@ -308,6 +353,15 @@ def print_tables(result: dict) -> None:
         print(f"{row['scenario']:<10} robot {row['robot']}  {row['formula']:<36} "
               f"product {row['product_states']:>4}/{row['product_edges']:<5} "
               f"cost {row['cost']:>8.3f}  {row['plan_ms']:>7.3f} ms")
+    print("\n== Algorithm 1 as the LTL agent runs it: map weights (cached once per map); "
+          "wall split of the last run")
+    for row in result["agent_plans"]:
+        print(f"{row['scenario']:<10} robot {row['robot']}  {row['formula']:<36} "
+              f"CPU {row['cpu_ms']:>7.3f} ms  wall {row['wall_ms']:>7.3f} ms  "
+              f"(translate {row['translate_ms']:.2f}, product {row['product_ms']:.2f}, "
+              f"search {row['search_ms']:.2f} ms)  translate alone: CPU "
+              f"{row['translate_cpu_ms']:.2f} ms  replan: CPU {row['replan_cpu_ms']:.2f} ms  "
+              f"cold incl. map: CPU {row['cold_cpu_ms']:.2f} ms")
     print("\n== scaling grid: end-to-end planning (target F r1&…&F r5 @ 40 regions <= 100 ms)")
     print(f"{'regions':>7}  {'formula':<38} {'Büchi':>5} {'product':>13} {'ms':>9} "
           f"{'reference':>10}")
@@ -334,7 +388,9 @@ def main(argv: list[str] | None = None) -> int:
     runs = args.runs or (2 if args.quick else 7)
     max_n = 3 if args.quick else 8
     sizes = [10] if args.quick else [10, 20, 40]
+    load_before = load_average()
     translations, plans = bench_scenarios(runs)
+    agent_plans = bench_agent_plans(max(runs, 3))
     result = {
         "quick": args.quick,
         "runs": runs,
@@ -343,6 +399,7 @@ def main(argv: list[str] | None = None) -> int:
         "families": bench_families(max_n, runs),
         "scenario_translations": translations,
         "scenario_plans": plans,
+        "agent_plans": agent_plans,
         "grid": bench_grid(sizes, runs, args.seed),
         "code_root": str(CODE_ROOT),
         "issue16": bench_issue16(args.quick, runs, args.seed),
@@ -350,6 +407,26 @@ def main(argv: list[str] | None = None) -> int:
     }
     print_tables(result)
     print_issue16(result)
+    worst = max(agent_plans, key=lambda row: row["cpu_ms"])
+    figures = [
+        Figure("algorithm1_ms", f"Algorithm 1, agent path, worst robot ({worst['scenario']} "
+               f"robot {worst['robot']})", worst["cpu_ms"], "ms", ALGORITHM1_TARGET_MS,
+               wall=worst["wall_ms"],
+               note=f"of which translating the formula (step 1) {worst['translate_cpu_ms']:.2f} "
+                    "ms CPU"),
+        Figure("replan_ms", "  steps 2-4 only (the agent's replan: automaton kept)",
+               worst["replan_cpu_ms"], "ms", wall=worst["replan_wall_ms"]),
+        Figure("algorithm1_cold_ms", "the same, map weights computed inside the timing",
+               worst["cold_cpu_ms"], "ms", wall=worst["cold_wall_ms"]),
+    ]
+    load_after = load_average()
+    print()
+    print_table("ltl_bench", figures, load_before, load_after)
+    result.update(load_average_before=list(load_before), load_average_after=list(load_after),
+                  figures=[{**vars(f), "met": f.met} for f in figures],
+                  results={f.key: f.value for f in figures},
+                  targets={f.key: f.target for f in figures if f.target is not None},
+                  meets_targets={f.key: f.met for f in figures if f.target is not None})
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     print(f"\nwrote {args.output}")

@@ -62,9 +62,25 @@ class Handle:
             undo()
 
 
+#: zenoh's runtime threads (``ZENOH_RUNTIME``) for a process that moves ~100 small messages a
+#: second: one async worker, and every other runtime (rx, tx, net, acc) handed over to it. A
+#: default session runs 7 OS threads (+1 per callback entity); each received sample then wakes
+#: 3–4 of them. Measured with the real fleet (issue 17, ``bench/runtime_bench.py``): less CPU per
+#: tick in every process (router −25…40 %), see the closing note.
+MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
+                   "net: (handover: app), acc: (handover: app))")
+
+
 @dataclass(frozen=True)
 class TransportConfig:
-    """How a process opens its session: the transport flags every process shares (style.md §6)."""
+    """How a process opens its session: the transport flags every process shares (style.md §6).
+
+    ``runtime``: the ``ZENOH_RUNTIME`` value set in this process before its (first) session opens
+    (zenoh reads it once per process; an existing ``ZENOH_RUNTIME`` in the environment wins);
+    ``None`` keeps zenoh's default thread pools. ``direct_callbacks``: subscriber callbacks run on
+    zenoh's network thread (``Callback(indirect=False)``) instead of a Python thread per
+    subscriber, saving one thread wake-up per sample; they must then be quick and never block.
+    """
 
     mode: str = "client"  # "client" | "peer" | "router"
     connect: tuple[str, ...] = ()
@@ -72,6 +88,8 @@ class TransportConfig:
     lease_ms: int | None = None  # [ms] link lease: how fast a hung peer is declared gone
     multicast_scouting: bool = False
     extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
+    runtime: str | None = MINIMAL_RUNTIME
+    direct_callbacks: bool = False
 
 
 def open_transport(config: TransportConfig) -> ZenohTransport:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import threading
 from typing import Any
 
@@ -37,8 +38,9 @@ def init_log(spec: str) -> None:
 class ZenohTransport:
     """:class:`Transport` over an open zenoh session (stack-notes.md §1)."""
 
-    def __init__(self, session: Any):
+    def __init__(self, session: Any, direct_callbacks: bool = False):
         self._session = session
+        self._direct = direct_callbacks
         self._closing = threading.Event()
         self._publishers: dict[str, Any] = {}
         self._entities: list[Any] = []
@@ -58,11 +60,19 @@ class ZenohTransport:
             c.insert_json5(key, json.dumps(value))
         return c
 
+    @staticmethod
+    def apply_runtime(config: TransportConfig) -> None:
+        """Set ``ZENOH_RUNTIME`` from ``config.runtime`` unless the environment already has one
+        (zenoh reads it when the process's first session opens)."""
+        if config.runtime is not None and "ZENOH_RUNTIME" not in os.environ:
+            os.environ["ZENOH_RUNTIME"] = config.runtime
+
     @classmethod
     def open(cls, config: TransportConfig) -> ZenohTransport:
         import zenoh
 
-        return cls(zenoh.open(cls.zenoh_config(config)))
+        cls.apply_runtime(config)
+        return cls(zenoh.open(cls.zenoh_config(config)), config.direct_callbacks)
 
     def publish(self, key: str, payload: bytes) -> None:
         publisher = self._publishers.get(key)
@@ -82,7 +92,13 @@ class ZenohTransport:
             except Exception:
                 logger.exception("subscriber callback for %s failed", key_expr)
 
-        sub = self._session.declare_subscriber(key_expr, on_sample)
+        if self._direct:
+            import zenoh
+
+            sub = self._session.declare_subscriber(
+                key_expr, zenoh.handlers.Callback(on_sample, indirect=False))
+        else:
+            sub = self._session.declare_subscriber(key_expr, on_sample)
         self._entities.append(sub)
         return Handle(sub.undeclare)
 

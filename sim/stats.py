@@ -17,6 +17,10 @@ from collections.abc import Iterable
 
 import numpy as np
 
+#: left edges [ms] of the latency histogram in ``sim_stats`` (the last bin is open-ended)
+HISTOGRAM_EDGES_MS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 7.5, 10.0,
+                      15.0, 20.0, 50.0, 100.0)
+
 
 class TimingStats:
     """Frame publication times, command latencies and deadline misses of one run."""
@@ -69,4 +73,7 @@ class TimingStats:
             out["latency_p99_ms_by_robot"] = {
                 str(robot): float(np.percentile(np.asarray(values) * 1000.0, 99))
                 for robot, values in sorted(self.robot_latencies.items())}
+            counts, _ = np.histogram(ms, bins=(*HISTOGRAM_EDGES_MS, max(ms.max(), 1e3) + 1.0))
+            out["latency_histogram_ms"] = {"edges": [*HISTOGRAM_EDGES_MS, "inf"],
+                                           "counts": [int(c) for c in counts]}
         return out

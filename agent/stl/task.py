@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from agent.stl.analysis import literal_sup, non_concave_literals
+from agent.stl.compiled import StraightLinePsi
 from agent.stl.errors import StlConcavityWarning, StlTaskError
 from agent.stl.parser import parse_task
 from agent.stl.robustness import CompiledPsi, participants, smooth_and
@@ -41,7 +42,7 @@ class Task:
     v_ctrl: tuple[int, ...]
     rho_opt: float
     eta: float
-    compiled: CompiledPsi = field(compare=False, repr=False)
+    compiled: CompiledPsi | StraightLinePsi = field(compare=False, repr=False)
 
     @property
     def text(self) -> str:
@@ -111,4 +112,4 @@ def build_task(
         raise StlTaskError(f"{where}: sup of the robustness is unbounded; give rho_opt explicitly")
     return Task(owner=owner, index=index, kind=phi.op, a=phi.a, b=phi.b, psi=phi.body,
                 participants=robots, v_ctrl=v_ctrl, rho_opt=resolved, eta=eta,
-                compiled=CompiledPsi(phi.body, robots, eta))
+                compiled=StraightLinePsi(phi.body, robots, eta))

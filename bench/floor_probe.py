@@ -1,0 +1,260 @@
+"""The physical floor of one agent tick (issue 17 item 5): an agent-like echo at 100 Hz.
+
+A sender process publishes a 250-byte payload every 10 ms (like the sim's mocap frame); a receiver
+process takes it, spends ``--work-us`` of CPU (like decode + step + encode) and answers with a
+40-byte payload (like a command). What is measured, per variant, median over ``--runs`` runs:
+
+* ``rx_cpu_us``: CPU time (user + system, every thread) of the receiver process per tick —
+  what one agent process costs the machine per frame, the figure the fleet size depends on;
+* ``rtt_p50_us`` / ``rtt_p99_us``: sender-side round trip (frame out → answer in), wall clock.
+
+Variants: ``udp`` (a blocking ``recv`` on a bare UDP socket: the floor for a Python process woken
+100 times a second), ``zenoh-default`` (today's agent pattern before issue 17: a Python callback
+thread per subscriber hands the payload to the main thread through a condition variable, zenoh's
+default runtime), ``zenoh-minimal`` (the same with ``bus.transport.MINIMAL_RUNTIME``),
+``zenoh-direct`` (minimal runtime, ``Callback(indirect=False)``: the callback runs on zenoh's
+thread), ``zenoh-fifo`` (minimal runtime, a ``FifoChannel`` read by the main thread with a
+blocking ``recv``). Zenoh variants run peer to peer on loopback (multicast scouting off).
+
+    .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import socket
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bus.transport import MINIMAL_RUNTIME  # noqa: E402
+
+VARIANTS = ("udp", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo")
+FRAME = b"f" * 250
+ANSWER = b"c" * 40
+
+
+def _busy(us: float) -> None:
+    end = time.thread_time() + us * 1e-6
+    while time.thread_time() < end:
+        pass
+
+
+def _config(listen: str | None, connect: str | None):
+    import zenoh
+
+    c = zenoh.Config()
+    c.insert_json5("mode", '"peer"')
+    c.insert_json5("listen/endpoints", json.dumps([listen] if listen else []))
+    c.insert_json5("connect/endpoints", json.dumps([connect] if connect else []))
+    c.insert_json5("scouting/multicast/enabled", "false")
+    return c
+
+
+def receiver(variant: str, port: int, ticks: int, work_us: float) -> dict:
+    """Answer ``ticks`` frames; return CPU per tick of this process."""
+    done = 0
+    if variant == "udp":
+        rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        rx.bind(("127.0.0.1", port + 1))
+        rx.settimeout(10.0)
+        print("ready", flush=True)
+        c0 = resource.getrusage(resource.RUSAGE_SELF)
+        while done < ticks:
+            rx.recvfrom(2048)
+            _busy(work_us)
+            rx.sendto(ANSWER, ("127.0.0.1", port))
+            done += 1
+    else:
+        import zenoh
+
+        session = zenoh.open(_config(f"tcp/127.0.0.1:{port}", None))
+        pub = session.declare_publisher("probe/cmd")
+        try:
+            if variant == "zenoh-fifo":
+                sub = session.declare_subscriber("probe/frame", zenoh.handlers.FifoChannel(16))
+                print("ready", flush=True)
+                c0 = resource.getrusage(resource.RUSAGE_SELF)
+                while done < ticks:  # zenoh is reliable: the sender's frames all arrive
+                    sample = sub.recv()
+                    sample.payload.to_bytes()
+                    _busy(work_us)
+                    pub.put(ANSWER)
+                    done += 1
+            else:
+                cond = threading.Condition()
+                box: list[bytes] = []
+
+                def on_sample(sample) -> None:
+                    with cond:
+                        box.append(sample.payload.to_bytes())
+                        cond.notify_all()
+
+                handler = (zenoh.handlers.Callback(on_sample, indirect=False)
+                           if variant == "zenoh-direct" else on_sample)
+                session.declare_subscriber("probe/frame", handler)
+                print("ready", flush=True)
+                c0 = resource.getrusage(resource.RUSAGE_SELF)
+                quiet = time.monotonic() + 10.0
+                while done < ticks and time.monotonic() < quiet:
+                    with cond:
+                        if not box:
+                            cond.wait(0.5)
+                        got = len(box)
+                        box.clear()
+                    if not got:
+                        continue
+                    quiet = time.monotonic() + 3.0  # the sender is done when frames stop
+                    _busy(work_us)  # frames that arrived together are answered once, as the
+                    pub.put(ANSWER)  # agent's latest-frame mailbox does
+                    done += got
+        finally:
+            c1 = resource.getrusage(resource.RUSAGE_SELF)
+            session.close()
+        cpu = (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)
+        return {"ticks": done, "cpu_us_per_tick": 1e6 * cpu / max(done, 1)}
+    c1 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)
+    return {"ticks": done, "cpu_us_per_tick": 1e6 * cpu / max(done, 1)}
+
+
+def sender(variant: str, port: int, ticks: int, ready) -> list[float]:
+    """Send ``ticks`` frames at 100 Hz; the round trips [µs]."""
+    rtts: list[float] = []
+    period = 0.01
+    if variant == "udp":
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        tx.bind(("127.0.0.1", port))
+        tx.settimeout(0.5)
+        ready()
+        next_t = time.perf_counter()
+        for _ in range(ticks):
+            sent = time.perf_counter()
+            tx.sendto(FRAME, ("127.0.0.1", port + 1))
+            try:
+                tx.recvfrom(2048)
+                rtts.append(1e6 * (time.perf_counter() - sent))
+            except TimeoutError:
+                pass
+            next_t += period
+            time.sleep(max(0.0, next_t - time.perf_counter()))
+        return rtts
+    import zenoh
+
+    session = zenoh.open(_config(None, f"tcp/127.0.0.1:{port}"))
+    try:
+        sub = session.declare_subscriber("probe/cmd", zenoh.handlers.FifoChannel(64))
+        pub = session.declare_publisher("probe/frame")
+        ready()
+        deadline = time.monotonic() + 10.0
+        while not pub.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.01)
+        next_t = time.perf_counter()
+        for _ in range(ticks):
+            sent = time.perf_counter()
+            pub.put(FRAME)
+            wait_until = time.monotonic() + 0.5
+            while time.monotonic() < wait_until:
+                if sub.try_recv() is not None:
+                    rtts.append(1e6 * (time.perf_counter() - sent))
+                    break
+                time.sleep(0.00005)
+            next_t += period
+            time.sleep(max(0.0, next_t - time.perf_counter()))
+    finally:
+        session.close()
+    return rtts
+
+
+def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
+    """One sender (this process's child) and one receiver process."""
+    ticks = int(seconds * 100)
+    env = dict(os.environ)
+    env.pop("ZENOH_RUNTIME", None)
+    if variant not in ("udp", "zenoh-default"):
+        env["ZENOH_RUNTIME"] = MINIMAL_RUNTIME
+    common = [sys.executable, __file__, "--variant", variant, "--port", str(port),
+              "--ticks", str(ticks), "--work-us", str(work_us)]
+    # the receiver binds (UDP) or listens (zenoh) first; the sender starts once it is ready
+    rx = subprocess.Popen([*common, "--role", "receiver"], stdout=subprocess.PIPE, text=True,
+                          env=env)
+    if rx.stdout is None or rx.stdout.readline().strip() != "ready":
+        rx.kill()
+        raise RuntimeError(f"floor probe receiver ({variant}) did not start")
+    tx = subprocess.Popen([*common, "--role", "sender"], stdout=subprocess.PIPE, text=True,
+                          env=env)
+    nan = float("nan")
+    try:
+        rx_out, _ = rx.communicate(timeout=seconds + 30)
+        tx_out, _ = tx.communicate(timeout=seconds + 30)
+    except subprocess.TimeoutExpired:
+        return {"rx_cpu_us": nan, "ticks": 0, "answered": 0, "rtt_p50_us": nan,
+                "rtt_p99_us": nan, "error": "timed out"}
+    finally:
+        for p in (rx, tx):
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    rx_data = json.loads(rx_out.strip().splitlines()[-1])
+    rtts = json.loads(tx_out.strip().splitlines()[-1])["rtt_us"]
+    rtts.sort()
+    return {"rx_cpu_us": rx_data["cpu_us_per_tick"], "ticks": rx_data["ticks"],
+            "answered": len(rtts),
+            "rtt_p50_us": rtts[len(rtts) // 2] if rtts else float("nan"),
+            "rtt_p99_us": rtts[min(len(rtts) - 1, int(0.99 * len(rtts)))] if rtts
+            else float("nan")}
+
+
+def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
+          variants: tuple[str, ...] = VARIANTS, base_port: int = 0) -> dict[str, dict]:
+    """Medians per variant (see the module docstring)."""
+    port = base_port or (20000 + os.getpid() % 20000)
+    out: dict[str, dict] = {}
+    for variant in variants:
+        rows = []
+        for _ in range(max(1, runs)):
+            port += 2
+            rows.append(run_pair(variant, port, seconds, work_us))
+        ok = [r for r in rows if "error" not in r] or rows
+        out[variant] = {key: statistics.median(r[key] for r in ok)
+                        for key in ("rx_cpu_us", "rtt_p50_us", "rtt_p99_us")}
+        out[variant]["runs"] = rows
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--role", choices=("sender", "receiver"))
+    parser.add_argument("--variant", choices=VARIANTS)
+    parser.add_argument("--port", type=int, default=0)
+    parser.add_argument("--ticks", type=int, default=300)
+    parser.add_argument("--work-us", type=float, default=30.0)
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--seconds", type=float, default=3.0)
+    args = parser.parse_args(argv)
+    if args.role == "receiver":
+        print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us)))
+        return 0
+    if args.role == "sender":
+        rtts = sender(args.variant, args.port, args.ticks, lambda: None)
+        print(json.dumps({"rtt_us": rtts}))
+        return 0
+    result = probe(args.runs, args.seconds, args.work_us)
+    print(f"load average {os.getloadavg()[0]:.2f}")
+    for variant, row in result.items():
+        print(f"{variant:<14} receiver CPU {row['rx_cpu_us']:7.0f} µs/tick   round trip p50 "
+              f"{row['rtt_p50_us']:7.0f} µs  p99 {row['rtt_p99_us']:7.0f} µs")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
