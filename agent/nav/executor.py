@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
 from agent.nav.errors import InvalidPlanError, NoPathError
 from agent.nav.events import (
@@ -91,12 +92,15 @@ class ExecutorConfig:
 @dataclass(frozen=True, eq=False)
 class ExecutorInputs:
     """One tick's inputs: time [s], own pose (x, y, θ), the other robots of the pose frame as
-    rows ``(id, x, y, θ)`` (K, 4), and optionally a new plan ``(prefix, suffix)``."""
+    rows ``(id, x, y, θ)`` (K, 4), optionally a new plan ``(prefix, suffix)`` and the coupling
+    limits of this tick (``agent.nav.coupling_limits``; they bound every command, recovery
+    rotations included)."""
 
     t: float
     pose: tuple[float, float, float]
     others: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     new_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+    limits: VelocityLimits | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -257,12 +261,13 @@ class Executor:
         )
         if s.mode != HOLD:
             s = self._visit(s, pose, t, events)
+        limits = inputs.limits
         if s.mode == HOLD:
-            s, command = self._settle(s, pose, others)
+            s, command = self._settle(s, pose, others, limits)
         elif s.mode in (ROTATE, BACK_OFF):
-            s, command = self._recover(s, pose, t, others, events)
+            s, command = self._recover(s, pose, t, others, events, limits)
         else:
-            s, command = self._navigate(s, pose, t, others, events)
+            s, command = self._navigate(s, pose, t, others, events, limits)
         s = replace(s, command=command)
         for event in events:
             log.debug("t=%.2f %s", t, event)
@@ -399,7 +404,8 @@ class Executor:
         return v, w
 
     def _recover(
-        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         """Recovery: rotate in place, then back off (if the space behind is free of walls and
         robots), then ask for a replan and resume."""
@@ -418,9 +424,13 @@ class Executor:
         if s.mode == BACK_OFF and t - s.mode_since >= cfg.back_off_time:
             s = self._end_recovery(s, pose, t, events)
             return s, self._ramp(s.command, (0.0, 0.0))
+        rot = cfg.dwa.max_rot_vel
+        back = cfg.back_off_speed
+        if limits:
+            rot, back = min(rot, limits.omega_max), min(back, limits.v_max)
         if s.mode == ROTATE:
-            return s, self._ramp(s.command, (0.0, cfg.dwa.max_rot_vel))
-        return s, self._ramp(s.command, (-cfg.back_off_speed, 0.0))
+            return s, self._ramp(s.command, (0.0, rot))
+        return s, self._ramp(s.command, (-back, 0.0))
 
     def _end_recovery(
         self, s: ExecutorState, pose: np.ndarray, t: float, events: list
@@ -447,7 +457,8 @@ class Executor:
         )
 
     def _navigate(
-        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         cfg = self.config
         target = s.target
@@ -471,7 +482,7 @@ class Executor:
             remaining = math.inf
         else:
             result = dwa_control(
-                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa
+                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa, limits
             )
             command = (result.v, result.omega)
             ahead = remaining_polyline(pose[:2], s.path)
@@ -518,7 +529,8 @@ class Executor:
         return centers[keep], radii[keep]
 
     def _settle(
-        self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs
+        self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         """Holding: drive on to the final region's centre (as move_base does with its last goal)
         and stop within xy_goal_tolerance; no stuck detection."""
@@ -532,7 +544,8 @@ class Executor:
                 return s, self._ramp(s.command, (0.0, 0.0))
             s = replace(s, path=path, path_target=s.last_region)
         result = dwa_control(
-            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa
+            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa,
+            limits,
         )
         return s, (result.v, result.omega)
 

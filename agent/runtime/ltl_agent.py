@@ -6,6 +6,9 @@ then, per due frame (5 Hz, ``scenario.ltl.control_rate``), ``step(state, TickInp
 
 1. the plan executor's step (``agent.nav.executor.Executor.step``, ltl-planning.md §6) with the own
    pose of the frame and every other row as ``others`` → the command (v [m/s], ω [rad/s]);
+   when the scenario's ``[navigation] coupling_aware`` is on (default) and STL tasks depend on
+   this robot, the velocity limits those robots can track (``agent.nav.coupling_limits``,
+   docs/coupling.md) bound the command;
 2. the Büchi state set along the regions visited (``agent.ltl.buchi.buchi_step``): each time the
    executor advances from plan position k ≥ 1 to k + 1, the label of the region at position
    k − 1 (the one left) is read (the planner's convention, ``agent.ltl.planner``);
@@ -31,12 +34,14 @@ from agent.errors import UnsatisfiableTask
 from agent.ltl.buchi import buchi_step, translate
 from agent.ltl.planner import Plan, plan_robot, replan
 from agent.ltl.transition_system import START, from_scenario
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
 from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
 from agent.nav.grid_planner import path_length_function, with_penalised_edges
 from agent.protocol.messages import Event, LtlStatus
 from agent.runtime.loop import TickInput, TickOutput
 from agent.scenario.model import Scenario
+from agent.stl.coupling import CouplingModel
 
 logger = logging.getLogger(__name__)
 
@@ -77,6 +82,8 @@ class LtlCore:
         ts = from_scenario(scenario, robot, self.distance)
         self.labels = dict(zip(ts.names, ts.labels, strict=True))
         self.initial_region = ts.names[ts.initial]
+        self.coupling = (CouplingModel.from_scenario(scenario, robot)
+                         if scenario.navigation.coupling_aware else None)
 
     # start-up -------------------------------------------------------------------------------
 
@@ -89,6 +96,13 @@ class LtlCore:
         executor = self.executor.initial_state(plan.prefix, plan.suffix, 0.0)
         state = LtlState(executor, frozenset(self.buchi.initial), plan)
         return state, self._plan_event(0.0, plan, replanned=False)
+
+    def coupling_event(self) -> Event:
+        """``coupling_limits`` at start-up: whether the limits are on and the coupled predicates."""
+        terms = [term.source for term in self.coupling.terms] if self.coupling else []
+        return Event(0.0, self.source, "coupling_limits",
+                     {"coupling_aware": self.coupling is not None,
+                      "share": self.scenario.navigation.coupling_share, "predicates": terms})
 
     def _plan_event(self, t: float, plan: Plan, replanned: bool,
                     reason: dict | None = None) -> Event:
@@ -115,7 +129,12 @@ class LtlCore:
                           dtype=float).reshape(-1, 4)
         prev = state.executor
         new_plan = state.pending_plan
-        ex_state, ex_out = self.executor.step(prev, ExecutorInputs(t, pose, others, new_plan))
+        limits = None
+        if self.coupling:
+            limits = VelocityLimits.of(
+                self.coupling.limits(t, {int(row[0]): row[1:4] for row in frame.poses}))
+        ex_state, ex_out = self.executor.step(prev, ExecutorInputs(t, pose, others, new_plan,
+                                                                   limits))
         if new_plan is not None:
             first = 1 if new_plan[0] and new_plan[0][0] == prev.last_region else 0
         else:
@@ -207,9 +226,10 @@ def main(args: argparse.Namespace, scenario: Scenario, *, transport=None, stop=N
         core = LtlCore(scenario, args.robot)
         plan = core.plan()  # UnsatisfiableTask → fault event, exit code 1 (run_agent)
         state, event = core.initial_state(plan)
+        events = (event, core.coupling_event()) if core.coupling else (event,)
         logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", args.robot, plan.prefix,
                     plan.suffix, plan.cost, 1e3 * plan.timings.total)
-        return core, state, (event,), None
+        return core, state, events, None
 
     divider = max(1, round(scenario.sim.mocap_rate / scenario.ltl.control_rate))
     return run_agent(args, scenario, divider, build, transport=transport, stop=stop)
