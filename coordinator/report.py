@@ -63,7 +63,7 @@ from agent.ltl.planner import plan_robot
 from agent.scenario import Scenario
 from agent.stl.monitor import Trajectory
 from agent.stl.parser import parse_task
-from coordinator import paper_values
+from coordinator import paper_values, verdicts
 from coordinator.summary import REGION_HYSTERESIS, read_run_files, region_entry_indices, summarise
 
 SCHEMA = 1
@@ -245,13 +245,18 @@ def _repair_events(events: list[dict[str, Any]]) -> dict[int, list[dict[str, Any
     out: dict[int, list[dict[str, Any]]] = {}
     for e in events:
         source = str(e.get("source", ""))
-        if e.get("kind") != "repair" or not source.startswith("agent/"):
+        if e.get("kind") not in ("repair", "recovery") or not source.startswith("agent/"):
             continue
         try:
             robot = int(source.split("/", 1)[1])
         except ValueError:
             continue
         data = e["data"]
+        if e.get("kind") == "recovery" and isinstance(e.get("t"), (int, float)):
+            out.setdefault(robot, []).append({
+                "t": float(e["t"]), "stage": "recovery", "subtask": data.get("subtask"),
+                "r": data.get("r") if isinstance(data.get("r"), (int, float)) else None})
+            continue
         stage, t = data.get("stage"), e.get("t")
         if not isinstance(stage, int) or not isinstance(t, (int, float)):
             continue
@@ -346,6 +351,11 @@ def _collect(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
         "process_deaths": summary["process_deaths"],
         "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
     }
+    data["verdicts"] = verdicts.collect(scenario, traj, events, t_end, data["stl"])
+    for rid, rows in data["verdicts"]["subtasks"].items():  # a window the run never closed
+        for sub, row in zip(data["stl"][rid]["subtasks"], rows, strict=True):  # is not "met"
+            if row["verdict"] == "not evaluated" and sub["paper"] is not None:
+                sub["paper"]["met"] = None
     context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
                "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context
@@ -487,6 +497,7 @@ def render_table(data: dict[str, Any]) -> str:
                     f"t {ca['t']:.2f} s)"
     lines.append(contacts)
     lines.append("  timing: " + _timing_text(data["timing"]))
+    lines += ["  " + line for line in verdicts.render_lines(data["verdicts"])]
     return "\n".join(lines)
 
 
@@ -585,6 +596,13 @@ def render_markdown(data: dict[str, Any]) -> str:
                        + (f"; **{e['note']}**" if e["note"] else "") + ".")
         out.append("")
 
+    out += ["## Verdicts, coupling-aware limits and recovery", "",
+            "Every STL sub-task: satisfied (ρ^φ > 0), violated by −ρ^φ, or not evaluated (the run "
+            "ended before its window did); held = share of the window's samples with ρ^ψ ≥ 0. "
+            "Coupling-aware leaders and robustness recovery go beyond the paper "
+            "(docs/coupling.md).", ""]
+    out += [f"* {line}" for line in verdicts.render_lines(data["verdicts"])] + [""]
+
     c, ca = data["contacts"], data["closest_approach"]
     out += ["## Contacts", "",
             f"robot–robot {c['robot_robot']}, robot–wall {c['robot_wall']}"
@@ -616,7 +634,7 @@ def render_markdown(data: dict[str, Any]) -> str:
         out += ["", "Trajectory windows: split at the ends of STL sub-tasks followed by another "
                 "sub-task (else the two halves of the run); colour = time. Robustness: ρ^ψ(t) "
                 "(solid), funnel ρ_max and lower = ρ_max − γ(t) (dashed), r (dotted), sub-task "
-                "windows shaded, repairs marked by stage."]
+                "windows shaded, repairs marked by stage, recoveries by green triangles."]
     else:
         out.append("No figures written.")
     out.append("")

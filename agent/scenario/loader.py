@@ -117,6 +117,9 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
             _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
         for k, text in enumerate(robot.stl):
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
+    from agent.scenario.stl_checks import check_stl_tasks
+
+    check_stl_tasks(scenario, source)
     return scenario
 
 

@@ -162,6 +162,9 @@ class StlParams:
     # controller runs through the whole window (paper Alg. 2 without the code's hold rule).
     hold_f_above_r: bool = True
     complete_f_on_satisfaction: bool = True
+    # Robustness recovery (agent.stl.recovery, docs/coupling.md §2; beyond the paper, §V): raise
+    # r again once the robustness has room. False reproduces Algorithm 2 as published.
+    recovery: bool = True
 
 
 @dataclass(frozen=True)

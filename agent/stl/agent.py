@@ -34,6 +34,7 @@ import numpy as np
 from agent.control.collision import CollisionParams, collision_velocity
 from agent.control.mixing import mix
 from agent.control.saturation import saturate
+from agent.stl import recovery as rec
 from agent.stl.control_law import ControlParams, nominal_velocity
 from agent.stl.funnel import Funnel, FunnelParams, epsilon
 from agent.stl.messages import (
@@ -69,6 +70,7 @@ class AgentConfig:
     control: ControlParams = field(default_factory=ControlParams)
     collision: CollisionParams = field(default_factory=CollisionParams)
     protocol: ProtocolParams = field(default_factory=ProtocolParams)
+    recovery: rec.RecoveryParams = field(default_factory=rec.RecoveryParams)
     random_seed: int | None = None  # None: fixed fractions (§5); int: code-faithful U(0,1) draws
 
 
@@ -90,6 +92,8 @@ class SubTaskOutcome:
     events: tuple[int, int, int]  # critical events handled by stage 1, 2, 3
     ended_by: Literal["satisfaction", "window_end"] = "window_end"  # §8: the completion rule
     # (F: first a ≤ t ≤ b with r < ρ < ρ_max; G: t ≥ b inside the funnel) or the window's end
+    recoveries: int = 0  # robustness recoveries (agent.stl.recovery); r̄ is then the least r
+    # in force (final_r = min(final funnel's r, every r a recovery replaced))
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +116,7 @@ class AgentState:
     outcomes: tuple[SubTaskOutcome, ...] = ()
     announced: tuple[int, int, bool] | None = None  # last (c, k, active) sent to peers
     t_announced: float = -math.inf  # [s] time of that announcement
+    recovery: rec.RecoveryState | None = None  # robustness recovery of sub-task k
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,6 +149,7 @@ class LogRecord:
     follow: int | None
     subtask: int
     repair: int = NO_REPAIR
+    recovered: bool = False  # a robustness recovery raised r in this step (agent.stl.recovery)
 
 
 @dataclass(frozen=True, slots=True)
@@ -271,6 +277,30 @@ class StlAgent:
                      funnel)
         return funnel, c, stage, messages
 
+    def _recover(self, state: AgentState, changes: dict, task: Task, funnel: Funnel,
+                 rho: float, t: float, grad_own, critical: bool) -> tuple[Funnel, bool]:
+        """Robustness recovery of the own G sub-task (agent.stl.recovery); updates ``changes``.
+        Returns (funnel in force, whether a recovery raised r in this step)."""
+        cfg = self.cfg
+        params = cfg.recovery
+        current = changes.get("recovery", state.recovery)
+        if current is None:
+            current = rec.RecoveryState.start(funnel, cfg.funnel, params)
+        if critical:
+            changes["recovery"] = rec.on_critical(current, t, params)
+            return funnel, False
+        rate = params.rate_share * rec.achievable_rate(grad_own, cfg.control.umax_lin,
+                                                       cfg.control.umax_ang)
+        new_state, new = rec.advance(current, funnel, rho, t, rate, cfg.funnel, params)
+        if new_state is not current:
+            changes["recovery"] = new_state
+        if new is None:
+            return funnel, False
+        logger.debug("robot %d: recovery at t=%.2f: r %.4f -> %.4f", cfg.robot_id, t, funnel.r,
+                     new.r)
+        changes["funnel"] = new
+        return new, True
+
     # ----------------------------------------------------------------- step
 
     def step(self, state: AgentState, inputs: StepInput) -> tuple[AgentState, StepOutput]:
@@ -316,12 +346,16 @@ class StlAgent:
                 funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
                                      self._rng(k, ce_before, t))
                 changes.update(active=True, funnel=funnel, ce=0, c=0, stage=0, events=(0, 0, 0),
-                               rho_phi=math.nan)
+                               rho_phi=math.nan,
+                               recovery=rec.RecoveryState.start(funnel, fp, cfg.recovery))
                 logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, k + 1, t, funnel)
             elif reinit:
                 funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, rho_own, t, fp,
                                      self._rng(k, ce_before, t))
-                changes.update(funnel=funnel, stage=0)
+                floor = state.recovery.r_floor if state.recovery is not None else math.inf
+                changes.update(funnel=funnel, stage=0, recovery=replace(
+                    rec.RecoveryState.start(funnel, fp, cfg.recovery),
+                    r_floor=min(floor, state.funnel.r if state.funnel else math.inf)))
                 if cfg.protocol.reset_ce_on_release:
                     changes["ce"] = 0
 
@@ -335,6 +369,7 @@ class StlAgent:
         stage = changes.get("stage", state.stage)
         events = changes.get("events", state.events)
         repaired = NO_REPAIR
+        recovered = False
         u_nom = (0.0, 0.0, 0.0)
         done = False
 
@@ -369,8 +404,11 @@ class StlAgent:
                     events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                     changes.update(funnel=funnel, ce=ce, stage=stage, events=events)
             if done:
-                outcome = SubTaskOutcome(k, t, rho_phi > 0.0, funnel.r, rho_phi, events,
-                                         "satisfaction" if by_rule else "window_end")
+                recovery = changes.get("recovery", state.recovery)
+                floor = recovery.r_floor if recovery is not None else math.inf
+                outcome = SubTaskOutcome(k, t, rho_phi > 0.0, min(funnel.r, floor), rho_phi,
+                                         events, "satisfaction" if by_rule else "window_end",
+                                         recovery.count if recovery is not None else 0)
                 if c == i and (by_rule or cfg.protocol.release_on_window_end):
                     out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
                                for v in task.v_ctrl if v != i)
@@ -422,6 +460,11 @@ class StlAgent:
                     events = tuple(n + (s == stage) for s, n in enumerate(events, start=1))
                     changes.update(funnel=funnel, ce=ce, c=c, stage=stage, events=events)
                     z = funnel.zeta(rho, t)
+                if task.kind == "G" and cfg.recovery.enabled and c == 0:
+                    funnel, recovered = self._recover(state, changes, task, funnel, rho, t,
+                                                      grad_own, bool(repaired))
+                    if recovered:
+                        z = funnel.zeta(rho, t)
                 u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own, cp.normalize_grad,
                                          cp.k_eps)
             log_funnel = funnel
@@ -445,7 +488,7 @@ class StlAgent:
             state = replace(state, announced=(state.c, state.k, state.active), t_announced=t)
         if log_funnel is not None:
             record = LogRecord(t, rho_log, log_funnel.rho_max, log_funnel.lower(t), log_funnel.r,
-                               stage, ce, c, follow, k, repaired)
+                               stage, ce, c, follow, k, repaired, recovered)
         else:
             record = LogRecord(t, rho_log, math.nan, math.nan, math.nan, stage, ce, c, follow,
                                k if k < len(tasks) else -1, repaired)
@@ -511,6 +554,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
                                       umax_lin=cparams.umax_lin),
             protocol=protocol or ProtocolParams(
                 complete_on_satisfaction=p.complete_f_on_satisfaction),
+            recovery=rec.RecoveryParams(enabled=p.recovery),
         )
         agents[robot_id] = StlAgent(config)
     return agents
