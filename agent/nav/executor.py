@@ -16,7 +16,10 @@ name equal to the previous one means "stay". Each step (5 Hz):
 3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
    velocity estimated from two consecutive pose frames.
 4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
-   ``progress_epsilon``; with none for ``stuck_timeout`` the executor emits ``Stuck``, rotates in
+   ``progress_epsilon``. With none for ``blocked_after`` the global path is re-planned with the
+   nearby robots stamped at full size (they become obstacles of the global plan, so a robot
+   blocking the way is passed around); with none for ``stuck_timeout`` the executor emits
+   ``Stuck``, rotates in
    place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
    emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
    answer with a new plan (``ExecutorInputs.new_plan``); its ``prefix[0]``, when it is the last
@@ -77,6 +80,9 @@ class ExecutorConfig:
     keep_right_offset: float = 0.3  # [m] lateral shift of robots ahead in the global path
     max_other_speed: float = 1.0  # [m/s] cap on velocities estimated from pose frames
     stuck_timeout: float = 10.0  # [s] no progress for this long → stuck
+    blocked_after: float = 5.0  # [s] no progress for this long → re-plan around the robots
+    # nearby at their full inflated size (no keep-clear shrink): a robot that blocks the way
+    # (an escort between us and a wall) becomes an obstacle of the global path
     progress_epsilon: float = 0.1  # [m] path-length decrease that counts as progress
     rotate_time: float = 3.0  # [s] recovery: rotate in place at max_rot_vel
     back_off_time: float = 1.5  # [s] recovery: drive backwards
@@ -132,6 +138,7 @@ class ExecutorState:
     path_target: str | None = None
     path_time: float = -math.inf  # [s]
     no_path_to: str | None = None  # target last reported unreachable (NoPathFound sent once)
+    blocked_plan: bool = False  # the current path was planned around robots at full size
     best_remaining: float = math.inf  # [m]
     progress_time: float = 0.0  # [s]
     remaining: float = math.inf  # [m]
@@ -465,13 +472,16 @@ class Executor:
         if target is None:  # past the end of a finite plan: nothing to drive to
             return replace(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
-        if s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period:
+        blocked = t - s.progress_time >= cfg.blocked_after and len(others) > 0
+        if (s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period
+                or (blocked and not s.blocked_plan)):
             grid = self.grid
             if len(others):
-                grid = grid.with_discs(*self._stamps(pose, others))
+                grid = grid.with_discs(*self._stamps(pose, others, full=blocked))
             try:
                 path = plan_path(grid, pose[:2], goal).waypoints
-                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None)
+                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None,
+                            blocked_plan=blocked)
             except NoPathError as error:
                 if s.no_path_to != target:  # report once, keep trying every replan period
                     events.append(NoPathFound(t, target, error.reason))
@@ -497,7 +507,8 @@ class Executor:
             command = self._ramp(s.command, (0.0, 0.0))
         return s, command
 
-    def _stamps(self, pose: np.ndarray, others: MovingDiscs) -> tuple[np.ndarray, np.ndarray]:
+    def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False
+                ) -> tuple[np.ndarray, np.ndarray]:
         """Discs (centres (J, 2), radii (J,)) [m] that put the other robots into the global grid.
 
         Each robot is stamped with radius ``r + other_robot_margin``, shrunk where needed so that
@@ -505,10 +516,14 @@ class Executor:
         escorting us, is left to the DWA). Each robot ahead gets a second disc shifted by
         ``keep_right_offset`` to our left, so the path passes it on our right (we keep right):
         two robots meeting head-on then pick opposite sides in the world instead of mirroring
-        each other into a deadlock.
+        each other into a deadlock. ``full`` (after ``blocked_after`` without progress): every
+        robot at its full radius ``r + other_robot_margin`` and no shift, so the path goes around
+        the robots that block it (the planner snaps our start out of their discs).
         """
         cfg = self.config
         centers = others.centers
+        if full:
+            return centers, others.radii + cfg.other_robot_margin
         gap = (
             np.linalg.norm(centers - pose[:2], axis=1) - self.grid.inflation - self.grid.resolution
         )

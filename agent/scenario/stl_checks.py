@@ -29,10 +29,26 @@ from __future__ import annotations
 from agent.errors import ScenarioError
 from agent.scenario.model import Scenario
 from agent.stl.analysis import literal_sup, non_concave_literals
-from agent.stl.errors import StlTaskError
 from agent.stl.parser import parse_task
-from agent.stl.sequencer import build_sequence, check_phase_start_times, merge_and_check
 from agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
+
+# The loader runs these checks in every process that loads a scenario: they use the syntax tree
+# and the analysis only (no numpy), and mirror agent.stl.sequencer's rules (§9): consecutive G
+# sub-tasks with the same window merge; otherwise b(k) <= a(k+1); phase_start_times[k] >= b(k).
+
+
+def _merged_windows(formulas: list[Temporal]) -> tuple[list[tuple[float, float]], int | None]:
+    """Windows after the same-window G merge, and the index of the first overlapping sub-task."""
+    windows: list[tuple[str, float, float]] = []
+    for k, phi in enumerate(formulas):
+        if windows:
+            op, a, b = windows[-1]
+            if phi.op == op == "G" and (phi.a, phi.b) == (a, b):
+                continue
+            if b > phi.a:
+                return [(a, b) for _, a, b in windows], k
+        windows.append((phi.op, phi.a, phi.b))
+    return [(a, b) for _, a, b in windows], None
 
 
 def _formulas(scenario: Scenario, index: int) -> list[Temporal]:
@@ -64,32 +80,27 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
                             f"the robustness of {to_text(literal)!r} is unbounded above, so the "
                             f"funnel has no rho_opt (sup of the robustness); give "
                             f"{where}.rho_opt[{k}] or use a bounded predicate")
-        try:
-            merged = merge_and_check(robot.id, formulas)
-        except StlTaskError as exc:
-            k = _subtask_number(str(exc))
-            raise ScenarioError(source, f"{where}.stl[{k}]" if k is not None else f"{where}.stl",
-                                str(exc)) from None
-        if robot.phase_start_times is not None:
-            tasks = merged  # Temporal has the window (a, b) the check needs
-            try:
-                check_phase_start_times(robot.id, tasks, robot.phase_start_times)
-            except StlTaskError as exc:
-                field = f"{where}.phase_start_times"
-                for k, t in enumerate(robot.phase_start_times):
-                    if k < len(tasks) - 1 and t < tasks[k].b:
-                        field = f"{where}.phase_start_times[{k}]"
-                        break
-                raise ScenarioError(source, field, str(exc)) from None
-
-
-def _subtask_number(message: str) -> int | None:
-    """0-based index from a "robot i sub-task k: …" message of the sequencer."""
-    marker = "sub-task "
-    if marker not in message:
-        return None
-    digits = message.split(marker, 1)[1].split(":", 1)[0].strip()
-    return int(digits) - 1 if digits.isdigit() else None
+        windows, overlap = _merged_windows(formulas)
+        if overlap is not None:
+            phi, (_, b_prev) = formulas[overlap], windows[-1]
+            raise ScenarioError(
+                source, f"{where}.stl[{overlap}]",
+                f"window [{phi.a:g}, {phi.b:g}] starts before the previous one ends "
+                f"(b = {b_prev:g}); sub-tasks run in sequence and need b(k) <= a(k+1) "
+                f"(stl-funnel.md §9)")
+        times = robot.phase_start_times
+        if times is not None:
+            if len(times) != len(windows) - 1:
+                raise ScenarioError(
+                    source, f"{where}.phase_start_times",
+                    f"has {len(times)} entries, expected {len(windows) - 1} (one per sub-task "
+                    f"after the first)")
+            for k, t in enumerate(times):
+                if t < windows[k][1]:
+                    raise ScenarioError(
+                        source, f"{where}.phase_start_times[{k}]",
+                        f"{t:g} precedes the end b = {windows[k][1]:g} of sub-task {k + 1} "
+                        f"(stl-funnel.md §9: a forced start needs the previous window closed)")
 
 
 def stl_warnings(scenario: Scenario) -> list[str]:
@@ -120,6 +131,8 @@ def stl_warnings(scenario: Scenario) -> list[str]:
                            f"controlled states (paper Assumption 1): the funnel guarantees do "
                            f"not apply to it")
             if k == 0 and phi.op == "G" and phi.a <= 0.0:
+                from agent.stl.sequencer import build_sequence  # numpy: only for warnings
+
                 task = build_sequence(robot.id, [phi], robot_ids=scenario.robot_ids,
                                       warn=False, eta=scenario.stl.eta,
                                       rho_opt=robot.rho_opt[:1])[0]
