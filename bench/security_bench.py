@@ -44,8 +44,8 @@ from runtime_bench import CpuSampler  # noqa: E402
 
 from agent.scenario import load_scenario  # noqa: E402
 from coordinator.keys import write_keys  # noqa: E402
+from coordinator.rundir import read_events  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.summary import read_events  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
@@ -73,8 +73,8 @@ def run_once(mode: str, duration: float, out: Path, secure: Path | None,
         else:
             os.environ["RUST_LOG"] = saved
     cpu = sampler.cpu_pct(marks[0] + 0.5, marks[-1]) if len(marks) >= 2 else {}
-    stats = next((e["data"] for e in reversed(read_events(out / "events.jsonl"))
-                  if e["kind"] == "sim_stats"), {})
+    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
+                  if e.kind == "sim_stats"), {})
     return {
         "secure": secure is not None, "acl_trace": acl_trace, "mode": mode,
         "clean": result.clean,

@@ -114,7 +114,7 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
                       dpi: int = DPI) -> Path:
     """ρ^ψ(t), ρ_max, lower, r of STL robot ``robot_id`` (``series``: arrays ``t, rho, rho_max,
     lower, r, subtask`` (N,), NaN when idle), ``subtasks`` as ``(label, a, b)`` [s], ``repairs`` as
-    ``{t, stage, r}``; writes ``path``."""
+    ``{t, stage, r}`` (stage "recovery" for a robustness recovery); writes ``path``."""
     fig = _new_figure((8.4, 3.6))
     ax = fig.add_subplot()
     for k, (label, a, b) in enumerate(subtasks):
@@ -154,6 +154,12 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
         ys = np.where(np.isfinite(ys), ys, 0.0)
         ax.scatter(ts, ys, marker=marker, s=22, color=colour, zorder=5,
                    label=f"stage {stage} repair ({len(hits)})")
+    recoveries = [e for e in repairs if e.get("stage") == "recovery"]
+    if recoveries:  # robustness recovery (agent.stl.recovery): the raised r
+        ts = np.array([e["t"] for e in recoveries], dtype=float)
+        ys = np.array([e["r"] if e.get("r") is not None else 0.0 for e in recoveries], dtype=float)
+        ax.scatter(ts, ys, marker="^", s=26, color="tab:green", zorder=5,
+                   label=f"recovery ({len(recoveries)})")
     ax.set_xlim(0.0, t_end)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("robustness")

@@ -63,13 +63,19 @@ def stl_robot_report(scenario_name: str, robot_id: int, summary_entry: dict[str,
 
 
 def repair_events(events: Iterable[Event]) -> dict[int, list[dict[str, Any]]]:
-    """``repair`` events per agent: ``[{t, stage, subtask, r}]``."""
+    """``repair`` (and ``recovery``: stage "recovery") events per agent:
+    ``[{t, stage, subtask, r}]``."""
     out: dict[int, list[dict[str, Any]]] = {}
     for e in events:
         head, _, tail = e.source.partition("/")
-        if e.kind != "repair" or head != "agent" or not tail.isdigit():
+        if e.kind not in ("repair", "recovery") or head != "agent" or not tail.isdigit():
             continue
         data = e.data
+        if e.kind == "recovery":
+            out.setdefault(int(tail), []).append({
+                "t": e.t, "stage": "recovery", "subtask": data.get("subtask"),
+                "r": data.get("r") if isinstance(data.get("r"), int | float) else None})
+            continue
         stage = data.get("stage")
         if not isinstance(stage, int):
             continue

@@ -27,7 +27,7 @@ import numpy as np
 
 from agent.protocol.messages import LtlStatus, StlStatus
 from agent.scenario import Scenario
-from coordinator import paper_values, rundir
+from coordinator import paper_values, rundir, verdicts
 from coordinator.ltl_trace import ltl_robot_report
 from coordinator.paper_comparison import repair_events, stl_robot_report
 from coordinator.report_render import render_markdown, render_table
@@ -122,6 +122,11 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None
         "process_deaths": summary["process_deaths"],
         "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
     }
+    data["verdicts"] = verdicts.collect(scenario, traj, events, t_end, data["stl"])
+    for rid, rows in data["verdicts"]["subtasks"].items():  # a window the run never closed
+        for sub, row in zip(data["stl"][rid]["subtasks"], rows, strict=True):  # is not "met"
+            if row["verdict"] == "not evaluated" and sub["paper"] is not None:
+                sub["paper"]["met"] = None
     context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
                "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context

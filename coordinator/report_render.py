@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from coordinator import verdicts
+
 
 def _fmt(value: Any, spec: str = "+.4f") -> str:
     if value is None:
@@ -69,6 +71,7 @@ def render_table(data: dict[str, Any]) -> str:
                     f"t {ca['t']:.2f} s)"
     lines.append(contacts)
     lines.append("  timing: " + _timing_text(data["timing"]))
+    lines += ["  " + line for line in verdicts.render_lines(data["verdicts"])]
     return "\n".join(lines)
 
 
@@ -167,6 +170,13 @@ def render_markdown(data: dict[str, Any]) -> str:
                        + (f"; **{e['note']}**" if e["note"] else "") + ".")
         out.append("")
 
+    out += ["## Verdicts, coupling-aware limits and recovery", "",
+            "Every STL sub-task: satisfied (ρ^φ > 0), violated by −ρ^φ, or not evaluated (the run "
+            "ended before its window did); held = share of the window's samples with ρ^ψ ≥ 0. "
+            "Coupling-aware leaders and robustness recovery go beyond the paper "
+            "(docs/coupling.md).", ""]
+    out += [f"* {line}" for line in verdicts.render_lines(data["verdicts"])] + [""]
+
     c, ca = data["contacts"], data["closest_approach"]
     out += ["## Contacts", "",
             f"robot–robot {c['robot_robot']}, robot–wall {c['robot_wall']}"
@@ -198,7 +208,7 @@ def render_markdown(data: dict[str, Any]) -> str:
         out += ["", "Trajectory windows: split at the ends of STL sub-tasks followed by another "
                 "sub-task (else the two halves of the run); colour = time. Robustness: ρ^ψ(t) "
                 "(solid), funnel ρ_max and lower = ρ_max − γ(t) (dashed), r (dotted), sub-task "
-                "windows shaded, repairs marked by stage."]
+                "windows shaded, repairs marked by stage, recoveries by green triangles."]
     else:
         out.append("No figures written.")
     out.append("")

@@ -21,6 +21,7 @@ Importing rerun costs ≈ 0.9 s, so callers import this module lazily, when they
     /rho/r<id>/{rho,rho_max,lower,r}   STL funnel and robustness (Scalars; NaN = idle, not logged)
     /rho/r<id>/critical    ρ at each critical event (SeriesPoints)
     /rho/r<id>/repairs     r̄ after each repair (SeriesPoints)
+    /rho/r<id>/recoveries  r after each robustness recovery (SeriesPoints)
     /events/<source>       every event as a line of text (TextLog); source "agent/4" → "r4"
 
 :func:`replay_run` logs a finished run directory (``scenario.toml``, ``trajectory.csv``,
@@ -242,6 +243,9 @@ class FleetLog:
             rec.log(f"rho/r{robot.id}/repairs",
                     rr.SeriesPoints(names="repair (new r̄)", colors=(255, 127, 14),
                                     markers="diamond", marker_sizes=4.0), static=True)
+            rec.log(f"rho/r{robot.id}/recoveries",
+                    rr.SeriesPoints(names="recovery (raised r)", colors=(44, 160, 44),
+                                    markers="up", marker_sizes=4.0), static=True)
 
     # ----------------------------------------------------------------- per message
 
@@ -347,7 +351,8 @@ class FleetLog:
                 values.clear()
 
     def event(self, event: Event) -> None:
-        """A line of text per event; critical events and repairs also mark the ρ plot."""
+        """A line of text per event; critical events, repairs and robustness recoveries also mark
+        the ρ plot."""
         self._at(event.t)
         data = json.dumps(event.data, separators=(",", ":"), default=str, allow_nan=True)
         if len(data) > EVENT_TEXT_LIMIT:
@@ -358,9 +363,10 @@ class FleetLog:
         if kind != "agent" or not rest.isdigit():
             return
         value = event.data.get("rho") if event.kind == "critical_event" else (
-            event.data.get("r") if event.kind == "repair" else None)
+            event.data.get("r") if event.kind in ("repair", "recovery") else None)
         if isinstance(value, (int, float)) and math.isfinite(value):
-            entity = "critical" if event.kind == "critical_event" else "repairs"
+            entity = {"critical_event": "critical", "repair": "repairs"}.get(event.kind,
+                                                                              "recoveries")
             self.rec.log(f"rho/r{rest}/{entity}", rr.Scalars(float(value)))
 
 

@@ -11,7 +11,10 @@ automaton plans (``plan_robot(..., buchi=agent.buchi)``), replans and tracks the
 no two translations have to number states alike. One step (5 Hz, ``scenario.ltl.control_rate``):
 
 1. the plan executor's step (``agent.nav.executor.Executor.step``, ltl-planning.md §6) with the own
-   pose and every other robot as ``others`` → the command (v [m/s], ω [rad/s]);
+   pose and every other robot as ``others`` → the command (v [m/s], ω [rad/s]); when the
+   scenario's ``[navigation] coupling_aware`` is on (default) and STL tasks depend on this robot,
+   the velocity limits those robots can track (``agent.stl.coupling``,
+   ``agent.nav.coupling_limits``, docs/coupling.md) bound the command;
 2. the Büchi state set along the regions visited (``agent.ltl.buchi.buchi_step``): each time the
    executor advances from plan position k ≥ 1 to k + 1, the label of the region at position
    k − 1 (the one left) is read (the planner's convention, ``agent.ltl.planner``);
@@ -40,10 +43,12 @@ from agent.errors import UnsatisfiableTask
 from agent.ltl.buchi import Buchi, buchi_step, translate
 from agent.ltl.planner import Plan, plan_robot, replan
 from agent.ltl.transition_system import START, from_scenario
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
 from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
 from agent.nav.grid_planner import path_length_function, with_penalised_edges
 from agent.scenario.model import Scenario
+from agent.stl.coupling import CouplingModel
 
 logger = logging.getLogger(__name__)
 
@@ -72,6 +77,13 @@ class LtlStepInput:
     t: float
     pose: tuple[float, float, float]
     others: np.ndarray
+
+    def poses(self, robot: int) -> dict[int, Sequence[float]]:
+        """Every robot's (x, y, θ), the own one as ``robot``."""
+        out: dict[int, Sequence[float]] = {
+            int(row[0]): (float(row[1]), float(row[2]), float(row[3])) for row in self.others}
+        out[robot] = tuple(self.pose)
+        return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,6 +139,8 @@ class LtlAgent:
         ts = from_scenario(scenario, robot, self.distance)
         self.labels = dict(zip(ts.names, ts.labels, strict=True))
         self.initial_region = ts.names[ts.initial]
+        self.coupling = (CouplingModel.from_scenario(scenario, robot)
+                         if scenario.navigation.coupling_aware else None)
 
     # start-up -------------------------------------------------------------------------------
 
@@ -155,14 +169,25 @@ class LtlAgent:
             data["reason"] = reason
         return Notice(t, "plan_ready", data)
 
+    def coupling_notice(self) -> Notice:
+        """``coupling_limits`` at start-up: whether the limits are on and the coupled
+        predicates."""
+        terms = [term.source for term in self.coupling.terms] if self.coupling else []
+        return Notice(0.0, "coupling_limits",
+                      {"coupling_aware": self.coupling is not None,
+                       "share": self.scenario.navigation.coupling_share, "predicates": terms})
+
     # the step -------------------------------------------------------------------------------
 
     def step(self, state: LtlState, inputs: LtlStepInput) -> tuple[LtlState, LtlStepOutput]:
         t = inputs.t
         prev = state.executor
         new_plan = state.pending_plan
+        limits = None
+        if self.coupling:
+            limits = VelocityLimits.of(self.coupling.limits(t, inputs.poses(self.robot)))
         ex_state, ex_out = self.executor.step(prev, ExecutorInputs(t, inputs.pose, inputs.others,
-                                                                   new_plan))
+                                                                   new_plan, limits))
         if new_plan is not None:
             first = 1 if new_plan[0] and new_plan[0][0] == prev.last_region else 0
         else:

@@ -29,6 +29,11 @@ Each control period ``Δt`` [s] (0.2 s at 5 Hz):
    The ``front`` terms use the path extended by ``forward_point_distance`` past the goal and the
    look-ahead point that much further on (ROS instead drops them near the goal), so alignment
    never holds the robot short of its goal.
+5. **Coupling limits** (optional, ``agent.nav.coupling_limits``, docs/coupling.md): the window
+   is first clipped to the limits' largest admissible |v| and |ω|, and a sample whose
+   ``a_v·|v| + a_ω·|ω|`` exceeds a constraint's bound is inadmissible. When no collision-free
+   sample meets them (the robot still moves faster than the limits), the collision-free samples
+   of least excess are kept: the robot slows down as fast as its accelerations allow.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.grid import OccupancyGrid
 from agent.nav.polyline import distance_to_polyline, point_along, remaining_polyline
 
@@ -169,8 +175,14 @@ def rollouts(
     return np.stack([x, y], axis=-1), theta
 
 
-def _samples(v: float, omega: float, config: DwaConfig) -> tuple[np.ndarray, np.ndarray]:
+def _samples(v: float, omega: float, config: DwaConfig,
+             limits: VelocityLimits | None = None) -> tuple[np.ndarray, np.ndarray]:
     v_lo, v_hi, w_lo, w_hi = velocity_window(v, omega, config)
+    if limits:
+        # clip the window to the box of the coupling limits, staying inside the dynamic window
+        v_cap, w_cap = limits.v_max, limits.omega_max
+        v_hi = max(v_lo, min(v_hi, v_cap))
+        w_lo, w_hi = min(w_hi, max(w_lo, -w_cap)), max(w_lo, min(w_hi, w_cap))
     vs = np.linspace(v_lo, v_hi, config.vx_samples) if v_hi > v_lo else np.array([v_lo])
     ws = np.linspace(w_lo, w_hi, config.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
     if w_lo < 0.0 < w_hi and not np.any(ws == 0.0):
@@ -203,12 +215,14 @@ def dwa_control(
     robot_radius: float,
     others: MovingDiscs | None = None,
     config: DwaConfig | None = None,
+    limits: VelocityLimits | None = None,
 ) -> DwaResult:
     """One DWA cycle (see module docstring).
 
     ``pose`` (x [m], y [m], θ [rad]); ``velocity`` the current (v [m/s], ω [rad/s]) — the last
     command, which bounds the dynamic window; ``path`` (M, 2) [m] the global path whose last
-    vertex is the goal; ``grid`` the static layer; ``others`` the other robots.
+    vertex is the goal; ``grid`` the static layer; ``others`` the other robots; ``limits`` the
+    coupling limits of this step (step 5), None or empty for none.
     """
     config = config or DwaConfig()
     others = others if others is not None else MovingDiscs.empty()
@@ -221,7 +235,7 @@ def dwa_control(
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, 0.0, 0, True, np.zeros((0, 2)))
 
-    vs, ws = _samples(v0, w0, config)
+    vs, ws = _samples(v0, w0, config, limits)
     n_steps = max(1, math.ceil(config.sim_time / config.sim_dt - 1e-9))
     times = np.arange(1, n_steps + 1) * (config.sim_time / n_steps)
     points, theta = rollouts(pose, vs, ws, times)  # (S, T, 2), (S, T)
@@ -239,6 +253,13 @@ def dwa_control(
     required = min(robot_radius + config.collision_margin, current - 1e-6)
     min_clearance = np.min(clearance, axis=1)
     valid = min_clearance >= required
+    if limits and np.any(valid):
+        excess = limits.excess(vs, ws)
+        coupled = valid & (excess <= 1e-12)
+        if not np.any(coupled):
+            least = float(np.min(excess[valid]))
+            coupled = valid & (excess <= least + 1e-12)
+        valid = coupled
     n_valid = int(np.count_nonzero(valid))
     if n_valid == 0:
         v, w = braking_command(v0, w0, config)

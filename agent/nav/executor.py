@@ -16,7 +16,10 @@ name equal to the previous one means "stay". Each step (5 Hz):
 3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
    velocity estimated from two consecutive pose frames.
 4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
-   ``progress_epsilon``; with none for ``stuck_timeout`` the executor emits ``Stuck``, rotates in
+   ``progress_epsilon``. With none for ``blocked_after`` the global path is re-planned with the
+   nearby robots stamped at full size (they become obstacles of the global plan, so a robot
+   blocking the way is passed around); with none for ``stuck_timeout`` the executor emits
+   ``Stuck``, rotates in
    place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
    emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
    answer with a new plan (``ExecutorInputs.new_plan``); its ``prefix[0]``, when it is the last
@@ -37,6 +40,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
 from agent.nav.errors import InvalidPlanError, NoPathError
 from agent.nav.events import (
@@ -76,6 +80,9 @@ class ExecutorConfig:
     keep_right_offset: float = 0.3  # [m] lateral shift of robots ahead in the global path
     max_other_speed: float = 1.0  # [m/s] cap on velocities estimated from pose frames
     stuck_timeout: float = 10.0  # [s] no progress for this long → stuck
+    blocked_after: float = 5.0  # [s] no progress for this long → re-plan around the robots
+    # nearby at their full inflated size (no keep-clear shrink): a robot that blocks the way
+    # (an escort between us and a wall) becomes an obstacle of the global path
     progress_epsilon: float = 0.1  # [m] path-length decrease that counts as progress
     rotate_time: float = 3.0  # [s] recovery: rotate in place at max_rot_vel
     back_off_time: float = 1.5  # [s] recovery: drive backwards
@@ -91,12 +98,15 @@ class ExecutorConfig:
 @dataclass(frozen=True, eq=False)
 class ExecutorInputs:
     """One tick's inputs: time [s], own pose (x, y, θ), the other robots of the pose frame as
-    rows ``(id, x, y, θ)`` (K, 4), and optionally a new plan ``(prefix, suffix)``."""
+    rows ``(id, x, y, θ)`` (K, 4), optionally a new plan ``(prefix, suffix)`` and the coupling
+    limits of this tick (``agent.nav.coupling_limits``; they bound every command, recovery
+    rotations included)."""
 
     t: float
     pose: tuple[float, float, float]
     others: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     new_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+    limits: VelocityLimits | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +138,7 @@ class ExecutorState:
     path_target: str | None = None
     path_time: float = -math.inf  # [s]
     no_path_to: str | None = None  # target last reported unreachable (NoPathFound sent once)
+    blocked_plan: bool = False  # the current path was planned around robots at full size
     best_remaining: float = math.inf  # [m]
     progress_time: float = 0.0  # [s]
     remaining: float = math.inf  # [m]
@@ -257,12 +268,13 @@ class Executor:
         )
         if s.mode != HOLD:
             s = self._visit(s, pose, t, events)
+        limits = inputs.limits
         if s.mode == HOLD:
-            s, command = self._settle(s, pose, others)
+            s, command = self._settle(s, pose, others, limits)
         elif s.mode in (ROTATE, BACK_OFF):
-            s, command = self._recover(s, pose, t, others, events)
+            s, command = self._recover(s, pose, t, others, events, limits)
         else:
-            s, command = self._navigate(s, pose, t, others, events)
+            s, command = self._navigate(s, pose, t, others, events, limits)
         s = replace(s, command=command)
         for event in events:
             log.debug("t=%.2f %s", t, event)
@@ -399,7 +411,8 @@ class Executor:
         return v, w
 
     def _recover(
-        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         """Recovery: rotate in place, then back off (if the space behind is free of walls and
         robots), then ask for a replan and resume."""
@@ -418,9 +431,13 @@ class Executor:
         if s.mode == BACK_OFF and t - s.mode_since >= cfg.back_off_time:
             s = self._end_recovery(s, pose, t, events)
             return s, self._ramp(s.command, (0.0, 0.0))
+        rot = cfg.dwa.max_rot_vel
+        back = cfg.back_off_speed
+        if limits:
+            rot, back = min(rot, limits.omega_max), min(back, limits.v_max)
         if s.mode == ROTATE:
-            return s, self._ramp(s.command, (0.0, cfg.dwa.max_rot_vel))
-        return s, self._ramp(s.command, (-cfg.back_off_speed, 0.0))
+            return s, self._ramp(s.command, (0.0, rot))
+        return s, self._ramp(s.command, (-back, 0.0))
 
     def _end_recovery(
         self, s: ExecutorState, pose: np.ndarray, t: float, events: list
@@ -447,20 +464,24 @@ class Executor:
         )
 
     def _navigate(
-        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         cfg = self.config
         target = s.target
         if target is None:  # past the end of a finite plan: nothing to drive to
             return replace(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
-        if s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period:
+        blocked = t - s.progress_time >= cfg.blocked_after and len(others) > 0
+        if (s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period
+                or (blocked and not s.blocked_plan)):
             grid = self.grid
             if len(others):
-                grid = grid.with_discs(*self._stamps(pose, others))
+                grid = grid.with_discs(*self._stamps(pose, others, full=blocked))
             try:
                 path = plan_path(grid, pose[:2], goal).waypoints
-                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None)
+                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None,
+                            blocked_plan=blocked)
             except NoPathError as error:
                 if s.no_path_to != target:  # report once, keep trying every replan period
                     events.append(NoPathFound(t, target, error.reason))
@@ -471,7 +492,7 @@ class Executor:
             remaining = math.inf
         else:
             result = dwa_control(
-                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa
+                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa, limits
             )
             command = (result.v, result.omega)
             ahead = remaining_polyline(pose[:2], s.path)
@@ -486,7 +507,8 @@ class Executor:
             command = self._ramp(s.command, (0.0, 0.0))
         return s, command
 
-    def _stamps(self, pose: np.ndarray, others: MovingDiscs) -> tuple[np.ndarray, np.ndarray]:
+    def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False
+                ) -> tuple[np.ndarray, np.ndarray]:
         """Discs (centres (J, 2), radii (J,)) [m] that put the other robots into the global grid.
 
         Each robot is stamped with radius ``r + other_robot_margin``, shrunk where needed so that
@@ -494,10 +516,14 @@ class Executor:
         escorting us, is left to the DWA). Each robot ahead gets a second disc shifted by
         ``keep_right_offset`` to our left, so the path passes it on our right (we keep right):
         two robots meeting head-on then pick opposite sides in the world instead of mirroring
-        each other into a deadlock.
+        each other into a deadlock. ``full`` (after ``blocked_after`` without progress): every
+        robot at its full radius ``r + other_robot_margin`` and no shift, so the path goes around
+        the robots that block it (the planner snaps our start out of their discs).
         """
         cfg = self.config
         centers = others.centers
+        if full:
+            return centers, others.radii + cfg.other_robot_margin
         gap = (
             np.linalg.norm(centers - pose[:2], axis=1) - self.grid.inflation - self.grid.resolution
         )
@@ -518,7 +544,8 @@ class Executor:
         return centers[keep], radii[keep]
 
     def _settle(
-        self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs
+        self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs,
+        limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         """Holding: drive on to the final region's centre (as move_base does with its last goal)
         and stop within xy_goal_tolerance; no stuck detection."""
@@ -532,7 +559,8 @@ class Executor:
                 return s, self._ramp(s.command, (0.0, 0.0))
             s = replace(s, path=path, path_target=s.last_region)
         result = dwa_control(
-            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa
+            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa,
+            limits,
         )
         return s, (result.v, result.omega)
 

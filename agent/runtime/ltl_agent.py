@@ -42,6 +42,13 @@ class LtlCore:
     def buchi(self):  # the agent's one automaton (tests read its numbering)
         return self.agent.buchi
 
+    @property
+    def coupling(self):  # the coupling-aware limits (None: off, or nobody depends on us)
+        return self.agent.coupling
+
+    def coupling_event(self) -> Event:
+        return self._event(self.agent.coupling_notice())
+
     def plan(self) -> Plan:
         """Algorithm 1; raises :class:`agent.errors.UnsatisfiableTask`."""
         return self.agent.plan()
@@ -85,8 +92,9 @@ def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) 
         core = LtlCore(scenario, config.robot)
         plan = core.plan()  # UnsatisfiableTask → fault event, exit code 1 (run_agent)
         state, event = core.initial_state(plan)
+        events = (event, core.coupling_event()) if core.coupling else (event,)
         logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", config.robot, plan.prefix,
                     plan.suffix, plan.cost, 1e3 * plan.timings.total)
-        return core, state, (event,), None
+        return core, state, events, None
 
     return run_agent(config, scenario, build, transport=transport, stop=stop)

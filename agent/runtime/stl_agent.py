@@ -11,7 +11,8 @@ loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of 
   ``CollabMessage`` stamped with the frame's time (the loop sends them by query before the
   command), an ``StlStatus`` at most every ``status_period`` [s] of sim time (≤ 10 Hz), and
   events read off the step's ``LogRecord`` and messages: ``critical_event`` and ``repair``
-  (data: stage, r, …), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
+  (data: stage, r, …), ``recovery`` (a robustness recovery raised r: r, r_before, ρ, …;
+  ``agent.stl.recovery``), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
   starts or stops following a requester) and ``subtask_done``.
 
 ``main(config, scenario)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL
@@ -89,6 +90,11 @@ class StlCore:
             events.append(Event(t, src, "repair",
                                 {"stage": log.repair, "r": log.r, "rho_max": log.rho_max,
                                  "lower": log.lower, "subtask": log.subtask}))
+        if log.recovered:
+            events.append(Event(t, src, "recovery",
+                                {"r": log.r, "r_before": before.funnel.r if before.funnel else None,
+                                 "rho": log.rho, "rho_max": log.rho_max, "lower": log.lower,
+                                 "subtask": log.subtask}))
         requests = [m for m in sent if isinstance(m, CollabRequest)]
         if requests:
             events.append(Event(t, src, "collab_request",
@@ -108,7 +114,8 @@ class StlCore:
             events.append(Event(t, src, "subtask_done",
                                 {"subtask": outcome.index, "satisfied": outcome.satisfied,
                                  "r": outcome.final_r, "rho_phi": outcome.rho_phi,
-                                 "events": list(outcome.events), "ended_by": outcome.ended_by}))
+                                 "events": list(outcome.events), "ended_by": outcome.ended_by,
+                                 "recoveries": outcome.recoveries}))
         return tuple(events)
 
 

@@ -11,8 +11,10 @@ File layout (every section but ``robots`` is optional)::
     duration = 90.0               # [s]
     [arena]   xmin/xmax/ymin/ymax [m], [[arena.obstacles]] shape = "rect"|"disc"
     [ltl]     suffix_weight, control_rate               (LtlParams)
-    [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate   (StlParams)
+    [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate, hold_f_above_r,
+              complete_f_on_satisfaction, recovery   (StlParams; recovery: docs/coupling.md)
     [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog  (SimParams)
+    [navigation] coupling_aware, coupling_share   (NavParams, docs/coupling.md)
     [[regions]] name, center = [x, y], radius, labels = [...]
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
@@ -34,6 +36,7 @@ from agent.scenario.model import (
     Arena,
     DiscObstacle,
     LtlParams,
+    NavParams,
     OmniLimits,
     RectObstacle,
     Region,
@@ -78,6 +81,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     ltl = _params(top.table("ltl", required=False), LtlParams)
     stl = _params(top.table("stl", required=False), StlParams)
     sim = _params(top.table("sim", required=False), SimParams)
+    navigation = _navigation(top.table("navigation", required=False), source)
     if stl.r1 >= stl.r_sense:
         raise ScenarioError(source, "stl.r1",
                             f"must be below stl.r_sense = {stl.r_sense}, got {stl.r1}")
@@ -99,6 +103,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         ltl=ltl,
         stl=stl,
         sim=sim,
+        navigation=navigation,
         description=description,
         source=Path(source) if source and not source.startswith("<") else None,
     )
@@ -114,6 +119,9 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
             for k, text in enumerate(robot.stl)))
     validation.check_tasks(scenario, source)  # issue 11: satisfiability, STL windows
+    from agent.scenario.stl_checks import check_stl_tasks
+
+    check_stl_tasks(scenario, source)
     return scenario
 
 
@@ -255,6 +263,17 @@ def _params(table: _Table | None, cls: type) -> Any:
             table.fail(f.name, f"expected a positive number, got {values[f.name]}")
     table.finish()
     return cls(**values)
+
+
+def _navigation(table: _Table | None, source: str) -> NavParams:
+    """``[navigation]``: coupling_aware (bool), coupling_share in (0, 1] (docs/coupling.md)."""
+    if table is None:
+        return NavParams()
+    if table.has("coupling_share"):
+        share = table.number("coupling_share", positive=True)
+        if share > 1.0:
+            table.fail("coupling_share", f"expected a number in (0, 1], got {share}")
+    return _params(table, NavParams)
 
 
 # --------------------------------------------------------------------------- cross checks

@@ -198,6 +198,28 @@ class StlParams:
     # controller runs through the whole window (paper Alg. 2 without the code's hold rule).
     hold_f_above_r: bool = True
     complete_f_on_satisfaction: bool = True
+    # Robustness recovery (agent.stl.recovery, docs/coupling.md §2; beyond the paper, §V): raise
+    # r again once the robustness has room. False reproduces Algorithm 2 as published.
+    recovery: bool = True
+
+
+@dataclass(frozen=True)
+class NavParams:
+    """Navigation of the LTL robots beyond the paper (docs/coupling.md, issue 15).
+
+    ``coupling_aware``: an LTL robot that STL tasks depend on limits its (v, ω) to what those
+    robots can track (``agent.nav.coupling_limits``); false reproduces the purely reactive
+    navigation of the paper. ``coupling_share``: the share κ of a dependant's input the leader may
+    use up (the same constant for every scenario).
+    """
+
+    coupling_aware: bool = True
+    coupling_share: float = 0.9
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.coupling_share <= 1.0:
+            raise ValueError(f"navigation.coupling_share must be in (0, 1], got "
+                             f"{self.coupling_share}")
 
 
 @dataclass(frozen=True)
@@ -225,6 +247,7 @@ class Scenario:
     ltl: LtlParams = field(default_factory=LtlParams)
     stl: StlParams = field(default_factory=StlParams)
     sim: SimParams = field(default_factory=SimParams)
+    navigation: NavParams = field(default_factory=NavParams)
     description: str = ""
     source: Path | None = None
 

@@ -34,6 +34,7 @@ import numpy as np
 from agent.control.collision import CollisionParams, collision_velocity
 from agent.control.mixing import mix
 from agent.control.saturation import saturate
+from agent.stl import recovery as rec
 from agent.stl.control_law import ControlParams, nominal_velocity
 from agent.stl.funnel import Funnel, FunnelParams, epsilon
 from agent.stl.messages import (
@@ -69,6 +70,7 @@ class AgentConfig:
     control: ControlParams = field(default_factory=ControlParams)
     collision: CollisionParams = field(default_factory=CollisionParams)
     protocol: ProtocolParams = field(default_factory=ProtocolParams)
+    recovery: rec.RecoveryParams = field(default_factory=rec.RecoveryParams)
     random_seed: int | None = None  # None: fixed fractions (§5); int: code-faithful U(0,1) draws
 
 
@@ -90,6 +92,8 @@ class SubTaskOutcome:
     events: tuple[int, int, int]  # critical events handled by stage 1, 2, 3
     ended_by: Literal["satisfaction", "window_end"] = "window_end"  # §8: the completion rule
     # (F: first a ≤ t ≤ b with r < ρ < ρ_max; G: t ≥ b inside the funnel) or the window's end
+    recoveries: int = 0  # robustness recoveries (agent.stl.recovery); r̄ is then the least r
+    # in force (final_r = min(final funnel's r, every r a recovery replaced))
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +116,7 @@ class AgentState:
     outcomes: tuple[SubTaskOutcome, ...] = ()
     announced: tuple[int, int, bool] | None = None  # last (c, k, active) sent to peers
     t_announced: float = -math.inf  # [s] time of that announcement
+    recovery: rec.RecoveryState | None = None  # robustness recovery of sub-task k
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,6 +149,7 @@ class LogRecord:
     follow: int | None
     subtask: int
     repair: int = NO_REPAIR
+    recovered: bool = False  # a robustness recovery raised r in this step (agent.stl.recovery)
 
 
 @dataclass(frozen=True, slots=True)
@@ -271,6 +277,30 @@ class StlAgent:
                      funnel)
         return funnel, c, stage, messages
 
+    def _recover(self, state: AgentState, tick: _Tick, rho: float, grad_own,
+                 critical: bool) -> None:
+        """Robustness recovery of the own G sub-task (agent.stl.recovery): updates the tick's
+        funnel (when a recovery raises r) and the recovery state in ``tick.changes``."""
+        cfg, t, changes = self.cfg, tick.t, tick.changes
+        params = cfg.recovery
+        current = changes.get("recovery", state.recovery)
+        if current is None:
+            current = rec.RecoveryState.start(tick.funnel, cfg.funnel, params)
+        if critical:
+            changes["recovery"] = rec.on_critical(current, t, params)
+            return
+        rate = params.rate_share * rec.achievable_rate(grad_own, cfg.control.umax_lin,
+                                                       cfg.control.umax_ang)
+        new_state, new = rec.advance(current, tick.funnel, rho, t, rate, cfg.funnel, params)
+        if new_state is not current:
+            changes["recovery"] = new_state
+        if new is None:
+            return
+        logger.debug("robot %d: recovery at t=%.2f: r %.4f -> %.4f", cfg.robot_id, t,
+                     tick.funnel.r, new.r)
+        changes["funnel"] = tick.funnel = new
+        tick.recovered = True
+
     # ----------------------------------------------------------------- step
 
     def step(self, state: AgentState, inputs: StepInput) -> tuple[AgentState, StepOutput]:
@@ -281,7 +311,7 @@ class StlAgent:
         self._read_messages(state, inputs, tick)  # 1.
         self._sequence(state, tick)  # 2.
         self._complete(state, tick)  # 3./4.
-        self._control(tick)  # 5.
+        self._control(state, tick)  # 5.
         u = self._avoid_and_mix(tick)  # 6.
         return self._finish(state, tick, u)
 
@@ -323,13 +353,17 @@ class StlAgent:
                 tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
                                           t, fp, self._rng(tick.k, ce_before, t))
                 changes.update(active=True, funnel=tick.funnel, ce=0, c=0, stage=0,
-                               events=(0, 0, 0), rho_phi=math.nan)
+                               events=(0, 0, 0), rho_phi=math.nan,
+                               recovery=rec.RecoveryState.start(tick.funnel, fp, cfg.recovery))
                 logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, tick.k + 1, t,
                              tick.funnel)
             elif tick.reinit:
                 tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
                                           t, fp, self._rng(tick.k, ce_before, t))
-                changes.update(funnel=tick.funnel, stage=0)
+                floor = state.recovery.r_floor if state.recovery is not None else math.inf
+                changes.update(funnel=tick.funnel, stage=0, recovery=replace(
+                    rec.RecoveryState.start(tick.funnel, fp, cfg.recovery),
+                    r_floor=min(floor, state.funnel.r if state.funnel else math.inf)))
                 if cfg.protocol.reset_ce_on_release:
                     changes["ce"] = 0
         tick.ce = changes.get("ce", state.ce)
@@ -378,8 +412,11 @@ class StlAgent:
                 _count_repair(tick, stage, funnel=funnel)
         if tick.done:
             k = tick.k
-            outcome = SubTaskOutcome(k, t, rho_phi > 0.0, funnel.r, rho_phi, tick.events,
-                                     "satisfaction" if by_rule else "window_end")
+            recovery = changes.get("recovery", state.recovery)
+            floor = recovery.r_floor if recovery is not None else math.inf
+            outcome = SubTaskOutcome(k, t, rho_phi > 0.0, min(funnel.r, floor), rho_phi,
+                                     tick.events, "satisfaction" if by_rule else "window_end",
+                                     recovery.count if recovery is not None else 0)
             if tick.c == i and (by_rule or cfg.protocol.release_on_window_end):
                 tick.out.extend(CollabRelease(sender=i, receiver=v, subtask=k)
                                 for v in task.v_ctrl if v != i)
@@ -390,7 +427,7 @@ class StlAgent:
                         "events=%s", i, k + 1, t, outcome.ended_by, funnel.r, rho_phi,
                         tick.events)
 
-    def _control(self, tick: _Tick) -> None:
+    def _control(self, state: AgentState, tick: _Tick) -> None:
         """Phase 5: u_nom (§6.1) — of the requester's funnel for a follower (detection only if
         ``followers_detect``), of the own funnel otherwise (critical event → stage → repair →
         ζ again; own F above r held), saturated."""
@@ -433,6 +470,10 @@ class StlAgent:
                     tick.out.extend(messages)
                     _count_repair(tick, stage, funnel=tick.funnel, c=tick.c)
                     z = tick.funnel.zeta(rho, t)
+                if task.kind == "G" and cfg.recovery.enabled and tick.c == 0:
+                    self._recover(state, tick, rho, grad_own, bool(tick.repaired))
+                    if tick.recovered:
+                        z = tick.funnel.zeta(rho, t)
                 tick.u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), grad_own,
                                               cp.normalize_grad, cp.k_eps)
             tick.log_funnel = tick.funnel
@@ -462,7 +503,7 @@ class StlAgent:
         if tick.log_funnel is not None:
             f = tick.log_funnel
             record = LogRecord(t, tick.rho_log, f.rho_max, f.lower(t), f.r, tick.stage, tick.ce,
-                               tick.c, tick.follow, tick.k, tick.repaired)
+                               tick.c, tick.follow, tick.k, tick.repaired, tick.recovered)
         else:
             record = LogRecord(t, tick.rho_log, math.nan, math.nan, math.nan, tick.stage,
                                tick.ce, tick.c, tick.follow,
@@ -500,6 +541,7 @@ class _Tick:
     stage: int = 0
     events: tuple[int, int, int] = (0, 0, 0)
     repaired: int = NO_REPAIR
+    recovered: bool = False  # a robustness recovery raised r in this step
     done: bool = False
     u_nom: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rho_log: float = math.nan
@@ -573,6 +615,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
                                       umax_lin=cparams.umax_lin),
             protocol=protocol or ProtocolParams(
                 complete_on_satisfaction=p.complete_f_on_satisfaction),
+            recovery=rec.RecoveryParams(enabled=p.recovery),
         )
         agents[robot_id] = StlAgent(config)
     return agents

@@ -216,7 +216,9 @@ def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: s
         values = [task_robustness(task, traj, smooth=smooth, eta=scenario.stl.eta)
                   for task in tasks]
         report[robot.id] = {
-            "subtasks": [{"task": to_text(task), "window": [task.a, task.b], "robustness": value}
+            "subtasks": [{"task": to_text(task), "window": [task.a, task.b], "robustness": value,
+                          "covered": bool(len(traj.t)) and float(traj.t[0]) <= task.a + 1e-9
+                          and float(traj.t[-1]) >= task.b - 1e-9}
                          for task, value in zip(tasks, values, strict=True)],
             "robustness": min(values),
         }

@@ -1,4 +1,9 @@
-"""``tlfleet check SCENARIO``: validate a scenario file and print a one-screen summary."""
+"""``tlfleet check SCENARIO``: validate a scenario file and print a one-screen summary.
+
+Rejections exit 1 with file, field path and reason (``agent.scenario.loader``,
+``agent.scenario.stl_checks``); warnings (a window beyond the duration, a non-concave predicate, a
+G task violated at the start poses from t = 0) are printed after the summary, exit 0.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ import math
 
 from agent.ltl.buchi import translate
 from agent.scenario import Scenario, load_scenario
+from agent.scenario.stl_checks import stl_warnings
 
 NAME = "check"
 HELP = "validate a scenario file and summarise it"
@@ -25,6 +31,8 @@ def run(args: argparse.Namespace) -> int:
             if robot.ltl is not None:
                 translate(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
         print(summarise(scenario))
+        for warning in stl_warnings(scenario):
+            print(f"warning: {scenario.source or path}: {warning}")
     return 0
 
 
@@ -57,10 +65,13 @@ def summarise(scenario: Scenario) -> str:
                 if robot.phase_start_times:
                     start = f" (from t = {robot.phase_start_times[k]:g} s)"
                 lines.append(f"{'':>{len(head)}}  then {text}{start}")
-    s, l, m = scenario.stl, scenario.ltl, scenario.sim
+    s, l, m, n = scenario.stl, scenario.ltl, scenario.sim, scenario.navigation
     lines.append(f"  stl: η={s.eta:g} K={s.n_stage1} δ={s.delta:g} ζ_l={s.zeta_l:g} "
                  f"R1={s.r1:g} m R={s.r_sense:g} m β={s.beta:g} at {s.control_rate:g} Hz")
     lines.append(f"  ltl: suffix weight β={l.suffix_weight:g}, control at {l.control_rate:g} Hz")
+    lines.append(f"  navigation: coupling-aware leaders {'on' if n.coupling_aware else 'off'}"
+                 f" (share {n.coupling_share:g}); robustness recovery "
+                 f"{'on' if s.recovery else 'off'} (docs/coupling.md)")
     lines.append(f"  sim: mocap {m.mocap_rate:g} Hz, physics {m.physics_rate:g} Hz, "
                  f"disturbance ≤ {m.disturbance:g} m/s, noise σ={m.mocap_noise:g} m, "
                  f"seed {m.seed}, watchdog {m.watchdog:g} s")

@@ -4,6 +4,10 @@ For every STL robot of the scenario, prints the robustness of each sub-task and 
 (min) with the standard min/max semantics (stl-funnel.md §3, §9 item 6), computed offline from the
 CSV (``t,x1,y1,th1,x2,y2,th2,…``, robot ids ascending; architecture.md §6). ``--smooth`` uses the
 LSE conjunction of eq. (3a) instead. A window with no sample is reported as +inf (G) or −inf (F).
+
+A window the trace does not cover (it starts after a or ends before b) has no verdict: the
+sub-task is marked ``covered: false`` in the JSON, a warning naming it goes to stderr, and
+``--strict`` makes the command exit 3.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 
 from agent.scenario import load_scenario
 from agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
@@ -25,6 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--smooth", action="store_true",
                         help="LSE conjunction (eq. 3a) instead of the standard min")
+    parser.add_argument("--strict", action="store_true",
+                        help="exit 3 when the trace does not cover a sub-task's window")
 
 
 def _number(value: float) -> float | str:
@@ -39,6 +46,14 @@ def evaluate(scenario_path: str, trajectory_path: str, smooth: bool = False) -> 
 
 def run(args: argparse.Namespace) -> int:
     report = evaluate(args.scenario, args.trajectory, smooth=args.smooth)
+    uncovered = [(rid, k, sub) for rid, entry in report.items()
+                 for k, sub in enumerate(entry["subtasks"]) if not sub["covered"]]
+    for rid, k, sub in uncovered:
+        print(f"tlfleet monitor: warning: {args.trajectory} does not cover the window "
+              f"[{sub['window'][0]:g}, {sub['window'][1]:g}] of robot {rid} sub-task {k + 1} "
+              f"({sub['task']}): its robustness {_number(sub['robustness'])} is no verdict",
+              file=sys.stderr)
+    code = 3 if uncovered and args.strict else 0
     if args.json:
         print(json.dumps({
             "semantics": "smooth" if args.smooth else "standard",
@@ -47,11 +62,12 @@ def run(args: argparse.Namespace) -> int:
                                                for sub in entry["subtasks"]]}
                        for rid, entry in report.items()},
         }, indent=2))
-        return 0
+        return code
     print(f"STL robustness ({'smooth' if args.smooth else 'standard'} semantics) of "
           f"{args.trajectory}")
     for rid, entry in report.items():
         print(f"robot {rid}: {entry['robustness']:+.4f}")
         for sub in entry["subtasks"]:
-            print(f"    {sub['robustness']:+.4f}  {sub['task']}")
-    return 0
+            print(f"    {sub['robustness']:+.4f}  {sub['task']}"
+                  + ("" if sub["covered"] else "  (window not covered by the trace)"))
+    return code

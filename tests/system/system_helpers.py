@@ -94,4 +94,31 @@ def leftover_in_groups(run_dir: Path) -> list[psutil.Process]:
     return found
 
 
+def angdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Wrapped angle difference in [0, π] [rad]."""
+    return np.abs(np.remainder(a - b + np.pi, 2 * np.pi) - np.pi)
+
+
+def formation_psi(states: dict[int, np.ndarray], robot: int, leader: int, side: str
+                  ) -> np.ndarray:
+    """ρ^ψ (standard min semantics) of Scenario 3's formation task of ``robot``: 1 m to the
+    ``side`` ("right", "left", "behind") of ``leader`` and aligned with its heading."""
+    x, y, th = states[leader].T
+    offset = {"right": (np.sin(th), -np.cos(th)), "left": (-np.sin(th), np.cos(th)),
+              "behind": (-np.cos(th), -np.sin(th))}[side]
+    p = states[robot]
+    slot = np.hypot(p[:, 0] - x - offset[0], p[:, 1] - y - offset[1])
+    return np.minimum(0.1 - slot, 0.09 - angdist(p[:, 2], th))
+
+
+def still_while(t: np.ndarray, xy: np.ndarray, wants: np.ndarray, window: float = 5.0
+                ) -> list[float]:
+    """Start times of ``window``-second spans in which the robot moved < 5 cm while ``wants``
+    (per sample) held throughout: the robot stood still although its task wanted motion."""
+    n = round(window / float(np.median(np.diff(t))))
+    out = []
+    for k in range(0, len(t) - n, 10):
+        if wants[k:k + n + 1].all() and np.hypot(*(xy[k + n] - xy[k])) < 0.05:
+            out.append(float(t[k]))
+    return out
 

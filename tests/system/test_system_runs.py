@@ -17,6 +17,7 @@ from system_helpers import (
     dist_to,
     entries,
     f_rob,
+    formation_psi,
     g_rob,
     leftover_in_groups,
     load_trajectory,
@@ -96,6 +97,8 @@ def test_scenario1_paper_bounds(tmp_path):
 
 @pytest.mark.slow
 def test_scenario3_formation_and_all_regions(tmp_path):
+    """Robot 1 visits the five regions; with its coupling-aware limits (docs/coupling.md) the
+    three escorts hold their slots (issue 15: ρ ≥ −0.1, predicate held ≥ 90 % of [10, 100])."""
     path = SCENARIOS / "scenario3.toml"
     result = run(path, tmp_path / "run")
     assert result.clean, result.summary_text
@@ -106,4 +109,12 @@ def test_scenario3_formation_and_all_regions(tmp_path):
     assert robot_robot_contacts(tmp_path / "run") == []
     for robot in (2, 3, 4):  # the summary's robustness is the trajectory's, and finite
         assert math.isfinite(result.summary["stl"][robot]["robustness"])
+    # issue 15 goals (coupling-aware leader): every formation task ρ ≥ −0.1 and held ≥ 90 %
+    t, s = load_trajectory(tmp_path / "run")
+    window = (t >= 10.0) & (t <= 100.0)
+    for robot, side in ((2, "right"), (3, "left"), (4, "behind")):
+        psi = formation_psi(s, robot, 1, side)[window]
+        assert psi.min() >= -0.1, (robot, psi.min())
+        assert np.mean(psi >= 0.0) >= 0.9, (robot, np.mean(psi >= 0.0))
+        assert result.summary["stl"][robot]["robustness"] == pytest.approx(psi.min(), abs=1e-9)
     assert leftover_in_groups(tmp_path / "run") == []

@@ -1,0 +1,168 @@
+"""Goals of the paper's Scenarios 1–3 (issue 15): scenario × seed × mode × coupling-awareness.
+
+    .venv/bin/python bench/scenario_bench.py [--quick] [--seeds 1 2 3 4 5]
+        [--modes lockstep realtime] [--coupling on off] [--scenarios 1 2 3] [--out FILE.json]
+
+Every run is a real fleet (``coordinator.runner.run_fleet``: router, sim and one process per robot,
+as ``tlfleet run``); its report (``coordinator.report.build_report``) gives the robustness of each
+STL sub-task from the trajectory, the verdicts and held fractions (``coordinator.verdicts``), the
+LTL visits, contacts and stationary episodes. The goals checked per run:
+
+* S1: every sub-task ≥ its paper bound and within 0.05 of the best achievable of
+  ``scenarios.md``; 0 contacts;
+* S2: ρ(φ3), ρ(φ4) ≥ −0.2; both LTL tasks accepting with every region visited ≥ 2 times;
+  0 contacts; no robot stationary > 5 s while its task wants it to move;
+* S3: every formation task ρ ≥ −0.1 and its predicate held ≥ 90 % of [10, 100]; the five
+  regions visited; 0 contacts.
+
+``--coupling off`` runs the scenario with ``[navigation] coupling_aware = false`` (the paper's
+reactive leaders). Lockstep is deterministic and independent of the machine's load; realtime
+depends on it (a shared 2-core machine: use it sparingly). CPU time of the children is not
+measured here (``bench/runtime_bench.py`` does): the figures are outcomes, not speeds. Prints a
+table and writes JSON to ``bench/results/scenario_bench.json`` (or ``--out``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from coordinator.report import build_report  # noqa: E402
+from coordinator.runner import RunConfig, run_fleet  # noqa: E402
+from coordinator.supervisor import SupervisorConfig  # noqa: E402
+
+SCENARIOS = ROOT / "scenarios"
+S2_BOUND = -0.2
+S3_BOUND = -0.1
+S3_HELD = 0.9
+S1_GAP = 0.05
+
+
+def scenario_file(number: int, coupling: bool, tmp: Path) -> Path:
+    source = SCENARIOS / f"scenario{number}.toml"
+    if coupling:
+        return source
+    path = tmp / f"scenario{number}_reactive.toml"
+    path.write_text(source.read_text() + "\n[navigation]\ncoupling_aware = false\n")
+    return path
+
+
+def goals(number: int, data: dict) -> dict:
+    """{goal name: bool} and the figures behind them, from a report's data."""
+    subtasks = [(rid, s) for rid, e in data["stl"].items() for s in e["subtasks"]]
+    verdicts = {(rid, row["label"]): row for rid, rows in data["verdicts"]["subtasks"].items()
+                for row in rows}
+    contacts = data["contacts"]["robot_robot"] + data["contacts"]["robot_wall"]
+    stationary = data["verdicts"]["stationary"]
+    out: dict = {"contacts": contacts, "stationary": len(stationary)}
+    rho = {s["label"]: s["robustness"] for _rid, s in subtasks}
+    out["rho"] = rho
+    ok = {"no contact": contacts == 0}
+    if number == 1:
+        for _rid, s in subtasks:
+            p = s["paper"]
+            if p is None or s["robustness"] is None:
+                ok[f"{s['label']} bound"] = False
+                continue
+            ok[f"{s['label']} ≥ paper"] = bool(p["met"])
+            if p["best"] is not None:
+                ok[f"{s['label']} within {S1_GAP} of best"] = s["robustness"] >= p["best"] - S1_GAP
+    if number == 2:
+        for _rid, s in subtasks:
+            ok[f"{s['label']} ≥ {S2_BOUND}"] = (s["robustness"] is not None
+                                                and s["robustness"] >= S2_BOUND)
+        for rid, e in data["ltl"].items():
+            visits = [v["trajectory"] if v["trajectory"] is not None else v["agent"]
+                      for v in e["visits"].values()]
+            ok[f"r{rid} accepting, visits ≥ 2"] = bool(e["accepting"]["met"]) and min(visits) >= 2
+        ok["no deadlock"] = not stationary
+    if number == 3:
+        held = {}
+        for rid, s in subtasks:
+            row = verdicts[(rid, s["label"])]
+            held[s["label"]] = row["held"]
+            ok[f"{s['label']} ≥ {S3_BOUND}"] = (s["robustness"] is not None
+                                                and s["robustness"] >= S3_BOUND)
+            ok[f"{s['label']} held ≥ 90 %"] = row["held"] is not None and row["held"] >= S3_HELD
+        out["held"] = held
+        for rid, e in data["ltl"].items():
+            visits = [v["trajectory"] if v["trajectory"] is not None else v["agent"]
+                      for v in e["visits"].values()]
+            ok[f"r{rid} five regions"] = len(visits) == 5 and min(visits) >= 1
+    out["goals"] = ok
+    out["met"] = all(ok.values())
+    out["recoveries"] = sum(data["verdicts"]["recoveries"].values())
+    return out
+
+
+def one_run(number: int, seed: int, mode: str, coupling: bool, tmp: Path) -> dict:
+    path = scenario_file(number, coupling, tmp)
+    out = tmp / f"s{number}-seed{seed}-{mode}-{'on' if coupling else 'off'}"
+    t0 = time.perf_counter()
+    result = run_fleet(RunConfig(path, mode=mode, out=out, seed=seed, figures=False, rrd=False,
+                                 supervisor=SupervisorConfig(ready_timeout=90.0,
+                                                             wall_timeout=900.0)))
+    wall = time.perf_counter() - t0
+    data = build_report(out).data
+    row = {"scenario": number, "seed": seed, "mode": mode, "coupling": coupling,
+           "clean": result.clean, "wall_s": wall, **goals(number, data)}
+    return row
+
+
+def render(rows: list[dict]) -> str:
+    lines = [f"{'scen':<5}{'seed':>5} {'mode':<9}{'coupl':<6}{'met':<5} figures"]
+    for r in rows:
+        rho = ", ".join(f"{k} {v:+.3f}" for k, v in r["rho"].items() if isinstance(v, float))
+        held = (", held " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in r["held"].items()
+                                      if v is not None)) if r.get("held") else ""
+        failed = [k for k, v in r["goals"].items() if not v]
+        lines.append(f"S{r['scenario']:<4}{r['seed']:>5} {r['mode']:<9}"
+                     f"{'on' if r['coupling'] else 'off':<6}{'yes' if r['met'] else 'NO':<5}"
+                     f"{rho}{held}; contacts {r['contacts']}, stationary {r['stationary']}, "
+                     f"recoveries {r['recoveries']}"
+                     + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="seed 1, lockstep, coupling on")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument("--modes", nargs="+", default=["lockstep"],
+                        choices=["lockstep", "realtime"])
+    parser.add_argument("--coupling", nargs="+", default=["on", "off"], choices=["on", "off"])
+    parser.add_argument("--scenarios", type=int, nargs="+", default=[1, 2, 3],
+                        choices=[1, 2, 3])
+    parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results"
+                        / "scenario_bench.json")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.seeds, args.modes, args.coupling = [1], ["lockstep"], ["on"]
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="scenario_bench_") as tmp:
+        for number in args.scenarios:
+            for coupling in args.coupling:
+                for mode in args.modes:
+                    for seed in args.seeds:
+                        row = one_run(number, seed, mode, coupling == "on", Path(tmp))
+                        rows.append(row)
+                        print(render([row]).splitlines()[1], flush=True)
+    print()
+    print(render(rows))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"machine": platform.platform(), "rows": rows}, indent=2,
+                                   ensure_ascii=False) + "\n")
+    print(f"\nJSON: {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,92 @@
+"""`tlfleet check`: rejections and warnings of STL tasks (agent.scenario.stl_checks, issue 15)."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from agent.errors import ScenarioError
+from agent.scenario import load_scenario, parse_scenario
+from agent.scenario.stl_checks import stl_warnings
+from cli.main import main
+
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+
+BASE = {
+    "name": "mini", "duration": 60.0,
+    "regions": [{"name": "a1", "center": [1.0, 1.0]}],
+    "robots": [
+        {"id": 1, "kind": "unicycle", "pose": [-2.0, -2.5, 0.0], "ltl": "F a1"},
+        {"id": 2, "kind": "omni", "pose": [0.0, 0.0, 0.0],
+         "stl": ["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)", "F[20,30] (dist(p2, [0, 0.5]) <= 0.1)"]},
+        {"id": 3, "kind": "omni", "pose": [1.0, -1.0, 0.0],
+         "stl": ["F[5,10] (dist(p3, p2) <= 1)"]},
+    ],
+}
+
+
+def _with(robot: int, **fields) -> dict:
+    data = copy.deepcopy(BASE)
+    data["robots"][robot].update(fields)
+    return data
+
+
+@pytest.mark.parametrize("data,field,reason", [
+    (_with(2, stl=["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)"]), "robots[2].stl[0]",
+     "does not involve robot 3's own state"),
+    (_with(2, stl=["G[0,10] (!(dist(p3, p2) <= 1))"]), "robots[2].stl[0]",
+     "unbounded above"),
+    (_with(1, phase_start_times=[15.0]), None, None),  # valid: 15 ≥ b = 10
+    (_with(1, phase_start_times=[5.0]), "robots[1].phase_start_times[0]",
+     "precedes the end b = 10"),
+    # overlapping windows: the loader's window-order check (agent.scenario.validation) names it
+    (_with(1, stl=["G[0,10] (x2 >= 0)", "F[5,12] (y2 >= 0)"]), "robots[1].stl[1]",
+     "window [5, 12] overlaps the window [0, 10] of stl[0]"),
+])
+def test_broken_stl_tasks_are_rejected_with_field_and_reason(data, field, reason):
+    if field is None:
+        parse_scenario(data)
+        return
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(data, source="mini.toml")
+    text = str(info.value)
+    assert "mini.toml" in text and field in text and reason in text, text
+
+
+def test_unbounded_negation_is_accepted_with_an_explicit_rho_opt():
+    parse_scenario(_with(2, stl=["G[0,10] (!(dist(p3, p2) <= 1))"], rho_opt=[0.5]))
+
+
+def test_warnings_window_beyond_duration_nonconcave_and_violated_from_start():
+    # issue 15's 6th robot: 4.6 m from robot 1 at t = 0
+    data = _with(2, stl=["G[0,60] (dist(p3, p1) <= 0.6)"], pose=[1.0, 1.0, 0.0])
+    data["duration"] = 50.0
+    data["robots"][1]["stl"] = ["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)",
+                                "F[20,30] (dist(p2, [0, 0.5]) >= 0.1)"]
+    warnings = stl_warnings(parse_scenario(data))
+    assert any("robots[2].stl[0]" in w and "ends after the run ends" in w for w in warnings)
+    assert any("robots[1].stl[1]" in w and "not concave" in w for w in warnings)
+    assert any("robots[2].stl[0]" in w and "violated at the start poses" in w
+               and "-4.0" in w for w in warnings)
+
+
+def test_paper_scenarios_have_no_warning():
+    for n in (1, 2, 3):
+        assert stl_warnings(load_scenario(SCENARIOS / f"scenario{n}.toml")) == []
+
+
+def test_check_command_prints_warnings_and_rejects(tmp_path, capsys):
+    good = tmp_path / "good.toml"
+    good.write_text((SCENARIOS / "scenario2.toml").read_text().replace("duration = 90.0",
+                                                                       "duration = 80.0"))
+    assert main(["check", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "warning:" in out and "robots[2].stl[0]" in out and "coupling-aware leaders on" in out
+    bad = tmp_path / "bad.toml"
+    bad.write_text((SCENARIOS / "scenario2.toml").read_text().replace(
+        'stl = ["G[0,90] (dist(p3, p1) <= 0.6)"]', 'stl = ["G[0,90] (dist(p4, p1) <= 0.6)"]'))
+    assert main(["check", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert str(bad) in err and "robots[2].stl[0]" in err and "own state" in err
