@@ -29,7 +29,6 @@ from __future__ import annotations
 from agent.errors import ScenarioError
 from agent.scenario.model import Scenario
 from agent.stl.analysis import literal_sup, non_concave_literals
-from agent.stl.parser import parse_task
 from agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
 
 # The loader runs these checks in every process that loads a scenario: they use the syntax tree
