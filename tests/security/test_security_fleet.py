@@ -198,7 +198,10 @@ def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
         (rogue.frames, rogue.sent)
     assert rogue.served == 0  # no query for robot/4/collab ever reached it
     assert result.clean, result.summary_text
-    assert result.outcome.reason == "duration"  # its Control(stop) never arrived
+    # its Control(stop) never arrived: the mission ran to its own end (by duration or the
+    # simulator's sim_done, whichever the supervisor saw first: issue 11)
+    assert result.outcome.reason in ("duration", "sim_done")
+    assert result.outcome.t_end >= result.info["duration"] - 0.02, result.outcome
     secured = (tmp_path / "run" / "trajectory.csv").read_bytes()
     assert secured == (plain.run_dir / "trajectory.csv").read_bytes()  # robot 4 untouched
     info = result.info
@@ -230,6 +233,7 @@ def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
     # the run reached its end: by duration or by the simulator's own sim_done (issue 11's
     # supervisor accepts whichever comes first)
     assert result.outcome.reason in ("duration", "sim_done")
+    assert result.outcome.t_end >= result.info["duration"] - 0.02, result.outcome
     attacked, reference = robot_path(tmp_path / "run", 4), robot_path(plain.run_dir, 4)
     assert attacked.shape == reference.shape
     assert abs(attacked - reference).max() > 0.1  # [m] robot 4 was driven off its path
