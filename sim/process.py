@@ -90,6 +90,7 @@ class SimConfig:
     malformed_report_period: float = 1.0  # [s] wall between reports of one key's malformed count
     poll: float = 0.05  # [s] wall: longest wait before the stop flag is checked again
     max_command_age: float | None = None  # [s] sim time; None: 5 control periods per robot
+    max_speed: float | None = None  # lockstep: sim time runs at most this × wall time (None: free)
     world: WorldConfig = field(default_factory=WorldConfig)
 
     def __post_init__(self) -> None:
@@ -100,15 +101,19 @@ class SimConfig:
             if not (value >= 0.0 if name == "duration" else value > 0.0):
                 raise SimConfigError(f"{name} = {value!r} s: must be "
                                      f"{'≥ 0' if name == 'duration' else '> 0'}")
+        if self.max_speed is not None and not self.max_speed > 0.0:
+            raise SimConfigError(f"max_speed = {self.max_speed!r}: must be > 0 (a factor of "
+                                 f"wall-clock time)")
 
     @classmethod
     def for_scenario(cls, scenario: Scenario, *, mode: TimeMode = "lockstep",
                      duration: float | None = None, seed: int | None = None,
-                     tick_timeout: float = 2.0, max_command_age: float | None = None) -> SimConfig:
+                     tick_timeout: float = 2.0, max_command_age: float | None = None,
+                     max_speed: float | None = None) -> SimConfig:
         """The settings of a run of ``scenario``: duration and seed default to the scenario's."""
         return cls(mode=mode, duration=scenario.duration if duration is None else duration,
                    seed=scenario.sim.seed if seed is None else seed, tick_timeout=tick_timeout,
-                   max_command_age=max_command_age)
+                   max_command_age=max_command_age, max_speed=max_speed)
 
 
 @dataclass(frozen=True)
@@ -123,6 +128,7 @@ class SimProcessConfig:
     tick_timeout: float = 2.0  # [s] wall
     transport: TransportConfig = field(default_factory=TransportConfig)
     max_command_age: float | None = None  # [s] sim time (None: 5 control periods)
+    max_speed: float | None = None  # lockstep: at most this × wall-clock time (None: free)
 
 
 @dataclass
@@ -237,9 +243,18 @@ class SimProcess:
         return False
 
     def _run_lockstep(self) -> None:
+        """Tick k waits for the due robots' ``Command(seq=k)``; with ``max_speed`` it also waits
+        until wall time has caught up with sim time / max_speed (pacing only adds waits, so the
+        trajectory is the same as unpaced)."""
         last = self.clock.last_tick(self.config.duration)
+        speed = self.config.max_speed
+        pacer = Pacer(self.clock.period / speed, self._now) if speed is not None else None
         k = 0
         while not self.stopping:
+            if pacer is not None and k > 0:
+                while not self.stopping and (left := pacer.remaining()) > 0.0:
+                    self._pump(min(left, self.config.poll))
+                pacer.advance()
             due = () if k >= last else due_robots(k, self.dividers, self.alive)
             self._publish_tick(k, due)
             if k >= last:
@@ -474,7 +489,8 @@ def main(config: SimProcessConfig) -> int:
     scenario = load_scenario(config.scenario)
     sim_config = SimConfig.for_scenario(scenario, mode=config.mode, duration=config.duration,
                                         seed=config.seed, tick_timeout=config.tick_timeout,
-                                        max_command_age=config.max_command_age)
+                                        max_command_age=config.max_command_age,
+                                        max_speed=config.max_speed)
     sys.setswitchinterval(SWITCH_INTERVAL)
     stop = threading.Event()
     install_signal_handlers(stop)

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from bus.signals import stop_on_signals, wait_for_signal
+from cli.arg_types import positive_float
 from coordinator.runner import RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
 
@@ -50,6 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="simulator seed")
     parser.add_argument("--tick-timeout", type=float, default=None, metavar="S",
                         help="lockstep: wall time the sim waits for a due command [s]")
+    parser.add_argument("--max-speed", type=positive_float, default=None, metavar="FACTOR",
+                        help="lockstep: sim time runs at most FACTOR × wall-clock time (1: watch "
+                             "the run live; default: as fast as the agents answer; the trajectory "
+                             "is the same either way)")
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wall time for every process to come up [s] (default 60)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
@@ -140,14 +145,17 @@ def run(args: argparse.Namespace) -> int:
     if wall_timeout is None:
         from agent.scenario import load_scenario  # validated here first: exit 1 before launching
 
-        wall_timeout = 3.0 * (duration or load_scenario(args.scenario).duration) + 60.0
+        sim_time = duration or load_scenario(args.scenario).duration
+        paced = sim_time / args.max_speed if args.max_speed else 0.0  # [s] wall, at least
+        wall_timeout = 3.0 * sim_time + paced + 60.0
     config = RunConfig(
         scenario_path=Path(args.scenario), mode=args.mode, out=args.out, duration=duration,
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
-        lease_ms=args.lease_ms)
+        lease_ms=args.lease_ms,
+        sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:

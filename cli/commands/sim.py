@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cli.arg_types import positive_float
 from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
@@ -33,6 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-command-age", type=float, default=None, metavar="S",
                         help="realtime: ignore commands answering frames older than this [s sim "
                              "time] (default: 5 control periods of the robot)")
+    parser.add_argument("--max-speed", type=positive_float, default=None, metavar="FACTOR",
+                        help="lockstep: let sim time run at most FACTOR × wall-clock time, e.g. 1 "
+                             "to watch a run live (default: as fast as the agents answer; the "
+                             "trajectory is the same either way)")
     add_transport_arguments(parser)
 
 
@@ -44,7 +49,8 @@ def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
                             duration=args.duration, seed=args.seed,
                             tick_timeout=args.tick_timeout,
                             transport=transport_config(args, "sim"),
-                            max_command_age=args.max_command_age)
+                            max_command_age=args.max_command_age,
+                            max_speed=args.max_speed)
 
 
 def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
@@ -54,7 +60,8 @@ def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
     return SimConfig.for_scenario(scenario, mode="realtime" if args.realtime else "lockstep",
                                   duration=args.duration, seed=args.seed,
                                   tick_timeout=args.tick_timeout,
-                                  max_command_age=args.max_command_age)
+                                  max_command_age=args.max_command_age,
+                            max_speed=args.max_speed)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -177,6 +177,16 @@ def test_two_lockstep_runs_with_the_same_seed_are_identical():
     assert other != first
 
 
+def test_max_speed_paces_a_lockstep_run_without_changing_it():
+    free, free_events = _disturbed(seed=9)
+    started = time.monotonic()
+    paced, paced_events = _disturbed(seed=9, max_speed=2.0)
+    wall = time.monotonic() - started
+    assert paced == free  # bit for bit: pacing only adds waits
+    assert paced_events == free_events
+    assert wall >= 0.5 / 2.0 * 0.9  # 0.5 s of sim time at most twice as fast as wall time
+
+
 def test_seed_defaults_to_the_scenarios():
     net = FakeNetwork()
     run = SimRun(net, scenario(omni(1, 0, 0), seed=42))
@@ -188,6 +198,7 @@ def test_seed_defaults_to_the_scenarios():
 @pytest.mark.parametrize(("field", "value", "match"), [
     ("tick_timeout", 0.0, "tick_timeout = 0.0 s"), ("duration", -1.0, "duration = -1.0 s"),
     ("mode", "fast", "mode 'fast'"), ("poll", math.nan, "poll = nan"),
+    ("max_speed", 0.0, "max_speed = 0.0"), ("max_speed", math.nan, "max_speed = nan"),
 ])
 def test_bad_sim_settings_are_rejected(field, value, match):
     with pytest.raises(SimConfigError, match=match):

@@ -110,7 +110,10 @@ def test_fuzzing_every_key_of_a_lockstep_fleet_crashes_nothing_and_changes_nothi
                            rrd=False, figures=False).join(timeout=180)
     assert reference.verdict.label == "clean", reference.verdict.line
     run_dir = tmp_path / "fuzzed"
-    bg = Background(scenario=TWO, out=run_dir, duration=DURATION, rrd=False, figures=False)
+    # paced at real time, so the intruder (≈ 2 s of sending) is done long before the fleet;
+    # lockstep pacing changes nothing of the trajectory (tests/sim: max_speed)
+    bg = Background(scenario=TWO, out=run_dir, duration=DURATION, rrd=False, figures=False,
+                    sim_args=("--max-speed", "1"))
     wait_until_started(run_dir, 0.2)
     endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
     intruder = open_transport(TransportConfig(mode="client", connect=(endpoint,)))
