@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("cli.commands.sim", "run the pymunk simulator process of a scenario"),
     "agent": ("cli.commands.agent", "run the agent process of one robot"),
     "run": ("cli.commands.run", "launch, supervise and record a whole fleet"),
+    "supervise": ("cli.commands.supervise",
+                  "join a running fleet: wait for it, start, supervise and record the run"),
     "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
     "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }

@@ -1,9 +1,11 @@
 """The transport flags every process shares (style.md §6): ``--mode``, ``--connect``, ``--listen``,
-``--lease-ms``, ``--multicast-scouting``, turned into a :class:`bus.TransportConfig`."""
+``--lease-ms``, ``--multicast-scouting``, ``--zenoh-config``, turned into a
+:class:`bus.TransportConfig`."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from bus.transport import TransportConfig
 
@@ -20,8 +22,16 @@ def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str =
                        help="link lease in ms (zenoh default 10000)")
     group.add_argument("--multicast-scouting", action="store_true",
                        help="join zenoh multicast scouting (off by default)")
+    add_zenoh_config_argument(group)
+
+
+def add_zenoh_config_argument(parser) -> None:
+    parser.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE.json5",
+                        help="zenohd-style config file (TLS, ACL, shared memory, …) merged under "
+                             "tlfleet's own settings; the endpoint flags, when given, win")
 
 
 def transport_config(args: argparse.Namespace) -> TransportConfig:
     return TransportConfig(mode=args.mode, connect=tuple(args.connect), listen=tuple(args.listen),
-                           lease_ms=args.lease_ms, multicast_scouting=args.multicast_scouting)
+                           lease_ms=args.lease_ms, multicast_scouting=args.multicast_scouting,
+                           zenoh_config=args.zenoh_config)

@@ -38,10 +38,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agent.protocol import keys
-from agent.scenario import Scenario, load_scenario
-from bus.transport import TransportConfig, open_transport
-from bus.zenoh_transport import ZenohTransport
+from agent.errors import TlfleetError
+from agent.scenario import Scenario
+from bus.transport import Transport, TransportConfig, check_config, open_transport
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -50,9 +49,17 @@ from coordinator.launcher import (
     tlfleet_command,
     wait_for_port,
 )
-from coordinator.recorder import Recorder, RecorderTap, default_run_dir
-from coordinator.summary import write_summary
-from coordinator.supervisor import Outcome, Supervisor, SupervisorConfig
+from coordinator.supervise import (
+    CLEAN_ENDS,
+    Supervision,
+    end_info,
+    prepare_run,
+    start_viewer,
+    write_outputs,
+    write_report,
+    write_rrd,
+)
+from coordinator.supervisor import Outcome, SupervisorConfig
 
 logger = logging.getLogger(__name__)
 
@@ -83,6 +90,8 @@ class RunConfig:
     viewer: bool = False  # serve the run live to a web viewer
     grpc_port: int = 0  # viewer ports on 127.0.0.1 (0: free ones)
     web_port: int = 0
+    zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
+    #                                   every process of the run (bus.zenoh_config)
 
 
 @dataclass
@@ -103,8 +112,10 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
                        endpoint: str) -> list[str]:
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
     path = str(Path(config.scenario_path).resolve())
+    shared = ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
     if role == "router":
-        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint)
+        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
+                               *shared)
     if role == "sim":
         argv = ["sim", path, f"--{config.mode}", "--duration",
                 repr(float(config.duration or scenario.duration))]
@@ -112,16 +123,20 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
             argv += ["--seed", str(config.seed)]
         if config.tick_timeout is not None:
             argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint)
+        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *shared)
     return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint)
+                           "--connect", endpoint, *shared)
 
 
-def _open_client(endpoint: str, router: Child, timeout: float) -> ZenohTransport:
+def _open_client(endpoint: str, router: Child, timeout: float,
+                 zenoh_config: Path | None = None) -> Transport:
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+            return open_transport(TransportConfig(mode="client", connect=(endpoint,),
+                                                  zenoh_config=zenoh_config))
+        except TlfleetError:
+            raise  # a bad --zenoh-config: retrying cannot help
         except Exception as exc:  # zenoh raises ZError, not a stable type
             if router.returncode is not None or time.monotonic() > deadline:
                 raise LaunchError(f"cannot open a client session to the router at {endpoint}: "
@@ -133,69 +148,28 @@ def _router_clean(code: int | None) -> bool:
     return code in (0, -signal.SIGTERM, 128 + signal.SIGTERM)
 
 
-def _start_viewer(scenario: Scenario, config: RunConfig,
-                  say: Callable[[str], None]) -> Any:
-    """A serving LiveView, or None (reported) when it cannot start: the run goes on without."""
-    try:
-        from coordinator.visual import HOST as VIEW_HOST
-        from coordinator.visual import LiveView
-
-        view = LiveView.serve(scenario, grpc_port=config.grpc_port or free_port(VIEW_HOST),
-                        web_port=config.web_port or free_port(VIEW_HOST))
-    except Exception as exc:  # rerun missing, port taken…: never a reason to fail the run
-        say(f"no live viewer ({type(exc).__name__}: {exc})")
-        return None
-    say(f"viewer: {view.url}")
-    return view
-
-
-def _write_report(run_dir: Path, figures: bool, say: Callable[[str], None]) -> tuple[Any, str]:
-    """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
-    try:
-        from coordinator.report import write_report
-
-        return write_report(run_dir, figures=figures), ""
-    except Exception as exc:
-        say(f"report not written ({type(exc).__name__}: {exc})")
-        return None, f"{type(exc).__name__}: {exc}"
-
-
-def _write_rrd(run_dir: Path, every: int, say: Callable[[str], None]) -> dict[str, Any]:
-    """Step 8: ``run.rrd`` from the recorded files; failures are reported, never raised."""
-    try:
-        from coordinator.visual import replay_run
-
-        result = replay_run(run_dir, every=every)
-    except Exception as exc:
-        say(f"run.rrd not written ({type(exc).__name__}: {exc})")
-        return {"error": f"{type(exc).__name__}: {exc}"}
-    return {"path": str(result.path), "seconds": round(result.seconds, 3),
-            "frames": result.frames}
+# the shared supervise-and-record path (coordinator.supervise), under their historical names
+_start_viewer = start_viewer
+_write_report = write_report
+_write_rrd = write_rrd
 
 
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               progress: Callable[[float, float], None] | None = None,
               report: Callable[[str], None] | None = None) -> RunResult:
     """Run the fleet of ``config`` to the end; see the module docstring."""
-    scenario = load_scenario(config.scenario_path)
     say = report or (lambda text: logger.warning("%s", text))
-    duration = float(config.duration or scenario.duration)
-    run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
-    recorder = Recorder(run_dir, [r.id for r in scenario.robots])
-    recorder.copy_scenario(Path(config.scenario_path))
+    if config.zenoh_config is not None:  # a bad file fails here, before anything is written
+        check_config(TransportConfig(mode="client", zenoh_config=config.zenoh_config))
     endpoint = f"tcp/{HOST}:{free_port(HOST)}"
-    info: dict[str, Any] = {
-        "scenario": scenario.name, "scenario_path": str(config.scenario_path),
-        "mode": config.mode, "duration": duration,
-        "seed": scenario.sim.seed if config.seed is None else config.seed,
-        "endpoint": endpoint, "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-    }
-    recorder.write_run_info(info)
+    prepared = prepare_run(config.scenario_path, config.out, mode=config.mode,
+                           duration=config.duration, seed=config.seed, endpoint=endpoint)
+    scenario, run_dir, recorder, info = (prepared.scenario, prepared.run_dir, prepared.recorder,
+                                         prepared.info)
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(run_dir / "logs")
-    transport: ZenohTransport | None = None
-    tap: RecorderTap | None = None
-    supervisor: Supervisor | None = None
+    transport: Transport | None = None
+    session: Supervision | None = None
     outcome = Outcome("error", 0.0)
     codes: dict[str, int | None] = {}
     wall_start = time.monotonic()
@@ -203,66 +177,38 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
-        transport = _open_client(endpoint, router, config.router_timeout)
-        transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
-        tap = RecorderTap(transport, scenario.fleet, recorder,
-                          on_message=None if viewer is None else viewer.on_message)
-        supervisor = Supervisor(transport, scenario, tap, {"router": router}, duration=duration,
-                                config=config.supervisor, report=report)
-        supervisor.children["sim"] = launcher.start(
-            "sim", argv_of("sim", config, scenario, None, endpoint))
+        transport = _open_client(endpoint, router, config.router_timeout, config.zenoh_config)
+        session = Supervision(transport, prepared, config=config.supervisor,
+                              children={"router": router}, report=report,
+                              on_message=None if viewer is None else viewer.on_message)
+        children = session.supervisor.children
+        children["sim"] = launcher.start("sim", argv_of("sim", config, scenario, None, endpoint))
         for robot in sorted(scenario.robots, key=lambda r: r.id):
             name = f"agent-{robot.id}"
-            supervisor.children[name] = launcher.start(
+            children[name] = launcher.start(
                 name, argv_of("agent", config, scenario, robot.id, endpoint))
-        info["ready_time"] = supervisor.wait_ready(stop)
-        supervisor.start()
-        wall_start = time.monotonic()
-        try:
-            outcome = supervisor.supervise(stop, progress)
-        except KeyboardInterrupt:
-            outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
-        info["wall_time"] = time.monotonic() - wall_start
-        codes = supervisor.finish()
+        outcome, codes = session.run(stop, progress)
+        wall_start = session.wall_start
     except BaseException:
         if viewer is not None:
             viewer.close()
         raise
     finally:
-        if tap is not None:
-            tap.drain()
-            tap.close()
-            info["malformed_received"] = dict(tap.malformed)
-        if supervisor is not None:
-            supervisor.close()
+        if session is not None:
+            session.close()
         if transport is not None:
             transport.close()
         final = launcher.stop_all(config.kill_grace)
         info["pids"] = {child.name: child.pid for child in launcher.children}  # = their pgids
         recorder.close()
-        info.update(reason=outcome.reason, t_end=outcome.t_end, exit_codes=final,
-                    exit_codes_after_stop=codes, frames=recorder.frames_written)
-        info.setdefault("wall_time", time.monotonic() - wall_start)
-        if info["wall_time"] > 0:
-            info["speedup"] = outcome.t_end / info["wall_time"]
+        info.update(exit_codes=final, exit_codes_after_stop=codes)
+        end_info(prepared, outcome, wall_start)
         recorder.write_run_info(info)
-    clean = (outcome.reason in ("sim_done", "duration") and not outcome.deaths
+    clean = (outcome.reason in CLEAN_ENDS and not outcome.deaths
              and all(code == 0 for code in codes.values())
              and _router_clean(final.get("router")))
     info["clean"] = clean
     recorder.write_run_info(info)
-    text, data = write_summary(run_dir)
-    report_result = None
-    if config.report:
-        report_result, error = _write_report(run_dir, config.figures, say)
-        info["report"] = {"error": error} if error else {
-            "path": str(run_dir / "report.md"),
-            "figures": [str(path) for path in report_result.figures]}
-        recorder.write_run_info(info)
-    rrd_path: Path | None = None
-    if config.rrd:
-        info["rrd"] = _write_rrd(run_dir, config.rrd_every, say)
-        rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
-        recorder.write_run_info(info)
-    return RunResult(run_dir, outcome, final, clean, text, data, info, report_result, rrd_path,
-                     viewer)
+    outputs = write_outputs(prepared, config, say)
+    return RunResult(run_dir, outcome, final, clean, outputs.summary_text, outputs.summary, info,
+                     outputs.report, outputs.rrd, viewer)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from bus.signals import stop_on_signals, wait_for_signal
+from cli.transport_flags import add_zenoh_config_argument
 from coordinator.runner import RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
 
@@ -65,6 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write report.md/json but no PNG figures")
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
+    add_zenoh_config_argument(parser)
 
 
 class ProgressBar:
@@ -135,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
-        grpc_port=args.grpc_port, web_port=args.web_port)
+        grpc_port=args.grpc_port, web_port=args.web_port, zenoh_config=args.zenoh_config)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:
