@@ -1,6 +1,8 @@
 """One whole run of a fleet: validate, launch, supervise, record, summarise (issue 5 §4).
 
-:func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks:
+:func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks: launch
+(steps 3–4, :mod:`coordinator.launcher`) + the supervise-and-record code that ``tlfleet
+supervise`` runs alone (steps 2, 5, 7, 8: :mod:`coordinator.supervise`):
 
 1. load the scenario (``ScenarioError`` before any process starts);
 2. create the run directory (:mod:`coordinator.recorder`), pick a free loopback port;

@@ -14,7 +14,7 @@ simulator and agents were started elsewhere (by hand, on other machines, as comp
    ``run.rrd``; a failure of the report or of ``run.rrd`` is reported and never fails the run.
 
 :func:`supervise_fleet` strings the three together for a fleet reached at an endpoint. A client
-session to an endpoint with no router fails within ``connect_timeout`` (default 2 s) with a
+session to an endpoint with no router fails within ``connect_timeout`` (default 1 s) with a
 :class:`SuperviseError` that names the endpoint.
 """
 
@@ -70,7 +70,7 @@ class SuperviseConfig:
     duration: float | None = None  # [s] sim time
     seed: int | None = None  # the simulator's seed, for run.json (default: the scenario's)
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
-    connect_timeout: float = 2.0  # [s] wall, for the client session to reach a router
+    connect_timeout: float = 1.0  # [s] wall, for the client session to reach a router
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings
     report: bool = True
     figures: bool = True

@@ -67,6 +67,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
     add_zenoh_config_argument(parser)
+    parser.add_argument("--hosts", type=int, default=0, metavar="N",
+                        help="run across N network-namespace hosts, one zenoh router each, "
+                             "routers connected (root only; coordinator.hosts)")
 
 
 class ProgressBar:
@@ -125,7 +128,30 @@ def print_outputs(result: RunResult) -> None:
     print(f"run directory: {result.run_dir}", flush=True)
 
 
+def run_hosts(args: argparse.Namespace) -> int:
+    """``--hosts N``: launch on N namespace hosts, then ``tlfleet supervise`` on host 0 (it
+    prints the report and the run directory)."""
+    from coordinator.hosts import run_on_hosts
+
+    extra = ["--quiet"] if args.quiet else []
+    for flag, value in (("--duration", args.duration), ("--seed", args.seed),
+                        ("--wait", args.ready_timeout), ("--wall-timeout", args.wall_timeout)):
+        if value is not None:
+            extra += [flag, repr(value)]
+    extra += [] if args.report else ["--no-report"]
+    extra += [] if args.figures else ["--no-figures"]
+    extra += [] if args.rrd else ["--no-rrd"]
+    sim = [] if args.seed is None else ["--seed", str(args.seed)]
+    sim += [] if args.duration is None else ["--duration", repr(args.duration)]
+    sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
+    result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
+                          supervise_args=extra, sim_args=sim)
+    return result.returncode
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.hosts:
+        return run_hosts(args)
     duration = args.duration
     wall_timeout = args.wall_timeout
     if wall_timeout is None:

@@ -45,8 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait", type=float, default=60.0, metavar="S",
                         help="wall time to wait for every process of the scenario [s] "
                              "(default 60)")
-    parser.add_argument("--connect-timeout", type=float, default=2.0, metavar="S",
-                        help="wall time for a router to answer at --connect [s] (default 2)")
+    parser.add_argument("--connect-timeout", type=float, default=1.0, metavar="S",
+                        help="wall time for a router to answer at --connect [s] (default 1)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar, no waiting lines")
