@@ -67,7 +67,9 @@ class Handle:
 #: second: one async worker, and every other runtime (rx, tx, net, acc) handed over to it. A
 #: default session runs 7 OS threads (+1 per callback entity); each received sample then wakes
 #: 3–4 of them. Measured with the real fleet (issue 17, ``bench/runtime_bench.py``): less CPU per
-#: tick in every process (router −25…40 %), see the closing note.
+#: tick in every process (router −25…40 %). Opt-in, not the default: under a flood of malformed
+#: payloads (10 000 per key, tests/security) a router with one worker fell behind and closed its
+#: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 
@@ -78,7 +80,7 @@ class TransportConfig:
 
     ``runtime``: the ``ZENOH_RUNTIME`` value set in this process before its (first) session opens
     (zenoh reads it once per process; an existing ``ZENOH_RUNTIME`` in the environment wins);
-    ``None`` keeps zenoh's default thread pools. ``direct_callbacks``: subscriber callbacks run on
+    ``None`` (the default) keeps zenoh's thread pools; :data:`MINIMAL_RUNTIME` saves CPU. ``direct_callbacks``: subscriber callbacks run on
     zenoh's network thread (``Callback(indirect=False)``) instead of a Python thread per
     subscriber, saving one thread wake-up per sample; they must then be quick and never block.
     """
@@ -89,7 +91,7 @@ class TransportConfig:
     lease_ms: int | None = None  # [ms] link lease: how fast a hung peer is declared gone
     multicast_scouting: bool = False
     extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
-    runtime: str | None = MINIMAL_RUNTIME
+    runtime: str | None = None
     direct_callbacks: bool = False
     zenoh_config: Path | None = None  # a zenohd-style JSON5 file under these settings
     #                                   (bus.zenoh_config)
