@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT))
 from coordinator.compose import ComposeConfig, write_compose  # noqa: E402
 from coordinator.hosts import run_on_hosts  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.summary import read_events  # noqa: E402
+from coordinator.rundir import read_events  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 DEPLOYMENTS = ("local", "hosts3", "compose")
@@ -79,8 +79,8 @@ def one_run(deployment: str, mode: str, duration: float, out: Path) -> dict:
             raise RuntimeError(f"compose run failed: {done.stdout[-1500:]}{done.stderr[-1500:]}")
     total_wall = time.monotonic() - wall0
     info = json.loads((out / "run.json").read_text())
-    stats = next((e["data"] for e in reversed(read_events(out / "events.jsonl"))
-                  if e["kind"] == "sim_stats"), {})
+    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
+                  if e.kind == "sim_stats"), {})
     return {
         "clean": bool(info.get("clean")), "t_end": info.get("t_end"),
         "wall_time": info.get("wall_time", math.nan),  # [s] the supervised phase

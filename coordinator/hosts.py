@@ -43,7 +43,7 @@ from pathlib import Path
 from agent.errors import TlfleetError
 from agent.scenario import Scenario, load_scenario
 from coordinator.launcher import Launcher, tlfleet_command
-from coordinator.recorder import default_run_dir
+from coordinator.rundir import default_run_dir
 
 logger = logging.getLogger(__name__)
 
