@@ -44,8 +44,8 @@ sys.path.insert(0, str(ROOT))
 
 from coordinator.compose import ComposeConfig, write_compose  # noqa: E402
 from coordinator.hosts import run_on_hosts  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.rundir import read_events  # noqa: E402
+from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 DEPLOYMENTS = ("local", "hosts3", "compose")
