@@ -80,9 +80,10 @@ class TransportConfig:
 
     ``runtime``: the ``ZENOH_RUNTIME`` value set in this process before its (first) session opens
     (zenoh reads it once per process; an existing ``ZENOH_RUNTIME`` in the environment wins);
-    ``None`` (the default) keeps zenoh's thread pools; :data:`MINIMAL_RUNTIME` saves CPU. ``direct_callbacks``: subscriber callbacks run on
-    zenoh's network thread (``Callback(indirect=False)``) instead of a Python thread per
-    subscriber, saving one thread wake-up per sample; they must then be quick and never block.
+    ``None`` (the default) keeps zenoh's thread pools; :data:`MINIMAL_RUNTIME` saves CPU.
+    ``direct_callbacks``: subscriber callbacks run on zenoh's network thread
+    (``Callback(indirect=False)``) instead of a Python thread per subscriber, saving one thread
+    wake-up per sample; they must then be quick and never block.
     """
 
     mode: str = "client"  # "client" | "peer" | "router"
