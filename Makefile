@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 PY     := $(BIN)/python
 
-.PHONY: run test bench lint clean
+.PHONY: run test bench lint clean compose-run system-deps
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,17 @@ run: $(VENV)/.installed
 
 test: $(VENV)/.installed-test
 	$(PY) -m pytest
+
+# Scenario 1 in lockstep as a docker compose fleet, images built offline (docker/compose-run.sh):
+# writes runs/compose-scenario1-<time>/, prints the report, leaves no container, network or dockerd.
+compose-run: $(VENV)/.installed
+	PYTHON=$(PY) bash docker/compose-run.sh
+
+# The Debian packages of the namespace-host and docker tests (root; what .ci/run installs).
+SYSTEM_PACKAGES := docker.io docker-compose iproute2 iptables nftables mmdebstrap iputils-ping
+system-deps:
+	apt-get update -q
+	DEBIAN_FRONTEND=noninteractive apt-get install -y -q $(SYSTEM_PACKAGES)
 
 # Every benchmark prints CPU beside wall and the load average, writes bench/results/*.json; the
 # last table lists every figure with its target and met / not met (issue 17).

@@ -37,9 +37,10 @@ class RouterConfig:
     def __post_init__(self) -> None:
         if self.transport.mode != "router":
             raise RouterConfigError(f"--mode must be router, got {self.transport.mode}")
-        if not self.transport.listen:
-            raise RouterConfigError("give at least one --listen endpoint, "
-                                    "e.g. tcp/127.0.0.1:7447")
+        if not self.transport.listen and self.transport.zenoh_config is None:
+            raise RouterConfigError("give at least one --listen endpoint, e.g. "
+                                    "tcp/127.0.0.1:7447 (or a --zenoh-config file with "
+                                    "listen/endpoints)")
 
 
 def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
@@ -63,7 +64,10 @@ def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
         raise
     try:
         transport.declare_alive(keys.alive(config.fleet, "router", 0))
-        logger.info("router listening on %s", ", ".join(config.transport.listen))
+        # said at WARNING so that a router started by hand shows it without -v (issue 12 §1)
+        listening = ", ".join(config.transport.listen) or "the --zenoh-config endpoints"
+        logger.warning("router: listening on %s for fleet %s; waiting for clients (stop with "
+                       "Ctrl-C)", listening, config.fleet)
         while not stop.wait(0.2):
             pass
         return 0

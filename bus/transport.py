@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
@@ -93,6 +94,8 @@ class TransportConfig:
     extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
     runtime: str | None = None
     direct_callbacks: bool = False
+    zenoh_config: Path | None = None  # a zenohd-style JSON5 file under these settings
+    #                                   (bus.zenoh_config)
 
 
 def open_transport(config: TransportConfig) -> ZenohTransport:
@@ -100,3 +103,11 @@ def open_transport(config: TransportConfig) -> ZenohTransport:
     from bus.zenoh_transport import ZenohTransport
 
     return ZenohTransport.open(config)
+
+
+def check_config(config: TransportConfig) -> None:
+    """Build the session config without opening it: a bad ``--zenoh-config`` raises
+    ``ZenohConfigError`` (file and key named) before anything starts."""
+    from bus.zenoh_transport import ZenohTransport
+
+    ZenohTransport.zenoh_config(config)

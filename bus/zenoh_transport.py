@@ -14,6 +14,7 @@ import os
 import threading
 from typing import Any
 
+from bus import zenoh_config
 from bus.transport import (
     AliveCallback,
     Closeable,
@@ -47,17 +48,35 @@ class ZenohTransport:
 
     @staticmethod
     def zenoh_config(config: TransportConfig) -> Any:
+        """The session's zenoh config: the ``--zenoh-config`` file if any, tlfleet's own
+        settings on top (:mod:`bus.zenoh_config`); ``ZenohConfigError`` names the file and key
+        zenoh refuses."""
         import zenoh
 
-        c = zenoh.Config()
-        c.insert_json5("mode", json.dumps(config.mode))
-        c.insert_json5("listen/endpoints", json.dumps(list(config.listen)))
-        c.insert_json5("connect/endpoints", json.dumps(list(config.connect)))
-        c.insert_json5("scouting/multicast/enabled", json.dumps(config.multicast_scouting))
-        if config.lease_ms:
-            c.insert_json5("transport/link/tx/lease", json.dumps(config.lease_ms))
-        for key, value in config.extra.items():
-            c.insert_json5(key, json.dumps(value))
+        def refused(c: Any, key: str, value: str) -> str | None:
+            try:
+                c.insert_json5(key, value)
+            except Exception as exc:  # zenoh.ZError
+                return str(exc)
+            return None
+
+        text = None
+        if config.zenoh_config is None:
+            c = zenoh.Config()
+        else:
+            text = zenoh_config.read_text(config.zenoh_config)
+            try:
+                c = zenoh.Config.from_json5(text)
+            except Exception as exc:  # zenoh.ZError: zenoh says what, not where
+                raise zenoh_config.refusal(
+                    config.zenoh_config, text, str(exc),
+                    lambda key, value: refused(zenoh.Config(), key, value)) from None
+        for key, value in zenoh_config.own_settings(config, zenoh_config.file_keys(text)):
+            reason = refused(c, key, json.dumps(value))
+            if reason is not None:
+                raise zenoh_config.ZenohConfigError(
+                    config.zenoh_config or "(tlfleet's settings)", key,
+                    zenoh_config.clean_reason(reason))
         return c
 
     @staticmethod

@@ -28,6 +28,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("cli.commands.run", "launch, supervise and record a whole fleet"),
     "keys": ("cli.commands.keys", "write a fleet CA, per-process certificates and the router's "
                                   "ACL policy"),
+    "supervise": ("cli.commands.supervise",
+                  "join a running fleet: wait for it, start, supervise and record the run"),
+    "compose": ("cli.commands.compose", "write the docker compose file of a scenario's fleet"),
     "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
     "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }

@@ -1,5 +1,6 @@
 """The transport flags every process shares (style.md §6): ``--mode``, ``--connect``, ``--listen``,
-``--lease-ms``, ``--multicast-scouting``, ``--secure``, turned into a :class:`bus.TransportConfig`.
+``--lease-ms``, ``--multicast-scouting``, ``--zenoh-config``, ``--secure``, turned into a
+:class:`bus.TransportConfig`.
 
 ``--secure DIR`` (a key directory of ``tlfleet keys``) puts every endpoint on ``tls/`` with mutual
 authentication as the process's identity, and gives a router the directory's access-control
@@ -29,6 +30,13 @@ def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str =
     group.add_argument("--secure", type=Path, default=None, metavar="DIR",
                        help="mutual TLS with the keys of DIR (`tlfleet keys`): endpoints become "
                             "tls/…; a router also enforces DIR/acl.json")
+    add_zenoh_config_argument(group)
+
+
+def add_zenoh_config_argument(parser) -> None:
+    parser.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE.json5",
+                        help="zenohd-style config file (TLS, ACL, shared memory, …) merged under "
+                             "tlfleet's own settings; the endpoint flags, when given, win")
 
 
 def transport_config(args: argparse.Namespace, identity: str | None = None) -> TransportConfig:
@@ -36,7 +44,8 @@ def transport_config(args: argparse.Namespace, identity: str | None = None) -> T
     process's certificate name: ``router``, ``sim``, ``robot3``…)."""
     config = TransportConfig(mode=args.mode, connect=tuple(args.connect),
                              listen=tuple(args.listen), lease_ms=args.lease_ms,
-                             multicast_scouting=args.multicast_scouting)
+                             multicast_scouting=args.multicast_scouting,
+                             zenoh_config=getattr(args, "zenoh_config", None))
     secure = getattr(args, "secure", None)
     if secure is None:
         return config

@@ -46,12 +46,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.bounds import FleetBounds
 from agent.protocol.plausibility import max_jump_ticks
 from agent.scenario import Scenario, load_scenario
 from bus.security import fingerprints, secure_transport
-from bus.transport import TransportConfig, open_transport
+from bus.transport import TransportConfig, check_config, open_transport
 from bus.zenoh_transport import ZenohTransport
 from coordinator import rundir
 from coordinator.cleanup import Cleanup
@@ -103,6 +104,8 @@ class RunConfig:
     lease_ms: int | None = None  # [ms] zenoh link lease of every session (None: zenoh's 10 s)
     silence: float = 2.0  # [s] wall: an agent without status this long is silent (health)
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
+    zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
+    #                                   every process of the run (bus.zenoh_config)
 
 
 @dataclass
@@ -126,6 +129,7 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     path = str(Path(config.scenario_path).resolve())
     secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
     lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
+    lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)
@@ -142,14 +146,18 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
 
 
 def _open_client(endpoint: str, router: Child, timeout: float,
-                 secure: Path | None = None, lease_ms: int | None = None) -> ZenohTransport:
+                 secure: Path | None = None, lease_ms: int | None = None,
+                 zenoh_config: Path | None = None) -> ZenohTransport:
     deadline = time.monotonic() + timeout
-    client = TransportConfig(mode="client", connect=(endpoint,), lease_ms=lease_ms)
+    client = TransportConfig(mode="client", connect=(endpoint,), lease_ms=lease_ms,
+                             zenoh_config=zenoh_config)
     if secure is not None:
         client = secure_transport(client, secure, "coordinator")
     while True:
         try:
             return open_transport(client)
+        except TlfleetError:
+            raise  # a bad --zenoh-config: retrying cannot help
         except Exception as exc:  # zenoh raises ZError, not a stable type
             if router.returncode is not None or time.monotonic() > deadline:
                 raise LaunchError(f"cannot open a client session to the router at {endpoint}: "
@@ -271,6 +279,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
 
         check_keys(scenario, config.secure)
     say = report or (lambda text: logger.warning("%s", text))
+    if config.zenoh_config is not None:  # a bad file fails here, before anything is written
+        check_config(TransportConfig(mode="client", zenoh_config=config.zenoh_config))
     duration = float(config.duration or scenario.duration)
     run_dir = Path(config.out) if config.out else default_run_dir(scenario.name)
     recorder = Recorder(run_dir, [r.id for r in scenario.robots])
@@ -315,7 +325,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
         transport = _open_client(endpoint, router, config.router_timeout, config.secure,
-                                 config.lease_ms)
+                                 config.lease_ms, config.zenoh_config)
         transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
         tap = RecorderTap(transport, scenario.fleet, recorder, on_message=on_message,
                           **_tap_checks(scenario, duration))

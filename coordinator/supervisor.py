@@ -68,6 +68,7 @@ class SupervisorConfig:
     poll_period: float = 0.05  # [s] wall, death detection and tap draining
     stop_grace: float = 5.0  # [s] wall, for children to exit after Control(stop)
     end_grace: float = 0.5  # [s] wall, for sim_done to arrive after the simulator exits
+    waiting_period: float = 1.0  # [s] wall, between "still waiting for …" reports
 
 
 @dataclass
@@ -258,16 +259,24 @@ class Supervisor:
 
     # ----------------------------------------------------------------- phases
 
-    def wait_ready(self, stop: threading.Event | None = None) -> float:
-        """Block until every expected token is alive; returns the wall time it took [s]."""
+    def wait_ready(self, stop: threading.Event | None = None,
+                   waiting: Callable[[list[str]], None] | None = None) -> float:
+        """Block until every expected token is alive; returns the wall time it took [s].
+
+        ``waiting(missing)`` is called at once and then every ``waiting_period`` while some
+        token is missing (``tlfleet supervise`` prints who it still waits for)."""
         started = self._clock()
         deadline = started + self.config.ready_timeout
+        next_say = started
         while True:
             self.tap.drain()
             self._process_alive_queue()
             missing = [name for name in self.tokens.values() if name not in self.alive]
             if not missing:
                 return self._clock() - started
+            if waiting is not None and self._clock() >= next_say:
+                waiting(missing)
+                next_say += self.config.waiting_period
             for name, child in self.children.items():
                 if child.returncode is not None:
                     raise LaunchError(f"{name} exited with code {child.returncode} before the "

@@ -97,6 +97,10 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         for event in events:
             loop.publish_event(event)
         logger.info("%s ready (fleet %s, divider %d)", source, scenario.fleet, divider)
+        # said at WARNING so that a process started by hand shows it without -v (issue 12 §1)
+        logger.warning("agent %d: waiting for start from a coordinator on %s and mocap frames "
+                       "from the simulator on %s", config.robot, keys.control(scenario.fleet),
+                       keys.mocap(scenario.fleet))
         try:
             code = loop.run(stop)
         except Exception as exc:  # a bug in a core: report it, then exit non-zero

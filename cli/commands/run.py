@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from bus.signals import stop_on_signals, wait_for_signal
 from cli.arg_types import positive_float
+from cli.transport_flags import add_zenoh_config_argument
 from coordinator.runner import RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
 
@@ -80,6 +81,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write report.md/json but no PNG figures")
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
+    add_zenoh_config_argument(parser)
+    parser.add_argument("--hosts", type=int, default=0, metavar="N",
+                        help="run across N network-namespace hosts, one zenoh router each, "
+                             "routers connected (root only; coordinator.hosts)")
 
 
 class ProgressBar:
@@ -139,7 +144,31 @@ def print_outputs(result: RunResult) -> None:
     print(f"run directory: {result.run_dir}", flush=True)
 
 
+def run_hosts(args: argparse.Namespace) -> int:
+    """``--hosts N``: launch on N namespace hosts, then ``tlfleet supervise`` on host 0 (it
+    prints the report and the run directory)."""
+    from coordinator.hosts import run_on_hosts
+
+    extra = ["--quiet"] if args.quiet else []
+    for flag, value in (("--duration", args.duration), ("--seed", args.seed),
+                        ("--wait", args.ready_timeout), ("--wall-timeout", args.wall_timeout)):
+        if value is not None:
+            extra += [flag, repr(value)]
+    extra += [] if args.report else ["--no-report"]
+    extra += [] if args.figures else ["--no-figures"]
+    extra += [] if args.rrd else ["--no-rrd"]
+    sim = [] if args.seed is None else ["--seed", str(args.seed)]
+    sim += [] if args.duration is None else ["--duration", repr(args.duration)]
+    sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
+    sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
+    result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
+                          supervise_args=extra, sim_args=sim)
+    return result.returncode
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.hosts:
+        return run_hosts(args)
     duration = args.duration
     wall_timeout = args.wall_timeout
     if wall_timeout is None:
@@ -154,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
-        lease_ms=args.lease_ms,
+        lease_ms=args.lease_ms, zenoh_config=args.zenoh_config,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

@@ -67,11 +67,11 @@ def test_lockstep_runs_with_the_same_seed_are_identical(tmp_path):
 
 
 @pytest.mark.slow
-def test_scenario1_paper_bounds(tmp_path):
+def test_scenario1_paper_bounds(scenario1_run):
     path = SCENARIOS / "scenario1.toml"
-    result = run(path, tmp_path / "run")
+    result = scenario1_run  # one `tlfleet run` of Scenario 1 in lockstep (tests/system/conftest.py)
     assert result.clean, result.summary_text
-    t, s = load_trajectory(tmp_path / "run")
+    t, s = load_trajectory(result.run_dir)
     assert t[-1] == pytest.approx(90.0)
     measured = {
         "phi'3": g_rob(t, 0.1 - dist_to(s, 3, (0, -2)), 21, 30),
@@ -91,8 +91,8 @@ def test_scenario1_paper_bounds(tmp_path):
         for name in names:
             assert entries(s[robot][:, :2], reg[name].center, reg[name].radius) >= 3, \
                 (robot, name)
-    assert robot_robot_contacts(tmp_path / "run") == []
-    assert leftover_in_groups(tmp_path / "run") == []
+    assert robot_robot_contacts(result.run_dir) == []
+    assert leftover_in_groups(result.run_dir) == []
 
 
 @pytest.mark.slow

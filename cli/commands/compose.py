@@ -1,0 +1,36 @@
+"""``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime]``: write the docker
+compose file of a scenario's fleet (:mod:`coordinator.compose`). An invalid scenario exits 1
+before anything is written."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from coordinator.compose import ComposeConfig, write_compose
+
+NAME = "compose"
+HELP = "write the docker compose file of a scenario's fleet"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("--out", type=Path, default=Path("."),
+                        help="directory for compose.yaml, or the .yaml file (default .)")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
+                      help="deterministic (default)")
+    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
+                      help="physics on wall-clock time")
+    parser.set_defaults(mode="lockstep")
+    parser.add_argument("--wait", type=float, default=120.0, metavar="S",
+                        help="the coordinator's wait for every service [s] (default 120)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="sim time to run [s] (default: the scenario's duration)")
+
+
+def run(args: argparse.Namespace) -> int:
+    path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
+                                             args.duration))
+    print(path)
+    return 0

@@ -1,0 +1,102 @@
+"""``tlfleet supervise SCENARIO --connect ENDPOINT [--out DIR] [--lockstep|--realtime] [--wait S]``:
+the coordinator without the launcher (:mod:`coordinator.supervise`).
+
+It joins a fleet whose router, simulator and agents were started elsewhere (by hand, on other
+machines, as compose services), prints every second which processes it still waits for (their
+liveliness tokens), sends ``start``, records the run directory exactly as ``tlfleet run`` does,
+shows the progress bar, writes the report and at the end sends ``stop``. Exit codes as
+``tlfleet run``: 0 clean, 1 invalid scenario / no router at the endpoint / a process missing
+after ``--wait`` seconds, 3 the run finished but not cleanly, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bus.signals import stop_on_signals
+from cli.commands.run import ProgressBar, print_outputs
+from cli.transport_flags import add_zenoh_config_argument
+from coordinator.supervise import SuperviseConfig, supervise_fleet
+from coordinator.supervisor import SupervisorConfig
+
+NAME = "supervise"
+HELP = "join a running fleet: wait for it, start, supervise and record the run"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", help="scenario TOML file (the one the fleet was started with)")
+    parser.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                        help="the fleet's router, e.g. tcp/127.0.0.1:7447 (repeatable; "
+                             "default tcp/127.0.0.1:7447)")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
+                      help="the simulator runs in lockstep (default; recorded in run.json)")
+    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
+                      help="the simulator runs on wall-clock time")
+    parser.set_defaults(mode="lockstep")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="sim time after which the run ends [s] (default: the scenario's)")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="the simulator's seed, for run.json (default: the scenario's)")
+    parser.add_argument("--wait", type=float, default=60.0, metavar="S",
+                        help="wall time to wait for every process of the scenario [s] "
+                             "(default 60)")
+    parser.add_argument("--connect-timeout", type=float, default=1.0, metavar="S",
+                        help="wall time for a router to answer at --connect [s] (default 1)")
+    parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
+                        help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar, no waiting lines")
+    parser.add_argument("--no-report", dest="report", action="store_false",
+                        help="do not write report.md/json and figures at the end")
+    parser.add_argument("--no-figures", dest="figures", action="store_false",
+                        help="write report.md/json but no PNG figures")
+    parser.add_argument("--no-rrd", dest="rrd", action="store_false",
+                        help="do not write run.rrd (rerun) at the end")
+    add_zenoh_config_argument(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from agent.scenario import load_scenario  # validated first: exit 1 before connecting
+
+    scenario = load_scenario(args.scenario)
+    duration = args.duration or scenario.duration
+    wall_timeout = args.wall_timeout if args.wall_timeout is not None else 3.0 * duration + 60.0
+    connect = tuple(args.connect) or ("tcp/127.0.0.1:7447",)
+    config = SuperviseConfig(
+        scenario_path=Path(args.scenario), connect=connect, mode=args.mode, out=args.out,
+        duration=args.duration, seed=args.seed, connect_timeout=args.connect_timeout,
+        supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
+        zenoh_config=args.zenoh_config, report=args.report, figures=args.figures, rrd=args.rrd)
+    bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
+
+    def say(text: str) -> None:
+        if bar is not None and bar.drawn:
+            sys.stderr.write("\n")
+            bar.drawn = False
+        print(f"tlfleet supervise: {text}", file=sys.stderr, flush=True)
+
+    def waiting(missing: list[str]) -> None:
+        if not args.quiet:
+            say(f"waiting for {len(missing)} process(es) on {', '.join(connect)}: "
+                f"{', '.join(missing)}")
+
+    with stop_on_signals() as stop:
+        try:
+            result = supervise_fleet(config, stop=stop, progress=bar, report=say,
+                                     waiting=waiting)
+        finally:
+            if bar is not None:
+                bar.end()
+    print_outputs(result)
+    if result.outcome.reason == "interrupted":
+        return 130
+    if not result.clean:
+        still = [name for name, gone in result.left.items() if not gone]
+        say(f"not clean (end: {result.outcome.reason}"
+            + (f"; still alive after stop: {', '.join(still)}" if still else "") + ")")
+        return 3
+    return 0

@@ -1,0 +1,310 @@
+"""Fleets across hosts, with network namespaces as stand-in hosts (issue 12 §3).
+
+``tlfleet run SCENARIO --hosts N`` places the fleet on N **hosts**, each with its own zenoh router;
+the routers connect to each other and every process connects to its own host's router — the
+scale-out path when one machine's cores are not enough. Here the hosts are network namespaces
+that tlfleet creates (fault-injection notes §5.1), joined by a bridge that lives in a namespace
+of its own; nothing is attached to the root namespace, so nothing can leave the machine:
+
+* ``<prefix>-br`` holds bridge ``br0``; ``<prefix>-h<i>`` has ``veth0`` with
+  ``10.251.<k>.<11+i>/24`` whose peer ``p<i>`` is a port of ``br0`` (``k`` from the prefix, so
+  two fleets do not collide);
+* placement (:func:`place`): the simulator and the coordinator on host 0, robot number ``j``
+  (ids ascending, ``j = 0, 1, …``) on host ``j mod N``;
+* router ``i`` listens on ``ROUTER_PORT`` (routers and anyone) **and on one port of its own per
+  process placed on it**; it connects to the routers ``0 … i-1`` (explicit endpoints: the links
+  come back after a cut, fault-injection notes §5.5).
+
+Because every process reaches the fleet through its own port, one process's link can be cut and
+restored on command (:meth:`NetnsHosts.cut_process` / :meth:`NetnsHosts.restore_process`: an nft
+table in the host's namespace that drops that port, a silent partition) and so can a whole host's
+(:meth:`NetnsHosts.cut_host`: its bridge port down, carrier loss). The fault-injection issue builds
+on these.
+
+:func:`run_on_hosts` is launch + supervise: the routers, the simulator and the agents start in
+their namespaces (:class:`coordinator.launcher.Launcher`, logs in ``<run>/logs``), then
+``tlfleet supervise`` runs on host 0 (:mod:`coordinator.supervise`, the code of ``tlfleet run``)
+and writes the run directory. Everything it started is stopped and every namespace deleted, also
+on error. Needs root (``ip netns``); nft only for process cuts.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from agent.errors import TlfleetError
+from agent.scenario import Scenario, load_scenario
+from coordinator.launcher import Launcher, tlfleet_command
+from coordinator.rundir import default_run_dir
+
+logger = logging.getLogger(__name__)
+
+ROUTER_PORT = 7447
+PROCESS_PORT0 = 7500  # process k of a host gets PROCESS_PORT0 + k on its host's router
+
+
+class HostsError(TlfleetError, RuntimeError):
+    """Namespace hosts that cannot be set up (not root, ``ip`` missing, a command failing)."""
+
+
+def _ip(*args: str) -> None:
+    done = subprocess.run(["ip", *args], capture_output=True, text=True)
+    if done.returncode != 0:
+        raise HostsError(f"`ip {' '.join(args)}` failed: {done.stderr.strip()}")
+
+
+def require_root() -> None:
+    """``HostsError`` saying why namespace hosts cannot work here."""
+    if os.geteuid() != 0:
+        raise HostsError("--hosts needs root: the hosts are network namespaces (ip netns)")
+    if shutil.which("ip") is None:
+        raise HostsError("--hosts needs the `ip` command (Debian package iproute2)")
+
+
+@dataclass
+class NetnsHosts:
+    """``count`` namespace hosts on one bridge; a context manager (``up`` … ``down``)."""
+
+    count: int
+    prefix: str = field(default_factory=lambda: f"tlf{os.getpid() % 100000}")
+    subnet: int = -1  # third octet of 10.251.X.0/24 (default: from the prefix)
+    created: list[str] = field(default_factory=list)
+    cuts: set[str] = field(default_factory=set)  # nft tables of process cuts, "<ns>/<table>"
+
+    def __post_init__(self) -> None:
+        if self.count < 1:
+            raise HostsError(f"hosts = {self.count}: need at least 1")
+        if self.count > 200:
+            raise HostsError(f"hosts = {self.count}: at most 200 fit in one /24")
+        if self.subnet < 0:
+            self.subnet = sum(map(ord, self.prefix)) % 250
+
+    # ------------------------------------------------------------ naming
+
+    def name(self, host: int) -> str:
+        return f"{self.prefix}-h{host}"
+
+    @property
+    def bridge(self) -> str:
+        return f"{self.prefix}-br"
+
+    def address(self, host: int) -> str:
+        return f"10.251.{self.subnet}.{11 + host}"
+
+    def exec_prefix(self, host: int) -> list[str]:
+        """argv prefix running a command on ``host`` (``ip netns exec`` execs: same pid)."""
+        return ["ip", "netns", "exec", self.name(host)]
+
+    # ------------------------------------------------------------ lifetime
+
+    def up(self) -> NetnsHosts:
+        require_root()
+        try:
+            _ip("netns", "add", self.bridge)
+            self.created.append(self.bridge)
+            _ip("-n", self.bridge, "link", "set", "lo", "up")
+            _ip("-n", self.bridge, "link", "add", "br0", "type", "bridge")
+            _ip("-n", self.bridge, "link", "set", "br0", "up")
+            for host in range(self.count):
+                ns = self.name(host)
+                _ip("netns", "add", ns)
+                self.created.append(ns)
+                _ip("link", "add", "veth0", "netns", ns, "type", "veth", "peer", "name",
+                    f"p{host}", "netns", self.bridge)
+                _ip("-n", self.bridge, "link", "set", f"p{host}", "master", "br0")
+                _ip("-n", self.bridge, "link", "set", f"p{host}", "up")
+                _ip("-n", ns, "link", "set", "lo", "up")
+                _ip("-n", ns, "addr", "add", f"{self.address(host)}/24", "dev", "veth0")
+                _ip("-n", ns, "link", "set", "veth0", "up")
+        except BaseException:
+            self.down()
+            raise
+        return self
+
+    def down(self) -> None:
+        """Delete every namespace this object created (their veths go with them)."""
+        for ns in reversed(self.created):
+            subprocess.run(["ip", "netns", "del", ns], capture_output=True)
+        self.created.clear()
+        self.cuts.clear()
+
+    def __enter__(self) -> NetnsHosts:
+        return self.up()
+
+    def __exit__(self, *exc: object) -> None:
+        self.down()
+
+    # ------------------------------------------------------------ link faults
+
+    def cut_host(self, host: int) -> None:
+        """Carrier loss of ``host``'s link to the bridge (every process on it is cut off)."""
+        _ip("-n", self.bridge, "link", "set", f"p{host}", "down")
+
+    def restore_host(self, host: int) -> None:
+        _ip("-n", self.bridge, "link", "set", f"p{host}", "up")
+
+    def cut_port(self, host: int, port: int) -> None:
+        """Silently drop TCP port ``port`` in ``host``'s namespace, both ways (nft)."""
+        table = f"tlfleet_cut_{port}"
+        rules = (f"add table inet {table}; "
+                 f"add chain inet {table} in {{ type filter hook input priority 0; }}; "
+                 f"add chain inet {table} out {{ type filter hook output priority 0; }}; "
+                 f"add rule inet {table} in tcp dport {port} drop; "
+                 f"add rule inet {table} in tcp sport {port} drop; "
+                 f"add rule inet {table} out tcp dport {port} drop; "
+                 f"add rule inet {table} out tcp sport {port} drop")
+        self._nft(host, rules)
+        self.cuts.add(f"{self.name(host)}/{table}")
+
+    def restore_port(self, host: int, port: int) -> None:
+        table = f"tlfleet_cut_{port}"
+        self._nft(host, f"delete table inet {table}")
+        self.cuts.discard(f"{self.name(host)}/{table}")
+
+    def cut_process(self, placement: Placement, process: str) -> None:
+        """Cut the link of one process (``sim``, ``agent-3``…) to its host's router."""
+        host, port = placement.link(process)
+        self.cut_port(host, port)
+
+    def restore_process(self, placement: Placement, process: str) -> None:
+        host, port = placement.link(process)
+        self.restore_port(host, port)
+
+    def _nft(self, host: int, rules: str) -> None:
+        if shutil.which("nft") is None:
+            raise HostsError("cutting a process link needs `nft` (Debian package nftables)")
+        done = subprocess.run([*self.exec_prefix(host), "nft", rules], capture_output=True,
+                              text=True)
+        if done.returncode != 0:
+            raise HostsError(f"nft in {self.name(host)} failed: {done.stderr.strip()}")
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Which host each process runs on and which port of its host's router it connects to."""
+
+    hosts: int
+    host_of: dict[str, int]  # process name (sim, agent-<id>, coordinator) -> host
+    port_of: dict[str, int]  # process name -> port of its host's router
+
+    def link(self, process: str) -> tuple[int, int]:
+        if process not in self.host_of:
+            raise HostsError(f"no process {process!r} (known: {', '.join(self.host_of)})")
+        return self.host_of[process], self.port_of[process]
+
+    def on(self, host: int) -> list[str]:
+        return [p for p, h in self.host_of.items() if h == host]
+
+    def as_dict(self) -> dict[str, object]:
+        return {"hosts": self.hosts, "host_of": self.host_of, "port_of": self.port_of}
+
+
+def place(scenario: Scenario, hosts: int) -> Placement:
+    """sim and coordinator on host 0, robot number j (ids ascending) on host j mod N."""
+    host_of = {"coordinator": 0, "sim": 0}
+    for j, robot in enumerate(sorted(scenario.robot_ids)):
+        host_of[f"agent-{robot}"] = j % hosts
+    port_of: dict[str, int] = {}
+    for host in range(hosts):
+        for k, process in enumerate(p for p, h in host_of.items() if h == host):
+            port_of[process] = PROCESS_PORT0 + k
+    return Placement(hosts, host_of, port_of)
+
+
+def wait_listening(hosts: NetnsHosts, host: int, port: int, timeout: float) -> None:
+    """Block until ``port`` accepts connections inside ``host``'s namespace."""
+    code = ("import socket, sys, time\n"
+            f"end = time.monotonic() + {timeout}\n"
+            "while time.monotonic() < end:\n"
+            "    try:\n"
+            f"        socket.create_connection(('{hosts.address(host)}', {port}), 0.5).close()\n"
+            "        sys.exit(0)\n"
+            "    except OSError:\n"
+            "        time.sleep(0.05)\n"
+            "sys.exit(1)\n")
+    done = subprocess.run([*hosts.exec_prefix(host), sys.executable, "-c", code])
+    if done.returncode != 0:
+        raise HostsError(f"the router of {hosts.name(host)} did not listen on port {port} "
+                         f"within {timeout:g} s")
+
+
+@dataclass
+class HostsRun:
+    run_dir: Path
+    returncode: int  # tlfleet supervise's exit code
+    placement: Placement
+    exit_codes: dict[str, int | None]
+    stdout: str = ""
+    stderr: str = ""
+
+
+def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
+                 mode: str = "lockstep", supervise_args: Sequence[str] = (),
+                 sim_args: Sequence[str] = (), capture: bool = False,
+                 router_timeout: float = 15.0, kill_grace: float = 3.0,
+                 prefix: str | None = None) -> HostsRun:
+    """``tlfleet run SCENARIO --hosts N`` (see the module docstring)."""
+    require_root()
+    scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    path = str(Path(scenario_path).resolve())
+    run_dir = Path(out) if out else default_run_dir(scenario.name)
+    placement = place(scenario, hosts)
+    net = NetnsHosts(hosts, **({"prefix": prefix} if prefix else {}))
+    launcher = Launcher(run_dir / "logs")
+    done: subprocess.CompletedProcess | None = None
+    codes: dict[str, int | None] = {}
+    run_dir.mkdir(parents=True, exist_ok=True)
+    router_conf = run_dir / "logs" / "router.json5"
+    router_conf.parent.mkdir(parents=True, exist_ok=True)
+    # explicit router mesh only: no gossip, so no router links another over a process's port
+    router_conf.write_text("{ scouting: { gossip: { enabled: false } } }\n")
+    with net:
+        try:
+            for host in range(hosts):
+                listen = [f"tcp/{net.address(host)}:{ROUTER_PORT}"] + [
+                    f"tcp/{net.address(host)}:{placement.port_of[p]}" for p in placement.on(host)]
+                argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf)]
+                for endpoint in listen:
+                    argv += ["--listen", endpoint]
+                for other in range(host):
+                    argv += ["--connect", f"tcp/{net.address(other)}:{ROUTER_PORT}"]
+                launcher.start(f"router-{host}", [*net.exec_prefix(host),
+                                                  *tlfleet_command(*argv)])
+            for host in range(hosts):
+                wait_listening(net, host, ROUTER_PORT, router_timeout)
+
+            def endpoint_of(process: str) -> str:
+                host, port = placement.link(process)
+                return f"tcp/{net.address(host)}:{port}"
+
+            launcher.start("sim", [*net.exec_prefix(0), *tlfleet_command(
+                "sim", path, f"--{mode}", *sim_args, "--connect", endpoint_of("sim"))])
+            for robot in sorted(scenario.robot_ids):
+                name = f"agent-{robot}"
+                launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
+                                      *tlfleet_command("agent", path, "--robot", str(robot),
+                                                       "--connect", endpoint_of(name))])
+            coordinator = [*net.exec_prefix(0), *tlfleet_command(
+                "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
+                "--out", str(run_dir), *supervise_args)]
+            done = subprocess.run(coordinator, capture_output=capture, text=True)
+            launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
+        finally:
+            codes = launcher.stop_all(kill_grace)
+    info_path = run_dir / "run.json"
+    if info_path.is_file():
+        info = json.loads(info_path.read_text())
+        info.update(hosts=placement.as_dict(), host_exit_codes=codes,
+                    addresses={net.name(h): net.address(h) for h in range(hosts)})
+        info_path.write_text(json.dumps(info, indent=2, default=str) + "\n")
+    assert done is not None
+    return HostsRun(run_dir, done.returncode, placement, codes,
+                    done.stdout or "", done.stderr or "")

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# `make compose-run`: Scenario 1 (or COMPOSE_FILE) in lockstep as a docker compose fleet.
+# Builds what is missing (base image, wheelhouse, image: docker/build-image.sh), starts a private
+# dockerd when none answers (docker/dockerd-start.sh: no iptables, no ip_forward, no bridge), runs the
+# fleet, writes the run directory OUT (default runs/compose-scenario1-<UTC time>/) with the same files
+# as `tlfleet run` (each service's log in OUT/logs/), prints the report, and tears down everything it
+# started: `compose down` (containers, network), and the dockerd if it started one.
+#   usage: docker/compose-run.sh [COMPOSE_FILE] [OUT]
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+cd "$ROOT"
+FILE=${1:-docker/compose.scenario1.yaml}
+NAME=$(basename "$FILE" .yaml); NAME=${NAME#compose.}
+OUT=${2:-runs/compose-$NAME-$(date -u +%Y%m%d-%H%M%S)}
+export TLFLEET_DOCKER_WORK=${TLFLEET_DOCKER_WORK:-/tmp/tlfleet-docker}
+PROJECT=tlfleet-$NAME-$$
+
+if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose)
+elif command -v docker-compose >/dev/null; then COMPOSE=(docker-compose)
+else echo "compose-run: no docker compose (apt-get install docker-compose)" >&2; exit 1; fi
+
+STARTED=0
+if ! docker version >/dev/null 2>&1; then
+  eval "$(docker/dockerd-start.sh "$TLFLEET_DOCKER_WORK")"
+  STARTED=1
+fi
+cleanup() {
+  set +e
+  "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" down --timeout 5 >/dev/null 2>&1
+  if [[ $STARTED == 1 ]]; then docker/dockerd-stop.sh "$TLFLEET_DOCKER_WORK"; fi
+}
+trap cleanup EXIT
+
+docker/build-image.sh
+mkdir -p "$OUT/logs"
+OUT_ABS=$(cd "$OUT" && pwd)
+export TLFLEET_OUT=$OUT_ABS   # the coordinator's /out: the run directory
+"${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" up -d --no-build >/dev/null 2>"$OUT_ABS/logs/compose-up.log" || {
+  cat "$OUT_ABS/logs/compose-up.log" >&2; exit 1; }
+COORD=$("${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" ps -q coordinator)
+CODE=$(docker wait "$COORD")
+for service in $("${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" config --services); do
+  log=$service; [[ $service =~ ^robot([0-9]+)$ ]] && log=agent-${BASH_REMATCH[1]}   # as tlfleet run names them
+  "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" logs --no-color "$service" >"$OUT_ABS/logs/$log.log" 2>&1 || true
+done
+[[ -s $OUT_ABS/logs/compose-up.log ]] || rm -f "$OUT_ABS/logs/compose-up.log"
+# the coordinator's stdout: the report table and the files
+sed -n 's/^coordinator[^|]*| \{0,1\}//p' "$OUT_ABS/logs/coordinator.log" | grep -v '^tlfleet supervise: waiting' \
+  | sed "s#/out#$OUT_ABS#g" || true
+echo "compose-run: coordinator exit code $CODE; run directory: $OUT_ABS"
+exit "$CODE"

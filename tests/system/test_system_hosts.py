@@ -1,0 +1,124 @@
+"""Fleets across namespace hosts (issue 12 §3, §4c): ``tlfleet run --hosts N``.
+
+Root only (``ip netns``); elsewhere these skip with the reason, and fail under
+TLFLEET_REQUIRE_SYSTEM=1. Every namespace is created and deleted by the test (nothing attached
+to the root namespace).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from by_hand import start_by_hand, supervise
+from needs import need_root_netns
+from system_helpers import HERE, SCENARIOS, run
+
+from agent.scenario import load_scenario
+from coordinator.hosts import NetnsHosts, place, run_on_hosts, wait_listening
+from coordinator.launcher import Launcher
+
+pytestmark = [pytest.mark.system, pytest.mark.needs_system]
+
+
+def netns_list() -> str:
+    return subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+
+
+def connects(hosts: NetnsHosts, src: int, dst: int, port: int) -> bool:
+    """A TCP connect from host ``src`` to a listener on host ``dst`` within 1 s."""
+    code = ("import socket, sys\n"
+            "try:\n"
+            f"    socket.create_connection(('{hosts.address(dst)}', {port}), 1.0).close()\n"
+            "except OSError:\n"
+            "    sys.exit(1)\n")
+    return subprocess.run([*hosts.exec_prefix(src), sys.executable, "-c", code]).returncode == 0
+
+
+def test_hosts_come_up_joined_a_link_is_cut_and_restored_and_they_go(tmp_path):
+    need_root_netns()
+    hosts = NetnsHosts(2, prefix="tlft-cut")
+    with hosts:
+        assert all(hosts.name(h) in netns_list() for h in (0, 1))
+        server = subprocess.Popen([*hosts.exec_prefix(1), sys.executable, "-c",
+                                   "import socket, time\n"
+                                   "s = socket.socket(); s.setsockopt(socket.SOL_SOCKET, "
+                                   "socket.SO_REUSEADDR, 1)\n"
+                                   f"s.bind(('{hosts.address(1)}', 7501)); s.listen(16)\n"
+                                   "while True:\n    c, _ = s.accept(); c.close()\n"])
+        try:
+            assert any(connects(hosts, 0, 1, 7501) for _ in range(50))  # the server is up
+            hosts.cut_port(1, 7501)  # one process's link: its port on its host
+            assert not connects(hosts, 0, 1, 7501)
+            hosts.restore_port(1, 7501)
+            assert connects(hosts, 0, 1, 7501)
+            hosts.cut_host(1)  # the whole host
+            assert not connects(hosts, 0, 1, 7501)
+            hosts.restore_host(1)
+            assert connects(hosts, 0, 1, 7501)
+        finally:
+            server.kill()
+            server.wait()
+    assert "tlft-cut" not in netns_list()
+
+
+def test_placement_spreads_the_robots_and_gives_every_process_its_own_port():
+    placement = place(load_scenario(SCENARIOS / "scenario1.toml"), 3)
+    assert placement.host_of == {"coordinator": 0, "sim": 0, "agent-1": 0, "agent-2": 1,
+                                 "agent-3": 2, "agent-4": 0, "agent-5": 1}
+    links = [placement.link(p) for p in placement.host_of]
+    assert len(set(links)) == len(links)  # one (host, port) per process: cut one, cut only it
+
+
+def test_the_two_machine_recipe_in_two_namespaces(tmp_path):
+    """README "Two machines": router, sim and robot 1 on A; robot 2 on B; supervise on B."""
+    need_root_netns()
+    two = HERE / "two_robots.toml"
+    hosts = NetnsHosts(2, prefix="tlft-two")
+    with hosts, Launcher(tmp_path / "logs") as launcher:
+        endpoint = f"tcp/{hosts.address(0)}:7447"  # A's address: B reaches it over the bridge
+        on = {"router": 0, "sim": 0, "agent-1": 0, "agent-2": 1}
+
+        def prefix(name: str) -> list[str]:
+            if name == "sim":  # the router must listen before the clients start
+                wait_listening(hosts, 0, 7447, 15.0)
+            return hosts.exec_prefix(on[name])
+
+        start_by_hand(launcher, two, endpoint, prefix=prefix,
+                      sim_args=("--duration", "8", "--seed", "11"), wait_host=None)
+        done = supervise(two, endpoint, tmp_path / "run", "--duration", "8", "--seed", "11",
+                         "--no-rrd", "--no-figures", prefix=hosts.exec_prefix(1), timeout=120)
+        assert done.returncode == 0, done.stderr[-3000:]
+    assert "tlft-two" not in netns_list()
+    local = run(two, tmp_path / "local", duration=8.0, seed=11, report=False, rrd=False)
+    assert local.clean
+    assert (tmp_path / "run" / "trajectory.csv").read_bytes() == \
+        (tmp_path / "local" / "trajectory.csv").read_bytes()
+
+
+@pytest.mark.slow
+def test_scenario1_across_three_hosts_is_byte_identical_to_tlfleet_run(tmp_path, scenario1_run):
+    need_root_netns()
+    result = run_on_hosts(SCENARIOS / "scenario1.toml", 3, out=tmp_path / "run",
+                          supervise_args=["--no-rrd", "--quiet"], capture=True,
+                          prefix="tlft-s1")
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "tlft-s1" not in netns_list()
+    info = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert info["clean"] and info["hosts"]["hosts"] == 3
+    logs = tmp_path / "run" / "logs"
+    addresses = list(info["addresses"].values())
+    assert len(set(addresses)) == 3
+    for host, address in enumerate(addresses):  # one router per host, on its own address
+        text = (logs / f"router-{host}.log").read_text()
+        assert f"router: listening on tcp/{address}:7447" in text
+    for process, host in info["hosts"]["host_of"].items():  # each process on its host's router
+        if process.startswith("agent-"):
+            port = info["hosts"]["port_of"][process]
+            assert f"tcp/{addresses[host]}:{port}" in (logs / f"{process}.log").read_text() or \
+                f"tcp/{addresses[host]}:{port}" in (logs / f"router-{host}.log").read_text()
+    assert {c for n, c in result.exit_codes.items() if not n.startswith("router")} == {0}
+    assert (tmp_path / "run" / "trajectory.csv").read_bytes() == \
+        (scenario1_run.run_dir / "trajectory.csv").read_bytes()
