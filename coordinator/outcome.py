@@ -50,6 +50,7 @@ class Verdict:
 def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
              router_clean: bool, mode: str, deadlines: Mapping[str, Any],
              event_kinds: Mapping[str, int], findings: Iterable[str] = (),
+             lingering: Iterable[str] = (),
              max_missed_fraction: float = MAX_MISSED_FRACTION) -> Verdict:
     """The verdict of a run (see the module docstring).
 
@@ -57,7 +58,8 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
     excluded); ``exit_codes``: the children's codes after ``Control(stop)``; ``deadlines``: the
     summary's ``deadlines`` section (sim_stats, malformed, watchdog_stop…); ``event_kinds``:
     events per kind *during the mission*; ``findings``: extra degradations already worded
-    (silent agents, recoveries, flagged sim_done…).
+    (silent agents, recoveries, flagged sim_done…); ``lingering``: processes this coordinator
+    did not start (``tlfleet supervise``) whose liveliness token outlived ``Control(stop)``.
     """
     if reason == "interrupted":
         return Verdict("interrupted", (f"stopped at the user's request ({reason})",))
@@ -73,6 +75,9 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
                                                             for n, c in sorted(unclean.items())))
     if not router_clean and "router" not in deaths:
         failures.append("the router did not stop cleanly")
+    lingering = sorted(lingering)
+    if lingering:
+        failures.append(f"still alive after stop: {', '.join(lingering)}")
     if failures:
         return Verdict("failed", tuple(failures))
     degraded: list[str] = []

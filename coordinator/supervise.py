@@ -1,23 +1,24 @@
-"""The coordinator without the launcher: supervise and record a fleet (issue 12 §1).
+"""The coordinator's own part of a run, with or without the launcher (issue 12 §1).
 
-``tlfleet supervise`` is this module, joining a fleet whose router, simulator and agents were
-started elsewhere (by hand, on other machines, as compose services). ``tlfleet run``
-(:mod:`coordinator.runner`) still has its own launch-and-supervise path, which carries the
-hardening of issue 11 (guarded clean-up, health, verdicts) and the keys of ``--secure``; folding
-the two into one is left open:
+``tlfleet run`` (:mod:`coordinator.runner`) launches the router, the simulator and the agents and
+then does what this module does; ``tlfleet supervise`` (:func:`supervise_fleet`) does only this,
+joining a fleet whose processes were started elsewhere (by hand, on other machines, as compose
+services). Both go through the same three pieces, so both record, judge and report alike:
 
-1. :func:`prepare_run` — load the scenario (``ScenarioError`` first), create the run directory,
-   copy the scenario, write the first ``run.json``;
-2. :class:`Supervision` — over an open client session: declare ``alive/coordinator/0``, subscribe
-   the recorder tap, wait for the liveliness token of every process the scenario needs (saying
-   which ones are still missing, every ``waiting_period``), send ``Control(start)``, supervise
-   until the end of the mission and send ``Control(stop)`` (:mod:`coordinator.supervisor`);
-3. :func:`write_outputs` — ``summary.txt``, ``report.md``/``report.json`` with the figures and
-   ``run.rrd``; a failure of the report or of ``run.rrd`` is reported and never fails the run.
+1. :func:`prepare_run` — load the scenario (``ScenarioError`` first; with ``secure`` the keys are
+   checked), create the run directory, copy the scenario, write the first ``run.json``;
+2. :class:`Supervision` — over an open client session: declare ``alive/coordinator/0``,
+   subscribe the recorder tap with its plausibility checks (issue 11, :mod:`coordinator.trust`),
+   watch the agents' health (:mod:`coordinator.health`), wait for the liveliness token of every
+   process the scenario needs (saying which ones are still missing, every ``waiting_period``),
+   send ``Control(start)``, supervise until the end of the mission and send ``Control(stop)``
+   (:mod:`coordinator.supervisor`); :meth:`Supervision.close` is guarded step by step
+   (:class:`coordinator.cleanup.Cleanup`);
+3. :func:`finish_run` — the closing fields of ``run.json``, then ``summary.txt`` with the run's
+   verdict (:mod:`coordinator.outcome`), the report and ``run.rrd`` (:mod:`coordinator.outputs`).
 
-:func:`supervise_fleet` strings the three together for a fleet reached at an endpoint. A client
-session to an endpoint with no router fails within ``connect_timeout`` (default 1 s) with a
-:class:`SuperviseError` that names the endpoint.
+A client session to an endpoint with no router fails within ``connect_timeout`` (default 1 s)
+with a :class:`SuperviseError` that names the endpoint.
 """
 
 from __future__ import annotations
@@ -28,16 +29,22 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from agent.errors import TlfleetError
 from agent.protocol import keys
+from agent.protocol.bounds import FleetBounds
+from agent.protocol.plausibility import max_jump_ticks
 from agent.scenario import Scenario, load_scenario
+from bus.security import fingerprints, secure_transport
 from bus.transport import Transport, TransportConfig, open_transport
 from bus.zenoh_config import clean_reason
+from coordinator.cleanup import Cleanup
+from coordinator.health import Health
+from coordinator.outcome import Verdict, classify, mission_event_kinds
+from coordinator.outputs import OutputSettings, write_outputs
 from coordinator.recorder import Recorder, RecorderTap
-from coordinator.rundir import RunFiles, default_run_dir, read_run
-from coordinator.summary import write_summary
+from coordinator.rundir import RunFiles, default_run_dir
 from coordinator.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
 
 logger = logging.getLogger(__name__)
@@ -48,18 +55,6 @@ CLEAN_ENDS = ("sim_done", "duration")
 
 class SuperviseError(TlfleetError, RuntimeError):
     """The coordinator cannot join the fleet (no router at the endpoint, …)."""
-
-
-class OutputSettings(Protocol):
-    """What :func:`write_outputs` and the live viewer read from a run's configuration (both
-    :class:`coordinator.runner.RunConfig` and :class:`SuperviseConfig` have these fields)."""
-
-    report: bool
-    figures: bool
-    rrd: bool
-    rrd_every: int
-    grpc_port: int
-    web_port: int
 
 
 @dataclass(frozen=True)
@@ -75,6 +70,9 @@ class SuperviseConfig:
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
     connect_timeout: float = 1.0  # [s] wall, for the client session to reach a router
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings
+    secure: Path | None = None  # key directory (`tlfleet keys`): mutual TLS as "coordinator"
+    lease_ms: int | None = None  # [ms] zenoh link lease of the session (None: zenoh's 10 s)
+    silence: float = 2.0  # [s] wall: an agent without status this long is silent (health)
     report: bool = True
     figures: bool = True
     rrd: bool = True
@@ -89,17 +87,45 @@ class PreparedRun:
     scenario: Scenario
     run_dir: Path
     recorder: Recorder
-    info: dict[str, Any]
+    info: dict[str, Any]  # run.json, rewritten as the run goes on
     duration: float  # [s] sim time
 
 
-def prepare_run(scenario_path: Path, out: Path | None, *, mode: str, duration: float | None,
-                seed: int | None, endpoint: str, out_prefix: str = "") -> PreparedRun:
-    """Steps 1: the loaded scenario and a fresh run directory with ``scenario.toml`` and the first
-    ``run.json`` (``ScenarioError`` before anything is written)."""
+@dataclass
+class RunResult:
+    """What a run (``tlfleet run`` or ``tlfleet supervise``) leaves to its caller."""
+
+    run_dir: Path
+    outcome: Outcome
+    exit_codes: dict[str, int | None]  # the launched children's final codes (supervise: none)
+    clean: bool
+    summary_text: str = ""
+    summary: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+    report: Any = None  # coordinator.report.Report, when written
+    rrd: Path | None = None  # run.rrd, when written
+    viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
+    verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
+
+
+def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
+    """The scenario (``ScenarioError`` names file and field); with ``secure``, its key directory
+    checked against it (``KeyError`` of :mod:`coordinator.keys`): both before anything starts."""
     scenario = load_scenario(scenario_path)
+    if secure is not None:
+        from coordinator.keys import check_keys  # cryptography: imported for secured runs only
+
+        check_keys(scenario, secure)
+    return scenario
+
+
+def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mode: str,
+                duration: float | None, seed: int | None, endpoint: str,
+                secure: Path | None = None, lease_ms: int | None = None) -> PreparedRun:
+    """Step 1 for ``scenario`` (loaded from ``scenario_path`` by :func:`load_checked`): a fresh
+    run directory with ``scenario.toml`` and the first ``run.json``."""
     total = float(duration or scenario.duration)
-    run_dir = Path(out) if out else default_run_dir(out_prefix + scenario.name)
+    run_dir = Path(out) if out else default_run_dir(scenario.name)
     recorder = Recorder(run_dir, [r.id for r in scenario.robots])
     recorder.copy_scenario(Path(scenario_path))
     info: dict[str, Any] = {
@@ -107,145 +133,179 @@ def prepare_run(scenario_path: Path, out: Path | None, *, mode: str, duration: f
         "mode": mode, "duration": total,
         "seed": scenario.sim.seed if seed is None else seed,
         "endpoint": endpoint, "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "secure": secure is not None,
     }
+    if secure is not None:
+        from coordinator.acl import identities
+
+        info["keys"] = str(Path(secure).resolve())
+        info["fingerprints"] = fingerprints(secure, identities(scenario))
+    if lease_ms:
+        info["lease_ms"] = lease_ms
     recorder.write_run_info(info)
     return PreparedRun(scenario, run_dir, recorder, info, total)
 
 
+def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
+    """The recorder tap's plausibility checks for this run (issue 11)."""
+    a = scenario.arena
+    dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
+                                  scenario.sim.mocap_rate, scenario.speed_limits()),
+            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
+            "robot_ids": scenario.robot_ids}
+
+
 class Supervision:
-    """Step 2 over an open transport: the coordinator's token, the recorder tap, the supervisor.
+    """Step 2 over an open transport: the coordinator's token, the recorder tap, the agents'
+    health and the supervisor.
 
     ``children`` are the processes this coordinator started itself (none for ``supervise``);
-    more can be added to :attr:`supervisor` ``.children`` before :meth:`run`.
+    more can be added to :attr:`supervisor` ``.children`` before :meth:`run`. ``on_message`` (the
+    live viewer's) sees every message the tap accepted.
     """
 
     def __init__(self, transport: Transport, prepared: PreparedRun, *,
-                 config: SupervisorConfig, children: Mapping[str, ChildLike] | None = None,
-                 report: Say | None = None, on_message: Callable[..., Any] | None = None):
+                 config: SupervisorConfig, silence: float = 2.0,
+                 children: Mapping[str, ChildLike] | None = None, report: Say | None = None,
+                 on_message: Callable[[str, Any], None] | None = None):
         self.prepared = prepared
         scenario = prepared.scenario
+        say = report or (lambda text: logger.warning("%s", text))
+        self.health = Health(scenario.robot_ids, prepared.recorder.on_event, say,
+                             silence=silence)
+        self._on_message = on_message
         self._token = transport.declare_alive(keys.alive(scenario.fleet, "coordinator", 0))
         self.tap = RecorderTap(transport, scenario.fleet, prepared.recorder,
-                               on_message=on_message)
+                               on_message=self._message, **tap_checks(scenario, prepared.duration))
         self.supervisor = Supervisor(transport, scenario, self.tap, dict(children or {}),
                                      duration=prepared.duration, config=config, report=report)
         self.wall_start = time.monotonic()
+
+    def _message(self, what: str, message: Any) -> None:
+        self.health.on_message(what, message)
+        if self._on_message is not None:
+            self._on_message(what, message)
 
     def run(self, stop: threading.Event | None = None,
             progress: Callable[[float, float], None] | None = None,
             waiting: Callable[[list[str]], None] | None = None) -> tuple[Outcome, dict]:
         """Wait for the fleet, start, supervise to the end, stop → (outcome, exit codes of the
-        children after ``Control(stop)``). ``info`` of the prepared run gets ``ready_time`` and
+        children after ``Control(stop)``). The prepared ``info`` gets ``ready_time`` and
         ``wall_time``."""
         info, supervisor = self.prepared.info, self.supervisor
+
+        def step(t: float, d: float) -> None:
+            self.health.poll()
+            if progress is not None:
+                progress(t, d)
+
         info["ready_time"] = supervisor.wait_ready(stop, waiting=waiting)
         supervisor.start()
+        self.health.start()
         self.wall_start = time.monotonic()
         try:
-            outcome = supervisor.supervise(stop, progress)
+            outcome = supervisor.supervise(stop, step)
         except KeyboardInterrupt:
             outcome = Outcome("interrupted", supervisor.sim_time, list(supervisor.deaths.values()))
         info["wall_time"] = time.monotonic() - self.wall_start
         return outcome, supervisor.finish()
 
-    def close(self) -> None:
-        """Drain and close the tap (its malformed counts go to ``info``), close the supervisor."""
-        self.tap.drain()
-        self.tap.close()
-        self.prepared.info["malformed_received"] = dict(self.tap.malformed)
-        self.supervisor.close()
-        self._token.close()
+    def wait_gone(self, grace: float) -> dict[str, bool]:
+        """After ``Control(stop)``: wait up to ``grace`` [s] for every process token to go →
+        {process: its token is gone}."""
+        supervisor = self.supervisor
+        deadline = time.monotonic() + grace
+        names = list(supervisor.tokens.values())
+        while time.monotonic() < deadline:
+            supervisor.check()
+            if not any(name in supervisor.alive for name in names):
+                break
+            time.sleep(0.02)
+        return {name: name not in supervisor.alive for name in names}
+
+    def close(self, cleanup: Cleanup) -> None:
+        """Drain and close the tap (its malformed counts and flagged events go to ``info``),
+        close the supervisor, withdraw the token; every step guarded by ``cleanup``."""
+        info, tap = self.prepared.info, self.tap
+        cleanup.step("drain the recorder tap", tap.drain)
+        cleanup.step("close the recorder tap", tap.close)
+        info["malformed_received"] = dict(tap.malformed)
+        info["malformed_received_by_source"] = {
+            f"{what} from {source}": n for (what, source), n in tap.malformed_by_source.items()}
+        info["flagged_events"] = tap.flagged
+        cleanup.step("close the supervisor", self.supervisor.close)
+        info["recovered"] = [d.process for d in self.supervisor.recovered]
+        cleanup.step("withdraw the coordinator's token", self._token.close)
+
+    def findings(self) -> list[str]:
+        return self.health.findings()
 
 
-def end_info(prepared: PreparedRun, outcome: Outcome, wall_start: float) -> None:
-    """The closing fields of ``run.json`` common to ``run`` and ``supervise``."""
+def end_info(prepared: PreparedRun, outcome: Outcome, wall_start: float,
+             cleanup: Cleanup) -> None:
+    """The closing fields of ``run.json`` common to ``run`` and ``supervise`` (written by the
+    caller, after the recorder is closed)."""
     info = prepared.info
     info.update(reason=outcome.reason, t_end=outcome.t_end,
                 frames=prepared.recorder.frames_written)
     info.setdefault("wall_time", time.monotonic() - wall_start)
     if info["wall_time"] > 0:
         info["speedup"] = outcome.t_end / info["wall_time"]
+    if cleanup.errors:
+        info["cleanup_errors"] = cleanup.errors
 
 
-def start_viewer(scenario: Scenario, config: OutputSettings, say: Say) -> Any:
-    """A serving LiveView, or None (reported) when it cannot start: the run goes on without."""
-    try:
-        from coordinator.launcher import free_port
-        from coordinator.visual import HOST as VIEW_HOST
-        from coordinator.visual import LiveView
+def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, *,
+               codes: dict[str, int | None], final: dict[str, int | None],
+               router_clean: bool = True, findings: list[str] | None = None,
+               lingering: tuple[str, ...] = (), viewer: Any = None, note: Say, say: Say,
+               ) -> RunResult:
+    """Step 3: ``clean`` into ``run.json``, then the summary, the verdict, the report and
+    ``run.rrd`` (:func:`coordinator.outputs.write_outputs`).
 
-        view = LiveView.serve(scenario, grpc_port=config.grpc_port or free_port(VIEW_HOST),
-                              web_port=config.web_port or free_port(VIEW_HOST))
-    except Exception as exc:  # rerun missing, port taken…: never a reason to fail the run
-        say(f"no live viewer ({type(exc).__name__}: {exc})")
-        return None
-    say(f"viewer: {view.url}")
-    return view
+    ``codes``: the launched children's exit codes after ``Control(stop)``; ``final``: after the
+    clean-up; ``lingering``: processes not started here whose tokens outlived ``Control(stop)``.
+    """
+    info, recorder = prepared.info, prepared.recorder
+    clean = (outcome.reason in CLEAN_ENDS and not outcome.deaths and not lingering
+             and all(code == 0 for code in codes.values()) and router_clean)
+    info["clean"] = clean
+    recorder.write_run_info(info)
+    note(f"writing summary.json{', report.md/json' if config.report else ''}"
+         f"{' and figures' if config.report and config.figures else ''} in {prepared.run_dir} …")
 
+    def judge(files: RunFiles, data: dict[str, Any]) -> Verdict:
+        events = [{"t": e.t, "kind": e.kind} for e in files.events]  # read once (lenient)
+        extra = list(findings or []) + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])]
+        return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
+                        exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
+                        deadlines=data.get("deadlines") or {},
+                        event_kinds=mission_event_kinds(events, outcome.t_end),
+                        findings=extra, lingering=lingering)
 
-def write_report(files: RunFiles, summary: dict[str, Any], figures: bool,
-                 say: Say) -> tuple[Any, str]:
-    """report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
-    try:
-        from coordinator.report import write_report as write
-
-        return write(files, figures=figures, summary=summary), ""
-    except Exception as exc:
-        say(f"report not written ({type(exc).__name__}: {exc})")
-        return None, f"{type(exc).__name__}: {exc}"
-
-
-def write_rrd(files: RunFiles, every: int, say: Say) -> dict[str, Any]:
-    """``run.rrd`` from the recorded files; failures are reported, never raised."""
-    try:
-        from coordinator.visual import replay_run
-
-        result = replay_run(files, every=every)
-    except Exception as exc:
-        say(f"run.rrd not written ({type(exc).__name__}: {exc})")
-        return {"error": f"{type(exc).__name__}: {exc}"}
-    return {"path": str(result.path), "seconds": round(result.seconds, 3),
-            "frames": result.frames}
+    text, data, report, rrd, verdict = write_outputs(
+        prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note, say,
+        judge=judge)
+    return RunResult(prepared.run_dir, outcome, final, clean, text, data, info, report, rrd,
+                     viewer, verdict)
 
 
-@dataclass
-class Outputs:
-    summary_text: str
-    summary: dict[str, Any]
-    report: Any  # coordinator.report.Report, when written
-    rrd: Path | None
+def client_config(connect: tuple[str, ...], *, secure: Path | None = None,
+                  lease_ms: int | None = None, zenoh_config: Path | None = None,
+                  extra: Mapping[str, Any] | None = None) -> TransportConfig:
+    """The coordinator's client session: to ``connect``, secured as ``coordinator`` with the
+    keys of ``secure``."""
+    config = TransportConfig(mode="client", connect=tuple(connect), lease_ms=lease_ms,
+                             extra=dict(extra or {}), zenoh_config=zenoh_config)
+    return config if secure is None else secure_transport(config, secure, "coordinator")
 
 
-def write_outputs(prepared: PreparedRun, config: OutputSettings, say: Say) -> Outputs:
-    """Step 3, after the recorder is closed and ``run.json`` holds the end of the run: the run
-    directory is read once (:func:`coordinator.rundir.read_run`) for the summary, the report and
-    ``run.rrd``."""
-    run_dir, recorder, info = prepared.run_dir, prepared.recorder, prepared.info
-    files = read_run(run_dir, scenario=prepared.scenario)
-    text, data = write_summary(files)
-    report_result = None
-    if config.report:
-        report_result, error = write_report(files, data, config.figures, say)
-        info["report"] = {"error": error} if error else {
-            "path": str(run_dir / "report.md"),
-            "figures": [str(path) for path in report_result.figures]}
-        recorder.write_run_info(info)
-    rrd_path: Path | None = None
-    if config.rrd:
-        info["rrd"] = write_rrd(files, config.rrd_every, say)
-        rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
-        recorder.write_run_info(info)
-    return Outputs(text, data, report_result, rrd_path)
-
-
-def open_client(connect: tuple[str, ...], timeout: float,
-                extra: Mapping[str, Any] | None = None,
-                zenoh_config: Path | None = None) -> Transport:
+def open_client(config: TransportConfig, timeout: float,
+                given_up: Callable[[], bool] = lambda: False) -> Transport:
     """A client session to the fleet's router; :class:`SuperviseError` naming the endpoints when
-    none answers within ``timeout`` [s] (a zenoh client fails at once when no router listens;
-    this retries until the deadline, for a router that is still starting)."""
-    config = TransportConfig(mode="client", connect=tuple(connect), extra=dict(extra or {}),
-                             zenoh_config=zenoh_config)
+    none answers within ``timeout`` [s] or once ``given_up()`` (a zenoh client fails at once
+    when no router listens; this retries until then, for a router that is still starting)."""
     deadline = time.monotonic() + timeout
     while True:
         try:
@@ -253,83 +313,67 @@ def open_client(connect: tuple[str, ...], timeout: float,
         except TlfleetError:
             raise  # a bad --zenoh-config: retrying cannot help
         except Exception as exc:  # zenoh raises ZError, not a stable type
-            if time.monotonic() > deadline:
+            if given_up() or time.monotonic() > deadline:
                 raise SuperviseError(
-                    f"no zenoh router answers at {', '.join(connect)} (tried for {timeout:g} s: "
-                    f"{clean_reason(str(exc))}); start one with `tlfleet router --listen "
-                    f"ENDPOINT` or give the right --connect") from exc
-            time.sleep(0.1)
-
-
-@dataclass
-class SuperviseResult:
-    run_dir: Path
-    outcome: Outcome
-    clean: bool
-    left: dict[str, bool]  # process -> its token was gone within stop_grace after Control(stop)
-    summary_text: str = ""
-    summary: dict[str, Any] = field(default_factory=dict)
-    info: dict[str, Any] = field(default_factory=dict)
-    report: Any = None
-    rrd: Path | None = None
-    viewer: Any = None
-
-
-def _wait_gone(supervisor: Supervisor, grace: float) -> dict[str, bool]:
-    """After ``Control(stop)``: wait up to ``grace`` [s] for every process token to disappear."""
-    deadline = time.monotonic() + grace
-    names = list(supervisor.tokens.values())
-    while time.monotonic() < deadline:
-        supervisor.check()
-        if not any(name in supervisor.alive for name in names):
-            break
-        time.sleep(0.02)
-    return {name: name not in supervisor.alive for name in names}
+                    f"no zenoh router answers at {', '.join(config.connect)} (tried for "
+                    f"{timeout:g} s: {clean_reason(str(exc))}); start one with `tlfleet router "
+                    f"--listen ENDPOINT` or give the right --connect") from exc
+            time.sleep(0.05)
 
 
 def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None,
                     progress: Callable[[float, float], None] | None = None,
                     report: Say | None = None,
-                    waiting: Callable[[list[str]], None] | None = None) -> SuperviseResult:
-    """``tlfleet supervise``: join the fleet at ``config.connect``, record one run to its end."""
+                    waiting: Callable[[list[str]], None] | None = None) -> RunResult:
+    """``tlfleet supervise``: join the fleet at ``config.connect``, record one run to its end.
+
+    Nothing is written when the scenario is invalid or no router answers."""
     say = report or (lambda text: logger.warning("%s", text))
-    load_scenario(config.scenario_path)  # ScenarioError before connecting or writing anything
-    transport = open_client(config.connect, config.connect_timeout,
-                            zenoh_config=config.zenoh_config)
+    note = report or (lambda text: logger.info("%s", text))
+    scenario = load_checked(config.scenario_path, config.secure)  # before connecting/writing
+    transport = open_client(client_config(config.connect, secure=config.secure,
+                                          lease_ms=config.lease_ms,
+                                          zenoh_config=config.zenoh_config),
+                            config.connect_timeout)
     try:
-        prepared = prepare_run(config.scenario_path, config.out, mode=config.mode,
+        prepared = prepare_run(scenario, config.scenario_path, config.out, mode=config.mode,
                                duration=config.duration, seed=config.seed,
-                               endpoint=", ".join(config.connect))
+                               endpoint=", ".join(config.connect), secure=config.secure,
+                               lease_ms=config.lease_ms)
     except BaseException:
         transport.close()
         raise
     prepared.info["coordinator"] = "supervise"
     outcome = Outcome("error", 0.0)
     left: dict[str, bool] = {}
-    viewer = start_viewer(prepared.scenario, config, say) if config.viewer else None
+    codes: dict[str, int | None] = {}
+    viewer = None
+    if config.viewer:
+        from coordinator.outputs import start_viewer
+
+        viewer = start_viewer(prepared.scenario, config, say)
     session: Supervision | None = None
     wall_start = time.monotonic()
+    cleanup = Cleanup()
     try:
-        session = Supervision(transport, prepared, config=config.supervisor, report=report,
+        session = Supervision(transport, prepared, config=config.supervisor,
+                              silence=config.silence, report=report,
                               on_message=None if viewer is None else viewer.on_message)
-        outcome, _ = session.run(stop, progress, waiting)
+        outcome, codes = session.run(stop, progress, waiting)
         wall_start = session.wall_start
-        left = _wait_gone(session.supervisor, config.supervisor.stop_grace)
+        left = session.wait_gone(config.supervisor.stop_grace)
     except BaseException:
         if viewer is not None:
-            viewer.close()
+            Cleanup().step("viewer", viewer.close)
         raise
     finally:
         if session is not None:
-            session.close()
-        transport.close()
-        prepared.recorder.close()
-        end_info(prepared, outcome, wall_start)
+            session.close(cleanup)
+        cleanup.step("close the session", transport.close, timeout=5.0)
+        cleanup.step("close the recorder", prepared.recorder.close)
+        end_info(prepared, outcome, wall_start, cleanup)
         prepared.info["left_after_stop"] = left
-        prepared.recorder.write_run_info(prepared.info)
-    clean = outcome.reason in CLEAN_ENDS and not outcome.deaths and all(left.values())
-    prepared.info["clean"] = clean
-    prepared.recorder.write_run_info(prepared.info)
-    outputs = write_outputs(prepared, config, say)
-    return SuperviseResult(prepared.run_dir, outcome, clean, left, outputs.summary_text,
-                           outputs.summary, prepared.info, outputs.report, outputs.rrd, viewer)
+        cleanup.step("write run.json", lambda: prepared.recorder.write_run_info(prepared.info))
+    lingering = tuple(name for name, gone in left.items() if not gone)
+    return finish_run(prepared, config, outcome, codes=codes, final={}, lingering=lingering,
+                      findings=session.findings(), viewer=viewer, note=note, say=say)

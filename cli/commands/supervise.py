@@ -56,6 +56,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write report.md/json but no PNG figures")
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
+    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
+                        help="mutual TLS as `coordinator` with the keys of DIR (`tlfleet keys`); "
+                             "the endpoints must be tls/…")
+    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
+                        help="link lease in ms (zenoh default 10000)")
     add_zenoh_config_argument(parser)
 
 
@@ -70,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         scenario_path=Path(args.scenario), connect=connect, mode=args.mode, out=args.out,
         duration=args.duration, seed=args.seed, connect_timeout=args.connect_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
-        zenoh_config=args.zenoh_config, report=args.report, figures=args.figures, rrd=args.rrd)
+        zenoh_config=args.zenoh_config, secure=args.secure, lease_ms=args.lease_ms,
+        report=args.report, figures=args.figures, rrd=args.rrd)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def say(text: str) -> None:
@@ -92,11 +98,10 @@ def run(args: argparse.Namespace) -> int:
             if bar is not None:
                 bar.end()
     print_outputs(result)
-    if result.outcome.reason == "interrupted":
-        return 130
-    if not result.clean:
-        still = [name for name, gone in result.left.items() if not gone]
-        say(f"not clean (end: {result.outcome.reason}"
-            + (f"; still alive after stop: {', '.join(still)}" if still else "") + ")")
-        return 3
-    return 0
+    verdict = result.verdict
+    if verdict.label == "interrupted":
+        say(f"the run was interrupted at t = {result.outcome.t_end:.2f} s; the run directory "
+            f"holds what was recorded until then")
+    elif verdict.label != "clean":
+        say(f"{verdict.label} (end: {result.outcome.reason})")
+    return verdict.exit_code

@@ -39,6 +39,9 @@ def test_the_verdict_and_its_exit_code():
     assert verdict(router_clean=False).label == "failed"
     assert verdict(exit_codes={"sim": None}).reasons == ("did not stop cleanly: sim (None)",)
     assert verdict(reason="interrupted").exit_code == 130
+    # tlfleet supervise: processes it did not start, still up after Control(stop)
+    lingering = verdict(exit_codes={}, lingering=["sim", "agent-2"])
+    assert lingering.reasons == ("still alive after stop: agent-2, sim",)
     stopped = verdict(event_kinds={"watchdog_stop": 3, "flagged_event": 1})
     assert stopped.label == "degraded" and stopped.exit_code == 4
     assert stopped.reasons == ("3 watchdog stop(s)",

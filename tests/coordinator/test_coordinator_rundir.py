@@ -15,7 +15,8 @@ import pytest
 
 from agent.protocol.messages import Event, LtlStatus, StlStatus
 from coordinator import rundir
-from coordinator.runner import RunConfig, write_outputs
+from coordinator.outputs import write_outputs
+from coordinator.runner import RunConfig
 
 FIXTURES = Path(__file__).resolve().parents[1] / "report" / "fixtures"
 RUN_FILES = (rundir.SCENARIO, rundir.RUN_INFO, rundir.TRAJECTORY, rundir.STATUS, rundir.EVENTS)

@@ -137,30 +137,31 @@ def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
 def test_runner_reports_a_viewer_that_cannot_start_and_goes_on() -> None:
     import socket
 
-    from coordinator.runner import RunConfig, _start_viewer
+    from coordinator.outputs import start_viewer
+    from coordinator.runner import RunConfig
 
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         said: list[str] = []
         config = RunConfig(SCENARIO, viewer=True, grpc_port=taken.getsockname()[1])
-        assert _start_viewer(load_scenario(SCENARIO), config, said.append) is None
+        assert start_viewer(load_scenario(SCENARIO), config, said.append) is None
     assert len(said) == 1 and said[0].startswith("no live viewer (OSError: gRPC port 127.0.0.1:")
 
 
 def test_runner_step_7_reports_a_failure_and_returns(tmp_path: Path) -> None:
-    from coordinator.runner import _write_rrd
+    from coordinator.outputs import write_rrd
 
     said: list[str] = []
-    result = _write_rrd(tmp_path, 5, said.append)  # no scenario.toml there
+    result = write_rrd(tmp_path, 5, said.append)  # no scenario.toml there
     assert "error" in result and "scenario.toml" in result["error"]
     assert len(said) == 1 and said[0].startswith("run.rrd not written (RunFileError: ")
 
 
 def test_runner_step_7_writes_run_rrd(run_dir: Path) -> None:
-    from coordinator.runner import _write_rrd
+    from coordinator.outputs import write_rrd
 
-    result = _write_rrd(run_dir, 5, lambda text: None)
+    result = write_rrd(run_dir, 5, lambda text: None)
     assert result["path"] == str(run_dir / "run.rrd") and result["frames"] == 51
     assert read_rrd(run_dir / "run.rrd")["timed"]["/world/robots"] == 51
 
