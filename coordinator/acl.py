@@ -13,7 +13,11 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
                ``control``; token ``alive/sim/0``; watch ``alive/**``
 ``coordinator`` publish ``control``, ``event``; subscribe ``**``; token ``alive/coordinator/0``;
                watch ``alive/**``
-``router``     nothing through its links (its own session is local to it)
+``router``     nothing through its links (its own session is local to it); in a router mesh
+               (``mesh=True``: ``tlfleet run --hosts N``, ``tlfleet keys --mesh``) everything
+               under the fleet's prefix in both directions, because the routers forward each
+               other's clients' traffic, already checked by the router the client is linked
+               to — there the router's key is the fleet's most trusted one
 =============  ==========================================================================
 
 Robot i is *coupled* with j when stage-2 collaboration can send a message from i to j
@@ -50,13 +54,17 @@ def coupled_robots(scenario: Scenario) -> dict[int, tuple[int, ...]]:
     return out
 
 
-def fleet_grants(scenario: Scenario) -> tuple[Grant, ...]:
-    """The grants of every process of ``scenario``: sim, coordinator, one per robot."""
+def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]:
+    """The grants of every process of ``scenario``: sim, coordinator, one per robot; with
+    ``mesh`` (several routers linked to each other) also the routers'."""
     fleet = scenario.fleet
     everyone_alive = (keys.all_alive(fleet),)
     everything = (f"{keys.prefix(fleet)}/**",)
     coupled = coupled_robots(scenario)
-    grants = [
+    grants = [Grant("router", publish=everything, discover=everything, subscribe=everything,
+                    serve=everything, query=everything, token=everything, watch=everything)
+              ] if mesh else []
+    grants += [
         Grant("sim", publish=(keys.mocap(fleet), keys.clock(fleet), keys.event(fleet)),
               discover=everything,
               subscribe=(keys.all_cmds(fleet), keys.control(fleet)),

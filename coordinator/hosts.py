@@ -26,6 +26,13 @@ their namespaces (:class:`coordinator.launcher.Launcher`, logs in ``<run>/logs``
 ``tlfleet supervise`` runs on host 0 (:mod:`coordinator.supervise`, the code of ``tlfleet run``)
 and writes the run directory. Everything it started is stopped and every namespace deleted, also
 on error. Needs root (``ip netns``); nft only for process cuts.
+
+Secured by default (issue 14): every link is ``tls/`` with mutual authentication and every
+router enforces the fleet's access-control policy. Without ``keys``, a fresh key directory for
+this run (a CA, one certificate per process, the routers' names being the hosts' addresses, the
+mesh policy of :func:`coordinator.acl.fleet_grants`) is written to a private temporary directory
+and deleted with the namespaces; ``run.json`` records the fingerprints. ``insecure`` keeps plain
+TCP.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -244,16 +252,24 @@ class HostsRun:
     exit_codes: dict[str, int | None]
     stdout: str = ""
     stderr: str = ""
+    keys: Path | None = None  # the key directory made for the run (deleted at its end)
 
 
 def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  mode: str = "lockstep", supervise_args: Sequence[str] = (),
                  sim_args: Sequence[str] = (), capture: bool = False,
                  router_timeout: float = 15.0, kill_grace: float = 3.0,
-                 prefix: str | None = None) -> HostsRun:
+                 prefix: str | None = None, keys: Path | None = None,
+                 insecure: bool = False) -> HostsRun:
     """``tlfleet run SCENARIO --hosts N`` (see the module docstring)."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    if keys is not None and insecure:
+        raise HostsError("--secure DIR and --insecure exclude each other")
+    if keys is not None:
+        from coordinator.keys import check_keys
+
+        check_keys(scenario, keys)
     path = str(Path(scenario_path).resolve())
     run_dir = Path(out) if out else default_run_dir(scenario.name)
     placement = place(scenario, hosts)
@@ -266,16 +282,28 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     router_conf.parent.mkdir(parents=True, exist_ok=True)
     # explicit router mesh only: no gossip, so no router links another over a process's port
     router_conf.write_text("{ scouting: { gossip: { enabled: false } } }\n")
+    scheme = "tcp" if insecure else "tls"
+    own_keys = None if insecure or keys is not None else Path(
+        tempfile.mkdtemp(prefix="tlfleet-keys-"))  # 0700: private to this user
     with net:
         try:
+            if own_keys is not None:
+                from coordinator.keys import write_keys  # cryptography: secured runs only
+
+                write_keys(scenario, own_keys, force=True, mesh=True,
+                           hosts=tuple(net.address(h) for h in range(hosts)))
+            keydir = own_keys or keys
+            secure = () if keydir is None else ("--secure", str(Path(keydir).resolve()))
             for host in range(hosts):
-                listen = [f"tcp/{net.address(host)}:{ROUTER_PORT}"] + [
-                    f"tcp/{net.address(host)}:{placement.port_of[p]}" for p in placement.on(host)]
-                argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf)]
+                listen = [f"{scheme}/{net.address(host)}:{ROUTER_PORT}"] + [
+                    f"{scheme}/{net.address(host)}:{placement.port_of[p]}"
+                    for p in placement.on(host)]
+                argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf),
+                        *secure]
                 for endpoint in listen:
                     argv += ["--listen", endpoint]
                 for other in range(host):
-                    argv += ["--connect", f"tcp/{net.address(other)}:{ROUTER_PORT}"]
+                    argv += ["--connect", f"{scheme}/{net.address(other)}:{ROUTER_PORT}"]
                 launcher.start(f"router-{host}", [*net.exec_prefix(host),
                                                   *tlfleet_command(*argv)])
             for host in range(hosts):
@@ -283,28 +311,34 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
 
             def endpoint_of(process: str) -> str:
                 host, port = placement.link(process)
-                return f"tcp/{net.address(host)}:{port}"
+                return f"{scheme}/{net.address(host)}:{port}"
 
             launcher.start("sim", [*net.exec_prefix(0), *tlfleet_command(
-                "sim", path, f"--{mode}", *sim_args, "--connect", endpoint_of("sim"))])
+                "sim", path, f"--{mode}", *sim_args, "--connect", endpoint_of("sim"),
+                *secure)])
             for robot in sorted(scenario.robot_ids):
                 name = f"agent-{robot}"
                 launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
                                       *tlfleet_command("agent", path, "--robot", str(robot),
-                                                       "--connect", endpoint_of(name))])
+                                                       "--connect", endpoint_of(name),
+                                                       *secure)])
             coordinator = [*net.exec_prefix(0), *tlfleet_command(
                 "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
-                "--out", str(run_dir), *supervise_args)]
+                "--out", str(run_dir), *secure, *supervise_args)]
             done = subprocess.run(coordinator, capture_output=capture, text=True)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
             codes = launcher.stop_all(kill_grace)
+            if own_keys is not None:
+                shutil.rmtree(own_keys, ignore_errors=True)
     info_path = run_dir / "run.json"
     if info_path.is_file():
         info = json.loads(info_path.read_text())
+        if own_keys is not None:
+            info["keys"] = "generated for this run in a private temporary directory, deleted"
         info.update(hosts=placement.as_dict(), host_exit_codes=codes,
                     addresses={net.name(h): net.address(h) for h in range(hosts)})
         info_path.write_text(json.dumps(info, indent=2, default=str) + "\n")
     assert done is not None
     return HostsRun(run_dir, done.returncode, placement, codes,
-                    done.stdout or "", done.stderr or "")
+                    done.stdout or "", done.stderr or "", own_keys)

@@ -115,13 +115,14 @@ def planned_files(out: Path, names: Sequence[str]) -> tuple[Path, ...]:
 
 
 def write_keys(scenario: Scenario, out: Path, *, force: bool = False,
-               hosts: Sequence[str] = (), days: int = 365,
+               hosts: Sequence[str] = (), days: int = 365, mesh: bool = False,
                now: datetime.datetime | None = None) -> KeySet:
     """Write the CA, every process's key and certificate, ``acl.json`` and ``fleet.json``.
 
     ``hosts``: extra names of the router's certificate (multi-host fleets); ``days``: validity
-    of the process certificates. Raises :class:`KeysError` before writing anything when a file
-    exists and ``force`` is false.
+    of the process certificates; ``mesh``: the policy lets routers forward to each other
+    (several routers, :func:`coordinator.acl.fleet_grants`). Raises :class:`KeysError` before
+    writing anything when a file exists and ``force`` is false.
     """
     if days < 1:
         raise KeysError(f"--days must be at least 1, got {days}")
@@ -134,7 +135,7 @@ def write_keys(scenario: Scenario, out: Path, *, force: bool = False,
         raise KeysError(f"{out}: {len(existing)} key file(s) exist ({shown}); "
                         "use --force to overwrite")
     router_names = [_general_name(h) for h in dict.fromkeys((*ROUTER_NAMES, *hosts))]
-    policy = access_control(fleet_grants(scenario))
+    policy = access_control(fleet_grants(scenario, mesh=mesh))
     out.mkdir(parents=True, exist_ok=True)
     now = now or datetime.datetime.now(datetime.UTC)
     start = now - datetime.timedelta(minutes=5)  # tolerate small clock skew between hosts

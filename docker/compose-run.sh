@@ -5,6 +5,9 @@
 # fleet, writes the run directory OUT (default runs/compose-scenario1-<UTC time>/) with the same files
 # as `tlfleet run` (each service's log in OUT/logs/), prints the report, and tears down everything it
 # started: `compose down` (containers, network), and the dockerd if it started one.
+# A secured compose file (the default of `tlfleet compose`: --secure /fleet/keys) gets its keys from
+# $TLFLEET_KEYS; when that is unset, a fresh key directory is made for this run (`tlfleet keys
+# SCENARIO --host router` into a private temporary directory) and deleted at the end.
 #   usage: docker/compose-run.sh [COMPOSE_FILE] [OUT]
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -24,12 +27,23 @@ if ! docker version >/dev/null 2>&1; then
   eval "$(docker/dockerd-start.sh "$TLFLEET_DOCKER_WORK")"
   STARTED=1
 fi
+OWN_KEYS=
 cleanup() {
   set +e
   "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" down --timeout 5 >/dev/null 2>&1
   if [[ $STARTED == 1 ]]; then docker/dockerd-stop.sh "$TLFLEET_DOCKER_WORK"; fi
+  if [[ -n $OWN_KEYS ]]; then rm -rf "$OWN_KEYS"; fi
 }
 trap cleanup EXIT
+
+if grep -q '"--secure", "/fleet/keys"' "$FILE" && [[ -z ${TLFLEET_KEYS:-} ]]; then
+  # the scenario the file mounts, relative to the file's directory
+  SCEN=$(grep -o '"[^"]*:/fleet/scenario.toml:ro"' "$FILE" | head -1 | sed 's/^"//; s#:/fleet/scenario.toml:ro"$##')
+  OWN_KEYS=$(mktemp -d "${TMPDIR:-/tmp}/tlfleet-compose-keys-XXXXXX")   # mode 0700
+  "${PYTHON:-python3}" -m cli.main keys "$(dirname "$FILE")/$SCEN" --out "$OWN_KEYS" --force \
+    --host router >/dev/null
+  export TLFLEET_KEYS=$OWN_KEYS
+fi
 
 docker/build-image.sh
 mkdir -p "$OUT/logs"

@@ -1,6 +1,7 @@
-"""``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime]``: write the docker
-compose file of a scenario's fleet (:mod:`coordinator.compose`). An invalid scenario exits 1
-before anything is written."""
+"""``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]``: write
+the docker compose file of a scenario's fleet (:mod:`coordinator.compose`), secured by default
+(mutual TLS, the router's access control; keys from ``${TLFLEET_KEYS}``). An invalid scenario
+exits 1 before anything is written."""
 
 from __future__ import annotations
 
@@ -27,10 +28,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the coordinator's wait for every service [s] (default 120)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="sim time to run [s] (default: the scenario's duration)")
+    parser.add_argument("--insecure", action="store_true",
+                        help="plain TCP links, no authentication, no access control (default: "
+                             "mutual TLS with the keys of ${TLFLEET_KEYS}, `tlfleet keys "
+                             "SCENARIO --out DIR --host router`)")
 
 
 def run(args: argparse.Namespace) -> int:
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
-                                             args.duration))
+                                       args.duration, secure=not args.insecure))
     print(path)
     return 0

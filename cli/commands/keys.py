@@ -1,5 +1,6 @@
-"""``tlfleet keys SCENARIO --out DIR [--force] [--host NAME] [--days N]``: a fleet CA, one key pair
-and certificate per process and the router's access-control policy (``coordinator.keys``)."""
+"""``tlfleet keys SCENARIO --out DIR [--force] [--host NAME] [--days N] [--mesh]``: a fleet CA,
+one key pair and certificate per process and the router's access-control policy
+(``coordinator.keys``)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(repeatable; localhost, 127.0.0.1 and ::1 are always in)")
     parser.add_argument("--days", type=int, default=365,
                         help="validity of the process certificates in days (default 365)")
+    parser.add_argument("--mesh", action="store_true",
+                        help="several routers linked to each other (a fleet across hosts): the "
+                             "policy lets the routers forward each other's traffic")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -27,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from coordinator.keys import write_keys
 
     keyset = write_keys(load_scenario(args.scenario), args.out, force=args.force,
-                        hosts=tuple(args.host), days=args.days)
+                        hosts=tuple(args.host), days=args.days, mesh=args.mesh)
     print(f"fleet CA: {keyset.path / 'ca.pem'}  {keyset.fingerprints['ca']}")
     for name in keyset.identities:
         print(f"{name:>12}: {keyset.path / (name + '.pem')}  {keyset.fingerprints[name]}")

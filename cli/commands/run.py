@@ -84,7 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_zenoh_config_argument(parser)
     parser.add_argument("--hosts", type=int, default=0, metavar="N",
                         help="run across N network-namespace hosts, one zenoh router each, "
-                             "routers connected (root only; coordinator.hosts)")
+                             "routers connected (root only; coordinator.hosts); secured by "
+                             "default with keys made for the run (or --secure DIR)")
+    parser.add_argument("--insecure", action="store_true",
+                        help="with --hosts: plain TCP links, no authentication, no access control")
 
 
 class ProgressBar:
@@ -162,6 +165,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
+                          keys=args.secure, insecure=args.insecure,
                           supervise_args=extra, sim_args=sim)
     return result.returncode
 

@@ -236,6 +236,20 @@ def test_sim_and_coordinator(policy):
     assert not allowed(policy, "mallory", "ingress", "put", keys.event(F))
 
 
+def test_a_router_mesh_lets_the_routers_forward_everything_of_the_fleet_only():
+    scenario = load_scenario(SCENARIO1)
+    mesh = access_control(fleet_grants(scenario, mesh=True))
+    for flow, message, key in (("ingress", "put", keys.control(F)),
+                               ("egress", "put", keys.cmd(F, 3)),
+                               ("ingress", "query", keys.collab(F, 4)),
+                               ("ingress", "liveliness_token", keys.alive(F, "agent", 3))):
+        assert allowed(mesh, "router", flow, message, key)
+    assert not allowed(mesh, "router", "ingress", "put", "tlfleet/otherfleet/control")
+    single = access_control(fleet_grants(scenario))
+    assert {s["id"] for s in mesh["subjects"]} - {s["id"] for s in single["subjects"]} == \
+        {"router"}
+
+
 def test_every_rule_uses_known_message_kinds(policy):
     kinds = {m for flows in CAPABILITIES.values() for ms in flows.values() for m in ms}
     assert kinds <= {"put", "delete", "declare_subscriber", "query", "reply",

@@ -44,10 +44,20 @@ def test_compose_writes_one_service_per_process(tmp_path):
     assert services == ["router", "sim", *(f"robot{i}" for i in range(1, 6)), "coordinator",
                         "fleet"]  # "fleet": the one network
     assert text.count("condition: service_healthy") == 7  # every client waits for the router
-    assert '["agent", "/fleet/scenario.toml", "--robot", "3", "--connect", "tcp/router:7447"]' \
-        in text
+    # secured by default (issue 14): tls, --secure, the key directory mounted read-only
+    assert '["agent", "/fleet/scenario.toml", "--robot", "3", "--connect", "tls/router:7447", ' \
+        '"--secure", "/fleet/keys"]' in text
+    assert '"--listen", "tls/0.0.0.0:7447", "--secure", "/fleet/keys"]' in text
+    assert text.count('"${TLFLEET_KEYS:-./keys}:/fleet/keys:ro"') == 8  # every service
     assert '"supervise", "/fleet/scenario.toml", "--lockstep"' in text
     assert os.path.relpath(SCENARIOS / "scenario1.toml", tmp_path) in text
+    done = tlfleet("compose", str(SCENARIOS / "scenario1.toml"), "--out",
+                   str(tmp_path / "plain.yaml"), "--insecure")
+    assert done.returncode == 0, done.stderr
+    plain = (tmp_path / "plain.yaml").read_text()
+    assert '["agent", "/fleet/scenario.toml", "--robot", "3", "--connect", "tcp/router:7447"]' \
+        in plain
+    assert "/fleet/keys" not in plain and "--secure" not in plain
 
 
 def test_compose_on_an_invalid_scenario_fails_before_writing_anything(tmp_path):

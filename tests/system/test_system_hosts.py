@@ -98,6 +98,26 @@ def test_the_two_machine_recipe_in_two_namespaces(tmp_path):
         (tmp_path / "local" / "trajectory.csv").read_bytes()
 
 
+def test_hosts_insecure_keeps_plain_tcp_and_gives_the_same_trajectory(tmp_path):
+    need_root_netns()
+    two = HERE / "two_robots.toml"
+    runs = {}
+    for name, insecure in (("plain", True), ("secured", False)):
+        result = run_on_hosts(two, 2, out=tmp_path / name, insecure=insecure, capture=True,
+                              supervise_args=["--duration", "4", "--no-rrd", "--no-report",
+                                              "--quiet"],
+                              sim_args=["--duration", "4"], prefix=f"tlft-{name[:3]}")
+        assert result.returncode == 0, result.stderr[-3000:]
+        runs[name] = json.loads((tmp_path / name / "run.json").read_text())
+        scheme = "tcp" if insecure else "tls"
+        assert f"router: listening on {scheme}/" in \
+            (tmp_path / name / "logs" / "router-0.log").read_text()
+    assert runs["plain"]["secure"] is False and "fingerprints" not in runs["plain"]
+    assert runs["secured"]["secure"] is True
+    assert (tmp_path / "plain" / "trajectory.csv").read_bytes() == \
+        (tmp_path / "secured" / "trajectory.csv").read_bytes()
+
+
 @pytest.mark.slow
 def test_scenario1_across_three_hosts_is_byte_identical_to_tlfleet_run(tmp_path, scenario1_run):
     need_root_netns()
@@ -108,17 +128,23 @@ def test_scenario1_across_three_hosts_is_byte_identical_to_tlfleet_run(tmp_path,
     assert "tlft-s1" not in netns_list()
     info = json.loads((tmp_path / "run" / "run.json").read_text())
     assert info["clean"] and info["hosts"]["hosts"] == 3
+    # secured by default (issue 14): mutual TLS, the mesh policy, keys made for the run and gone
+    assert info["secure"] is True
+    assert set(info["fingerprints"]) == {"ca", "router", "sim", "coordinator",
+                                         *(f"robot{i}" for i in range(1, 6))}
+    assert "deleted" in info["keys"]
+    assert result.keys is not None and not result.keys.exists()
     logs = tmp_path / "run" / "logs"
     addresses = list(info["addresses"].values())
     assert len(set(addresses)) == 3
     for host, address in enumerate(addresses):  # one router per host, on its own address
         text = (logs / f"router-{host}.log").read_text()
-        assert f"router: listening on tcp/{address}:7447" in text
+        assert f"router: listening on tls/{address}:7447" in text
     for process, host in info["hosts"]["host_of"].items():  # each process on its host's router
         if process.startswith("agent-"):
             port = info["hosts"]["port_of"][process]
-            assert f"tcp/{addresses[host]}:{port}" in (logs / f"{process}.log").read_text() or \
-                f"tcp/{addresses[host]}:{port}" in (logs / f"router-{host}.log").read_text()
+            assert f"tls/{addresses[host]}:{port}" in (logs / f"{process}.log").read_text() or \
+                f"tls/{addresses[host]}:{port}" in (logs / f"router-{host}.log").read_text()
     assert {c for n, c in result.exit_codes.items() if not n.startswith("router")} == {0}
     assert (tmp_path / "run" / "trajectory.csv").read_bytes() == \
         (scenario1_run.run_dir / "trajectory.csv").read_bytes()

@@ -15,6 +15,7 @@ from by_hand import start_by_hand, supervise
 from process_helpers import free_port
 from system_helpers import HERE, SCENARIOS
 
+from agent.scenario import load_scenario
 from coordinator.launcher import Launcher, tlfleet_command
 from coordinator.supervise import SuperviseConfig, SuperviseError, supervise_fleet
 
@@ -71,6 +72,27 @@ def test_every_process_started_by_hand_says_what_it_waits_for(tmp_path):
         assert (f"agent {robot}: waiting for start from a coordinator on "
                 "tlfleet/two_robots/control") in logs[f"agent-{robot}"]
     assert "router: listening on " + endpoint in logs["router"]
+
+
+def test_a_secured_fleet_by_hand_is_supervised_with_its_keys(tmp_path):
+    from coordinator.keys import write_keys
+
+    keydir = tmp_path / "keys"
+    write_keys(load_scenario(TWO), keydir)
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    common = ("--secure", str(keydir))
+    with Launcher(tmp_path / "logs") as launcher:
+        start_by_hand(launcher, TWO, endpoint, sim_args=("--duration", "3"), common=common)
+        plain = supervise(TWO, endpoint.replace("tls/", "tcp/"), tmp_path / "refused",
+                          "--duration", "3", "--wait", "3", "--connect-timeout", "2", timeout=60)
+        done = supervise(TWO, endpoint, tmp_path / "run", "--duration", "3", "--no-rrd",
+                         "--no-figures", *common, timeout=120)
+    assert plain.returncode == 1, plain.stderr  # a plain-TCP coordinator cannot join
+    assert done.returncode == 0, done.stderr[-3000:]
+    info = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert info["secure"] is True and info["coordinator"] == "supervise"
+    assert set(info["fingerprints"]) >= {"ca", "router", "coordinator", "robot1", "robot2"}
+    assert info["outcome"]["label"] == "clean", info["outcome"]
 
 
 @pytest.mark.slow
