@@ -73,6 +73,7 @@ class SuperviseConfig:
     secure: Path | None = None  # key directory (`tlfleet keys`): mutual TLS as "coordinator"
     lease_ms: int | None = None  # [ms] zenoh link lease of the session (None: zenoh's 10 s)
     silence: float = 2.0  # [s] wall: an agent without status this long is silent (health)
+    close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     report: bool = True
     figures: bool = True
     rrd: bool = True
@@ -369,7 +370,7 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     finally:
         if session is not None:
             session.close(cleanup)
-        cleanup.step("close the session", transport.close, timeout=5.0)
+        cleanup.step("close the session", transport.close, timeout=config.close_timeout)
         cleanup.step("close the recorder", prepared.recorder.close)
         end_info(prepared, outcome, wall_start, cleanup)
         prepared.info["left_after_stop"] = left

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cli.run_flags import add_mode_arguments
 from coordinator.compose import ComposeConfig, write_compose
 
 NAME = "compose"
@@ -18,12 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
     parser.add_argument("--out", type=Path, default=Path("."),
                         help="directory for compose.yaml, or the .yaml file (default .)")
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
-                      help="deterministic (default)")
-    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
-                      help="physics on wall-clock time")
-    parser.set_defaults(mode="lockstep")
+    add_mode_arguments(parser, "deterministic (default)")
     parser.add_argument("--wait", type=float, default=120.0, metavar="S",
                         help="the coordinator's wait for every service [s] (default 120)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from bus.signals import stop_on_signals, wait_for_signal
 from cli.arg_types import positive_float
+from cli.run_flags import add_mode_arguments, add_output_arguments
 from cli.transport_flags import add_zenoh_config_argument
 from coordinator.runner import RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
@@ -39,12 +40,7 @@ BAR_WIDTH = 30
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
-                      help="deterministic, faster than real time (default)")
-    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
-                      help="physics on wall-clock time")
-    parser.set_defaults(mode="lockstep")
+    add_mode_arguments(parser)
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
@@ -75,12 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="mutual TLS with the keys of DIR (`tlfleet keys SCENARIO --out DIR`) "
                              "and the router's access control; without it the links are plain "
                              "TCP on 127.0.0.1")
-    parser.add_argument("--no-report", dest="report", action="store_false",
-                        help="do not write report.md/json and figures at the end")
-    parser.add_argument("--no-figures", dest="figures", action="store_false",
-                        help="write report.md/json but no PNG figures")
-    parser.add_argument("--no-rrd", dest="rrd", action="store_false",
-                        help="do not write run.rrd (rerun) at the end")
+    add_output_arguments(parser)
     add_zenoh_config_argument(parser)
     parser.add_argument("--hosts", type=int, default=0, metavar="N",
                         help="run across N network-namespace hosts, one zenoh router each, "

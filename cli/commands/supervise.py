@@ -17,6 +17,7 @@ from pathlib import Path
 
 from bus.signals import stop_on_signals
 from cli.commands.run import ProgressBar, print_outputs
+from cli.run_flags import add_mode_arguments, add_output_arguments
 from cli.transport_flags import add_zenoh_config_argument
 from coordinator.supervise import SuperviseConfig, supervise_fleet
 from coordinator.supervisor import SupervisorConfig
@@ -30,12 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                         help="the fleet's router, e.g. tcp/127.0.0.1:7447 (repeatable; "
                              "default tcp/127.0.0.1:7447)")
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--lockstep", dest="mode", action="store_const", const="lockstep",
-                      help="the simulator runs in lockstep (default; recorded in run.json)")
-    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
-                      help="the simulator runs on wall-clock time")
-    parser.set_defaults(mode="lockstep")
+    add_mode_arguments(parser, "the simulator runs in lockstep (default; recorded in run.json)",
+                       "the simulator runs on wall-clock time")
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
@@ -50,12 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar, no waiting lines")
-    parser.add_argument("--no-report", dest="report", action="store_false",
-                        help="do not write report.md/json and figures at the end")
-    parser.add_argument("--no-figures", dest="figures", action="store_false",
-                        help="write report.md/json but no PNG figures")
-    parser.add_argument("--no-rrd", dest="rrd", action="store_false",
-                        help="do not write run.rrd (rerun) at the end")
+    add_output_arguments(parser)
     parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
                         help="mutual TLS as `coordinator` with the keys of DIR (`tlfleet keys`); "
                              "the endpoints must be tls/…")
