@@ -21,19 +21,19 @@ class CollisionParams:
     r1: float = 0.6  # [m] R1, full-repulsion radius
     r_sense: float = 0.7  # [m] R, sensing radius (R > R1)
     beta: float = 2.0  # β_i ≥ 0, weight of ū_col in eq. (6)
-    umax_lin: float = 0.2  # [m/s] u_max,i
+    max_lin: float = 0.2  # [m/s] u_max,i
 
     @property
     def gain(self) -> float:
         """k_i = u_max·R·R1³/(R − R1)."""
-        return self.umax_lin * self.r_sense * self.r1**3 / (self.r_sense - self.r1)
+        return self.max_lin * self.r_sense * self.r1**3 / (self.r_sense - self.r1)
 
 
 def repulsion_magnitude(d: float, params: CollisionParams) -> float:
     """|ū_col| contributed by one neighbour at distance d [m]: u_max below R1, the k-branch on
     [R1, R], 0 beyond R."""
     if d < params.r1:
-        return params.umax_lin
+        return params.max_lin
     if d <= params.r_sense:
         return params.gain * (params.r_sense - d) / (d**3 * params.r_sense)
     return 0.0
@@ -44,7 +44,7 @@ def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[tuple[floa
     """ū_col,i = (v_x, v_y, 0) [m/s] from the positions of the other robots (any number; those
     beyond R contribute nothing). Coincident positions (d = 0) have no direction and are skipped."""
     xi, yi = z_i
-    r1, big_r, umax = params.r1, params.r_sense, params.umax_lin
+    r1, big_r, umax = params.r1, params.r_sense, params.max_lin
     k = params.gain
     r2 = big_r * big_r
     vx = vy = 0.0

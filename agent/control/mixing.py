@@ -14,8 +14,8 @@ from agent.control.saturation import saturate
 
 
 def mix(u_nom_bar: tuple[float, float, float], u_col_bar: tuple[float, float, float], beta: float,
-        umax_lin: float, umax_ang: float,
+        max_lin: float, max_ang: float,
         mode: Literal["separate", "norm"] = "separate") -> tuple[float, float, float]:
     """ū_mix = saturate(β·ū_col + ū_nom) (eq. (6)); ``mode`` as in ``saturate``."""
     return saturate((beta * u_col_bar[0] + u_nom_bar[0], beta * u_col_bar[1] + u_nom_bar[1],
-                     beta * u_col_bar[2] + u_nom_bar[2]), umax_lin, umax_ang, mode)
+                     beta * u_col_bar[2] + u_nom_bar[2]), max_lin, max_ang, mode)

@@ -12,28 +12,28 @@ import math
 from typing import Literal
 
 
-def saturate(u: tuple[float, float, float], umax_lin: float, umax_ang: float,
+def saturate(u: tuple[float, float, float], max_lin: float, max_ang: float,
              mode: Literal["separate", "norm"] = "separate") -> tuple[float, float, float]:
     """Saturated (v_x, v_y, ω).
 
-    ``separate`` (default): planar part scaled onto the disc of radius ``umax_lin`` [m/s], ω
-    clipped to [−``umax_ang``, ``umax_ang``] [rad/s]. ``norm``: the paper's literal form,
-    u := u_max·u/‖u‖ over all three entries with u_max = ``umax_lin``.
+    ``separate`` (default): planar part scaled onto the disc of radius ``max_lin`` [m/s], ω
+    clipped to [−``max_ang``, ``max_ang``] [rad/s]. ``norm``: the paper's literal form,
+    u := u_max·u/‖u‖ over all three entries with u_max = ``max_lin``.
     """
     vx, vy, w = u
     if mode == "norm":
         length = math.sqrt(vx * vx + vy * vy + w * w)
-        if length > umax_lin:
-            k = umax_lin / length
+        if length > max_lin:
+            k = max_lin / length
             return vx * k, vy * k, w * k
         return vx, vy, w
     speed = math.hypot(vx, vy)
-    if speed > umax_lin:
-        k = umax_lin / speed
+    if speed > max_lin:
+        k = max_lin / speed
         vx *= k
         vy *= k
-    if w > umax_ang:
-        w = umax_ang
-    elif w < -umax_ang:
-        w = -umax_ang
+    if w > max_ang:
+        w = max_ang
+    elif w < -max_ang:
+        w = -max_ang
     return vx, vy, w

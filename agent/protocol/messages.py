@@ -90,8 +90,10 @@ class StlStatus:
 
 
 @dataclass(frozen=True, slots=True)
-class FunnelParams:
-    """The funnel of a task as sent in stage-2 messages (stl-funnel.md §5, §7.5; t_r included)."""
+class FunnelWire:
+    """The funnel of a task as sent in stage-2 messages (stl-funnel.md §5, §7.5; t_r included):
+    the wire form of :class:`agent.stl.funnel.Funnel`, field for field (not to be confused with
+    :class:`agent.stl.funnel.FunnelParams`, the funnel *design* parameters of a robot)."""
 
     kind: Literal["G", "F"]
     a: float
@@ -124,7 +126,7 @@ class CollabMessage:
     receiver: int
     t: float
     subtask: int
-    funnel: FunnelParams | None = None
+    funnel: FunnelWire | None = None
     c: int = 0
     task_kind: Literal["G", "F", ""] = ""
     a: float = 0.0

@@ -6,14 +6,14 @@
 =====================  =================================================================
 core message           ``CollabMessage`` kind and fields
 =====================  =================================================================
-``CollabRequest``      ``request``: subtask, funnel (``FunnelParams``, t_r included), c
+``CollabRequest``      ``request``: subtask, funnel (``FunnelWire``, t_r included), c
 ``CollabUpdate``       ``update``: subtask, funnel
 ``CollabRelease``      ``release``: subtask
 ``StatusAnnounce``     ``status``: c, subtask, task_kind ("" = no active sub-task), a, b [s],
                        all_done
 =====================  =================================================================
 
-The funnel travels whole: ``agent.stl.funnel.Funnel`` and the protocol's ``FunnelParams`` have
+The funnel travels whole: ``agent.stl.funnel.Funnel`` and the protocol's ``FunnelWire`` have
 the same twelve fields (kind, a, b [s], ρ_opt, ρ_max, r, γ_0, γ_∞, l [1/s], t* [s], t_r [s], ζ_u).
 """
 
@@ -23,7 +23,7 @@ import dataclasses
 import math
 
 from agent.protocol.codec import ProtocolError
-from agent.protocol.messages import CollabMessage, FunnelParams
+from agent.protocol.messages import CollabMessage, FunnelWire
 from agent.stl.funnel import Funnel
 from agent.stl.messages import (
     CollabRelease,
@@ -33,14 +33,14 @@ from agent.stl.messages import (
     StatusAnnounce,
 )
 
-_FUNNEL_FIELDS = tuple(f.name for f in dataclasses.fields(Funnel))  # = FunnelParams' (tested)
+_FUNNEL_FIELDS = tuple(f.name for f in dataclasses.fields(Funnel))  # = FunnelWire's (tested)
 
 
-def funnel_to_wire(funnel: Funnel) -> FunnelParams:
-    return FunnelParams(**{name: getattr(funnel, name) for name in _FUNNEL_FIELDS})
+def funnel_to_wire(funnel: Funnel) -> FunnelWire:
+    return FunnelWire(**{name: getattr(funnel, name) for name in _FUNNEL_FIELDS})
 
 
-def funnel_from_wire(params: FunnelParams) -> Funnel:
+def funnel_from_wire(params: FunnelWire) -> Funnel:
     return Funnel(**{name: getattr(params, name) for name in _FUNNEL_FIELDS})
 
 

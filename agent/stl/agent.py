@@ -289,8 +289,8 @@ class StlAgent:
         if critical:
             changes["recovery"] = rec.on_critical(current, t, params)
             return
-        rate = params.rate_share * rec.achievable_rate(grad_own, cfg.control.umax_lin,
-                                                       cfg.control.umax_ang)
+        rate = params.rate_share * rec.achievable_rate(grad_own, cfg.control.max_lin,
+                                                       cfg.control.max_ang)
         new_state, new = rec.advance(current, tick.funnel, rho, t, rate, cfg.funnel, params)
         if new_state is not current:
             changes["recovery"] = new_state
@@ -480,7 +480,7 @@ class StlAgent:
         elif tick.done:  # the completion step still logs the finished sub-task's ρ and funnel
             tick.rho_log = tick.rho_own
             tick.log_funnel = tick.funnel
-        tick.u_nom = saturate(tick.u_nom, cp.umax_lin, cp.umax_ang, cp.saturation)
+        tick.u_nom = saturate(tick.u_nom, cp.max_lin, cp.max_ang, cp.saturation)
 
     def _avoid_and_mix(self, tick: _Tick) -> tuple[float, float, float]:
         """Phase 6: u = saturate(β·ū_col + ū_nom) over every robot within R (§6.2, eq. (6))."""
@@ -488,7 +488,7 @@ class StlAgent:
         own_pose = tick.poses[i]
         neighbours = [(p[0], p[1]) for j, p in tick.poses.items() if j != i]
         u_col = collision_velocity((own_pose[0], own_pose[1]), neighbours, col)
-        return mix(tick.u_nom, u_col, col.beta, cp.umax_lin, cp.umax_ang, cp.saturation)
+        return mix(tick.u_nom, u_col, col.beta, cp.max_lin, cp.max_ang, cp.saturation)
 
     def _finish(self, state: AgentState, tick: _Tick,
                 u: tuple[float, float, float]) -> tuple[AgentState, StepOutput]:
@@ -600,8 +600,8 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     for robot_id in robots if robots is not None else stl_ids:
         robot = scenario.robot(robot_id)
         seq = sequences[robot_id]
-        cparams = control or ControlParams(umax_lin=robot.omni.max_lin,
-                                           umax_ang=robot.omni.max_ang,
+        cparams = control or ControlParams(max_lin=robot.omni.max_lin,
+                                           max_ang=robot.omni.max_ang,
                                            hold_F_when_above_r=p.hold_f_above_r)
         config = AgentConfig(
             robot_id=robot_id,
@@ -612,7 +612,7 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
             funnel=fparams,
             control=cparams,
             collision=CollisionParams(r1=p.r1, r_sense=p.r_sense, beta=p.beta,
-                                      umax_lin=cparams.umax_lin),
+                                      max_lin=cparams.max_lin),
             protocol=protocol or ProtocolParams(
                 complete_on_satisfaction=p.complete_f_on_satisfaction),
             recovery=rec.RecoveryParams(enabled=p.recovery),

@@ -19,13 +19,13 @@ from typing import Literal
 class ControlParams:
     """Nominal-law options and the saturation limits (stl-funnel.md §6.1, §15)."""
 
-    umax_lin: float = 0.2  # [m/s] bound on ‖(v_x, v_y)‖
-    umax_ang: float = 6.28  # [rad/s] bound on |ω|
+    max_lin: float = 0.2  # [m/s] bound on ‖(v_x, v_y)‖
+    max_ang: float = 6.28  # [rad/s] bound on |ω|
     normalize_grad: bool = True  # §6.1 step 1 [OUR CHOICE, code behaviour]
     k_eps: float = 1.0  # §6.1 step 2 [AUTHORS' CODE: no gain]
     hold_F_when_above_r: bool = True  # §6.1 step 5 [OUR CHOICE, code behaviour]
     saturation: Literal["separate", "norm"] = "separate"  # §6.1 step 4 [OUR CHOICE]; "norm" is
-    # the paper's single norm over (v_x, v_y, ω) with u_max = umax_lin
+    # the paper's single norm over (v_x, v_y, ω) with u_max = max_lin
 
 
 def nominal_velocity(eps: float, grad_i: Sequence[float] | None, normalize: bool = True,

@@ -152,9 +152,9 @@ def advance(state: RecoveryState, funnel: Funnel, rho: float, t: float, rate: fl
                    r_floor=min(state.r_floor, funnel.r)), new
 
 
-def achievable_rate(grad_own, umax_lin: float, umax_ang: float) -> float:
+def achievable_rate(grad_own, max_lin: float, max_ang: float) -> float:
     """u_lin·‖∂ρ/∂z_i‖ + u_ang·|∂ρ/∂θ_i| for the own 3-block of the gradient (0 if None)."""
     if grad_own is None:
         return 0.0
     gx, gy, gth = grad_own[0], grad_own[1], grad_own[2]
-    return umax_lin * math.hypot(gx, gy) + umax_ang * abs(gth)
+    return max_lin * math.hypot(gx, gy) + max_ang * abs(gth)

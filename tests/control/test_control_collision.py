@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from agent.control.collision import CollisionParams, collision_velocity, repulsion_magnitude
 
-PARAMS = CollisionParams(r1=0.6, r_sense=0.7, beta=2.0, umax_lin=0.2)
+PARAMS = CollisionParams(r1=0.6, r_sense=0.7, beta=2.0, max_lin=0.2)
 
 
 def test_worked_values_of_6_2():
@@ -29,7 +29,7 @@ def test_direction_points_away_and_sums_over_neighbours():
     assert collision_velocity((0.0, 0.0), [(0.0, 0.0), (3.0, 0.0)], PARAMS) == (0.0, 0.0, 0.0)
 
 
-params = st.builds(lambda r1, gap, u: CollisionParams(r1=r1, r_sense=r1 + gap, umax_lin=u),
+params = st.builds(lambda r1, gap, u: CollisionParams(r1=r1, r_sense=r1 + gap, max_lin=u),
                    st.floats(0.1, 1.0), st.floats(0.01, 0.5), st.floats(0.05, 1.0))
 
 
@@ -37,9 +37,9 @@ params = st.builds(lambda r1, gap, u: CollisionParams(r1=r1, r_sense=r1 + gap, u
 def test_continuous_at_r1(p, eps):
     below = repulsion_magnitude(p.r1 - eps, p)
     above = repulsion_magnitude(p.r1 + eps, p)
-    assert below == p.umax_lin
+    assert below == p.max_lin
     # the k-branch has slope −u/(R − R1) − 3u/R1 at R1: the jump over 2·eps is bounded by it
-    slope = p.umax_lin / (p.r_sense - p.r1) + 3 * p.umax_lin / p.r1
+    slope = p.max_lin / (p.r_sense - p.r1) + 3 * p.max_lin / p.r1
     assert abs(above - below) <= 2 * eps * slope + 1e-12
 
 
@@ -53,7 +53,7 @@ def test_zero_beyond_r_and_bounded_inside(p, d, angle):
     if d > p.r_sense:
         assert (vx, vy) == (0.0, 0.0)
     elif d > 0:
-        assert math.hypot(vx, vy) <= p.umax_lin * (1 + 1e-9)
+        assert math.hypot(vx, vy) <= p.max_lin * (1 + 1e-9)
         assert vx * z_j[0] + vy * z_j[1] <= 1e-15  # pushes away from the neighbour
 
 

@@ -19,13 +19,13 @@ from agent.protocol.messages import (
     Command,
     Control,
     Event,
-    FunnelParams,
+    FunnelWire,
     LtlStatus,
     MocapFrame,
     StlStatus,
 )
 
-FUNNEL = FunnelParams("F", 57.0, 58.0, 0.0997524, 0.095, -0.0144, 0.3, 0.04, 0.25, 58.0,
+FUNNEL = FunnelWire("F", 57.0, 58.0, 0.0997524, 0.095, -0.0144, 0.3, 0.04, 0.25, 58.0,
                       34.86, 0.005)
 EXAMPLES = [
     Clock(1.25, 125, "lockstep"),

@@ -50,7 +50,7 @@ values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=5)
 def field_names(cls):
     names = [f.name for f in dataclasses.fields(cls)]
     if cls is messages.CollabMessage:
-        names += [f.name for f in dataclasses.fields(messages.FunnelParams)]
+        names += [f.name for f in dataclasses.fields(messages.FunnelWire)]
     return names
 
 

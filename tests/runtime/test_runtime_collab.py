@@ -8,7 +8,7 @@ import math
 import pytest
 
 from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import CollabMessage, FunnelParams
+from agent.protocol.messages import CollabMessage, FunnelWire
 from agent.runtime.collab import from_wire, funnel_from_wire, funnel_to_wire, to_wire
 from agent.stl.funnel import Funnel
 from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
@@ -18,7 +18,7 @@ FUNNEL = Funnel.init("F", 57.0, 58.0, 0.0997524, -1.5, 34.86)
 
 def test_funnel_fields_match_the_protocol():
     assert ([f.name for f in dataclasses.fields(Funnel)]
-            == [f.name for f in dataclasses.fields(FunnelParams)])
+            == [f.name for f in dataclasses.fields(FunnelWire)])
     assert funnel_from_wire(funnel_to_wire(FUNNEL)) == FUNNEL
     assert funnel_to_wire(FUNNEL).t_r == 34.86
 
