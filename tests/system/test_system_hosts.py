@@ -90,7 +90,7 @@ def test_the_two_machine_recipe_in_two_namespaces(tmp_path):
                       sim_args=("--duration", "8", "--seed", "11"), wait_host=None)
         done = supervise(two, endpoint, tmp_path / "run", "--duration", "8", "--seed", "11",
                          "--no-rrd", "--no-figures", prefix=hosts.exec_prefix(1), timeout=120)
-        assert done.returncode == 0, done.stderr[-3000:]
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     assert "tlft-two" not in netns_list()
     local = run(two, tmp_path / "local", duration=8.0, seed=11, report=False, rrd=False)
     assert local.clean

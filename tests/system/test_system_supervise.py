@@ -88,7 +88,7 @@ def test_a_secured_fleet_by_hand_is_supervised_with_its_keys(tmp_path):
         done = supervise(TWO, endpoint, tmp_path / "run", "--duration", "3", "--no-rrd",
                          "--no-figures", *common, timeout=120)
     assert plain.returncode == 1, plain.stderr  # a plain-TCP coordinator cannot join
-    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     info = json.loads((tmp_path / "run" / "run.json").read_text())
     assert info["secure"] is True and info["coordinator"] == "supervise"
     assert set(info["fingerprints"]) >= {"ca", "router", "coordinator", "robot1", "robot2"}
@@ -104,7 +104,7 @@ def test_scenario1_by_hand_plus_supervise_is_byte_identical_to_tlfleet_run(tmp_p
         start_by_hand(launcher, scenario, endpoint)
         done = supervise(scenario, endpoint, tmp_path / "run", "--no-rrd")
         exits = {c.name: c.process.wait(10) for c in launcher.children if c.name != "router"}
-    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     assert exits == {"sim": 0, **{f"agent-{r}": 0 for r in range(1, 6)}}
     run_dir = tmp_path / "run"
     for name in RUN_FILES:
