@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from stl_strategies import ROBOTS, coords, numbers, scalar_expressions, states
 
 from agent.scenario.loader import load_scenario
 from agent.stl.agent import build_agents
@@ -29,32 +30,11 @@ from agent.stl.syntax import (
     Not,
     Position,
     Predicate,
-    StateVar,
     VecLit,
 )
 
 ROOT = Path(__file__).resolve().parents[2]
-ROBOTS = (1, 2, 3)
-coords = st.floats(-3, 3, allow_nan=False)
-states = st.lists(coords, min_size=9, max_size=9)
-numbers = st.floats(-2, 2, allow_nan=False).map(lambda v: round(v, 2))
-scalar_leaf = st.one_of(numbers.map(Const),
-                        st.builds(StateVar, st.sampled_from(ROBOTS),
-                                  st.sampled_from(["x", "y", "th"])))
-
-
-def _extend(children):
-    return st.one_of(
-        st.builds(Neg, children),
-        st.builds(BinOp, st.sampled_from(["+", "-", "*"]), children, children),
-        st.builds(lambda a, b: BinOp("/", a, BinOp("+", Const(3.0), Call("sin", (b,)))),
-                  children, children),
-        st.builds(lambda f, a: Call(f, (a,)), st.sampled_from(["sin", "cos", "abs"]), children),
-        st.builds(lambda a, b: Call("angdist", (a, b)), children, children),
-    )
-
-
-scalars = st.recursive(scalar_leaf, _extend, max_leaves=6)
+scalars = scalar_expressions(max_leaves=6)
 vectors = st.one_of(
     st.builds(Position, st.sampled_from(ROBOTS)),
     st.builds(VecLit, scalars, scalars),

@@ -8,33 +8,14 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from stl_strategies import ROBOTS, coords, scalar_expressions, states
 
 from agent.stl.evaluate import compile_expr, evaluate_array
 from agent.stl.parser import parse_psi
 from agent.stl.robustness import CompiledPsi, psi_array
-from agent.stl.syntax import BinOp, Call, Const, Neg, Position, StateVar, VecLit, robots_of
+from agent.stl.syntax import BinOp, Call, Const, Position, VecLit, robots_of
 
-ROBOTS = (1, 2, 3)
-coords = st.floats(-3, 3, allow_nan=False)
-states = st.lists(coords, min_size=9, max_size=9)
-numbers = st.floats(-2, 2, allow_nan=False).map(lambda v: round(v, 2))
-scalar_leaf = st.one_of(numbers.map(Const),
-                        st.builds(StateVar, st.sampled_from(ROBOTS),
-                                  st.sampled_from(["x", "y", "th"])))
-
-
-def _extend(children):
-    return st.one_of(
-        st.builds(Neg, children),
-        st.builds(BinOp, st.sampled_from(["+", "-", "*"]), children, children),
-        st.builds(lambda a, b: BinOp("/", a, BinOp("+", Const(3.0), Call("sin", (b,)))),
-                  children, children),
-        st.builds(lambda f, a: Call(f, (a,)), st.sampled_from(["sin", "cos", "abs"]), children),
-        st.builds(lambda a, b: Call("angdist", (a, b)), children, children),
-    )
-
-
-scalars = st.recursive(scalar_leaf, _extend, max_leaves=5)
+scalars = scalar_expressions(max_leaves=5)
 vectors = st.one_of(
     st.builds(Position, st.sampled_from(ROBOTS)),
     st.builds(VecLit, scalars, scalars),
