@@ -9,7 +9,9 @@ STL sub-task from the trajectory, the verdicts and held fractions (``coordinator
 LTL visits, contacts and stationary episodes. The goals checked per run:
 
 * S1: every sub-task ≥ its paper bound and within 0.05 of the best achievable of
-  ``scenarios.md``; 0 contacts;
+  ``scenarios.md``; 0 contacts. Beside it, φ′4's bound given robots 3 and 5's trajectories,
+  min over [5, 30] of 1 − ‖z3 − z5‖/2 (robot 4 anywhere: min(1 − ‖z4 − z3‖, 1 − ‖z4 − z5‖) is
+  at most that), which tells how far the least-violating solution is from what was possible;
 * S2: ρ(φ3), ρ(φ4) ≥ −0.2; both LTL tasks accepting with every region visited ≥ 2 times;
   0 contacts; no robot stationary > 5 s while its task wants it to move;
 * S3: every formation task ρ ≥ −0.1 and its predicate held ≥ 90 % of [10, 100]; the five
@@ -35,6 +37,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+import numpy as np  # noqa: E402
+
+from agent.stl.monitor import read_trajectory_csv  # noqa: E402
 from coordinator.report import build_report  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
@@ -114,7 +119,18 @@ def one_run(number: int, seed: int, mode: str, coupling: bool, tmp: Path) -> dic
     data = build_report(out).data
     row = {"scenario": number, "seed": seed, "mode": mode, "coupling": coupling,
            "clean": result.clean, "wall_s": wall, **goals(number, data)}
+    if number == 1:
+        row["phi4_prime_bound_given_z3_z5"] = phi4_prime_bound(out / "trajectory.csv")
     return row
+
+
+def phi4_prime_bound(path: Path) -> float:
+    """min over [5, 30] of 1 − ‖z3 − z5‖/2: the best ρ(φ′4) any robot 4 could have had beside
+    robots 3 and 5 as they moved (module docstring)."""
+    traj = read_trajectory_csv(path)
+    inside = (traj.t >= 5.0) & (traj.t <= 30.0)
+    gap = np.hypot(*(traj.states[3][inside, :2] - traj.states[5][inside, :2]).T)
+    return float((1.0 - gap / 2.0).min())
 
 
 def render(rows: list[dict]) -> str:
@@ -123,6 +139,8 @@ def render(rows: list[dict]) -> str:
         rho = ", ".join(f"{k} {v:+.3f}" for k, v in r["rho"].items() if isinstance(v, float))
         held = (", held " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in r["held"].items()
                                       if v is not None)) if r.get("held") else ""
+        if r.get("phi4_prime_bound_given_z3_z5") is not None:
+            rho += f" (φ′4 bound given z3, z5: {r['phi4_prime_bound_given_z3_z5']:+.3f})"
         failed = [k for k, v in r["goals"].items() if not v]
         lines.append(f"S{r['scenario']:<4}{r['seed']:>5} {r['mode']:<9}"
                      f"{'on' if r['coupling'] else 'off':<6}{'yes' if r['met'] else 'NO':<5}"

@@ -279,8 +279,9 @@ class StlAgent:
 
     def _recover(self, state: AgentState, tick: _Tick, rho: float, grad_own,
                  critical: bool) -> None:
-        """Robustness recovery of the own G sub-task (agent.stl.recovery): updates the tick's
-        funnel (when a recovery raises r) and the recovery state in ``tick.changes``."""
+        """Robustness recovery of the own sub-task (agent.stl.recovery; G, and F unless
+        ``recovery.f_tasks`` is off): updates the tick's funnel (when a recovery raises r) and the
+        recovery state in ``tick.changes``."""
         cfg, t, changes = self.cfg, tick.t, tick.changes
         params = cfg.recovery
         current = changes.get("recovery", state.recovery)
@@ -470,7 +471,8 @@ class StlAgent:
                     tick.out.extend(messages)
                     _count_repair(tick, stage, funnel=tick.funnel, c=tick.c)
                     z = tick.funnel.zeta(rho, t)
-                if task.kind == "G" and cfg.recovery.enabled and tick.c == 0:
+                if (cfg.recovery.enabled and tick.c == 0
+                        and (task.kind == "G" or cfg.recovery.f_tasks)):
                     self._recover(state, tick, rho, grad_own, bool(tick.repaired))
                     if tick.recovered:
                         z = tick.funnel.zeta(rho, t)

@@ -33,6 +33,30 @@ robot's saturated input can raise ρ^ψ (paper §III-B). Invariants (property-te
 4. no immediate new critical event: the lower boundary starts strictly below ρ and climbs no
    faster than c, so a robot that raises ρ^ψ at rate c stays inside.
 
+**F sub-tasks.** An F task's funnel reaches r at t* (stl-funnel.md §5; t* = b after any repair,
+R2), and the funnel controller keeps ρ^ψ near the funnel's middle, so ρ^φ = max_{[a,b]} ρ^ψ ends
+near ½(ρ_max + r) at t = b: every δ that stage 3 took off r — often for the exponential funnel's
+front-loaded contraction (stl-funnel.md §13 item 10), not for an infeasible task — is lost for
+good (Scenario 1's φ″4: r̄ = −0.114, ρ^φ = −0.007 = ½(ρ_max + r̄)). Before its deadline an F task
+is meant to be below r, so its *room* is time: no critical event for ``dwell`` seconds while
+r < r_0, ρ < ρ_max and t < b − τ_min. Then (``recovered_f_funnel``) the funnel is rebuilt at
+t_r = t with the same ρ_max and
+
+    γ_0' = (ρ_max − ρ) + min(gamma0_margin·(ρ_max − ρ), ζ_l),
+    γ_∞' = ginf_frac·min(γ_0', ρ_max − r'),
+    l' = ln((γ_0' − γ_∞')/(ρ_max − r' − γ_∞')) / (t*' − t_r)     (lower boundary = r' at t*'),
+
+or, when the lower boundary starts at or above r' already (γ_0' ≤ ρ_max − r'), l' = c/(γ_0' − γ_∞')
+as for G. The deadline t*' is the sub-task's initial one a + f_tstar_frac·(b − a) if it admits
+r_0, else the one of {that, b} (those after t) admitting the larger r'; r' is the largest value in
+[r + δ, r_0] (bisection) for which the lower boundary's steepest climb, l'·(γ_0' − γ_∞') at t_r,
+is at most c; no recovery if not even r + δ is admitted. Invariants (property-tested): (1) as for
+G; (2') r + δ ≤ r' ≤ r_0, a ≤ t*' ≤ b and lower(t) ≥ r' for t ≥ t*', so a run that stays inside
+the new funnel has ρ^φ ≥ ρ^ψ(t*') > r'; (4) as for G; and r' is maximal. Invariant 3 has no F
+counterpart (before t* an F funnel's lower boundary is below r by design); r̄ is still the least r
+in force. Like G, only the funnel-controlled owner recovers (c_i = 0): under the F-hold rule
+(stl-funnel.md §6.1 step 5) a robot held above r is not recovered.
+
 **Hysteresis.** A critical event ends the room. A critical event within ``probation`` seconds of
 a recovery (the recovery failed) doubles the dwell (up to ``max_dwell``); a probation passed
 without one resets it to ``dwell``. So a
@@ -58,6 +82,7 @@ class RecoveryParams:
     probation: float = 5.0  # [s] a critical event this soon after a recovery doubles the dwell
     max_dwell: float = 16.0  # [s]
     rate_share: float = 0.5  # share of the robot's achievable dρ/dt the lower boundary may climb
+    f_tasks: bool = True  # recover F sub-tasks too (module docstring, "F sub-tasks")
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,6 +128,72 @@ def recovered_funnel(funnel: Funnel, rho: float, t: float, r_target: float, rate
     return new
 
 
+def _f_candidate(funnel: Funnel, rho: float, t: float, r_new: float, t_star: float,
+                 rate: float, fparams: FunnelParams) -> Funnel | None:
+    """The F funnel at t_r = ``t`` whose lower boundary is r_new at ``t_star`` (module
+    docstring), or None when its steepest climb would exceed ``rate``."""
+    rho_max = funnel.rho_max
+    g_star = rho_max - r_new  # γ(t*') that puts the lower boundary on r'
+    gap = rho_max - rho
+    if not (g_star > 0.0 and gap > 0.0 and t_star - t > fparams.tau_min):
+        return None
+    gamma0 = gap + min(fparams.gamma0_margin * gap, fparams.zeta_l)
+    if gamma0 <= g_star:  # the lower boundary starts at or above r' already
+        gamma_inf = fparams.ginf_frac * gamma0
+        l = rate / (gamma0 - gamma_inf)
+    else:
+        gamma_inf = fparams.ginf_frac * g_star
+        l = math.log((gamma0 - gamma_inf) / (g_star - gamma_inf)) / (t_star - t)
+        if l * (gamma0 - gamma_inf) > rate:
+            return None
+    if not 0.0 < gamma_inf < gamma0:
+        return None
+    return replace(funnel, r=r_new, gamma0=gamma0, gamma_inf=gamma_inf, l=l, t_star=t_star,
+                   t_r=t)
+
+
+def f_deadlines(funnel: Funnel, t: float, fparams: FunnelParams) -> tuple[float, ...]:
+    """The deadlines t*' an F recovery at ``t`` may use: the sub-task's initial one
+    a + f_tstar_frac·(b − a) (stl-funnel.md §5) and b, those more than τ_min ahead."""
+    first = funnel.a + fparams.f_tstar_frac * (funnel.b - funnel.a)
+    return tuple(s for s in (first, funnel.b) if s - t > fparams.tau_min)
+
+
+def recovered_f_funnel(funnel: Funnel, rho: float, t: float, r_target: float, rate: float,
+                       fparams: FunnelParams, iterations: int = 48) -> Funnel | None:
+    """The F funnel of a recovery at ``t`` with ρ = ``rho`` (module docstring, "F sub-tasks"): the
+    largest r' ∈ [r + δ, ``r_target``] (bisection, ``iterations`` halvings) that some deadline of
+    :func:`f_deadlines` admits with a climb no steeper than ``rate``, the earlier deadline on a
+    tie; None when not even r + δ is admissible (or ρ ≥ ρ_max, rate ≤ 0, the window is over)."""
+    r_min = funnel.r + fparams.delta
+    if (funnel.kind != "F" or not rho < funnel.rho_max or rate <= 0.0
+            or not r_target >= r_min):
+        return None
+    best: Funnel | None = None
+    for t_star in f_deadlines(funnel, t, fparams):
+        low = _f_candidate(funnel, rho, t, r_min if best is None else best.r, t_star, rate,
+                           fparams)
+        if low is None:
+            continue
+        top = _f_candidate(funnel, rho, t, r_target, t_star, rate, fparams)
+        if top is not None:  # nothing can beat r_target: take it at the earliest deadline
+            best = top
+            break
+        lo, hi = low.r, r_target  # admissible at lo, not at hi
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            cand = _f_candidate(funnel, rho, t, mid, t_star, rate, fparams)
+            if cand is None:
+                hi = mid
+            else:
+                lo, low = mid, cand
+        if best is None or low.r > best.r:
+            best = low
+    if best is not None:
+        best.check(rho, t, "F recovery")
+    return best
+
+
 def reach_time(funnel: Funnel, level: float) -> float:
     """First t ≥ t_r [s] with lower(t) ≥ ``level`` (inf if never)."""
     if funnel.lower(funnel.t_r) >= level:
@@ -130,6 +221,8 @@ def advance(state: RecoveryState, funnel: Funnel, rho: float, t: float, rate: fl
     if state.probation_until < t and state.probation_until > -math.inf:
         # the last recovery passed its probation without a critical event: reset the hysteresis
         state = replace(state, dwell=params.dwell, probation_until=-math.inf)
+    if funnel.kind == "F":
+        return _advance_f(state, funnel, rho, t, rate, fparams, params)
     margin = params.margin_deltas * fparams.delta
     if not (rho - funnel.r >= margin and funnel.r < state.r0 and rho < funnel.rho_max):
         if not math.isnan(state.room_since):
@@ -147,9 +240,35 @@ def advance(state: RecoveryState, funnel: Funnel, rho: float, t: float, rate: fl
     new = recovered_funnel(funnel, rho, t, target, rate, fparams)
     if new is None:
         return state, None
+    return _recovered(state, funnel, t, params), new
+
+
+def _recovered(state: RecoveryState, funnel: Funnel, t: float,
+               params: RecoveryParams) -> RecoveryState:
+    """The state after a recovery at ``t`` that replaced ``funnel`` (its r joins the floor)."""
     return replace(state, room_since=math.nan, rho_low=math.inf, last_recovery=t,
                    probation_until=t + params.probation, count=state.count + 1,
-                   r_floor=min(state.r_floor, funnel.r)), new
+                   r_floor=min(state.r_floor, funnel.r))
+
+
+def _advance_f(state: RecoveryState, funnel: Funnel, rho: float, t: float, rate: float,
+               fparams: FunnelParams, params: RecoveryParams
+               ) -> tuple[RecoveryState, Funnel | None]:
+    """:func:`advance` for an F sub-task (module docstring, "F sub-tasks"): room is time without
+    a critical event while r is below r_0, ρ below ρ_max and the window not yet over."""
+    if not (funnel.r < state.r0 and rho < funnel.rho_max and t < funnel.b - fparams.tau_min):
+        if not math.isnan(state.room_since):
+            state = replace(state, room_since=math.nan, rho_low=math.inf)
+        return state, None
+    if math.isnan(state.room_since):
+        return replace(state, room_since=t, rho_low=rho), None
+    state = replace(state, rho_low=min(state.rho_low, rho))
+    if t - state.room_since < state.dwell or state.r0 < funnel.r + fparams.delta:
+        return state, None
+    new = recovered_f_funnel(funnel, rho, t, state.r0, rate, fparams)
+    if new is None:
+        return state, None
+    return _recovered(state, funnel, t, params), new
 
 
 def achievable_rate(grad_own, max_lin: float, max_ang: float) -> float:

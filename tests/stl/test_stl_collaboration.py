@@ -14,6 +14,7 @@ from agent.stl.funnel import Funnel
 from agent.stl.harness import run_closed_loop
 from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
 from agent.stl.monitor import task_robustness
+from agent.stl.recovery import RecoveryParams
 from agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
 from agent.stl.sequencer import build_sequence
 
@@ -57,15 +58,16 @@ def test_choose_stage():
     assert choose_stage(5, 2, 3, 3, False) == 2  # repeat while c_i = i
 
 
-def make_pair(latency_collision=None):
+def make_pair(latency_collision=None, recovery=None):
     lib_tasks = {
         3: build_sequence(3, [f"F[57,58] ({PSI_3})"], stl_ids=[3, 4]),
         4: build_sequence(4, ["F[83,87] (dist(p4, [2,2]) <= 0.1)"], stl_ids=[3, 4]),
     }
     library = {(j, t.index): t for j, seq in lib_tasks.items() for t in seq}
     col = latency_collision or CollisionParams(beta=0.0)
-    a3 = single_agent(3, lib_tasks[3], library=library, peers=[4], collision=col)
-    a4 = single_agent(4, lib_tasks[4], library=library, peers=[3], collision=col)
+    extra = {} if recovery is None else {"recovery": recovery}
+    a3 = single_agent(3, lib_tasks[3], library=library, peers=[4], collision=col, **extra)
+    a4 = single_agent(4, lib_tasks[4], library=library, peers=[3], collision=col, **extra)
     return a3, a4, lib_tasks
 
 
@@ -94,7 +96,8 @@ def test_follower_adopts_updates_and_is_released():
 
 
 def test_11_7_coupled_stage2_sequence():
-    a3, a4, tasks = make_pair()
+    # the regression values of stl-funnel.md §11.7 are Algorithm 2 as published: no recovery
+    a3, a4, tasks = make_pair(recovery=RecoveryParams(enabled=False))
     result = run_closed_loop([a3, a4], {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, 60, start=30)
     ev3 = result.events(3)
     # agent 3: two stage-1 repairs then the stage-2 entry at ≈ 34.86 s
@@ -120,6 +123,32 @@ def test_11_7_coupled_stage2_sequence():
     assert o4.t_done == pytest.approx(83.0)
     rho4 = task_robustness(tasks[4][0], result.trajectory)
     assert rho4 == pytest.approx(-0.134, abs=2e-3) and rho4 >= o4.final_r and rho4 >= -0.4
+
+
+def test_11_7_with_f_recovery_agent4_gets_back_its_original_r():
+    """The same run with robustness recovery (tlfleet's default, agent.stl.recovery "F
+    sub-tasks"): agent 3's story is unchanged (it requests help: c_3 = 3, no recovery); agent 4's
+    stage-3 repairs lowered r for the funnel's front-loaded contraction, not for an infeasible
+    task, so once it keeps up a recovery raises r back to r_0 = r_frac·ρ_max and φ''_4 ends
+    above r_0 instead of at −0.134."""
+    plain = run_closed_loop(list(make_pair(recovery=RecoveryParams(enabled=False))[:2]),
+                            {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, 60, start=30)
+    a3, a4, tasks = make_pair()
+    result = run_closed_loop([a3, a4], {3: (0.0, -2.0, 0.0), 4: (0.0, 0.0, 0.0)}, 60, start=30)
+    assert result.events(3) == plain.events(3)
+    assert result.states[3].outcomes == plain.states[3].outcomes
+    (o4,) = result.states[4].outcomes
+    (p4,) = plain.states[4].outcomes
+    assert o4.events == p4.events and o4.recoveries >= 1
+    recoveries = [rec for rec in result.logs[4] if rec.recovered]
+    assert len(recoveries) == o4.recoveries and recoveries[-1].t < 83.0
+    r0 = a4.cfg.funnel.r_frac * 0.09  # ρ_max = 0.9·ρ_opt at the re-initialisation
+    assert recoveries[-1].r == pytest.approx(r0)
+    rho4 = task_robustness(tasks[4][0], result.trajectory)
+    # F-hold + first-instant completion (single_agent's defaults): done just above r_0
+    assert o4.ended_by == "satisfaction" and r0 < rho4 < r0 + 1e-3
+    assert rho4 > task_robustness(tasks[4][0], plain.trajectory) + 0.15
+    assert o4.final_r == p4.final_r and rho4 >= o4.final_r  # r̄: the least r in force
 
 
 def test_11_7_with_zero_latency_keeps_the_story():
