@@ -163,6 +163,8 @@ class SimProcess:
                                          config.world)
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
+        self._every = tuple((d, keys.mocap_every(scenario.fleet, d))
+                            for d in keys.frame_dividers(self.dividers.values()))
         self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
                                max_age=config.max_command_age)
         a = scenario.arena
@@ -235,7 +237,7 @@ class SimProcess:
         next_publish = self._now()
         while not self.stopping:
             if self._now() >= next_publish:
-                self._publish(self._keys["mocap"], MocapFrame(0.0, 0, self._frame0, ()))
+                self._publish_frame(MocapFrame(0.0, 0, self._frame0, ()))
                 next_publish += self.config.preview_period
             self._pump(max(0.0, min(next_publish - self._now(), self.config.poll)))
             if self.started:
@@ -313,7 +315,7 @@ class SimProcess:
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
         self.timing.frame_published(k, self._now())
-        self._publish(self._keys["mocap"], MocapFrame(self.t, k, poses, due))
+        self._publish_frame(MocapFrame(self.t, k, poses, due))
 
     def _advance(self, k: int, commands: list[Command], due: tuple[int, ...]) -> None:
         """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}.
@@ -430,6 +432,15 @@ class SimProcess:
 
     def _publish(self, key: str, message: object) -> None:
         self.transport.publish(key, encode(message))
+
+    def _publish_frame(self, frame: MocapFrame) -> None:
+        """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d`` for each
+        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys)."""
+        payload = encode(frame)
+        self.transport.publish(self._keys["mocap"], payload)
+        for divider, key in self._every:
+            if frame.seq % divider == 0:
+                self.transport.publish(key, payload)
 
     def _event(self, kind: str, **data: object) -> None:
         self._publish(self._keys["event"], Event(self.t, SOURCE, kind, dict(data)))

@@ -18,7 +18,11 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
   first and the queries are only issued, so round trips delay neither this command nor the
   next frame; then status and events;
-* stale mocap: no frame for ``stale_after`` [s] wall after the start → the zero command (with the
+* frames: an agent whose robot has control divider d ≥ 2 reads ``mocap_every/<d>`` (the frames
+  with ``seq % d == 0``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
+  only be due at those ticks, lockstep or realtime;
+* stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
+  the gap between its frames, ``LoopConfig.stale_limit``) → the zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
 * malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
@@ -28,7 +32,7 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   sequence jump (``LoopConfig.max_jump``, :class:`agent.protocol.plausibility.FrameGate`) → counted
   and dropped, so garbage never displaces the newest valid frame; a frame older than the last one
   handled is ignored;
-* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_after`` after the
+* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
   previous one (the process was frozen, or the link cut) first drains the backlog the transport
   delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
   ``Event(resumed)``.
@@ -67,12 +71,32 @@ class LoopConfig:
     bounds: FleetBounds | None = None  # plausibility of frames (None: codec checks only)
     max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
     resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
+    # Subscribe to keys.mocap_every(fleet, divider) instead of keys.mocap when divider ≥ 2: only
+    # the frames this robot can be due for (seq % divider == 0). The staleness limit then grows
+    # by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
+    decimated: bool = False
+    mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
 
     def __post_init__(self) -> None:
         if self.divider < 1:
             raise ValueError(f"LoopConfig.divider must be ≥ 1, got {self.divider}")
         if self.stale_after <= 0:
             raise ValueError(f"LoopConfig.stale_after must be positive, got {self.stale_after}")
+        if not self.mocap_rate > 0:
+            raise ValueError(f"LoopConfig.mocap_rate must be positive, got {self.mocap_rate}")
+
+    @property
+    def frames_decimated(self) -> bool:
+        """True when the loop reads only every ``divider``-th frame (``mocap_every``)."""
+        return self.decimated and self.divider > 1
+
+    @property
+    def stale_limit(self) -> float:
+        """[s] wall without a frame after which mocap is stale: ``stale_after``, plus twice the
+        expected gap (divider − 1) / mocap_rate between the frames of a decimated loop."""
+        if not self.frames_decimated:
+            return self.stale_after
+        return self.stale_after + 2.0 * (self.divider - 1) / self.mocap_rate
 
 
 @dataclass(frozen=True)
@@ -157,7 +181,10 @@ class AgentLoop:
         self._stale_sent = -float("inf")
         self.gate = FrameGate(config.max_jump) if config.max_jump else None
         fleet, robot = config.fleet, config.robot
-        self._keys = {"mocap": keys.mocap(fleet), "control": keys.control(fleet),
+        mocap = (keys.mocap_every(fleet, config.divider) if config.frames_decimated
+                 else keys.mocap(fleet))
+        self._stale_limit = config.stale_limit
+        self._keys = {"mocap": mocap, "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
                       "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot)}
 
@@ -290,7 +317,7 @@ class AgentLoop:
             self.stats.old_frames += 1  # reordered or late: the newer one was handled
             return
         if (not frame.due and self.started and self._last_frame_wall is not None
-                and self.clock() - self._last_frame_wall > self.config.stale_after
+                and self.clock() - self._last_frame_wall > self._stale_limit
                 and frame.seq > 0):
             frame = self._resume(frame)
         robot = self.config.robot
@@ -398,7 +425,7 @@ class AgentLoop:
         if not self.started or self._last_frame_wall is None:
             return
         now = self.clock()
-        if now - self._last_frame_wall < self.config.stale_after:
+        if now - self._last_frame_wall < self._stale_limit:
             return
         if not self._stale:
             self._stale = True
