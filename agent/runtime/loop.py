@@ -54,7 +54,7 @@ from agent.protocol.messages import CollabMessage, Command, Control, Event, Moca
 from agent.protocol.plausibility import FrameGate, Verdict
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
-from bus.transport import Closeable, Transport
+from bus.transport import Channel, Closeable, Transport
 
 logger = logging.getLogger(__name__)
 
@@ -180,6 +180,7 @@ class AgentLoop:
         self._stale = False
         self._stale_sent = -float("inf")
         self.gate = FrameGate(config.max_jump) if config.max_jump else None
+        self._channel: Channel | None = None
         fleet, robot = config.fleet, config.robot
         mocap = (keys.mocap_every(fleet, config.divider) if config.frames_decimated
                  else keys.mocap(fleet))
@@ -191,10 +192,26 @@ class AgentLoop:
     # set-up and tear-down -------------------------------------------------------------------
 
     def open(self) -> None:
+        """Subscribe. Frames come through a channel read by the loop's own thread when the
+        transport has ``subscribe_channel`` (zenoh, the fake bus; issue 17: no thread hand-over
+        per frame), else through a callback into the mailbox."""
         box = self.mailbox
-        self._handles.append(self.transport.subscribe(self._keys["mocap"], self._receive_frame))
-        self._handles.append(self.transport.subscribe(self._keys["control"],
-                                                      lambda _k, p: box.put_control(p)))
+        subscribe_channel = getattr(self.transport, "subscribe_channel", None)
+        if subscribe_channel is not None:
+            channel = subscribe_channel(self._keys["mocap"])
+            self._channel = channel
+            self._handles.append(channel)
+
+            def on_control(_key: str, payload: bytes) -> None:
+                box.put_control(payload)
+                channel.wake()
+        else:
+            self._handles.append(self.transport.subscribe(self._keys["mocap"],
+                                                          self._receive_frame))
+
+            def on_control(_key: str, payload: bytes) -> None:
+                box.put_control(payload)
+        self._handles.append(self.transport.subscribe(self._keys["control"], on_control))
         if self.link is not None:
             self.link.open()
 
@@ -204,6 +221,8 @@ class AgentLoop:
 
     def close(self) -> None:
         self.mailbox.stop()
+        if self._channel is not None:
+            self._channel.wake()
         if self.link is not None:
             self.link.close()
         for handle in reversed(self._handles):
@@ -245,6 +264,9 @@ class AgentLoop:
 
     def run_once(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` [s] for input and handle it; False once stopped."""
+        if self._channel is not None:
+            self._pump_channel(timeout)
+            timeout = 0.0
         wake = self.mailbox.wait(timeout)
         for payload in wake.controls:
             self._on_control(payload)
@@ -258,6 +280,23 @@ class AgentLoop:
             self._check_stale()
         self._flush_malformed()
         return True
+
+    def _pump_channel(self, timeout: float) -> None:
+        """Read the frame channel on this thread: wait up to ``timeout`` [s] for the first
+        sample (a wake-up or the timeout returns None), then take whatever else is queued;
+        each frame is checked as the callback would (``_receive_frame``) and the newest valid
+        one waits in the mailbox's slot."""
+        channel = self._channel
+        item = channel.recv(timeout)
+        while item is not None:
+            self._receive_frame(item[0], item[1])
+            item = channel.recv(0.0)
+
+    def _newer_frame(self, timeout: float) -> tuple[bytes, object] | None:
+        if self._channel is not None:
+            self._pump_channel(timeout)
+            timeout = 0.0
+        return self.mailbox.newer_frame(timeout)
 
     @property
     def last_t(self) -> float:
@@ -360,7 +399,7 @@ class AgentLoop:
         newest = frame
         deadline = time.monotonic() + 10 * self.config.resume_settle
         while time.monotonic() < deadline:
-            got = self.mailbox.newer_frame(self.config.resume_settle)
+            got = self._newer_frame(self.config.resume_settle)
             if got is None:
                 break
             payload, decoded = got
