@@ -126,10 +126,12 @@ class FakeTransport:
             self.network._subscribers.append(entry)
         return Handle(lambda: self.network._remove(self.network._subscribers, entry))
 
-    def subscribe_channel(self, key: str) -> FakeChannel:
-        """A :class:`bus.transport.Channel` of ``key``: deliveries are queued for ``recv``."""
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> FakeChannel:
+        """A :class:`bus.transport.Channel` of ``key_expr``: deliveries are queued for ``recv``
+        (``wake_key`` is zenoh's concern: the fake's wake-up never travels)."""
+        del wake_key
         channel = FakeChannel()
-        channel._handle = self.subscribe(key, channel._put)
+        channel._handle = self.subscribe(key_expr, channel._put)
         return channel
 
     def serve(self, key: str, handler: QueryHandler) -> Closeable:

@@ -38,7 +38,8 @@ class Channel(Protocol):
     (coarse: the zenoh channel's timer ticks every :data:`CHANNEL_TICK`) or ``wake()`` was
     called (from any thread); ``recv(0.0)`` never blocks. A wake-up queued before samples is
     skipped (the caller is awake anyway). A sample without payload (a zenoh DELETE) reads as a
-    wake-up. Created by ``subscribe_channel(key)`` of the transports that have one.
+    wake-up. Created by ``subscribe_channel(key_expr, wake_key=None)`` of the transports that
+    have one (``wake_key``: a concrete key matching ``key_expr``, when that has wildcards).
     """
 
     def recv(self, timeout: float) -> tuple[str, bytes] | None: ...
@@ -49,7 +50,7 @@ class Channel(Protocol):
 
 
 #: [s] how often a zenoh channel's timer thread checks whether a blocked ``recv`` is due back
-CHANNEL_TICK = 0.02
+CHANNEL_TICK = 0.05
 
 
 class Transport(Protocol):

@@ -103,9 +103,10 @@ class ZenohTransport:
         self._entities.append(sub)
         return Handle(sub.undeclare)
 
-    def subscribe_channel(self, key: str) -> ZenohChannel:
-        """A :class:`bus.transport.Channel` of the concrete ``key`` (issue 17)."""
-        channel = ZenohChannel(self._session, key)
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> ZenohChannel:
+        """A :class:`bus.transport.Channel` of ``key_expr`` (issue 17); ``wake_key``: the
+        concrete key matching it that ``wake()`` uses (default ``key_expr`` itself)."""
+        channel = ZenohChannel(self._session, key_expr, wake_key)
         self._entities.append(channel)
         return channel
 
@@ -207,11 +208,11 @@ class ZenohChannel:
 
     CAPACITY = 1024  # samples queued before zenoh drops the newest (the loop keeps up)
 
-    def __init__(self, session: Any, key: str):
+    def __init__(self, session: Any, key: str, wake_key: str | None = None):
         import zenoh
 
         self._session = session
-        self._key = key
+        self._key = wake_key or key
         self._local = zenoh.Locality.SESSION_LOCAL
         self._delete = zenoh.SampleKind.DELETE
         self._sub = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))

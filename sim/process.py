@@ -60,7 +60,7 @@ from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
 from agent.scenario import Scenario, load_scenario
 from bus.signals import install_signal_handlers
-from bus.transport import Closeable, Transport, TransportConfig, open_transport
+from bus.transport import Channel, Closeable, Transport, TransportConfig, open_transport
 from sim.clock import Pacer, TickClock
 from sim.command_age import CommandAge
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
@@ -184,6 +184,7 @@ class SimProcess:
         self.timing = TimingStats()
         # (kind, key, payload or liveliness, arrival wall time [s]) from the transport callbacks
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
+        self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
                       "event": keys.event(self.fleet)}
 
@@ -194,12 +195,16 @@ class SimProcess:
         handles: list[Closeable] = []
         try:
             inbox, now = self._inbox, self._now
+            wake = self._open_command_channel(handles)
+            if self._cmds is None:
+                handles.append(self.transport.subscribe(
+                    keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
             handles.append(self.transport.subscribe(
-                keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
-            handles.append(self.transport.subscribe(
-                keys.control(self.fleet), lambda k, p: inbox.put(("control", k, p, 0.0))))
+                keys.control(self.fleet), lambda k, p: (inbox.put(("control", k, p, 0.0)),
+                                                        wake())))
             handles.append(self.transport.watch_alive(
-                keys.all_alive(self.fleet), lambda k, up: inbox.put(("alive", k, up, 0.0))))
+                keys.all_alive(self.fleet), lambda k, up: (inbox.put(("alive", k, up, 0.0)),
+                                                           wake())))
             handles.append(self.transport.declare_alive(keys.alive(self.fleet, "sim", 0)))
             logger.info("sim %s: %d robots, %s mode, seed %d, duration %g s", self.fleet,
                         len(self.world.ids), self.config.mode, self.config.seed,
@@ -224,6 +229,21 @@ class SimProcess:
                     handle.close()
                 except Exception:
                     logger.exception("undeclaring a sim entity failed")
+
+    def _open_command_channel(self, handles: list[Closeable]) -> Callable[[], None]:
+        """Lockstep (issue 17): the commands come through a channel read by this loop's thread
+        (``Transport.subscribe_channel``, when the transport has one), so a command wakes the
+        loop directly; the loop is blocked waiting for them, so the arrival time it stamps is
+        the arrival. Realtime keeps the callback, which stamps arrivals while the loop sleeps
+        through the period. Returns what wakes the channel (a no-op without one)."""
+        subscribe_channel = getattr(self.transport, "subscribe_channel", None)
+        if self.config.mode != "lockstep" or subscribe_channel is None or not self.world.ids:
+            return lambda: None
+        # the wake-up is session-local: it reaches only this subscriber, never an agent
+        self._cmds = subscribe_channel(keys.all_cmds(self.fleet),
+                                       wake_key=keys.cmd(self.fleet, self.world.ids[0]))
+        handles.append(self._cmds)
+        return self._cmds.wake
 
     @property
     def stopping(self) -> bool:
@@ -356,6 +376,13 @@ class SimProcess:
 
     def _pump(self, timeout: float) -> None:
         """Handle everything the callbacks queued, waiting up to ``timeout`` [s] for the first."""
+        cmds = self._cmds
+        if cmds is not None:  # lockstep: commands on this thread, then what the callbacks queued
+            item = cmds.recv(timeout if self._inbox.empty() else 0.0)
+            while item is not None:
+                self._on_command(item[0], item[1], self._now())
+                item = cmds.recv(0.0)
+            timeout = 0.0
         try:
             item = self._inbox.get(timeout=timeout) if timeout > 0.0 else self._inbox.get_nowait()
         except queue.Empty:
