@@ -2,7 +2,9 @@
 
 One loop on the main thread owns the :class:`~sim.world.World` and every piece of state. The
 transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
-callbacks tiny); the loop decodes, decides and publishes.
+callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
+channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
+``mocap`` and on ``mocap_every/<d>`` for the fleet's dividers d ≥ 2 that divide its seq.
 
 Protocol (architecture.md §3 and the issue-5 contract):
 
