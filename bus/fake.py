@@ -7,6 +7,7 @@ dying (its liveliness tokens go, nothing more is delivered to or from it).
 
 from __future__ import annotations
 
+import queue
 import threading
 from typing import Any
 
@@ -73,6 +74,40 @@ class FakeNetwork:
                 registry.remove(entry)
 
 
+class FakeChannel:
+    """:class:`bus.transport.Channel` of the fake bus: a FIFO queue filled by deliveries."""
+
+    def __init__(self) -> None:
+        self._queue: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
+        self._handle: Closeable | None = None
+
+    def _put(self, key: str, payload: bytes) -> None:
+        self._queue.put((key, payload))
+
+    def recv(self, timeout: float) -> tuple[str, bytes] | None:
+        woken = False
+        try:
+            while (item := self._queue.get_nowait()) is None:
+                woken = True  # a wake-up queued before the samples behind it: skip it
+            return item
+        except queue.Empty:
+            pass
+        if woken or timeout <= 0.0:
+            return None
+        try:
+            return self._queue.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+    def wake(self) -> None:
+        self._queue.put(None)
+
+    def close(self) -> None:
+        if self._handle is not None:
+            self._handle.close()
+            self._handle = None
+
+
 class FakeTransport:
     """:class:`Transport` on a :class:`FakeNetwork`; ``kill()`` simulates the process dying."""
 
@@ -90,6 +125,14 @@ class FakeTransport:
         with self.network._lock:
             self.network._subscribers.append(entry)
         return Handle(lambda: self.network._remove(self.network._subscribers, entry))
+
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> FakeChannel:
+        """A :class:`bus.transport.Channel` of ``key_expr``: deliveries are queued for ``recv``
+        (``wake_key`` is zenoh's concern: the fake's wake-up never travels)."""
+        del wake_key
+        channel = FakeChannel()
+        channel._handle = self.subscribe(key_expr, channel._put)
+        return channel
 
     def serve(self, key: str, handler: QueryHandler) -> Closeable:
         entry = (self, key, handler)

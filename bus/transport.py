@@ -30,6 +30,30 @@ class Closeable(Protocol):
     def close(self) -> None: ...
 
 
+class Channel(Protocol):
+    """The samples of one concrete key, read by the thread that handles them (issue 17).
+
+    A callback subscriber hands every sample from the transport's thread to the process's loop
+    (a thread wake-up per sample); a channel is read by the loop itself. ``recv(timeout)``
+    returns the oldest queued ``(key, payload)``, or ``None`` when ``timeout`` [s] passed
+    (coarse: the zenoh channel's timer ticks every :data:`CHANNEL_TICK`) or ``wake()`` was
+    called (from any thread); ``recv(0.0)`` never blocks. A wake-up queued before samples is
+    skipped (the caller is awake anyway). A sample without payload (a zenoh DELETE) reads as a
+    wake-up. Created by ``subscribe_channel(key_expr, wake_key=None)`` of the transports that
+    have one (``wake_key``: a concrete key matching ``key_expr``, when that has wildcards).
+    """
+
+    def recv(self, timeout: float) -> tuple[str, bytes] | None: ...
+
+    def wake(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+#: [s] how often a zenoh channel's timer thread checks whether a blocked ``recv`` is due back
+CHANNEL_TICK = 0.05
+
+
 class Transport(Protocol):
     """What a tlfleet process needs from its middleware."""
 

@@ -12,6 +12,7 @@ import json
 import logging
 import os
 import threading
+import time
 from typing import Any
 
 from bus import zenoh_config
@@ -121,6 +122,13 @@ class ZenohTransport:
         self._entities.append(sub)
         return Handle(sub.undeclare)
 
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> ZenohChannel:
+        """A :class:`bus.transport.Channel` of ``key_expr`` (issue 17); ``wake_key``: the
+        concrete key matching it that ``wake()`` uses (default ``key_expr`` itself)."""
+        channel = ZenohChannel(self._session, key_expr, wake_key)
+        self._entities.append(channel)
+        return channel
+
     def serve(self, key: str, handler: QueryHandler) -> Closeable:
         closing = self._closing
 
@@ -205,3 +213,78 @@ class ZenohTransport:
             self._session.close()
         except Exception:
             logger.exception("closing the zenoh session failed")
+
+
+class ZenohChannel:
+    """:class:`bus.transport.Channel` on a ``FifoChannel`` subscriber (issue 17).
+
+    ``recv`` blocks in zenoh's own ``recv`` on the calling thread, so a sample wakes that thread
+    directly. zenoh's ``recv`` has no timeout: ``wake()`` puts a session-local DELETE on the key
+    (``allowed_destination=SESSION_LOCAL``: it reaches only this session's subscribers, never
+    the network), and a timer thread calls it once a blocked ``recv`` is past its deadline (it
+    ticks every :data:`bus.transport.CHANNEL_TICK`, and only checks a number).
+    """
+
+    CAPACITY = 1024  # samples queued before zenoh drops the newest (the loop keeps up)
+
+    def __init__(self, session: Any, key: str, wake_key: str | None = None):
+        import zenoh
+
+        self._session = session
+        self._key = wake_key or key
+        self._local = zenoh.Locality.SESSION_LOCAL
+        self._delete = zenoh.SampleKind.DELETE
+        self._sub = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))
+        self._deadline: float | None = None  # monotonic [s] of the blocked recv, if any
+        self._closed = threading.Event()
+        self._timer = threading.Thread(target=self._tick, name=f"channel-timer {key}",
+                                       daemon=True)
+        self._timer.start()
+
+    def _tick(self) -> None:
+        from bus.transport import CHANNEL_TICK
+
+        while not self._closed.wait(CHANNEL_TICK):
+            deadline = self._deadline
+            if deadline is not None and time.monotonic() >= deadline:
+                self._deadline = None
+                self.wake()
+
+    def recv(self, timeout: float) -> tuple[str, bytes] | None:
+        woken = False
+        while (sample := self._sub.try_recv()) is not None:
+            if sample.kind != self._delete:
+                return str(sample.key_expr), sample.payload.to_bytes()
+            woken = True  # a wake-up queued before the samples behind it: skip it
+        if woken or timeout <= 0.0 or self._closed.is_set():
+            return None
+        self._deadline = time.monotonic() + timeout
+        try:
+            sample = self._sub.recv()
+        except Exception:  # undeclared under a blocked recv: the channel is closed
+            if self._closed.is_set():
+                return None
+            raise
+        finally:
+            self._deadline = None
+        if sample.kind == self._delete:
+            return None
+        return str(sample.key_expr), sample.payload.to_bytes()
+
+    def wake(self) -> None:
+        try:
+            self._session.delete(self._key, allowed_destination=self._local)
+        except Exception:  # a closed session: nothing is blocked on it any more
+            logger.debug("waking the channel of %s failed", self._key, exc_info=True)
+
+    def close(self) -> None:
+        self.undeclare()
+
+    def undeclare(self) -> None:
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        try:
+            self._sub.undeclare()
+        except Exception:
+            logger.debug("undeclaring the channel of %s failed", self._key, exc_info=True)

@@ -8,8 +8,10 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
 ``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event``;
                token ``alive/agent/i``; serve ``robot/i/collab`` (STL robots);
                query ``robot/j/collab`` for every robot j it is coupled with (below);
-               subscribe ``mocap``, ``clock``, ``control``; watch ``alive/**``
-``sim``        publish ``mocap``, ``clock``, ``event``; subscribe ``robot/*/cmd``,
+               subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d`` instead), ``clock``,
+               ``control``; watch ``alive/**``
+``sim``        publish ``mocap``, ``mocap_every/d`` (each divider d ≥ 2 of the fleet),
+               ``clock``, ``event``; subscribe ``robot/*/cmd``,
                ``control``; token ``alive/sim/0``; watch ``alive/**``
 ``coordinator`` publish ``control``, ``event``; subscribe ``**``; token ``alive/coordinator/0``;
                watch ``alive/**``
@@ -61,11 +63,13 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     everyone_alive = (keys.all_alive(fleet),)
     everything = (f"{keys.prefix(fleet)}/**",)
     coupled = coupled_robots(scenario)
+    dividers = {r.id: scenario.control_divider(r.id) for r in scenario.robots}
+    every = tuple(keys.mocap_every(fleet, d) for d in keys.frame_dividers(dividers.values()))
     grants = [Grant("router", publish=everything, discover=everything, subscribe=everything,
                     serve=everything, query=everything, token=everything, watch=everything)
               ] if mesh else []
     grants += [
-        Grant("sim", publish=(keys.mocap(fleet), keys.clock(fleet), keys.event(fleet)),
+        Grant("sim", publish=(keys.mocap(fleet), *every, keys.clock(fleet), keys.event(fleet)),
               discover=everything,
               subscribe=(keys.all_cmds(fleet), keys.control(fleet)),
               token=(keys.alive(fleet, "sim", 0),), watch=everyone_alive),
@@ -75,11 +79,12 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     ]
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         i = robot.id
+        frames = keys.mocap(fleet) if dividers[i] == 1 else keys.mocap_every(fleet, dividers[i])
         grants.append(Grant(
             identity("agent", i),
             publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet)),
             discover=everything,
-            subscribe=(keys.mocap(fleet), keys.clock(fleet), keys.control(fleet)),
+            subscribe=(frames, keys.clock(fleet), keys.control(fleet)),
             serve=(keys.collab(fleet, i),) if robot.is_stl else (),
             query=tuple(keys.collab(fleet, j) for j in coupled.get(i, ())),
             token=(keys.alive(fleet, "agent", i),), watch=everyone_alive))

@@ -2,7 +2,9 @@
 
 One loop on the main thread owns the :class:`~sim.world.World` and every piece of state. The
 transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
-callbacks tiny); the loop decodes, decides and publishes.
+callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
+channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
+``mocap`` and on ``mocap_every/<d>`` for the fleet's dividers d ≥ 2 that divide its seq.
 
 Protocol (architecture.md §3 and the issue-5 contract):
 
@@ -60,7 +62,7 @@ from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
 from agent.scenario import Scenario, load_scenario
 from bus.signals import install_signal_handlers
-from bus.transport import Closeable, Transport, TransportConfig, open_transport
+from bus.transport import Channel, Closeable, Transport, TransportConfig, open_transport
 from sim.clock import Pacer, TickClock
 from sim.command_age import CommandAge
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
@@ -163,6 +165,8 @@ class SimProcess:
                                          config.world)
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
+        self._every = tuple((d, keys.mocap_every(scenario.fleet, d))
+                            for d in keys.frame_dividers(self.dividers.values()))
         self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
                                max_age=config.max_command_age)
         a = scenario.arena
@@ -182,6 +186,7 @@ class SimProcess:
         self.timing = TimingStats()
         # (kind, key, payload or liveliness, arrival wall time [s]) from the transport callbacks
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
+        self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
                       "event": keys.event(self.fleet)}
 
@@ -192,12 +197,16 @@ class SimProcess:
         handles: list[Closeable] = []
         try:
             inbox, now = self._inbox, self._now
+            wake = self._open_command_channel(handles)
+            if self._cmds is None:
+                handles.append(self.transport.subscribe(
+                    keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
             handles.append(self.transport.subscribe(
-                keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
-            handles.append(self.transport.subscribe(
-                keys.control(self.fleet), lambda k, p: inbox.put(("control", k, p, 0.0))))
+                keys.control(self.fleet), lambda k, p: (inbox.put(("control", k, p, 0.0)),
+                                                        wake())))
             handles.append(self.transport.watch_alive(
-                keys.all_alive(self.fleet), lambda k, up: inbox.put(("alive", k, up, 0.0))))
+                keys.all_alive(self.fleet), lambda k, up: (inbox.put(("alive", k, up, 0.0)),
+                                                           wake())))
             handles.append(self.transport.declare_alive(keys.alive(self.fleet, "sim", 0)))
             logger.info("sim %s: %d robots, %s mode, seed %d, duration %g s", self.fleet,
                         len(self.world.ids), self.config.mode, self.config.seed,
@@ -223,6 +232,21 @@ class SimProcess:
                 except Exception:
                     logger.exception("undeclaring a sim entity failed")
 
+    def _open_command_channel(self, handles: list[Closeable]) -> Callable[[], None]:
+        """Lockstep (issue 17): the commands come through a channel read by this loop's thread
+        (``Transport.subscribe_channel``, when the transport has one), so a command wakes the
+        loop directly; the loop is blocked waiting for them, so the arrival time it stamps is
+        the arrival. Realtime keeps the callback, which stamps arrivals while the loop sleeps
+        through the period. Returns what wakes the channel (a no-op without one)."""
+        subscribe_channel = getattr(self.transport, "subscribe_channel", None)
+        if self.config.mode != "lockstep" or subscribe_channel is None or not self.world.ids:
+            return lambda: None
+        # the wake-up is session-local: it reaches only this subscriber, never an agent
+        self._cmds = subscribe_channel(keys.all_cmds(self.fleet),
+                                       wake_key=keys.cmd(self.fleet, self.world.ids[0]))
+        handles.append(self._cmds)
+        return self._cmds.wake
+
     @property
     def stopping(self) -> bool:
         return self.stop_requested or self.stop_event.is_set()
@@ -238,7 +262,7 @@ class SimProcess:
         next_publish = self._now()
         while not self.stopping:
             if self._now() >= next_publish:
-                self._publish(self._keys["mocap"], MocapFrame(0.0, 0, self._frame0, ()))
+                self._publish_frame(MocapFrame(0.0, 0, self._frame0, ()))
                 next_publish += self.config.preview_period
             self._pump(max(0.0, min(next_publish - self._now(), self.config.poll)))
             if self.started:
@@ -316,7 +340,7 @@ class SimProcess:
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
         self.timing.frame_published(k, self._now())
-        self._publish(self._keys["mocap"], MocapFrame(self.t, k, poses, due))
+        self._publish_frame(MocapFrame(self.t, k, poses, due))
 
     def _advance(self, k: int, commands: list[Command], due: tuple[int, ...]) -> None:
         """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}.
@@ -357,6 +381,13 @@ class SimProcess:
 
     def _pump(self, timeout: float) -> None:
         """Handle everything the callbacks queued, waiting up to ``timeout`` [s] for the first."""
+        cmds = self._cmds
+        if cmds is not None:  # lockstep: commands on this thread, then what the callbacks queued
+            item = cmds.recv(timeout if self._inbox.empty() else 0.0)
+            while item is not None:
+                self._on_command(item[0], item[1], self._now())
+                item = cmds.recv(0.0)
+            timeout = 0.0
         try:
             item = self._inbox.get(timeout=timeout) if timeout > 0.0 else self._inbox.get_nowait()
         except queue.Empty:
@@ -433,6 +464,15 @@ class SimProcess:
 
     def _publish(self, key: str, message: object) -> None:
         self.transport.publish(key, encode(message))
+
+    def _publish_frame(self, frame: MocapFrame) -> None:
+        """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d`` for each
+        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys)."""
+        payload = encode(frame)
+        self.transport.publish(self._keys["mocap"], payload)
+        for divider, key in self._every:
+            if frame.seq % divider == 0:
+                self.transport.publish(key, payload)
 
     def _event(self, kind: str, **data: object) -> None:
         self._publish(self._keys["event"], Event(self.t, SOURCE, kind, dict(data)))

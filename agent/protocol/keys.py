@@ -7,6 +7,7 @@ no zenoh import; the runtime hands them to the session.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 
 ROOT = "tlfleet"
 _SEGMENT = re.compile(r"[A-Za-z0-9_-]+\Z")
@@ -31,6 +32,37 @@ def clock(fleet: str) -> str:
 def mocap(fleet: str) -> str:
     """Sim → all: one ``MocapFrame`` with every robot per mocap period."""
     return f"{prefix(fleet)}/mocap"
+
+
+def mocap_every(fleet: str, divider: int) -> str:
+    """Sim → the agents of robots with control divider ``divider`` = d ≥ 2: the same
+    ``MocapFrame`` as ``mocap``, but only the frames with ``seq % d == 0`` (architecture.md §2–§3).
+
+    A robot with divider d can only be due at those ticks, so its agent subscribes here instead
+    of ``mocap`` and is not woken for the other d − 1 frames of each control period (an LTL
+    agent at 5 Hz with 100 Hz mocap: 95 % of the frames). The recorder and the viewer keep
+    reading ``mocap``.
+    """
+    d = int(divider)
+    if d < 2:
+        raise ValueError(f"mocap_every: divider must be ≥ 2 (divider 1 reads mocap), got {d}")
+    return f"{prefix(fleet)}/mocap_every/{d}"
+
+
+def all_mocap_every(fleet: str) -> str:
+    return f"{prefix(fleet)}/mocap_every/*"
+
+
+def frame_keys(fleet: str, seq: int, dividers: tuple[int, ...]) -> tuple[str, ...]:
+    """Every key the frame ``seq`` is published on: ``mocap``, then ``mocap_every/d`` for each
+    divider d ≥ 2 in ``dividers`` (ascending, distinct) with ``seq % d == 0``."""
+    return (mocap(fleet), *(mocap_every(fleet, d) for d in dividers if d > 1 and seq % d == 0))
+
+
+def frame_dividers(dividers: Iterable[int]) -> tuple[int, ...]:
+    """The distinct control dividers ≥ 2 of a fleet (an iterable of ints), ascending: the
+    ``mocap_every`` keys its simulator publishes."""
+    return tuple(sorted({int(d) for d in dividers if int(d) > 1}))
 
 
 def cmd(fleet: str, robot: int) -> str:

@@ -18,7 +18,11 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
   first and the queries are only issued, so round trips delay neither this command nor the
   next frame; then status and events;
-* stale mocap: no frame for ``stale_after`` [s] wall after the start → the zero command (with the
+* frames: an agent whose robot has control divider d ≥ 2 reads ``mocap_every/<d>`` (the frames
+  with ``seq % d == 0``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
+  only be due at those ticks, lockstep or realtime;
+* stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
+  the gap between its frames, ``LoopConfig.stale_limit``) → the zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
 * malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
@@ -28,7 +32,7 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   sequence jump (``LoopConfig.max_jump``, :class:`agent.protocol.plausibility.FrameGate`) → counted
   and dropped, so garbage never displaces the newest valid frame; a frame older than the last one
   handled is ignored;
-* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_after`` after the
+* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
   previous one (the process was frozen, or the link cut) first drains the backlog the transport
   delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
   ``Event(resumed)``.
@@ -50,7 +54,7 @@ from agent.protocol.messages import CollabMessage, Command, Control, Event, Moca
 from agent.protocol.plausibility import FrameGate, Verdict
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
-from bus.transport import Closeable, Transport
+from bus.transport import Channel, Closeable, Transport
 
 logger = logging.getLogger(__name__)
 
@@ -67,12 +71,32 @@ class LoopConfig:
     bounds: FleetBounds | None = None  # plausibility of frames (None: codec checks only)
     max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
     resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
+    # Subscribe to keys.mocap_every(fleet, divider) instead of keys.mocap when divider ≥ 2: only
+    # the frames this robot can be due for (seq % divider == 0). The staleness limit then grows
+    # by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
+    decimated: bool = False
+    mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
 
     def __post_init__(self) -> None:
         if self.divider < 1:
             raise ValueError(f"LoopConfig.divider must be ≥ 1, got {self.divider}")
         if self.stale_after <= 0:
             raise ValueError(f"LoopConfig.stale_after must be positive, got {self.stale_after}")
+        if not self.mocap_rate > 0:
+            raise ValueError(f"LoopConfig.mocap_rate must be positive, got {self.mocap_rate}")
+
+    @property
+    def frames_decimated(self) -> bool:
+        """True when the loop reads only every ``divider``-th frame (``mocap_every``)."""
+        return self.decimated and self.divider > 1
+
+    @property
+    def stale_limit(self) -> float:
+        """[s] wall without a frame after which mocap is stale: ``stale_after``, plus twice the
+        expected gap (divider − 1) / mocap_rate between the frames of a decimated loop."""
+        if not self.frames_decimated:
+            return self.stale_after
+        return self.stale_after + 2.0 * (self.divider - 1) / self.mocap_rate
 
 
 @dataclass(frozen=True)
@@ -156,18 +180,38 @@ class AgentLoop:
         self._stale = False
         self._stale_sent = -float("inf")
         self.gate = FrameGate(config.max_jump) if config.max_jump else None
+        self._channel: Channel | None = None
         fleet, robot = config.fleet, config.robot
-        self._keys = {"mocap": keys.mocap(fleet), "control": keys.control(fleet),
+        mocap = (keys.mocap_every(fleet, config.divider) if config.frames_decimated
+                 else keys.mocap(fleet))
+        self._stale_limit = config.stale_limit
+        self._keys = {"mocap": mocap, "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
                       "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot)}
 
     # set-up and tear-down -------------------------------------------------------------------
 
     def open(self) -> None:
+        """Subscribe. Frames come through a channel read by the loop's own thread when the
+        transport has ``subscribe_channel`` (zenoh, the fake bus; issue 17: no thread hand-over
+        per frame), else through a callback into the mailbox."""
         box = self.mailbox
-        self._handles.append(self.transport.subscribe(self._keys["mocap"], self._receive_frame))
-        self._handles.append(self.transport.subscribe(self._keys["control"],
-                                                      lambda _k, p: box.put_control(p)))
+        subscribe_channel = getattr(self.transport, "subscribe_channel", None)
+        if subscribe_channel is not None:
+            channel = subscribe_channel(self._keys["mocap"])
+            self._channel = channel
+            self._handles.append(channel)
+
+            def on_control(_key: str, payload: bytes) -> None:
+                box.put_control(payload)
+                channel.wake()
+        else:
+            self._handles.append(self.transport.subscribe(self._keys["mocap"],
+                                                          self._receive_frame))
+
+            def on_control(_key: str, payload: bytes) -> None:
+                box.put_control(payload)
+        self._handles.append(self.transport.subscribe(self._keys["control"], on_control))
         if self.link is not None:
             self.link.open()
 
@@ -177,6 +221,8 @@ class AgentLoop:
 
     def close(self) -> None:
         self.mailbox.stop()
+        if self._channel is not None:
+            self._channel.wake()
         if self.link is not None:
             self.link.close()
         for handle in reversed(self._handles):
@@ -218,6 +264,9 @@ class AgentLoop:
 
     def run_once(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` [s] for input and handle it; False once stopped."""
+        if self._channel is not None:
+            self._pump_channel(timeout)
+            timeout = 0.0
         wake = self.mailbox.wait(timeout)
         for payload in wake.controls:
             self._on_control(payload)
@@ -231,6 +280,23 @@ class AgentLoop:
             self._check_stale()
         self._flush_malformed()
         return True
+
+    def _pump_channel(self, timeout: float) -> None:
+        """Read the frame channel on this thread: wait up to ``timeout`` [s] for the first
+        sample (a wake-up or the timeout returns None), then take whatever else is queued;
+        each frame is checked as the callback would (``_receive_frame``) and the newest valid
+        one waits in the mailbox's slot."""
+        channel = self._channel
+        item = channel.recv(timeout)
+        while item is not None:
+            self._receive_frame(item[0], item[1])
+            item = channel.recv(0.0)
+
+    def _newer_frame(self, timeout: float) -> tuple[bytes, object] | None:
+        if self._channel is not None:
+            self._pump_channel(timeout)
+            timeout = 0.0
+        return self.mailbox.newer_frame(timeout)
 
     @property
     def last_t(self) -> float:
@@ -290,7 +356,7 @@ class AgentLoop:
             self.stats.old_frames += 1  # reordered or late: the newer one was handled
             return
         if (not frame.due and self.started and self._last_frame_wall is not None
-                and self.clock() - self._last_frame_wall > self.config.stale_after
+                and self.clock() - self._last_frame_wall > self._stale_limit
                 and frame.seq > 0):
             frame = self._resume(frame)
         robot = self.config.robot
@@ -333,7 +399,7 @@ class AgentLoop:
         newest = frame
         deadline = time.monotonic() + 10 * self.config.resume_settle
         while time.monotonic() < deadline:
-            got = self.mailbox.newer_frame(self.config.resume_settle)
+            got = self._newer_frame(self.config.resume_settle)
             if got is None:
                 break
             payload, decoded = got
@@ -398,7 +464,7 @@ class AgentLoop:
         if not self.started or self._last_frame_wall is None:
             return
         now = self.clock()
-        if now - self._last_frame_wall < self.config.stale_after:
+        if now - self._last_frame_wall < self._stale_limit:
             return
         if not self._stale:
             self._stale = True

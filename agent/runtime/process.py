@@ -53,6 +53,14 @@ def plausibility(scenario: Scenario) -> dict[str, Any]:
     return {"bounds": bounds, "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers)}
 
 
+def frame_subscription(scenario: Scenario) -> dict[str, Any]:
+    """The loop reads only the frames it can be due for (``keys.mocap_every``, issue 17): the
+    simulator of a real scenario publishes them. Test doubles keep reading every frame."""
+    if not isinstance(scenario, Scenario):
+        return {}
+    return {"decimated": True, "mocap_rate": scenario.sim.mocap_rate}
+
+
 def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
               transport: Transport | None = None, stop: threading.Event | None = None) -> int:
     """Run one agent process; 0 on a clean stop, 1 on a fault: ``build`` raising a
@@ -90,7 +98,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             return 1
         core, state, events, link = built
         loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after,
-                                 **plausibility(scenario))
+                                 **plausibility(scenario), **frame_subscription(scenario))
         loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)
         loop.open()
         loop.ready()

@@ -87,9 +87,14 @@ def test_router_and_agent_processes_answer_a_frame_and_stop_on_a_signal(robot, s
         transport.publish(keys.control(fleet), encode(Control("start")))
         poses = tuple((r.id, *r.pose) for r in sorted(scenario.robots, key=lambda r: r.id))
         frame = MocapFrame(0.0, 0, poses, due=(robot,))
+        # the keys the simulator publishes frame 0 on (robot 1, an LTL agent at 5 Hz, reads only
+        # mocap_every/20)
+        frame_keys = keys.frame_keys(fleet, 0, keys.frame_dividers(
+            scenario.control_divider(r.id) for r in scenario.robots))
         deadline = time.monotonic() + 10
         while not answered.is_set() and time.monotonic() < deadline:
-            transport.publish(keys.mocap(fleet), encode(frame))  # duplicates are ignored
+            for key in frame_keys:  # duplicates are ignored
+                transport.publish(key, encode(frame))
             answered.wait(0.2)
         assert answered.is_set(), "no command for the due frame"
         command = commands[0]

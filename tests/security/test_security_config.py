@@ -318,3 +318,16 @@ def test_denial_filter_drops_cache_lines_and_reports_each_denial_once(fast):
     assert f.denied == {("robot3", "Put (ingress)", "tlfleet/f/robot/4/cmd"): 2,
                         ("robot3", "Put (ingress)", "tlfleet/f/control"): 1}
     assert f.lines == 12
+
+
+def test_ltl_robots_read_only_their_decimated_frames(policy):
+    """Issue 17: robot 1 (LTL, divider 20) subscribes mocap_every/20 instead of mocap; the sim
+    publishes it; an STL robot (divider 1) keeps mocap."""
+    every = keys.mocap_every(F, 20)
+    assert allowed(policy, "sim", "ingress", "put", every)
+    assert allowed(policy, "robot1", "ingress", "declare_subscriber", every)
+    assert allowed(policy, "robot1", "egress", "put", every)
+    assert not allowed(policy, "robot1", "ingress", "declare_subscriber", keys.mocap(F))
+    assert not allowed(policy, "robot1", "ingress", "put", every)
+    assert not allowed(policy, "robot3", "ingress", "declare_subscriber", every)
+    assert not allowed(policy, "sim", "ingress", "put", keys.mocap_every(F, 7))

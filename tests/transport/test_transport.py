@@ -139,3 +139,40 @@ def test_zenoh_query_async_returns_before_the_reply(loopback_pair):
         assert finished["served"].wait(5.0) and results["served"] == [b"ack help"]
     finally:
         release.set()  # let a held queryable answer before the sessions close
+
+
+@pytest.mark.system
+def test_zenoh_channel_is_read_by_the_calling_thread(loopback_pair):
+    """Issue 17: a FIFO channel subscriber: samples in order, recv(timeout) returns None on
+    time, wake() from another thread ends a blocked recv, and the wake-up (a session-local
+    DELETE) never reaches another session."""
+    import time
+
+    a, b = loopback_pair
+    channel = a.subscribe_channel("test/channel")
+    other = b.subscribe_channel("test/channel")
+    deadline = time.monotonic() + 10
+    got = None
+    while got is None and time.monotonic() < deadline:  # until the subscription is known
+        b.publish("test/channel", b"hello")
+        got = channel.recv(0.2)
+    assert got == ("test/channel", b"hello")
+    while channel.recv(0.1) is not None:  # the other hellos
+        pass
+    for payload in (b"1", b"2", b"3"):
+        b.publish("test/channel", payload)
+    assert [channel.recv(2.0) for _ in range(3)] == [("test/channel", p) for p in
+                                                       (b"1", b"2", b"3")]
+    began = time.monotonic()
+    assert channel.recv(0.1) is None
+    assert 0.09 <= time.monotonic() - began < 2.0
+    timer = threading.Timer(0.1, channel.wake)
+    timer.start()
+    began = time.monotonic()
+    assert channel.recv(10.0) is None and time.monotonic() - began < 5.0
+    timer.join()
+    time.sleep(0.2)
+    while (item := other.recv(0.0)) is not None:  # b's own hellos came back to it
+        assert item[1] != b""
+    channel.close()
+    other.close()

@@ -1,0 +1,131 @@
+"""Issue 17: an agent with control divider d ≥ 2 reads only ``mocap_every/<d>``, and frames reach
+the loop through a channel read by its own thread (the fake bus's queue here; zenoh's FIFO
+channel in tests/transport)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from runtime_helpers import FakeClock
+
+from agent.protocol import keys
+from agent.protocol.codec import decode, encode
+from agent.protocol.messages import Command, Control, MocapFrame
+from agent.runtime.inbox import MalformedCounter
+from agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
+from bus.fake import FakeChannel, FakeNetwork
+
+FLEET = "frames"
+POSES = ((1, 0.0, 0.0, 0.0), (2, 1.0, 0.0, 0.0))
+
+
+class SeqCore:
+    robot = 1
+    zero = (0.0, 0.0)
+
+    def step(self, state, inputs):
+        return state, TickOutput((float(inputs.frame.seq), 0.0))
+
+
+def make(network, **config):
+    clock = FakeClock()
+    loop = AgentLoop(network.transport("agent1"), LoopConfig(FLEET, 1, **config), SeqCore(), 0,
+                     malformed=MalformedCounter("agent/1", clock=clock), clock=clock)
+    loop.open()
+    loop.ready()
+    return loop, clock
+
+
+def publish(network, key, message):
+    network.transport("sim").publish(key, encode(message))
+
+
+def commands(network):
+    return [decode(Command, p) for k, p in network.published if k == keys.cmd(FLEET, 1)]
+
+
+def test_a_decimated_loop_reads_only_its_frame_key():
+    network = FakeNetwork()
+    loop, _ = make(network, divider=20, decimated=True)
+    publish(network, keys.control(FLEET), Control("start"))
+    for seq in (1, 2, 3):  # on mocap only: never seen
+        publish(network, keys.mocap(FLEET), MocapFrame(seq / 100, seq, POSES))
+        loop.run_once(0.0)
+    assert loop.stats.frames == 0 and commands(network) == []
+    publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.2, 20, POSES, due=(1,)))
+    loop.run_once(0.0)
+    assert [(c.seq, c.u) for c in commands(network)] == [(20, (20.0, 0.0))]
+    # realtime (due = ()): every frame of the key starts a new control period
+    publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.4, 40, POSES))
+    loop.run_once(0.0)
+    assert [c.seq for c in commands(network)] == [20, 40]
+
+
+def test_divider_1_or_not_decimated_reads_mocap():
+    network = FakeNetwork()
+    for config in ({"divider": 1, "decimated": True}, {"divider": 20}):
+        loop, _ = make(network, **config)
+        assert loop._keys["mocap"] == keys.mocap(FLEET)
+        loop.close()
+
+
+def test_the_staleness_limit_of_a_decimated_loop_adds_two_frame_gaps():
+    assert LoopConfig(FLEET, 1, 20, 0.5).stale_limit == 0.5
+    assert LoopConfig(FLEET, 1, 20, 0.5, decimated=True).stale_limit == 0.5 + 2 * 19 / 100
+    assert LoopConfig(FLEET, 1, 1, 0.5, decimated=True).stale_limit == 0.5
+    network = FakeNetwork()
+    loop, clock = make(network, divider=20, decimated=True, stale_after=0.5)
+    publish(network, keys.control(FLEET), Control("start"))
+    publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.2, 20, POSES, due=(1,)))
+    loop.run_once(0.0)
+    clock.advance(0.8)  # beyond stale_after, within the decimated limit (0.88 s)
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0
+    clock.advance(0.1)
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 1
+
+
+def test_the_fake_channel_skips_queued_wakeups_and_times_out():
+    channel = FakeChannel()
+    assert channel.recv(0.0) is None
+    began = time.monotonic()
+    assert channel.recv(0.05) is None and time.monotonic() - began >= 0.04
+    channel.wake()
+    channel._put("k", b"1")
+    assert channel.recv(1.0) == ("k", b"1")  # the wake-up before it is skipped
+    channel.wake()
+    began = time.monotonic()
+    assert channel.recv(5.0) is None and time.monotonic() - began < 1.0
+
+
+def test_a_control_wakes_a_loop_blocked_on_its_channel():
+    network = FakeNetwork()
+    loop, _ = make(network)
+    assert loop._channel is not None  # the fake bus has channels: frames are read by the loop
+    done = threading.Event()
+
+    def blocked():
+        loop.run_once(5.0)
+        done.set()
+
+    thread = threading.Thread(target=blocked)
+    thread.start()
+    time.sleep(0.05)
+    publish(network, keys.control(FLEET), Control("start"))
+    assert done.wait(2.0), "the control did not wake the loop"
+    thread.join(2.0)
+    assert loop.started
+
+
+def test_the_channel_loop_keeps_the_newest_valid_frame():
+    network = FakeNetwork()
+    loop, _ = make(network)
+    publish(network, keys.control(FLEET), Control("start"))
+    for seq in (5, 6, 7):
+        publish(network, keys.mocap(FLEET), MocapFrame(seq / 100, seq, POSES))
+    network.transport("x").publish(keys.mocap(FLEET), b"garbage")
+    loop.run_once(0.0)
+    assert [c.seq for c in commands(network)] == [7]
+    assert loop.mailbox.frames_overwritten == 2 and loop.malformed.total == 1
