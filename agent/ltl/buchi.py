@@ -34,8 +34,16 @@ from agent.ltl.printer import to_string
 from agent.ltl.rewrite import normalize
 from agent.ltl.simulation import reduce_by_simulation, saturate_acceptance, single_initial
 from agent.ltl.tgba import build_tgba
+from agent.ltl.tgba_simulation import reduce_tgba
+from agent.ltl.wdba import minimize_obligation
 
 Edge = tuple[int, Guard]
+REVERSED_DEGEN_MAX_STATES = 32
+"""Largest TGBA (states) also degeneralised with the marks in reverse order."""
+WDBA_MAX_INPUT = 40
+"""Largest reduced automaton (states) for which the minimal weak DBA is tried."""
+WDBA_MAX_STATES = 64
+"""Largest subset construction (states) the weak-DBA minimisation builds."""
 HOA_TASK_PREFIX = "hoa:"  # the same as agent.ltl.hoa_reader.HOA_TASK_PREFIX
 
 
@@ -138,7 +146,7 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         raise TooManyPropositions(len(atoms))
     index = {a: i for i, a in enumerate(atoms)}
     text = to_string(tree)
-    variants = list(build_tgba(normalize(tree), index))
+    variants = [reduce_tgba(tgba) for tgba in build_tgba(normalize(tree), index)]
     for tgba in list(variants):
         # Several initial states (a disjunction at the top): merge the choice into one state.
         if len(tgba.initial) > 1 and tgba.num_states <= 32:
@@ -147,11 +155,26 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
                 variants.append(merged)
     cheap = [_cheap_reduce(_remove_useless(*degeneralize(tgba))) for tgba in variants]
     best = min(cheap, key=lambda aut: (aut[0], sum(len(out) for out in aut[3])))
+    # The other order of the marks (Spot's degen-order); kept only when it saves states.
+    for tgba in variants:
+        if tgba.num_marks > 1 and tgba.num_states <= REVERSED_DEGEN_MAX_STATES:
+            other = _cheap_reduce(_remove_useless(*degeneralize(tgba, reverse=True)))
+            cheap.append(other)
+            if other[0] < best[0]:
+                best = other
     full = _reduce(best)
     if len(full[1]) > 1:  # one initial state, when that costs no state
         single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
         if single[0] <= full[0]:
             full = single
+    if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
+
+        def negation():
+            return _remove_useless(*degeneralize(build_tgba(normalize(Not(tree)), index)[0]))
+
+        wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES)
+        if wdba is not None:
+            full = _merge_transient(*_remove_useless(*wdba))
     result = [_renumbered(text, atoms, *aut[1:])
               for aut in ((full,) if only_best else (full, *cheap))]
     if 1 < min(b.num_states for b in result) <= 8 and _is_valid(tree, index, result[0]):

@@ -24,9 +24,13 @@ from agent.ltl.tgba import Tgba
 
 
 def degeneralize(
-    tgba: Tgba,
+    tgba: Tgba, reverse: bool = False,
 ) -> tuple[int, tuple[int, ...], frozenset[int], list[list[tuple[int, Guard]]]]:
-    """Returns ``(num_states, initial, accepting, edges)`` of the state-based automaton."""
+    """Returns ``(num_states, initial, accepting, edges)`` of the state-based automaton.
+
+    The marks are awaited in increasing order, or decreasing with ``reverse``: the language is
+    the same, the size may differ (as with Spot's ``degen-order``), so the translator tries both.
+    """
     n = tgba.num_states
     succ = [[dst for dst, _g, _m in tgba.edges[s]] for s in range(n)]
     comp, components = strongly_connected_components(n, succ)
@@ -48,7 +52,8 @@ def degeneralize(
         if union != all_marks:
             relevant.append(None)
             continue
-        relevant.append(tuple(j for j in range(tgba.num_marks) if not common >> j & 1))
+        order = range(tgba.num_marks - 1, -1, -1) if reverse else range(tgba.num_marks)
+        relevant.append(tuple(j for j in order if not common >> j & 1))
 
     ids: dict[tuple[int, int], int] = {}
     accepting: set[int] = set()

@@ -11,6 +11,10 @@ Somenzi & Bloem (CAV 2000) and Etessami & Holzmann (CONCUR 2000), using the clas
 * ``G F (x & e1 & …) = G F x & G F e1 & …`` for eventual ``ei``, dually
   ``F G (x | u1 | …) = F G x | F G u1 | …``; hence ``GF(a1 & F(a2 & … F an))`` becomes
   ``GF a1 & … & GF an``, whose automaton has n+1 states instead of exponentially many;
+* ``X x & X y = X(x & y)``, ``X x | X y = X(x | y)``, ``F x | F y = F(x | y)`` (Spot's
+  ``tl_simplifier``): the automaton chooses the disjunct in one
+  state instead of starting with one state per ``F``;
+* ``a U (b | G a) = a W b`` and dually ``a R (b & F a) = a M b`` (Spot);
 * ``x U e = e`` for eventual e, ``x R u = u`` for universal u, ``true U x = F x``,
   ``false R x = G x``; Boolean constant folding, flattening, duplicate and complement removal.
 
@@ -104,6 +108,9 @@ def mk_and(args) -> Formula:
         flat.append(a)
     if not flat:
         return TRUE
+    nexts = [a for a in flat if isinstance(a, Next)]
+    if len(nexts) > 1:  # X x & X y = X(x & y)
+        return _merged(flat, nexts, mk_next(mk_and(a.arg for a in nexts)), mk_and)
     if len(flat) == 1:
         return flat[0]
     return And(tuple(flat))
@@ -130,9 +137,24 @@ def mk_or(args) -> Formula:
         flat.append(a)
     if not flat:
         return FALSE
+    eventually = [a for a in flat if isinstance(a, Finally)]
+    if len(eventually) > 1:  # F x | F y = F(x | y): one state chooses instead of several
+        return _merged(flat, eventually, mk_finally(mk_or(a.arg for a in eventually)), mk_or)
+    nexts = [a for a in flat if isinstance(a, Next)]
+    if len(nexts) > 1:  # X x | X y = X(x | y)
+        return _merged(flat, nexts, mk_next(mk_or(a.arg for a in nexts)), mk_or)
     if len(flat) == 1:
         return flat[0]
     return Or(tuple(flat))
+
+
+def _merged(flat: list[Formula], parts: list[Formula], merged: Formula, mk) -> Formula:
+    """``flat`` with ``parts`` replaced by ``merged`` at the place of the first part."""
+    first = flat.index(parts[0])
+    dropped = {id(a) for a in parts}
+    rest = [a for a in flat if id(a) not in dropped]
+    position = sum(1 for a in flat[:first] if id(a) not in dropped)
+    return mk([*rest[:position], merged, *rest[position:]])
 
 
 def mk_next(a: Formula) -> Formula:
@@ -207,6 +229,10 @@ def mk_until(a: Formula, b: Formula) -> Formula:
         return mk_finally(b)
     if is_eventual(b):
         return b
+    if isinstance(b, Or) and Globally(a) in b.args:
+        # a U (b' | G a) = a W b' = b' R (a | b')
+        rest = mk_or(x for x in b.args if x != Globally(a))
+        return mk_release(rest, mk_or([a, rest]))
     return Until(a, b)
 
 
@@ -217,6 +243,10 @@ def mk_release(a: Formula, b: Formula) -> Formula:
         return mk_globally(b)
     if is_universal(b):
         return b
+    if isinstance(b, And) and Finally(a) in b.args:
+        # a R (b' & F a) = a M b' = b' U (a & b')
+        rest = mk_and(x for x in b.args if x != Finally(a))
+        return mk_until(rest, mk_and([a, rest]))
     return Release(a, b)
 
 
