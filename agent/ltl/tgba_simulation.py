@@ -75,7 +75,7 @@ def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]]) -> list[set
 def reduce_tgba(tgba: Tgba) -> Tgba:
     """Quotient by simulation equivalence and little-brother pruning (see module docstring)."""
     n = tgba.num_states
-    if n < 2 or n > MAX_TGBA_SIMULATION_STATES:
+    if n < 2 or n > MAX_TGBA_SIMULATION_STATES or _is_deterministic(tgba):
         return tgba
     edges = [_grouped(out) for out in tgba.edges]
     sim = tgba_simulation(n, edges)
@@ -108,6 +108,20 @@ def reduce_tgba(tgba: Tgba) -> Tgba:
         new_edges.append(tuple(pruned))
     initial = tuple(dict.fromkeys(new_id[rep[q]] for q in tgba.initial))
     return Tgba(len(reps), initial, tuple(new_edges), tgba.num_marks)
+
+
+def _is_deterministic(tgba: Tgba) -> bool:
+    """One initial state and pairwise disjoint guards: nothing for simulation to prune, and
+    simulation-equivalent states are already bisimilar (merged by ``build_tgba``)."""
+    if len(tgba.initial) > 1:
+        return False
+    for out in tgba.edges:
+        seen = FALSE
+        for _d, guard, _m in out:
+            if guard & seen is not FALSE:
+                return False
+            seen = seen | guard
+    return True
 
 
 def _has_little_brothers(edges, sim) -> bool:

@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections import deque
 
 from agent.ltl.bdd import FALSE, TRUE, Bdd, pick_valuation
-from agent.ltl.graphs import nontrivial, strongly_connected_components
+from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 
 MAX_CLASSES = 256
 """Letter classes per subset before the construction gives up."""
@@ -44,6 +44,8 @@ def powerset(n, initial, edges, max_states: int):
     or ``None`` beyond ``max_states`` subsets or :data:`MAX_CLASSES` letter classes.
     """
     by_state = [_grouped(edges[q]) for q in range(n)]
+    if len(initial) == 1 and all(_disjoint(out.values()) for out in by_state):
+        return _singletons(initial[0], by_state, max_states)
     start = frozenset(initial)
     ids = {start: 0}
     subsets = [start]
@@ -84,6 +86,36 @@ def powerset(n, initial, edges, max_states: int):
             out.append((j, letters))
         det_edges.append(out)
     return subsets, det_edges
+
+
+def _disjoint(guards) -> bool:
+    seen = FALSE
+    for guard in guards:
+        if guard & seen is not FALSE:
+            return False
+        seen = seen | guard
+    return True
+
+
+def _singletons(start: int, by_state, max_states: int):
+    """The subset construction of a deterministic automaton: its reachable part."""
+    ids = {start: 0}
+    order = [start]
+    det_edges = []
+    k = 0
+    while k < len(order):
+        out = []
+        for dst, guard in by_state[order[k]].items():
+            j = ids.get(dst)
+            if j is None:
+                if len(order) >= max_states:
+                    return None
+                j = ids[dst] = len(order)
+                order.append(dst)
+            out.append((j, guard))
+        det_edges.append(out)
+        k += 1
+    return [frozenset((q,)) for q in order], det_edges
 
 
 def _accepts_cycle(subset, letters: list[int], accepting, edges) -> bool:
@@ -146,6 +178,7 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64):
         return None
     subsets, det_edges = built
     m = len(subsets)
+    deterministic = all(len(subset) == 1 for subset in subsets)
     succ = [[d for d, _g in out] for out in det_edges]
     comp, components = strongly_connected_components(m, succ)
     cyclic = nontrivial(comp, components, succ)
@@ -161,18 +194,55 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64):
         if not cyclic[c]:
             colour[c] = lowest if lowest < k else k - 1
             continue
-        letters = _cycle_through(members[0], set(members), det_edges)
-        if letters is not None and _accepts_cycle(subsets[members[0]], letters, accepting, edges):
+        if deterministic:  # D is A: the SCC's cycles accept iff it holds an accepting state
+            accepts = any(next(iter(subsets[s])) in accepting for s in members)
+        else:
+            letters = _cycle_through(members[0], set(members), det_edges)
+            accepts = letters is not None and _accepts_cycle(
+                subsets[members[0]], letters, accepting, edges)
+        if accepts:
             colour[c] = lowest & ~1
         else:
             colour[c] = (lowest - 1) | 1
     final = frozenset(s for s in range(m) if colour[comp[s]] % 2 == 0)
+    if deterministic and m == n and all((s in final) == (next(iter(subsets[s])) in accepting)
+                                        for s in range(m)):
+        return None  # Moore's quotient would be the bisimulation quotient ``aut`` already is
     quotient = _moore(m, final, det_edges)
     if quotient[0] >= n:
         return None
-    if not _is_weak(quotient) or not _equivalent(aut, quotient, negation_aut):
+    if not _is_weak(quotient) or _differ_on_a_constant_word(aut, quotient):
+        return None  # the cheap refutation first: it spares translating the negation
+    if not _equivalent(aut, quotient, negation_aut):
         return None
     return quotient
+
+
+def _differ_on_a_constant_word(a, b, max_letters: int = 16) -> bool:
+    """Whether ``a`` and ``b`` disagree on some word ``σ^ω`` (every letter ``σ`` when there
+    are at most ``max_letters``, else the empty and the full letter)."""
+    support = 0
+    for aut in (a, b):
+        for out in aut[3]:
+            for _d, g in out:
+                support |= g.support()
+    bits = [i for i in range(support.bit_length()) if support >> i & 1]
+    if 1 << len(bits) <= max_letters:
+        letters = [sum(1 << bits[i] for i in range(len(bits)) if k >> i & 1)
+                   for k in range(1 << len(bits))]
+    else:
+        letters = [0, support]
+    return any(accepts_constant(a, v) != accepts_constant(b, v) for v in letters)
+
+
+def accepts_constant(aut, v: int) -> bool:
+    """Whether the automaton tuple accepts ``σ^ω`` for the letter with bitmask ``v``."""
+    n, initial, accepting, edges = aut
+    succ = [[d for d, g in out if g.holds(v)] for out in edges]
+    live = reachable(initial, succ)
+    comp, components = strongly_connected_components(n, succ)
+    cyclic = nontrivial(comp, components, succ)
+    return any(cyclic[comp[q]] for q in accepting if q in live)
 
 
 def _moore(m, final, det_edges):

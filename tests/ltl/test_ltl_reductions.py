@@ -16,7 +16,7 @@ from agent.ltl.buchi import (
     translation_candidates,
 )
 from agent.ltl.degeneralize import degeneralize
-from agent.ltl.formula import And, Finally, Globally, Next, Not, Or, Release, Until
+from agent.ltl.formula import And, Atom, Finally, Globally, Next, Not, Or, Release, Until
 from agent.ltl.lasso import holds
 from agent.ltl.parser import parse
 from agent.ltl.printer import to_string
@@ -53,6 +53,13 @@ shapes = st.one_of(
     st.builds(lambda a, b: Or((Finally(a), Finally(b))), small, small),
     st.builds(lambda a, b: Or((Next(a), Next(b))), small, small),
     st.builds(lambda a, b: And((Next(a), Next(b))), small, small),
+    st.builds(lambda a, b: Or((Until(a, b), Globally(a))), small, small),  # a W b
+    st.builds(lambda a, b: And((Release(a, b), Finally(a))), small, small),  # a M b
+    # G a | F(!a & e), e eventual
+    st.builds(lambda a, b, c: Or((Globally(a), Finally(And((Not(a), Finally(b), c))))),
+              st.sampled_from([Atom("a"), Atom("b")]), small, small),
+    st.builds(lambda a, b: Or((Globally(Not(a)), Finally(And((a, Finally(b)))))),
+              st.sampled_from([Atom("a"), Atom("b")]), small),
 )
 
 
@@ -68,6 +75,9 @@ def test_rewrite_rules_fire():
     assert to_string(normalize(parse("a U (b | G a)"))) == to_string(normalize(parse("a W b")))
     assert to_string(normalize(parse("F a | F b"))) == "F(a | b)"
     assert to_string(normalize(parse("X a & X b"))) == "X(a & b)"
+    assert to_string(normalize(parse("G a | a U b"))) == to_string(normalize(parse("a W b")))
+    assert to_string(normalize(parse("G !a | F(a & F b)"))) == to_string(
+        normalize(parse("!a W (a & F b)")))
 
 
 @settings(max_examples=600, deadline=None)
