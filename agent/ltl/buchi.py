@@ -44,7 +44,11 @@ from agent.ltl.wdba import accepts_constant, minimize_obligation
 
 Edge = tuple[int, Guard]
 REVERSED_DEGEN_MAX_STATES = 32
-"""Largest TGBA (states) also degeneralised with the marks in reverse order."""
+REVERSED_DEGEN_MAX_MARKS = 4
+REVERSED_DEGEN_MAX_EDGES = 256
+"""Largest TGBA (states, acceptance marks, edges) also degeneralised with the marks in reverse
+order: the second order pays on small automata with few marks (the patterns of Spot's table);
+on large ones it doubles the cost of degeneralisation for, in our measurements, no state."""
 WDBA_MAX_INPUT = 40
 """Largest reduced automaton (states) for which the minimal weak DBA is tried."""
 WDBA_MAX_STATES = 64
@@ -162,7 +166,9 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
     best = min(cheap, key=lambda aut: (aut[0], sum(len(out) for out in aut[3])))
     # The other order of the marks (Spot's degen-order); kept only when it saves states.
     for tgba in variants:
-        if (tgba.num_marks > 1 and tgba.num_states <= REVERSED_DEGEN_MAX_STATES
+        if (1 < tgba.num_marks <= REVERSED_DEGEN_MAX_MARKS
+                and tgba.num_states <= REVERSED_DEGEN_MAX_STATES
+                and sum(len(out) for out in tgba.edges) <= REVERSED_DEGEN_MAX_EDGES
                 and mark_order_matters(tgba)):
             other = _cheap_reduce(_remove_useless(*degeneralize(tgba, reverse=True)))
             cheap.append(other)

@@ -19,7 +19,7 @@ from __future__ import annotations
 from agent.ltl.bdd import FALSE, Bdd, disjoin
 from agent.ltl.tgba import Tgba
 
-MAX_TGBA_SIMULATION_STATES = 96
+MAX_TGBA_SIMULATION_STATES = 32
 """Larger TGBA skip the (quadratic) simulation."""
 
 

@@ -21,6 +21,7 @@ Automata are the translator's tuples ``(n, initial, accepting, edges)`` with
 
 from __future__ import annotations
 
+import random
 from collections import deque
 
 from agent.ltl.bdd import FALSE, TRUE, Bdd, pick_valuation
@@ -54,22 +55,24 @@ def powerset(n, initial, edges, max_states: int):
     while queue:
         subset = queue.popleft()
         classes: list[tuple[Bdd, frozenset[int]]] = [(TRUE, frozenset())]
+        into: dict[int, Bdd] = {}  # letters leading from the subset to each state
         for q in subset:
             for dst, guard in by_state[q].items():
-                refined = []
-                for letters, targets in classes:
-                    inside = letters & guard
-                    if inside is letters:
-                        refined.append((letters, targets | {dst}))
-                        continue
-                    if inside is not FALSE:
-                        refined.append((inside, targets | {dst}))
-                        refined.append((letters - guard, targets))
-                    else:
-                        refined.append((letters, targets))
-                classes = refined
-                if len(classes) > MAX_CLASSES:
-                    return None
+                into[dst] = into.get(dst, FALSE) | guard
+        for dst, guard in into.items():
+            refined = []
+            for letters, targets in classes:
+                inside = letters & guard
+                if inside is letters:
+                    refined.append((letters, targets | {dst}))
+                elif inside is not FALSE:
+                    refined.append((inside, targets | {dst}))
+                    refined.append((letters - guard, targets))
+                else:
+                    refined.append((letters, targets))
+            classes = refined
+            if len(classes) > MAX_CLASSES:
+                return None
         merged: dict[frozenset[int], Bdd] = {}
         for letters, targets in classes:
             if targets:
@@ -232,7 +235,20 @@ def _differ_on_a_constant_word(a, b, max_letters: int = 16) -> bool:
                    for k in range(1 << len(bits))]
     else:
         letters = [0, support]
-    return any(accepts_constant(a, v) != accepts_constant(b, v) for v in letters)
+    if any(accepts_constant(a, v) != accepts_constant(b, v) for v in letters):
+        return True
+    # A few lassos u·v^ω with short random u, v (a fixed seed: the same on every run).
+    rng = random.Random(len(bits))
+    for _ in range(RANDOM_LASSOS):
+        prefix = [rng.choice(letters) for _ in range(rng.randrange(3))]
+        loop = [rng.choice(letters) for _ in range(1 + rng.randrange(3))]
+        if accepts_lasso(a, prefix, loop) != accepts_lasso(b, prefix, loop):
+            return True
+    return False
+
+
+RANDOM_LASSOS = 12
+"""Random lasso words tried before the exact check (which translates the negated formula)."""
 
 
 def accepts_constant(aut, v: int) -> bool:
@@ -243,6 +259,17 @@ def accepts_constant(aut, v: int) -> bool:
     comp, components = strongly_connected_components(n, succ)
     cyclic = nontrivial(comp, components, succ)
     return any(cyclic[comp[q]] for q in accepting if q in live)
+
+
+def accepts_lasso(aut, prefix: list[int], loop: list[int]) -> bool:
+    """Whether the automaton tuple accepts ``prefix · loop^ω`` (letters as bitmasks)."""
+    _n, initial, accepting, edges = aut
+    current = set(initial)
+    for v in prefix:
+        current = {d for q in current for d, g in edges[q] if g.holds(v)}
+        if not current:
+            return False
+    return _accepts_cycle(current, loop, accepting, edges)
 
 
 def _moore(m, final, det_edges):
