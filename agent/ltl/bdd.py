@@ -18,7 +18,7 @@ operation caches are cleared when they grow large.
 
 from __future__ import annotations
 
-__all__ = ["FALSE", "TRUE", "Bdd", "conjoin", "cube", "disjoin", "var"]
+__all__ = ["FALSE", "TRUE", "Bdd", "conjoin", "cube", "disjoin", "pick_valuation", "var"]
 
 _TERMINAL_VAR = 1 << 30
 
@@ -48,16 +48,16 @@ class Bdd:
         return self is not FALSE
 
     def __and__(self, other: Bdd) -> Bdd:
-        return _and(self, other)
+        return _apply(self, other, TRUE, FALSE, _and_cache)
 
     def __or__(self, other: Bdd) -> Bdd:
-        return _or(self, other)
+        return _apply(self, other, FALSE, TRUE, _or_cache)
 
     def __invert__(self) -> Bdd:
         return _not(self)
 
     def __sub__(self, other: Bdd) -> Bdd:
-        return _and(self, _not(other))
+        return _apply(self, _not(other), TRUE, FALSE, _and_cache)
 
     def __repr__(self) -> str:
         if self is TRUE:
@@ -120,56 +120,41 @@ def var(i: int) -> Bdd:
     return _mk(i, FALSE, TRUE)
 
 
-def _and(a: Bdd, b: Bdd) -> Bdd:
-    if a is b or b is TRUE:
+def _apply(a: Bdd, b: Bdd, unit: Bdd, zero: Bdd, cache: dict[tuple[int, int], Bdd]) -> Bdd:
+    """Bryant's apply for a commutative operator with neutral ``unit`` and absorbing ``zero``
+    (``&``: TRUE, FALSE; ``|``: FALSE, TRUE), memoised in ``cache``."""
+    if a is b or b is unit:
         return a
-    if a is TRUE:
+    if a is unit:
         return b
-    if a is FALSE or b is FALSE:
-        return FALSE
+    if a is zero or b is zero:
+        return zero
     if a.uid > b.uid:
         a, b = b, a
     key = (a.uid, b.uid)
-    r = _and_cache.get(key)
+    r = cache.get(key)
     if r is not None:
         return r
     va, vb = a.var, b.var
     if va == vb:
-        r = _mk(va, _and(a.low, b.low), _and(a.high, b.high))
+        r = _mk(va, _apply(a.low, b.low, unit, zero, cache),
+                _apply(a.high, b.high, unit, zero, cache))
     elif va < vb:
-        r = _mk(va, _and(a.low, b), _and(a.high, b))
+        r = _mk(va, _apply(a.low, b, unit, zero, cache), _apply(a.high, b, unit, zero, cache))
     else:
-        r = _mk(vb, _and(a, b.low), _and(a, b.high))
-    if len(_and_cache) > _CACHE_LIMIT:
-        _and_cache.clear()
-    _and_cache[key] = r
+        r = _mk(vb, _apply(a, b.low, unit, zero, cache), _apply(a, b.high, unit, zero, cache))
+    if len(cache) > _CACHE_LIMIT:
+        cache.clear()
+    cache[key] = r
     return r
+
+
+def _and(a: Bdd, b: Bdd) -> Bdd:
+    return _apply(a, b, TRUE, FALSE, _and_cache)
 
 
 def _or(a: Bdd, b: Bdd) -> Bdd:
-    if a is b or b is FALSE:
-        return a
-    if a is FALSE:
-        return b
-    if a is TRUE or b is TRUE:
-        return TRUE
-    if a.uid > b.uid:
-        a, b = b, a
-    key = (a.uid, b.uid)
-    r = _or_cache.get(key)
-    if r is not None:
-        return r
-    va, vb = a.var, b.var
-    if va == vb:
-        r = _mk(va, _or(a.low, b.low), _or(a.high, b.high))
-    elif va < vb:
-        r = _mk(va, _or(a.low, b), _or(a.high, b))
-    else:
-        r = _mk(vb, _or(a, b.low), _or(a, b.high))
-    if len(_or_cache) > _CACHE_LIMIT:
-        _or_cache.clear()
-    _or_cache[key] = r
-    return r
+    return _apply(a, b, FALSE, TRUE, _or_cache)
 
 
 def _not(a: Bdd) -> Bdd:
@@ -249,6 +234,22 @@ def _first_path(g: Bdd) -> tuple[int, ...]:
             steps.append(2 * node.var + 1)
             node = node.high
     return tuple(steps)
+
+
+def pick_valuation(g: Bdd) -> int:
+    """One letter (bitmask) satisfying ``g``: the first path to ``true``, other atoms false.
+    ``g`` must not be :data:`FALSE`."""
+    if g is FALSE:
+        raise ValueError("pick_valuation of the false guard")
+    v = 0
+    node = g
+    while node.var != _TERMINAL_VAR:
+        if node.low is not FALSE:
+            node = node.low
+        else:
+            v |= 1 << node.var
+            node = node.high
+    return v
 
 
 def conjoin(guards) -> Bdd:

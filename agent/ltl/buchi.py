@@ -6,12 +6,17 @@
 2. the very weak alternating automaton of Gastin & Oddoux (``agent.ltl.alternating``);
 3. the transition-based generalised Büchi automaton with GO's simplifications
    (``agent.ltl.tgba``);
-4. SCC-aware degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``),
-   for the two sound markings of the TGBA (lazy/eager, see ``build_tgba``), keeping the smaller;
+4. direct simulation on the TGBA (``agent.ltl.tgba_simulation``), then SCC-aware
+   degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``), for the two
+   sound markings of the TGBA (lazy/eager, see ``build_tgba``) and both orders of the marks,
+   keeping the smaller;
 5. removal of useless states (unreachable, or unable to reach an accepting cycle), a
    bisimulation quotient (equal acceptance, equal guarded edges to equal classes), and the
    merging of *transient* states (on no cycle, so visited at most once and their acceptance
-   is irrelevant) into a state with the same outgoing edges.
+   is irrelevant) into a state with the same outgoing edges; direct-simulation rounds
+   (``agent.ltl.simulation``);
+6. for obligation formulas, the minimal weak DBA when it is smaller and provably equivalent
+   (``agent.ltl.wdba``).
 
 The result ``A = (Q, 2^AP, Δ, Q0, F)`` has states ``0..num_states-1``; ``edges[q]`` lists
 ``(q', guard)`` with guards over ``atoms`` (see ``agent.ltl.guards``).
@@ -25,7 +30,7 @@ from dataclasses import dataclass, field
 
 from agent.ltl.bdd import FALSE, TRUE, disjoin
 from agent.ltl.branching import postpone_branching
-from agent.ltl.degeneralize import degeneralize
+from agent.ltl.degeneralize import degeneralize, mark_order_matters
 from agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
@@ -34,8 +39,20 @@ from agent.ltl.printer import to_string
 from agent.ltl.rewrite import normalize
 from agent.ltl.simulation import reduce_by_simulation, saturate_acceptance, single_initial
 from agent.ltl.tgba import build_tgba
+from agent.ltl.tgba_simulation import reduce_tgba
+from agent.ltl.wdba import accepts_constant, minimize_obligation
 
 Edge = tuple[int, Guard]
+REVERSED_DEGEN_MAX_STATES = 32
+REVERSED_DEGEN_MAX_MARKS = 4
+REVERSED_DEGEN_MAX_EDGES = 256
+"""Largest TGBA (states, acceptance marks, edges) also degeneralised with the marks in reverse
+order: the second order pays on small automata with few marks (the patterns of Spot's table);
+on large ones it doubles the cost of degeneralisation for, in our measurements, no state."""
+WDBA_MAX_INPUT = 40
+"""Largest reduced automaton (states) for which the minimal weak DBA is tried."""
+WDBA_MAX_STATES = 64
+"""Largest subset construction (states) the weak-DBA minimisation builds."""
 HOA_TASK_PREFIX = "hoa:"  # the same as agent.ltl.hoa_reader.HOA_TASK_PREFIX
 
 
@@ -138,7 +155,7 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         raise TooManyPropositions(len(atoms))
     index = {a: i for i, a in enumerate(atoms)}
     text = to_string(tree)
-    variants = list(build_tgba(normalize(tree), index))
+    variants = [reduce_tgba(tgba) for tgba in build_tgba(normalize(tree), index)]
     for tgba in list(variants):
         # Several initial states (a disjunction at the top): merge the choice into one state.
         if len(tgba.initial) > 1 and tgba.num_states <= 32:
@@ -147,11 +164,29 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
                 variants.append(merged)
     cheap = [_cheap_reduce(_remove_useless(*degeneralize(tgba))) for tgba in variants]
     best = min(cheap, key=lambda aut: (aut[0], sum(len(out) for out in aut[3])))
+    # The other order of the marks (Spot's degen-order); kept only when it saves states.
+    for tgba in variants:
+        if (1 < tgba.num_marks <= REVERSED_DEGEN_MAX_MARKS
+                and tgba.num_states <= REVERSED_DEGEN_MAX_STATES
+                and sum(len(out) for out in tgba.edges) <= REVERSED_DEGEN_MAX_EDGES
+                and mark_order_matters(tgba)):
+            other = _cheap_reduce(_remove_useless(*degeneralize(tgba, reverse=True)))
+            cheap.append(other)
+            if other[0] < best[0]:
+                best = other
     full = _reduce(best)
     if len(full[1]) > 1:  # one initial state, when that costs no state
         single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
         if single[0] <= full[0]:
             full = single
+    if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
+
+        def negation():
+            return _remove_useless(*degeneralize(build_tgba(normalize(Not(tree)), index)[0]))
+
+        wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES)
+        if wdba is not None:
+            full = _merge_transient(*_remove_useless(*wdba))
     result = [_renumbered(text, atoms, *aut[1:])
               for aut in ((full,) if only_best else (full, *cheap))]
     if 1 < min(b.num_states for b in result) <= 8 and _is_valid(tree, index, result[0]):
@@ -165,6 +200,11 @@ def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
     condition, so that it costs little."""
     if disjoin(g for q in buchi.initial for _d, g in buchi.edges[q]) is not TRUE:
         return False
+    n = len(buchi.atoms)
+    for v in (0, (1 << n) - 1):  # a constant word the automaton rejects: not valid
+        if not accepts_constant((buchi.num_states, buchi.initial, buchi.accepting,
+                                 buchi.edges), v):
+            return False
     tgba = build_tgba(normalize(Not(tree)), index)[0]
     return _remove_useless(*degeneralize(tgba))[0] == 0
 

@@ -24,32 +24,14 @@ from agent.ltl.tgba import Tgba
 
 
 def degeneralize(
-    tgba: Tgba,
+    tgba: Tgba, reverse: bool = False,
 ) -> tuple[int, tuple[int, ...], frozenset[int], list[list[tuple[int, Guard]]]]:
-    """Returns ``(num_states, initial, accepting, edges)`` of the state-based automaton."""
-    n = tgba.num_states
-    succ = [[dst for dst, _g, _m in tgba.edges[s]] for s in range(n)]
-    comp, components = strongly_connected_components(n, succ)
-    all_marks = (1 << tgba.num_marks) - 1
-    # Per SCC: relevant marks in order, or None when the SCC cannot accept.
-    relevant: list[tuple[int, ...] | None] = []
-    for c, members in enumerate(components):
-        internal = [
-            marks for s in members for dst, _g, marks in tgba.edges[s] if comp[dst] == c
-        ]
-        if not internal:
-            relevant.append(None)
-            continue
-        union = 0
-        common = all_marks
-        for marks in internal:
-            union |= marks
-            common &= marks
-        if union != all_marks:
-            relevant.append(None)
-            continue
-        relevant.append(tuple(j for j in range(tgba.num_marks) if not common >> j & 1))
+    """Returns ``(num_states, initial, accepting, edges)`` of the state-based automaton.
 
+    The marks are awaited in increasing order, or decreasing with ``reverse``: the language is
+    the same, the size may differ (as with Spot's ``degen-order``), so the translator tries both.
+    """
+    comp, relevant = _relevant_marks(tgba, reverse)
     ids: dict[tuple[int, int], int] = {}
     accepting: set[int] = set()
     edges: list[dict[int, list[Guard]]] = []
@@ -84,3 +66,36 @@ def degeneralize(
             edges[sid].setdefault(did, []).append(guard)
     out = [[(d, disjoin(gs)) for d, gs in e.items()] for e in edges]  # balanced ORs
     return len(ids), initial, frozenset(accepting), out
+
+
+def _relevant_marks(tgba: Tgba, reverse: bool) -> tuple[list[int], list[tuple[int, ...] | None]]:
+    """SCC of each state, and per SCC the marks awaited in order (``None``: cannot accept)."""
+    n = tgba.num_states
+    succ = [[dst for dst, _g, _m in tgba.edges[s]] for s in range(n)]
+    comp, components = strongly_connected_components(n, succ)
+    all_marks = (1 << tgba.num_marks) - 1
+    relevant: list[tuple[int, ...] | None] = []
+    for c, members in enumerate(components):
+        internal = [
+            marks for s in members for dst, _g, marks in tgba.edges[s] if comp[dst] == c
+        ]
+        if not internal:
+            relevant.append(None)
+            continue
+        union = 0
+        common = all_marks
+        for marks in internal:
+            union |= marks
+            common &= marks
+        if union != all_marks:
+            relevant.append(None)
+            continue
+        order = range(tgba.num_marks - 1, -1, -1) if reverse else range(tgba.num_marks)
+        relevant.append(tuple(j for j in order if not common >> j & 1))
+    return comp, relevant
+
+
+def mark_order_matters(tgba: Tgba) -> bool:
+    """Whether some SCC awaits two marks or more, so that :func:`degeneralize` with ``reverse``
+    can give another automaton."""
+    return any(r is not None and len(r) > 1 for r in _relevant_marks(tgba, False)[1])

@@ -11,6 +11,11 @@ Somenzi & Bloem (CAV 2000) and Etessami & Holzmann (CONCUR 2000), using the clas
 * ``G F (x & e1 & …) = G F x & G F e1 & …`` for eventual ``ei``, dually
   ``F G (x | u1 | …) = F G x | F G u1 | …``; hence ``GF(a1 & F(a2 & … F an))`` becomes
   ``GF a1 & … & GF an``, whose automaton has n+1 states instead of exponentially many;
+* ``X x & X y = X(x & y)``, ``X x | X y = X(x | y)``, ``F x | F y = F(x | y)`` (Spot's
+  ``tl_simplifier``): the automaton chooses the disjunct in one
+  state instead of starting with one state per ``F``;
+* ``a U (b | G a) = (a U b) | G a = a W b`` and dually ``a R (b & F a) = (a R b) & F a =
+  a M b`` (Spot);
 * ``x U e = e`` for eventual e, ``x R u = u`` for universal u, ``true U x = F x``,
   ``false R x = G x``; Boolean constant folding, flattening, duplicate and complement removal.
 
@@ -104,6 +109,13 @@ def mk_and(args) -> Formula:
         flat.append(a)
     if not flat:
         return TRUE
+    nexts = [a for a in flat if isinstance(a, Next)]
+    if len(nexts) > 1:  # X x & X y = X(x & y)
+        return _merged(flat, nexts, mk_next(mk_and(a.arg for a in nexts)), mk_and)
+    for r in flat:  # (a R b) & F a = a M b = b U (a & b)
+        if isinstance(r, Release) and Finally(r.left) in seen:
+            strong = mk_until(r.right, mk_and([r.left, r.right]))
+            return _merged(flat, [r, Finally(r.left)], strong, mk_and)
     if len(flat) == 1:
         return flat[0]
     return And(tuple(flat))
@@ -130,9 +142,39 @@ def mk_or(args) -> Formula:
         flat.append(a)
     if not flat:
         return FALSE
+    eventually = [a for a in flat if isinstance(a, Finally)]
+    if len(eventually) > 1:  # F x | F y = F(x | y): one state chooses instead of several
+        return _merged(flat, eventually, mk_finally(mk_or(a.arg for a in eventually)), mk_or)
+    nexts = [a for a in flat if isinstance(a, Next)]
+    if len(nexts) > 1:  # X x | X y = X(x | y)
+        return _merged(flat, nexts, mk_next(mk_or(a.arg for a in nexts)), mk_or)
+    for u in flat:  # (a U b) | G a = a W b = b R (a | b)
+        if isinstance(u, Until) and Globally(u.left) in seen:
+            weak = mk_release(u.right, mk_or([u.left, u.right]))
+            return _merged(flat, [u, Globally(u.left)], weak, mk_or)
+    for g in flat:
+        # G a | F(!a & e) = a W (!a & e) for a literal a and eventual e: F(!a & e) = a U (!a & e)
+        # (e holding at some !a-position holds at the first one, e being eventual).
+        comp = _complement(g.arg) if isinstance(g, Globally) else None
+        if comp is None:
+            continue
+        for f in flat:
+            if (isinstance(f, Finally) and isinstance(f.arg, And) and comp in f.arg.args
+                    and all(x == comp or is_eventual(x) for x in f.arg.args)):
+                weak = mk_release(f.arg, mk_or([g.arg, f.arg]))
+                return _merged(flat, [g, f], weak, mk_or)
     if len(flat) == 1:
         return flat[0]
     return Or(tuple(flat))
+
+
+def _merged(flat: list[Formula], parts: list[Formula], merged: Formula, mk) -> Formula:
+    """``flat`` with ``parts`` replaced by ``merged`` at the place of the first part."""
+    first = flat.index(parts[0])
+    dropped = set(parts)  # ``flat`` is duplicate-free
+    rest = [a for a in flat if a not in dropped]
+    position = sum(1 for a in flat[:first] if a not in dropped)
+    return mk([*rest[:position], merged, *rest[position:]])
 
 
 def mk_next(a: Formula) -> Formula:
@@ -207,6 +249,10 @@ def mk_until(a: Formula, b: Formula) -> Formula:
         return mk_finally(b)
     if is_eventual(b):
         return b
+    if isinstance(b, Or) and Globally(a) in b.args:
+        # a U (b' | G a) = a W b' = b' R (a | b')
+        rest = mk_or(x for x in b.args if x != Globally(a))
+        return mk_release(rest, mk_or([a, rest]))
     return Until(a, b)
 
 
@@ -217,6 +263,10 @@ def mk_release(a: Formula, b: Formula) -> Formula:
         return mk_globally(b)
     if is_universal(b):
         return b
+    if isinstance(b, And) and Finally(a) in b.args:
+        # a R (b' & F a) = a M b' = b' U (a & b')
+        rest = mk_and(x for x in b.args if x != Finally(a))
+        return mk_until(rest, mk_and([a, rest]))
     return Release(a, b)
 
 

@@ -28,7 +28,7 @@ from agent.ltl import bdd
 from agent.ltl.alternating import Vwaa, is_acceptance_state
 from agent.ltl.bdd import FALSE
 from agent.ltl.formula import Formula
-from agent.ltl.guards import TRUE_CUBE, Cube, Guard, cube_and, cube_implies
+from agent.ltl.guards import TRUE_CUBE, Cube, Guard
 
 # (cube, targets, bad) where bad is the bitmask of acceptance states whose chosen
 # transition was not good.
@@ -56,12 +56,20 @@ def _prune(partials: list[_Partial]) -> list[_Partial]:
         return unique
     unique.sort(key=lambda t: (t[1].bit_count(), t[2].bit_count(),
                                (t[0][0] | t[0][1]).bit_count()))
+    # Domination test inlined (the hot loop of large translations): k dominates t when
+    # k's targets ⊆ t's, k's bad ⊆ t's and t's cube implies k's (cube_implies).
+    shift = max(t[2] for t in unique).bit_length()
     kept: list[_Partial] = []
+    keys: list[tuple[int, int, int]] = []
     for t in unique:
-        cube, targets, bad = t
-        if not any(not k[1] & ~targets and not k[2] & ~bad and cube_implies(cube, k[0])
-                   for k in kept):
+        (pos, neg), targets, bad = t
+        key = targets << shift | bad
+        for kkey, kpos, kneg in keys:
+            if not kkey & ~key and pos & kpos == kpos and neg & kneg == kneg:
+                break
+        else:
             kept.append(t)
+            keys.append((key, pos, neg))
     return kept
 
 
@@ -145,11 +153,14 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             if groups is None:
                 bad_bit = 1 << mark_of[q] if q in mark_of else 0
                 product: list[_Partial] = []
-                for cube, targets, bad in partials:
-                    for c2, e2, good in vwaa.state_delta(q):
-                        c = cube_and(cube, c2)
-                        if c is not None:
-                            product.append((c, targets | e2, bad if good else bad | bad_bit))
+                delta = vwaa.state_delta(q)
+                for (pos, neg), targets, bad in partials:
+                    for (pos2, neg2), e2, good in delta:
+                        p = pos | pos2
+                        n = neg | neg2
+                        if not p & n:  # cube_and, inlined
+                            product.append(((p, n), targets | e2,
+                                            bad if good else bad | bad_bit))
                 partials = _prune(product)
                 if len(partials) > _CUBE_LIMIT:
                     groups = _minimal_per_letter(_groups_of(partials))
@@ -249,11 +260,11 @@ def _minimal_per_letter(groups: list[_Group]) -> list[_Group]:
     if len(groups) < 2:
         return groups
     shift = max(b for _t, b, _g, _l in groups).bit_length()
-    keys = [t << shift | b for t, b, _g, _l in groups]  # domination = subset of this mask
+    # Domination = subset of this mask; keys are distinct (one group per (targets, bad)).
+    keyed = [(t << shift | b, g) for t, b, g, _l in groups]
     result = []
-    for i, (targets, bad, guard, lits) in enumerate(groups):
-        ki = keys[i]
-        dominators = [groups[j][2] for j, kj in enumerate(keys) if not kj & ~ki and j != i]
+    for (ki, _g), (targets, bad, guard, lits) in zip(keyed, groups, strict=True):
+        dominators = [g for kj, g in keyed if kj != ki and not kj & ~ki]
         if dominators:
             guard = guard - bdd.disjoin(dominators)
         if guard is not FALSE:

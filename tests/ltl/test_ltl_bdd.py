@@ -78,3 +78,14 @@ def test_isop_cover_and_smallest_letter(e):
         v = sum(1 << i for i, name in enumerate(names) if name in letter)
         assert t >> v & 1
         assert len(letter) == min(w.bit_count() for w in range(1 << N) if t >> w & 1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(expressions)
+def test_pick_valuation_satisfies_the_guard(e):
+    g, table = _build(e)
+    if g is bdd.FALSE:
+        return
+    v = bdd.pick_valuation(g)
+    assert g.holds(v)
+    assert table >> v & 1

@@ -1,0 +1,126 @@
+"""Language-preserving reductions of issue 16 (ltl-planning.md §2, "Small"): Spot-style rewrite
+rules, TGBA direct simulation, degeneralisation in both mark orders, and the minimal weak DBA of
+obligation formulas. Each is checked against the exact lasso semantics of the formula."""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from ltl_helpers import automaton_accepts, formulas, lasso_words
+
+from agent.ltl.buchi import (
+    Buchi,
+    _atoms_in_order,
+    _remove_useless,
+    translate,
+    translation_candidates,
+)
+from agent.ltl.degeneralize import degeneralize
+from agent.ltl.formula import And, Atom, Finally, Globally, Next, Not, Or, Release, Until
+from agent.ltl.lasso import holds
+from agent.ltl.parser import parse
+from agent.ltl.printer import to_string
+from agent.ltl.rewrite import normalize
+from agent.ltl.tgba import build_tgba
+from agent.ltl.tgba_simulation import reduce_tgba
+from agent.ltl.wdba import _equivalent, minimize_obligation
+
+WORDS = st.lists(lasso_words(), min_size=1, max_size=4)
+
+
+def _tuple(b: Buchi):
+    return b.num_states, b.initial, b.accepting, [list(out) for out in b.edges]
+
+
+def _buchi(f, atoms, aut) -> Buchi:
+    n, initial, accepting, edges = aut
+    if n == 0:
+        return Buchi(to_string(f), atoms, (), frozenset(), ())
+    return Buchi(to_string(f), atoms, tuple(initial), frozenset(accepting),
+                 tuple(tuple(out) for out in edges))
+
+
+def _check(f, buchi, words):
+    for prefix, loop in words:
+        assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop), (
+            f"{f} on {prefix} ({loop})^ω")
+
+
+small = formulas(max_depth=3)
+shapes = st.one_of(
+    st.builds(lambda a, b: Until(a, Or((b, Globally(a)))), small, small),  # a U (b | G a)
+    st.builds(lambda a, b: Release(a, And((b, Finally(a)))), small, small),  # a R (b & F a)
+    st.builds(lambda a, b: Or((Finally(a), Finally(b))), small, small),
+    st.builds(lambda a, b: Or((Next(a), Next(b))), small, small),
+    st.builds(lambda a, b: And((Next(a), Next(b))), small, small),
+    st.builds(lambda a, b: Or((Until(a, b), Globally(a))), small, small),  # a W b
+    st.builds(lambda a, b: And((Release(a, b), Finally(a))), small, small),  # a M b
+    # G a | F(!a & e), e eventual
+    st.builds(lambda a, b, c: Or((Globally(a), Finally(And((Not(a), Finally(b), c))))),
+              st.sampled_from([Atom("a"), Atom("b")]), small, small),
+    st.builds(lambda a, b: Or((Globally(Not(a)), Finally(And((a, Finally(b)))))),
+              st.sampled_from([Atom("a"), Atom("b")]), small),
+)
+
+
+@settings(max_examples=600, deadline=None)
+@given(shapes, WORDS)
+def test_new_rewrite_rules_preserve_semantics(f, words):
+    g = normalize(f)
+    for prefix, loop in words:
+        assert holds(g, prefix, loop) == holds(f, prefix, loop), f"{f} rewritten to {g}"
+
+
+def test_rewrite_rules_fire():
+    assert to_string(normalize(parse("a U (b | G a)"))) == to_string(normalize(parse("a W b")))
+    assert to_string(normalize(parse("F a | F b"))) == "F(a | b)"
+    assert to_string(normalize(parse("X a & X b"))) == "X(a & b)"
+    assert to_string(normalize(parse("G a | a U b"))) == to_string(normalize(parse("a W b")))
+    assert to_string(normalize(parse("G !a | F(a & F b)"))) == to_string(
+        normalize(parse("!a W (a & F b)")))
+
+
+@settings(max_examples=600, deadline=None)
+@given(formulas(), WORDS)
+def test_tgba_simulation_and_both_degeneralisation_orders_preserve_the_language(f, words):
+    atoms = _atoms_in_order(f)
+    index = {a: i for i, a in enumerate(atoms)}
+    for tgba in build_tgba(normalize(f), index):
+        reduced = reduce_tgba(tgba)
+        assert reduced.num_states <= tgba.num_states
+        for reverse in (False, True):
+            aut = _remove_useless(*degeneralize(reduced, reverse=reverse))
+            _check(f, _buchi(f, atoms, aut), words)
+
+
+def _negation(f):
+    return lambda: _tuple(translate(Not(f)))
+
+
+@settings(max_examples=400, deadline=None)
+@given(formulas(), WORDS)
+def test_minimal_weak_dba_when_accepted_has_the_language_of_the_formula(f, words):
+    b = translation_candidates(f)[-1]  # a variant with the cheap reductions only
+    atoms = b.atoms
+    wdba = minimize_obligation(_tuple(b), _negation(f))
+    if wdba is not None:
+        assert wdba[0] < b.num_states
+        _check(f, _buchi(f, atoms, wdba), words)
+
+
+def test_weak_dba_shrinks_an_obligation_and_refuses_a_recurrence():
+    f = parse("G(p0 -> (F p1 -> (!p1 U (p2 | (!p1 & p3 & X(!p1 U p4))))))")  # Spot: 3 states
+    assert translate(f).num_states == 3
+    g = parse("G F a & G F b")  # not an obligation: the check must refuse the weak DBA
+    b = translate(g)
+    assert minimize_obligation(_tuple(b), _negation(g)) is None
+    assert b.num_states == 3
+
+
+def test_equivalence_check_separates_languages():
+    both, together = translate("F a & F b"), translate("F(a & b)")
+    assert both.atoms == together.atoms
+    assert _equivalent(_tuple(both), _tuple(both), lambda: _tuple(translate("!(F a & F b)")))
+    # L(F(a & b)) ⊊ L(F a & F b): the second product (F a & F b with ¬F(a & b)) is not empty.
+    assert not _equivalent(_tuple(together), _tuple(both),
+                           lambda: _tuple(translate("!F(a & b)")))
