@@ -13,12 +13,13 @@ from __future__ import annotations
 import os
 import shutil
 from collections.abc import Iterable
+from pathlib import Path
 
-from agent.scenario import Scenario
+from agent.scenario import Scenario, load_scenario
 from agent.scenario.faults import Fault, check_fault, parse_fault
 from coordinator.fault_schedule import FaultError
 
-__all__ = ["FaultError", "need_hosts", "parse_specs", "run_faults"]
+__all__ = ["FaultError", "hosts_for", "need_hosts", "parse_specs", "run_faults"]
 
 
 def parse_specs(specs: Iterable[str]) -> tuple[Fault, ...]:
@@ -53,3 +54,16 @@ def need_hosts(faults: Iterable[Fault]) -> bool:
             raise FaultError(f"fault {first}: dropping a link needs `{tool}` (Debian package "
                              f"{package})")
     return True
+
+
+def hosts_for(scenario_path: Path, extra: Iterable[Fault] = (),
+              duration: float | None = None) -> int:
+    """How many namespace hosts a run with these faults needs: 0 when none drops a link, else
+    one more than the highest ``host<i>`` named (at least 1: on one host every process still
+    has a router port of its own). Scenario and fault errors, and :class:`FaultError` when this
+    machine has no namespaces, come first."""
+    faults = run_faults(load_scenario(scenario_path), extra, duration)
+    if not need_hosts(faults):
+        return 0
+    hosts = [int(t[5:]) for f in faults for t in f.targets if t.startswith("host-")]
+    return max(hosts, default=0) + 1

@@ -168,11 +168,19 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
-                          supervise_args=extra, sim_args=sim)
+                          supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
+                          faults=tuple(args.faults))
     return result.returncode
 
 
 def run(args: argparse.Namespace) -> int:
+    if not args.hosts:
+        from coordinator.faults import hosts_for
+
+        args.hosts = hosts_for(Path(args.scenario), args.faults, args.duration)
+        if args.hosts:
+            print(f"tlfleet run: link faults: running on {args.hosts} namespace host(s) "
+                  "(coordinator.hosts)", file=sys.stderr, flush=True)
     if args.hosts:
         return run_hosts(args)
     duration = args.duration
