@@ -210,6 +210,10 @@ class ProcessActuator:
         if fault.kind not in PROCESS_KINDS:
             raise FaultError(f"fault {fault.text or fault.spec}: {fault.kind} drops links, which "
                              "needs namespace hosts (--hosts N, root, iproute2 and nftables)")
+        if fault.kind == "restart" and fault.target in ("router", "sim"):
+            raise FaultError(f"fault {fault.text or fault.spec}: the run ends when its "
+                             f"{fault.target} dies ({fault.target}_died), so a restarted "
+                             f"{fault.target} would join no run; use kill:{fault.target}")
 
     def _child(self, name: str) -> Child:
         for child in reversed(self.launcher.children):

@@ -112,7 +112,12 @@ def test_process_faults_reject_link_cuts_with_the_reason():
         ProcessActuator.check_all([parse_fault("cut:robot3@20+3")])
     with pytest.raises(FaultError, match="partition drops links"):
         ProcessActuator.check_all([parse_fault("partition:host1,robot2@20+3")])
-    ProcessActuator.check_all([parse_fault("freeze:robot3@20+3"), parse_fault("restart:sim@1")])
+    ProcessActuator.check_all([parse_fault("freeze:robot3@20+3"), parse_fault("kill:sim@1"),
+                               parse_fault("kill:router@1"), parse_fault("restart:robot1@1")])
+    with pytest.raises(FaultError, match="the run ends when its router dies \\(router_died\\)"):
+        ProcessActuator.check_all([parse_fault("restart:router@1")])
+    with pytest.raises(FaultError, match="use kill:sim"):
+        ProcessActuator.check_all([parse_fault("restart:sim@1")])
 
 
 def test_run_faults_merges_the_scenario_and_the_cli_and_checks_both(scenarios_dir):

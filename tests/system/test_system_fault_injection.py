@@ -92,6 +92,26 @@ def test_a_restarted_agent_comes_back_and_the_run_completes(tmp_path):
     assert leftover_in_groups(run_dir) == []
 
 
+def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_path):
+    from coordinator import rundir
+
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, mode="realtime", duration=8.0, rrd=False, report=False,
+                 faults=(parse_fault("kill:router@2"),))
+    assert result.outcome.reason == "router_died"
+    assert result.verdict.label == "failed"
+    assert result.exit_codes["router"] == -9
+    assert {n: c for n, c in result.exit_codes.items() if n != "router"} == \
+        {"sim": 0, "agent-1": 0, "agent-2": 0}  # stopped by the launcher, cleanly
+    files = rundir.read_run(run_dir, strict=True)  # every file parses
+    (start,) = [e for e in files.events if e.kind == "fault_start"]
+    assert files.trajectory is not None and files.trajectory.t[-1] >= start.t - 0.05
+    assert any(e.kind == "process_died" and e.data["process"] == "router" for e in files.events)
+    assert json.loads((run_dir / "run.json").read_text())["faults"][0]["spec"] == \
+        "kill:router@2"
+    assert leftover_in_groups(run_dir) == []
+
+
 def test_bad_fault_specs_exit_before_anything_starts(tmp_path):
     for spec, message in (("cut:robot3@x+3", "fault 'cut:robot3@x+3': time: 'x' is not a "
                                              "number of seconds"),
