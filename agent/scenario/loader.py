@@ -18,6 +18,8 @@ File layout (every section but ``robots`` is optional)::
     [[regions]] name, center = [x, y], radius, labels = [...]
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
+    [[faults]]  spec = "cut:robot3@20+3" | kind, target (targets for a partition), at, duration
+                (issue 13, agent/scenario/faults.py)
 """
 
 from __future__ import annotations
