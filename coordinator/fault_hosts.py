@@ -9,9 +9,9 @@ with a :class:`HostsActuator` built from it:
 * ``cut:agent-3`` / ``cut:sim`` — an nft table in the process's host drops its router port both
   ways (a silent partition, :meth:`coordinator.hosts.NetnsHosts.cut_process`); ``cut:host1`` —
   host 1's bridge port down (carrier loss), every process on it cut;
-* while a process is cut (and for ``CUT_GRACE`` seconds after the restore), the loss of its
-  liveliness token is a ``link_lost`` of the supervisor, not a death, and its return a
-  ``link_restored`` (:class:`coordinator.supervisor.Supervisor`);
+* while a process is cut (and for ``CUT_GRACE`` seconds after the restore, but not after the
+  mission's end), the loss of its liveliness token is a ``link_lost`` of the supervisor, not a
+  death, and its return a ``link_restored`` (:class:`coordinator.supervisor.Supervisor`);
 * ``freeze:`` and ``kill:`` signal the child's process group by the pid in the plan (the same
   pid namespace); ``restart:`` needs the launcher's own process and is rejected here, as are
   partitions: the routers of the hosts form a mesh and route around a dropped pair (§5.5), so a
@@ -34,7 +34,8 @@ from coordinator.fault_schedule import FaultError
 from coordinator.hosts import NetnsHosts, Placement
 
 PLAN_NAME = "fault-plan.json"
-CUT_GRACE = 5.0  # [s] wall after a restore during which a lost token is still a link loss
+CUT_GRACE = 1.0  # [s] wall after a restore during which a lost token is still a link loss
+#                  (a lease that expires just as the link comes back); not after sim_done
 
 
 def write_plan(path: Path, net: NetnsHosts, placement: Placement, pids: dict[str, int]) -> Path:

@@ -188,7 +188,8 @@ class Supervisor:
                 self._maybe_recovered(name)
             else:
                 self.alive.discard(name)
-                if self._clock() <= self.cut.get(name, -1.0) and not self.stopping:
+                if (self._clock() <= self.cut.get(name, -1.0) and not self.stopping
+                        and not self.tap.recorder.event_kinds["sim_done"]):
                     self._link_event("link_lost", name)
                 elif not self.stopping:
                     self._suspect(name, "liveliness token lost", None)

@@ -92,6 +92,28 @@ def test_a_restarted_agent_comes_back_and_the_run_completes(tmp_path):
     assert leftover_in_groups(run_dir) == []
 
 
+def test_a_frozen_agent_in_lockstep_pauses_the_fleet_and_changes_nothing(tmp_path):
+    """Lockstep: the simulator waits for the frozen agent's command (tick timeout 6 s > 3 s), so
+    the trajectory is byte-identical to the run without the fault; paced at 4 × wall time so the
+    fault comes at a known wall time on any machine."""
+    reference = run(TWO, tmp_path / "reference", duration=8.0, rrd=False, report=False)
+    assert reference.clean
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, duration=8.0, rrd=False, report=False, tick_timeout=6.0,
+                 sim_args=("--max-speed", "4"), faults=(parse_fault("freeze:robot2@2+3"),))
+    assert result.outcome.reason in ("sim_done", "duration") and result.outcome.deaths == []
+    start, end = fault_events(run_dir)
+    assert end["data"]["lasted"] >= 3.0
+    assert end["t"] - start["t"] < 0.1  # the fleet waited: sim time stood still
+    assert (run_dir / "trajectory.csv").read_bytes() == \
+        (tmp_path / "reference" / "trajectory.csv").read_bytes()
+    kinds = collections.Counter(e["kind"] for e in events(run_dir))
+    assert kinds["watchdog_stop"] == 0 and kinds["deadline_miss"] == 0
+    assert result.verdict.label == "degraded"  # the fault, and the fleet's stale mocap
+    others = [r for r in result.verdict.reasons if not r.startswith("fault ")]
+    assert len(others) == 1 and "stale-mocap episode(s)" in others[0]  # the paused fleet
+
+
 def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_path):
     from coordinator import rundir
 

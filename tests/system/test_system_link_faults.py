@@ -146,3 +146,28 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
           f"gaps {[round(float(g), 2) for g in gaps]} s")
     kinds = collections.Counter(e["kind"] for e in events(run_dir))
     assert kinds["resumed"] >= 2  # both agents answered the newest frame after the cut
+
+
+def test_a_simulator_cut_in_lockstep_shorter_than_the_lease_loses_no_frame(tmp_path):
+    """Lockstep, zenoh's default lease (10 s) and a tick timeout longer than the cut: TCP holds
+    the frames back while the link is down and delivers them after the restore, the fleet waits,
+    and the trajectory is byte-identical to a run without the fault (no gap, no duplicate)."""
+    need_root_netns()
+    reference = tmp_path / "reference"
+    common = dict(mode="lockstep", capture=True,
+                  supervise_args=["--duration", "6", "--no-rrd", "--no-report", "--quiet"])
+    done = run_on_hosts(HERE / "two_robots.toml", 1, out=reference, prefix="tlft-ref",
+                        sim_args=["--duration", "6"], **common)
+    assert done.returncode == 0, done.stderr[-3000:]
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(HERE / "two_robots.toml", 1, out=run_dir, prefix="tlft-lscut",
+                          faults=(parse_fault("cut:sim@2+3"),),
+                          sim_args=["--duration", "6", "--tick-timeout", "10", "--max-speed",
+                                    "4"], **common)
+    assert "tlft-lscut" not in netns_list() and "tlft-ref" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]  # degraded: the fault
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    assert end["data"]["lasted"] >= 3.0 and end["t"] - start["t"] < 0.1  # the fleet waited
+    assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
+    assert (run_dir / "trajectory.csv").read_bytes() == \
+        (reference / "trajectory.csv").read_bytes()
