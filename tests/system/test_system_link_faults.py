@@ -58,6 +58,7 @@ def agent_stats(run_dir, robot):
                 if e["source"] == f"agent/{robot}")
 
 
+@pytest.mark.slow
 def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_path):
     need_root_netns()
     scenario = fast_watchdog(SCENARIOS / "scenario1.toml", tmp_path / "scenario1.toml")
