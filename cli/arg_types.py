@@ -15,3 +15,14 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(value) and value > 0.0):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, found {text}")
     return value
+
+
+def fault_spec(text: str):
+    """``--fault KIND:TARGET@T[+D]`` (issue 13): parsed at once, so a bad part is a usage
+    error naming it, before anything starts."""
+    from agent.scenario.faults import FaultSpecError, parse_fault
+
+    try:
+        return parse_fault(text)
+    except FaultSpecError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None

@@ -50,12 +50,17 @@ from pathlib import Path
 
 from agent.errors import TlfleetError
 from agent.scenario import Scenario, load_scenario
+from agent.scenario.faults import Fault
 from coordinator.launcher import Launcher, tlfleet_command
 from coordinator.rundir import default_run_dir
 
 logger = logging.getLogger(__name__)
 
 ROUTER_PORT = 7447
+# zenoh's connect retry (default 1 s doubling to 4 s) shortened for fault runs: a client whose
+# link was cut is back within about 0.25 s of the restore (fault-injection notes §5.3)
+RECONNECT = ("connect: { retry: { period_init_ms: 250, period_max_ms: 250, "
+             "period_increase_factor: 1.0 } }")
 PROCESS_PORT0 = 7500  # process k of a host gets PROCESS_PORT0 + k on its host's router
 
 
@@ -257,11 +262,15 @@ class HostsRun:
 
 def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  mode: str = "lockstep", supervise_args: Sequence[str] = (),
-                 sim_args: Sequence[str] = (), capture: bool = False,
+                 sim_args: Sequence[str] = (), agent_args: Sequence[str] = (),
+                 capture: bool = False,
                  router_timeout: float = 15.0, kill_grace: float = 3.0,
                  prefix: str | None = None, keys: Path | None = None,
-                 insecure: bool = False) -> HostsRun:
-    """``tlfleet run SCENARIO --hosts N`` (see the module docstring)."""
+                 insecure: bool = False, lease_ms: int | None = None,
+                 faults: Sequence[Fault] = ()) -> HostsRun:
+    """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults`` (issue 13)
+    the supervisor on host 0 injects them from a fault plan (:mod:`coordinator.fault_hosts`) and
+    every client reconnects fast (``RECONNECT``); ``lease_ms`` goes to every process."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
     if keys is not None and insecure:
@@ -273,6 +282,13 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     path = str(Path(scenario_path).resolve())
     run_dir = Path(out) if out else default_run_dir(scenario.name)
     placement = place(scenario, hosts)
+    if scenario.faults or faults:  # FaultSpecError / FaultError before anything starts
+        from coordinator.fault_hosts import check_hosts_fault
+        from coordinator.faults import run_faults
+
+        for fault in run_faults(scenario, faults):
+            check_hosts_fault(fault, placement)
+    injecting = bool(scenario.faults or faults)
     net = NetnsHosts(hosts, **({"prefix": prefix} if prefix else {}))
     launcher = Launcher(run_dir / "logs")
     done: subprocess.CompletedProcess | None = None
@@ -281,10 +297,17 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     router_conf = run_dir / "logs" / "router.json5"
     router_conf.parent.mkdir(parents=True, exist_ok=True)
     # explicit router mesh only: no gossip, so no router links another over a process's port
-    router_conf.write_text("{ scouting: { gossip: { enabled: false } } }\n")
+    router_conf.write_text("{ scouting: { gossip: { enabled: false } }"
+                           + (f", {RECONNECT}" if injecting else "") + " }\n")
     scheme = "tcp" if insecure else "tls"
     own_keys = None if insecure or keys is not None else Path(
         tempfile.mkdtemp(prefix="tlfleet-keys-"))  # 0700: private to this user
+    lease = ["--lease-ms", str(lease_ms)] if lease_ms else []
+    client = []
+    if injecting:  # a cut client comes back within a retry period of the restore
+        client_conf = run_dir / "logs" / "client.json5"
+        client_conf.write_text(f"{{ {RECONNECT} }}\n")
+        client = ["--zenoh-config", str(client_conf)]
     with net:
         try:
             if own_keys is not None:
@@ -299,7 +322,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                     f"{scheme}/{net.address(host)}:{placement.port_of[p]}"
                     for p in placement.on(host)]
                 argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf),
-                        *secure]
+                        *secure, *lease]
                 for endpoint in listen:
                     argv += ["--listen", endpoint]
                 for other in range(host):
@@ -315,16 +338,26 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
 
             launcher.start("sim", [*net.exec_prefix(0), *tlfleet_command(
                 "sim", path, f"--{mode}", *sim_args, "--connect", endpoint_of("sim"),
-                *secure)])
+                *secure, *lease, *client)])
             for robot in sorted(scenario.robot_ids):
                 name = f"agent-{robot}"
                 launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
                                       *tlfleet_command("agent", path, "--robot", str(robot),
-                                                       "--connect", endpoint_of(name),
-                                                       *secure)])
+                                                       *agent_args, "--connect",
+                                                       endpoint_of(name), *secure, *lease,
+                                                       *client)])
+            plan: list[str] = []
+            if injecting:
+                from coordinator.fault_hosts import PLAN_NAME, write_plan
+
+                pids = {c.name: c.pid for c in launcher.children}
+                plan = ["--fault-plan", str(write_plan(run_dir / "logs" / PLAN_NAME, net,
+                                                       placement, pids))]
+                for fault in faults:
+                    plan += ["--fault", fault.text or fault.spec]
             coordinator = [*net.exec_prefix(0), *tlfleet_command(
                 "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
-                "--out", str(run_dir), *secure, *supervise_args)]
+                "--out", str(run_dir), *secure, *lease, *client, *plan, *supervise_args)]
             done = subprocess.run(coordinator, capture_output=capture, text=True)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:

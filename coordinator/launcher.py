@@ -161,6 +161,27 @@ class Launcher:
         logger.info("started %s (pid %d): %s", name, process.pid, " ".join(argv))
         return child
 
+    def restart(self, name: str) -> Child:
+        """Start child ``name`` again with the same argv (issue 13's ``restart:`` fault), once
+        its process has exited; the new child takes the old one's place (its log goes on in the
+        same file)."""
+        old = next((c for c in self.children if c.name == name), None)
+        if old is None:
+            raise LaunchError(f"no child {name!r} to restart")
+        index = self.children.index(old)
+        if old.process.poll() is None:
+            raise LaunchError(f"{name} (pid {old.pid}) still runs: stop it before restarting")
+        old.close_log()
+        self.children.pop(index)
+        try:
+            child = self.start(name, old.argv)
+        except BaseException:
+            self.children.insert(index, old)
+            raise
+        self.children.remove(child)
+        self.children.insert(index, child)
+        return child
+
     def wait_all(self, timeout: float) -> bool:
         """Wait up to ``timeout`` [s] for every child to exit by itself; True when all did."""
         deadline = time.monotonic() + timeout

@@ -96,7 +96,8 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
                        ("flagged_event", "flagged event(s): claimed identity does not hold"),
                        ("resumed", "agent resume(s) after a freeze or partition"),
                        ("process_recovered", "process recovery(ies)"),
-                       ("agent_silent", "silent agent episode(s)")):
+                       ("agent_silent", "silent agent episode(s)"),
+                       ("link_lost", "link loss(es)")):
         if kinds[kind]:
             degraded.append(f"{kinds[kind]} {what}")
     malformed = int(deadlines.get("malformed", 0) or 0)

@@ -28,6 +28,7 @@ import numpy as np
 from agent.protocol.messages import LtlStatus, StlStatus
 from agent.scenario import Scenario
 from coordinator import paper_values, rundir, verdicts
+from coordinator.fault_report import fault_rows
 from coordinator.ltl_trace import ltl_robot_report
 from coordinator.paper_comparison import repair_events, stl_robot_report
 from coordinator.report_render import render_markdown, render_table
@@ -120,6 +121,7 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None
         "closest_approach": summary["closest_approach"],
         "timing": _timing(summary["deadlines"]),
         "process_deaths": summary["process_deaths"],
+        "faults": fault_rows(scenario, events, traj),
         "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
     }
     data["verdicts"] = verdicts.collect(scenario, traj, events, t_end, data["stl"])

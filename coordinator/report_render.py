@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 from coordinator import verdicts
+from coordinator.fault_report import render_fault_lines
 
 
 def _fmt(value: Any, spec: str = "+.4f") -> str:
@@ -202,6 +203,7 @@ def render_markdown(data: dict[str, Any]) -> str:
                 + "; ".join(f"{d.get('process')} at t = {_fmt(d.get('t'), '.2f')} s"
                             for d in data["process_deaths"]), ""]
 
+    out += render_fault_lines(data.get("faults") or [])
     out += ["## Figures", ""]
     if data["figures"]:
         out += [f"![{name}]({name})" for name in data["figures"]]

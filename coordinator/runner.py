@@ -48,8 +48,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from agent.scenario import Scenario
+from agent.scenario.faults import Fault
 from bus.transport import Transport, TransportConfig, check_config
 from coordinator.cleanup import Cleanup
+from coordinator.fault_schedule import FaultScheduler, ProcessActuator
+from coordinator.faults import run_faults
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -109,6 +112,7 @@ class RunConfig:
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
     #                                   every process of the run (bus.zenoh_config)
+    faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
@@ -157,6 +161,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
     scenario = load_checked(config.scenario_path, config.secure)  # before anything else
+    faults = run_faults(scenario, config.faults, config.duration)  # FaultSpecError: the same
+    ProcessActuator.check_all(faults)  # link cuts need namespace hosts (coordinator.hosts)
     if config.zenoh_config is not None:  # a bad file fails here, before anything is written
         check_config(TransportConfig(mode="client", zenoh_config=config.zenoh_config))
     endpoint = f"{'tls' if config.secure else 'tcp'}/{HOST}:{free_port(HOST)}"
@@ -174,6 +180,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     wall_start = time.monotonic()
     viewer = start_viewer(scenario, config, say) if config.viewer else None
     cleanup = Cleanup()
+    schedule: FaultScheduler | None = None
     try:
         router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
@@ -188,6 +195,10 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
             name = f"agent-{robot.id}"
             children[name] = launcher.start(
                 name, argv_of("agent", config, scenario, robot.id, endpoint))
+        if faults:
+            actuator = ProcessActuator(launcher, children, supervisor=session.supervisor)
+            schedule = FaultScheduler(faults, actuator, prepared.recorder.on_event, say)
+            progress = schedule.progress(progress)
         outcome, codes = session.run(stop, progress)
         wall_start = session.wall_start
     except BaseException:
@@ -195,6 +206,9 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
             Cleanup().step("viewer", viewer.close)
         raise
     finally:
+        if schedule is not None:  # restore every fault before anything is stopped
+            cleanup.step("end the faults", schedule.close)
+            info["faults"] = schedule.log
         if session is not None:
             session.close(cleanup)
         if transport is not None:
@@ -207,6 +221,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         end_info(prepared, outcome, wall_start, cleanup)
         cleanup.step("write run.json", lambda: prepared.recorder.write_run_info(info))
     findings = session.findings() if session is not None else []
+    findings += schedule.findings() if schedule is not None else []
     return finish_run(prepared, config, outcome, codes=codes, final=final,
                       router_clean=_router_clean(final.get("router")), findings=findings,
                       viewer=viewer, note=note, say=say)

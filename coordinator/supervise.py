@@ -36,6 +36,7 @@ from agent.protocol import keys
 from agent.protocol.bounds import FleetBounds
 from agent.protocol.plausibility import max_jump_ticks
 from agent.scenario import Scenario, load_scenario
+from agent.scenario.faults import Fault
 from bus.security import fingerprints, secure_transport
 from bus.transport import Transport, TransportConfig, open_transport
 from bus.zenoh_config import clean_reason
@@ -81,6 +82,8 @@ class SuperviseConfig:
     viewer: bool = False
     grpc_port: int = 0
     web_port: int = 0
+    faults: tuple[Fault, ...] = ()  # issue 13: injected with the actuator of fault_plan
+    fault_plan: Path | None = None  # coordinator.fault_hosts (written by tlfleet run --hosts)
 
 
 @dataclass
@@ -332,6 +335,7 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
     scenario = load_checked(config.scenario_path, config.secure)  # before connecting/writing
+    faults = fault_plan_checked(scenario, config)  # issue 13: bad faults fail here too
     transport = open_client(client_config(config.connect, secure=config.secure,
                                           lease_ms=config.lease_ms,
                                           zenoh_config=config.zenoh_config),
@@ -354,12 +358,16 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
 
         viewer = start_viewer(prepared.scenario, config, say)
     session: Supervision | None = None
+    schedule = None
     wall_start = time.monotonic()
     cleanup = Cleanup()
     try:
         session = Supervision(transport, prepared, config=config.supervisor,
                               silence=config.silence, report=report,
                               on_message=None if viewer is None else viewer.on_message)
+        if faults:
+            schedule = hosts_schedule(faults, config, session, say)
+            progress = schedule.progress(progress)
         outcome, codes = session.run(stop, progress, waiting)
         wall_start = session.wall_start
         left = session.wait_gone(config.supervisor.stop_grace)
@@ -368,6 +376,9 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
             Cleanup().step("viewer", viewer.close)
         raise
     finally:
+        if schedule is not None:  # every cut restored, every frozen process thawed
+            cleanup.step("end the faults", schedule.close)
+            prepared.info["faults"] = schedule.log
         if session is not None:
             session.close(cleanup)
         cleanup.step("close the session", transport.close, timeout=config.close_timeout)
@@ -376,5 +387,35 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
         prepared.info["left_after_stop"] = left
         cleanup.step("write run.json", lambda: prepared.recorder.write_run_info(prepared.info))
     lingering = tuple(name for name, gone in left.items() if not gone)
+    findings = session.findings() + (schedule.findings() if schedule is not None else [])
     return finish_run(prepared, config, outcome, codes=codes, final={}, lingering=lingering,
-                      findings=session.findings(), viewer=viewer, note=note, say=say)
+                      findings=findings, viewer=viewer, note=note, say=say)
+
+
+def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fault, ...]:
+    """The run's faults (the scenario's and ``config.faults``), checked before connecting; they
+    need the fault plan of the launcher that placed the fleet (issue 13)."""
+    from coordinator.faults import run_faults
+
+    faults = run_faults(scenario, config.faults, config.duration)
+    if faults and config.fault_plan is None:
+        raise SuperviseError("faults need a fault plan (--fault-plan, written by `tlfleet run "
+                             "--hosts N --fault …`): supervise alone does not know the fleet's "
+                             "processes and links")
+    if faults:
+        from coordinator.fault_hosts import HostsActuator
+
+        actuator = HostsActuator.from_file(config.fault_plan)
+        for fault in faults:
+            actuator.check(fault)
+    return faults
+
+
+def hosts_schedule(faults: tuple[Fault, ...], config: SuperviseConfig, session: Supervision,
+                   say: Say) -> Any:
+    from coordinator.fault_hosts import HostsActuator
+    from coordinator.fault_schedule import FaultScheduler
+
+    assert config.fault_plan is not None
+    actuator = HostsActuator.from_file(config.fault_plan, session.supervisor)
+    return FaultScheduler(faults, actuator, session.prepared.recorder.on_event, say)

@@ -126,6 +126,10 @@ class Supervisor:
         self._sim_done_count = 0  # sim_done events judged so far
         self._sim_done_pending: tuple[float, float] | None = None  # (wall, sim time) of the last
         self.stopping = False
+        # issue 13: processes whose link a fault cuts → until when [s monotonic] (inf: still
+        # cut) a lost token of theirs is a link loss, not a death; and the losses now open
+        self.cut: dict[str, float] = {}
+        self.link_lost: dict[str, float] = {}  # process -> wall time (time.time()) of the loss
         self._alive_queue: queue.SimpleQueue[tuple[str, bool]] = queue.SimpleQueue()
         self._handles: list[Closeable] = [
             transport.watch_alive(keys.all_alive(self.fleet),
@@ -179,10 +183,15 @@ class Supervisor:
                 continue
             if alive:
                 self.alive.add(name)
+                if name in self.link_lost:
+                    self._link_event("link_restored", name)
                 self._maybe_recovered(name)
             else:
                 self.alive.discard(name)
-                if not self.stopping:
+                if (self._clock() <= self.cut.get(name, -1.0) and not self.stopping
+                        and not self.tap.recorder.event_kinds["sim_done"]):
+                    self._link_event("link_lost", name)
+                elif not self.stopping:
                     self._suspect(name, "liveliness token lost", None)
 
     def _poll_children(self) -> None:
@@ -224,6 +233,19 @@ class Supervisor:
         event = Event(t=self.sim_time, source=COORDINATOR_SOURCE, kind="process_recovered",
                       data={"process": name, "lost_at": death.t, "how": death.how})
         self.tap.recorder.on_event(event)
+
+    def _link_event(self, kind: str, name: str) -> None:
+        """``link_lost`` (a cut process's token went: issue 13) or ``link_restored``."""
+        wall = time.time()
+        data: dict[str, object] = {"process": name, "wall": wall}
+        if kind == "link_lost":
+            self.link_lost[name] = wall
+        else:
+            data["lost_for"] = wall - self.link_lost.pop(name)
+        self._report(f"{kind} {name} at t = {self.sim_time:.2f} s"
+                     + (f" (after {data['lost_for']:.2f} s)" if "lost_for" in data else ""))
+        self.tap.recorder.on_event(Event(t=self.sim_time, source=COORDINATOR_SOURCE, kind=kind,
+                                         data=data))
 
     def _router_lost(self) -> bool:
         router = self.children.get("router")

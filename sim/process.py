@@ -362,7 +362,8 @@ class SimProcess:
             self.stats.watchdog_stops += 1
             logger.warning("watchdog: robot %d has had no command for %g s, stopped", robot,
                            self.world.watchdog)
-            self._event("watchdog_stop", robot=robot)
+            self._event("watchdog_stop", robot=robot,
+                        last_command_t=self.world.robots[robot].last_command_t)
         self.world.step(self.clock.period)
         self.stats.ticks = k + 1
         self.t = self.clock.time(k + 1)

@@ -18,6 +18,8 @@ File layout (every section but ``robots`` is optional)::
     [[regions]] name, center = [x, y], radius, labels = [...]
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
+    [[faults]]  spec = "cut:robot3@20+3" | kind, target (targets for a partition), at, duration
+                (issue 13, agent/scenario/faults.py)
 """
 
 from __future__ import annotations
@@ -32,6 +34,16 @@ from typing import TYPE_CHECKING, Any
 
 from agent.errors import FormulaSyntaxError, ScenarioError
 from agent.scenario import validation
+from agent.scenario.faults import (
+    Fault,
+    FaultSpecError,
+    check_duration,
+    check_fault,
+    check_time,
+    parse_fault,
+    parse_kind,
+    parse_targets,
+)
 from agent.scenario.model import (
     Arena,
     DiscObstacle,
@@ -91,6 +103,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     if not robots:
         raise ScenarioError(source, "robots", "expected at least one [[robots]] table")
     _unique(source, "robots", [(r.id, i) for i, r in enumerate(robots)], "robot id")
+    faults = tuple(_fault(t, [r.id for r in robots], duration)
+                   for t in top.array_of_tables("faults", required=False))
     top.finish()
 
     scenario = Scenario(
@@ -106,6 +120,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         navigation=navigation,
         description=description,
         source=Path(source) if source and not source.startswith("<") else None,
+        faults=faults,
     )
     validation.check_scenario(scenario, source)  # issue 11: sizes, rates, geometry
     _check_start_poses(scenario, source)
@@ -357,6 +372,39 @@ def _check_atom(table: _Table, key: str, name: str) -> None:
     if not ATOM_RE.match(name) or name in RESERVED_ATOMS:
         table.fail(key, f"{name!r} is not a valid proposition name: expected lower-case letters, "
                         f"digits and _ starting with a letter or _ (and not true/false)")
+
+
+def _fault(table: _Table, robot_ids: list[int], duration: float) -> Fault:
+    """One ``[[faults]]`` table: ``spec = "KIND:TARGET@T[+D]"`` or its parts ``kind``,
+    ``target`` (``targets`` for a partition), ``at`` [s] sim time, ``duration`` [s] wall time."""
+    if table.has("spec"):
+        spec = table.string("spec")
+        table.finish()
+        try:
+            fault = parse_fault(spec)
+            check_fault(fault, robot_ids, duration)
+        except FaultSpecError as exc:
+            table.fail("spec", f"{exc.part} of {spec!r}: {exc.reason}")
+        return fault
+    kind = table.string("kind")
+    field_of = {"kind": "kind", "target": "targets" if kind == "partition" else "target",
+                "time": "at", "duration": "duration"}
+    text = f"{kind}:…"
+    try:
+        parse_kind(text, kind)
+        if kind == "partition":
+            targets = parse_targets(text, ",".join(table.list_of("targets", str, "string")),
+                                    kind)
+        else:
+            targets = parse_targets(text, table.string("target"), kind)
+        at = check_time(text, table.number("at"))
+        fault = Fault(kind, targets, at, check_duration(text, kind, table.number(
+            "duration", default=None)))
+        table.finish()
+        check_fault(fault, robot_ids, duration)
+    except FaultSpecError as exc:
+        table.fail(field_of[exc.part], exc.reason)
+    return fault
 
 
 def _unique(source: str, field: str, items: list[tuple[Any, int]], what: str) -> None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Literal
 
 if TYPE_CHECKING:
     from agent.ltl.formula import Formula
+    from agent.scenario.faults import Fault
     from agent.stl.syntax import Temporal
 
 RobotKind = Literal["unicycle", "omni"]
@@ -250,6 +251,7 @@ class Scenario:
     navigation: NavParams = field(default_factory=NavParams)
     description: str = ""
     source: Path | None = None
+    faults: tuple[Fault, ...] = ()  # [[faults]] (issue 13, agent.scenario.faults)
 
     def robot(self, robot_id: int) -> Robot:
         """The robot with this id; ``KeyError`` naming the known ids otherwise."""

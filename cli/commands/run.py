@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from bus.signals import stop_on_signals, wait_for_signal
-from cli.arg_types import positive_float
+from cli.arg_types import fault_spec, positive_float
 from cli.run_flags import add_mode_arguments, add_output_arguments
 from cli.transport_flags import add_zenoh_config_argument
 from coordinator.runner import RunConfig, RunResult, run_fleet
@@ -73,6 +73,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "TCP on 127.0.0.1")
     add_output_arguments(parser)
     add_zenoh_config_argument(parser)
+    parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
+                        metavar="SPEC",
+                        help="inject a fault (repeatable): cut:TARGET@T+D, partition:A,B@T+D, "
+                             "freeze:TARGET@T+D, kill:TARGET@T, restart:TARGET@T; TARGET robot<N>, "
+                             "sim, router or host<i>; T sim time [s], D wall time [s]; link cuts "
+                             "run on namespace hosts (root) — README \"Faults\"")
     parser.add_argument("--hosts", type=int, default=0, metavar="N",
                         help="run across N network-namespace hosts, one zenoh router each, "
                              "routers connected (root only; coordinator.hosts); secured by "
@@ -157,11 +163,19 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
                           keys=args.secure, insecure=args.insecure,
-                          supervise_args=extra, sim_args=sim)
+                          supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
+                          faults=tuple(args.faults))
     return result.returncode
 
 
 def run(args: argparse.Namespace) -> int:
+    if not args.hosts:
+        from coordinator.faults import hosts_for
+
+        args.hosts = hosts_for(Path(args.scenario), args.faults, args.duration)
+        if args.hosts:
+            print(f"tlfleet run: link faults: running on {args.hosts} namespace host(s) "
+                  "(coordinator.hosts)", file=sys.stderr, flush=True)
     if args.hosts:
         return run_hosts(args)
     duration = args.duration
@@ -178,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
-        lease_ms=args.lease_ms, zenoh_config=args.zenoh_config,
+        lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

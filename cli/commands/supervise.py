@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from bus.signals import stop_on_signals
+from cli.arg_types import fault_spec
 from cli.commands.run import ProgressBar, print_outputs
 from cli.run_flags import add_mode_arguments, add_output_arguments
 from cli.transport_flags import add_zenoh_config_argument
@@ -54,6 +55,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
                         help="link lease in ms (zenoh default 10000)")
     add_zenoh_config_argument(parser)
+    parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
+                        metavar="SPEC", help="inject a fault (as `tlfleet run --fault`); needs "
+                                             "--fault-plan")
+    parser.add_argument("--fault-plan", type=Path, default=None, metavar="FILE",
+                        help="the fleet's namespaces, placement and pids (written by `tlfleet "
+                             "run --hosts N --fault …`)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         duration=args.duration, seed=args.seed, connect_timeout=args.connect_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
         zenoh_config=args.zenoh_config, secure=args.secure, lease_ms=args.lease_ms,
-        report=args.report, figures=args.figures, rrd=args.rrd)
+        report=args.report, figures=args.figures, rrd=args.rrd, faults=tuple(args.faults),
+        fault_plan=args.fault_plan)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def say(text: str) -> None:

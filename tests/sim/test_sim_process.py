@@ -133,7 +133,7 @@ def test_dead_agent_is_dropped_at_once_and_its_robot_stopped_by_the_watchdog():
     assert observer.events_of("deadline_miss") == []
     stops = observer.events_of("watchdog_stop")
     # Last command applied at t = 0.49; stopped at the first tick more than 0.5 s later.
-    assert [(e.t, e.data) for e in stops] == [(1.0, {"robot": 2})]
+    assert [(e.t, e.data) for e in stops] == [(1.0, {"robot": 2, "last_command_t": 0.49})]
     xs = [p[0] for p in poses_of(frames, 2)]
     assert xs[100] - xs[50] > 0.09  # held its last command (zero-order hold) until then
     assert xs[-1] == pytest.approx(xs[-10], abs=1e-9)  # then came to rest

@@ -1,0 +1,130 @@
+"""Faults on namespace hosts: link cuts (issue 13 §1; fault-injection notes §5.3, §5.5).
+
+``tlfleet run --fault cut:…`` goes to namespace hosts (:func:`coordinator.hosts.run_on_hosts`),
+where every process reaches the fleet through a router port of its own. The launcher writes a
+**fault plan** (``logs/fault-plan.json``: the namespaces' prefix, count and subnet, the placement
+and the children's pids) and ``tlfleet supervise`` — on host 0, as root — injects the faults
+with a :class:`HostsActuator` built from it:
+
+* ``cut:agent-3`` / ``cut:sim`` — an nft table in the process's host drops its router port both
+  ways (a silent partition, :meth:`coordinator.hosts.NetnsHosts.cut_process`); ``cut:host1`` —
+  host 1's bridge port down (carrier loss), every process on it cut;
+* while a process is cut (and for ``CUT_GRACE`` seconds after the restore, but not after the
+  mission's end), the loss of its liveliness token is a ``link_lost`` of the supervisor, not a
+  death, and its return a ``link_restored`` (:class:`coordinator.supervisor.Supervisor`);
+* ``freeze:`` and ``kill:`` signal the child's process group by the pid in the plan (the same
+  pid namespace); ``restart:`` needs the launcher's own process and is rejected here, as are
+  partitions: the routers of the hosts form a mesh and route around a dropped pair (§5.5), so a
+  pairwise drop between namespace hosts would not separate two processes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+from agent.scenario.faults import Fault
+from coordinator.fault_schedule import FaultError
+from coordinator.hosts import NetnsHosts, Placement
+
+PLAN_NAME = "fault-plan.json"
+CUT_GRACE = 1.0  # [s] wall after a restore during which a lost token is still a link loss
+#                  (a lease that expires just as the link comes back); not after sim_done
+
+
+def write_plan(path: Path, net: NetnsHosts, placement: Placement, pids: dict[str, int]) -> Path:
+    path.write_text(json.dumps({"prefix": net.prefix, "count": net.count, "subnet": net.subnet,
+                                "placement": placement.as_dict(), "pids": pids}, indent=2))
+    return path
+
+
+def check_hosts_fault(fault: Fault, placement: Placement | None = None) -> None:
+    """Reject, before the run, what namespace hosts cannot do (see the module docstring)."""
+    spec = fault.text or fault.spec
+    if fault.kind == "restart":
+        raise FaultError(f"fault {spec}: restart is not supported on namespace hosts yet (the "
+                         "launcher would have to start the process again); use kill, or run "
+                         "without link cuts")
+    if fault.kind == "partition":
+        raise FaultError(f"fault {spec}: partitions are not supported yet: the namespace hosts' "
+                         "routers form a mesh and route around a dropped pair, so no topology "
+                         "of `--hosts` separates two processes while both stay connected")
+    if "router" in fault.targets:
+        raise FaultError(f"fault {spec}: on namespace hosts every host has its router; cut the "
+                         "host (host<i>) instead")
+    if placement is None:
+        return
+    for target in fault.targets:
+        if target.startswith("host-"):
+            host = int(target[5:])
+            if host >= placement.hosts:
+                raise FaultError(f"fault {spec}: there is no {target} (hosts 0 to "
+                                 f"{placement.hosts - 1})")
+        elif target not in placement.host_of:
+            raise FaultError(f"fault {spec}: no process {target} in this fleet")
+
+
+class HostsActuator:
+    """Injects faults into a fleet on namespace hosts (see the module docstring)."""
+
+    def __init__(self, plan: dict[str, Any], supervisor: Any = None):
+        p = plan["placement"]
+        self.placement = Placement(int(p["hosts"]), dict(p["host_of"]), dict(p["port_of"]))
+        self.net = NetnsHosts(int(plan["count"]), prefix=str(plan["prefix"]),
+                              subnet=int(plan["subnet"]))  # created empty: never deleted here
+        self.pids: dict[str, int] = {k: int(v) for k, v in plan["pids"].items()}
+        self.supervisor = supervisor
+
+    @classmethod
+    def from_file(cls, path: Path, supervisor: Any = None) -> HostsActuator:
+        return cls(json.loads(Path(path).read_text()), supervisor)
+
+    def check(self, fault: Fault) -> None:
+        check_hosts_fault(fault, self.placement)
+        if fault.kind in ("freeze", "kill") and fault.target not in self.pids:
+            raise FaultError(f"fault {fault.text or fault.spec}: no pid of {fault.target} in "
+                             "the fault plan")
+
+    def _cut_names(self, target: str) -> list[str]:
+        if target.startswith("host-"):
+            return [p for p in self.placement.on(int(target[5:])) if p != "coordinator"]
+        return [target]
+
+    def _mark(self, target: str, until: float) -> None:
+        if self.supervisor is not None:
+            for name in self._cut_names(target):
+                self.supervisor.cut[name] = until
+
+    def start(self, fault: Fault) -> dict[str, Any]:
+        target = fault.target
+        if fault.kind == "cut":
+            self._mark(target, math.inf)
+            if target.startswith("host-"):
+                self.net.cut_host(int(target[5:]))
+                return {"how": f"bridge port p{target[5:]} down", "processes":
+                        self._cut_names(target)}
+            host, port = self.placement.link(target)
+            self.net.cut_process(self.placement, target)
+            return {"how": f"nft drop of port {port} in {self.net.name(host)}"}
+        pid = self.pids[target]
+        os.killpg(pid, signal.SIGSTOP if fault.kind == "freeze" else signal.SIGKILL)
+        return {"pid": pid}
+
+    def end(self, fault: Fault) -> dict[str, Any]:
+        target = fault.target
+        if fault.kind == "cut":
+            if target.startswith("host-"):
+                self.net.restore_host(int(target[5:]))
+            else:
+                self.net.restore_process(self.placement, target)
+            self._mark(target, time.monotonic() + CUT_GRACE)
+        elif fault.kind == "freeze":
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.pids[target], signal.SIGCONT)
+        return {}

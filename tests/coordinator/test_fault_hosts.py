@@ -1,0 +1,56 @@
+"""Which faults need namespace hosts, and what a run on them rejects up front (issue 13 §1)."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from agent.scenario import load_scenario
+from agent.scenario.faults import parse_fault
+from coordinator import faults as faults_module
+from coordinator.fault_hosts import HostsActuator, check_hosts_fault
+from coordinator.fault_schedule import FaultError
+from coordinator.faults import hosts_for, need_hosts
+from coordinator.hosts import NetnsHosts, place
+
+
+def test_link_faults_need_root_and_the_tools_and_say_so(monkeypatch):
+    assert need_hosts([parse_fault("freeze:robot1@1+1")]) is False
+    monkeypatch.setattr(faults_module.os, "geteuid", lambda: 1000)
+    with pytest.raises(FaultError, match="fault cut:robot3@20\\+3: dropping a link needs "
+                                         "network namespaces, and those need root"):
+        need_hosts([parse_fault("cut:robot3@20+3")])
+    monkeypatch.setattr(faults_module.os, "geteuid", lambda: 0)
+    real = shutil.which
+    monkeypatch.setattr(faults_module.shutil, "which",
+                        lambda tool: None if tool == "nft" else real(tool) or "/bin/" + tool)
+    with pytest.raises(FaultError, match="needs `nft` \\(Debian package nftables\\)"):
+        need_hosts([parse_fault("cut:robot3@20+3")])
+
+
+def test_the_number_of_hosts_a_run_needs(scenarios_dir, monkeypatch):
+    monkeypatch.setattr(faults_module, "need_hosts", lambda faults: any(
+        f.needs_hosts for f in faults))  # as root with the tools
+    s1 = scenarios_dir / "scenario1.toml"
+    assert hosts_for(s1, [parse_fault("freeze:robot3@20+3")]) == 0
+    assert hosts_for(s1, [parse_fault("cut:robot3@20+3")]) == 1
+    assert hosts_for(s1, [parse_fault("cut:robot3@2+3"), parse_fault("cut:host2@5+1")]) == 3
+
+
+def test_namespace_hosts_reject_what_they_cannot_do(scenarios_dir):
+    placement = place(load_scenario(scenarios_dir / "scenario1.toml"), 2)
+    for spec, message in (("restart:robot3@1", "restart is not supported on namespace hosts"),
+                          ("partition:robot3,robot4@1+1", "route around a dropped pair"),
+                          ("cut:router@1+1", "cut the host \\(host<i>\\) instead"),
+                          ("cut:host2@1+1", "there is no host-2 \\(hosts 0 to 1\\)")):
+        with pytest.raises(FaultError, match=message):
+            check_hosts_fault(parse_fault(spec), placement)
+    check_hosts_fault(parse_fault("cut:host1@1+1"), placement)
+    net = NetnsHosts(2, prefix="tlft-plan")
+    actuator = HostsActuator({"prefix": net.prefix, "count": 2, "subnet": net.subnet,
+                              "placement": placement.as_dict(), "pids": {"agent-3": 1}})
+    actuator.check(parse_fault("freeze:robot3@1+1"))
+    with pytest.raises(FaultError, match="no pid of agent-4 in the fault plan"):
+        actuator.check(parse_fault("kill:robot4@1"))
+    assert actuator._cut_names("host-1") == ["agent-2", "agent-4"]

@@ -1,0 +1,174 @@
+"""Link cuts on namespace hosts (issue 13 §2): ``tlfleet run --fault cut:…`` switches the run to
+namespace hosts by itself; the cut is an nft drop of the process's own router port.
+
+Root only (``ip netns``, ``nft``); elsewhere these skip with the reason, and fail under
+TLFLEET_REQUIRE_SYSTEM=1. Every namespace is created and deleted by the run (nothing attached to
+the root namespace); every wait is bounded.
+
+The fleets are Scenario 1 and the two-robot fleet with the knobs the targets need, each said
+where it is set: a zenoh lease of 500 ms (link loss noticed within 1 s instead of zenoh's 10 s),
+the simulator's watchdog at 0.15 s (a robot stopped within 0.2 s of its last command; the
+default 0.5 s would not be) and therefore LTL robots commanding at 10 Hz instead of 5 Hz (a
+5 Hz robot's commands are 0.2 s apart, which a 0.15 s watchdog would stop between any two).
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from needs import need_root_netns
+from system_helpers import HERE, ROOT, SCENARIOS, events, load_trajectory, robot_robot_contacts
+
+from agent.scenario.faults import parse_fault
+from coordinator.hosts import run_on_hosts
+
+pytestmark = [pytest.mark.system, pytest.mark.needs_system]
+LEASE_MS = 500
+WATCHDOG = 0.15  # [s] sim time
+
+
+def fast_watchdog(source, out):
+    """``source`` with the watchdog at ``WATCHDOG`` and LTL robots at 10 Hz (see above)."""
+    text = source.read_text()
+    if "[ltl]" in text:
+        text = text.replace("control_rate = 5.0", "control_rate = 10.0")
+    else:
+        text += "\n[ltl]\ncontrol_rate = 10.0\n"
+    assert "[sim]" in text
+    text = text.replace("[sim]\n", f"[sim]\nwatchdog = {WATCHDOG}\n", 1)
+    out.write_text(text)
+    return out
+
+
+def netns_list() -> str:
+    return subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+
+
+def by_kind(run_dir, kind):
+    return [e for e in events(run_dir) if e["kind"] == kind]
+
+
+def agent_stats(run_dir, robot):
+    return next(e["data"] for e in by_kind(run_dir, "agent_stats")
+                if e["source"] == f"agent/{robot}")
+
+
+@pytest.mark.slow
+def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_path):
+    need_root_netns()
+    scenario = fast_watchdog(SCENARIOS / "scenario1.toml", tmp_path / "scenario1.toml")
+    run_dir = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "cli.main", "run", str(scenario), "--realtime", "--duration",
+         "60", "--lease-ms", str(LEASE_MS), "--fault", "cut:robot3@20+3", "--out",
+         str(run_dir), "--no-rrd", "--no-figures", "--quiet"],
+        capture_output=True, text=True, cwd=ROOT, timeout=400)
+    assert "link faults: running on 1 namespace host(s)" in done.stderr
+    assert done.returncode == 4, done.stderr[-3000:]  # degraded: a fault happened
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration") and info["t_end"] == pytest.approx(60.0)
+    for name in info["addresses"]:  # the run's namespaces are gone
+        assert name not in netns_list()
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    assert start["data"]["spec"] == "cut:robot3@20+3" and 20.0 <= start["t"] < 20.3
+    assert 3.0 <= end["data"]["lasted"] < 3.5
+    # the simulator's watchdog stops robot 3 within 0.2 s of its last command
+    (stop,) = [e for e in by_kind(run_dir, "watchdog_stop") if e["data"]["robot"] == 3
+               and start["t"] - 0.2 < e["t"] < end["t"]]  # (a loaded machine may stall one
+    #                                                        realtime agent > 0.15 s elsewhere)
+    assert stop["t"] - stop["data"]["last_command_t"] <= 0.2
+    t, states = load_trajectory(run_dir)
+    held = (t > stop["t"] + 0.3) & (t < end["t"])
+    assert held.sum() > 100
+    assert np.ptp(states[3][held, 0]) < 0.02 and np.ptp(states[3][held, 1]) < 0.02
+    # its agent saw stale mocap and commanded zero (into the cut link: counted by the agent)
+    stats = agent_stats(run_dir, 3)
+    assert stats["stale_episodes"] >= 1 and stats["stale_commands"] >= 1
+    # the coordinator: link_lost within 1 s of the cut, link_restored within 1 s of the restore
+    (lost,), (restored,) = by_kind(run_dir, "link_lost"), by_kind(run_dir, "link_restored")
+    assert lost["data"]["process"] == "agent-3" == restored["data"]["process"]
+    assert 0.0 < lost["data"]["wall"] - start["data"]["wall"] < 1.0
+    assert 0.0 < restored["data"]["wall"] - end["data"]["wall"] < 1.0
+    assert by_kind(run_dir, "process_died") == []  # a cut link is not a death
+    resumed = [e for e in by_kind(run_dir, "resumed") if e["source"] == "agent/3"]
+    assert resumed and resumed[0]["t"] > end["t"] - 0.5
+    # no contact; robot 3 completes its later sub-task F[57,58]; the others go on
+    assert robot_robot_contacts(run_dir) == []
+    report = json.loads((run_dir / "report.json").read_text())
+    assert report["verdicts"]["subtasks"]["3"][1]["verdict"] == "satisfied"
+    for robot in (4, 5):
+        assert agent_stats(run_dir, robot)["stale_episodes"] == 0
+    (row,) = report["faults"]
+    assert row["detection"]["kind"] == "link_lost" and row["detection"]["after_wall"] < 1.0
+    assert row["min_clearance"] > 0
+    assert "cut:robot3@20+3" in (run_dir / "report.md").read_text()
+    print(f"cut robot3: stop {stop['t'] - stop['data']['last_command_t']:.3f} s after its last "
+          f"command; link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; "
+          f"link_restored {restored['data']['wall'] - end['data']['wall']:.3f} s after the "
+          "restore")
+
+
+def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path):
+    need_root_netns()
+    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
+                          faults=(parse_fault("cut:sim@3+2"),), capture=True,
+                          supervise_args=["--duration", "10", "--no-rrd", "--no-figures",
+                                          "--quiet"],
+                          sim_args=["--duration", "10"], agent_args=["--stale-after", "0.15"],
+                          prefix="tlft-simcut")
+    assert "tlft-simcut" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration")
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    # every agent stops commanding motion on stale mocap within 0.2 s of its last frame
+    stale = [e for e in by_kind(run_dir, "stale_mocap") if start["t"] - 0.1 <= e["t"] <= end["t"]]
+    assert sorted({e["source"] for e in stale}) == ["agent/1", "agent/2"]
+    assert all(e["data"]["silence"] <= 0.2 for e in stale)
+    (lost,), (restored,) = by_kind(run_dir, "link_lost"), by_kind(run_dir, "link_restored")
+    assert lost["data"]["process"] == "sim" == restored["data"]["process"]
+    assert lost["data"]["wall"] - start["data"]["wall"] < 1.0
+    assert by_kind(run_dir, "process_died") == []
+    # the run resumes: frames after the restore to the end; no duplicated or reordered frame
+    t, _states = load_trajectory(run_dir)
+    assert t[-1] == pytest.approx(10.0)
+    steps = np.diff(t)
+    assert (steps > 0).all()
+    gaps = steps[steps > 0.015]
+    print(f"sim cut: agents stale after {[round(e['data']['silence'], 3) for e in stale]} s; "
+          f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; trajectory "
+          f"gaps {[round(float(g), 2) for g in gaps]} s")
+    kinds = collections.Counter(e["kind"] for e in events(run_dir))
+    assert kinds["resumed"] >= 2  # both agents answered the newest frame after the cut
+
+
+def test_a_simulator_cut_in_lockstep_shorter_than_the_lease_loses_no_frame(tmp_path):
+    """Lockstep, zenoh's default lease (10 s) and a tick timeout longer than the cut: TCP holds
+    the frames back while the link is down and delivers them after the restore, the fleet waits,
+    and the trajectory is byte-identical to a run without the fault (no gap, no duplicate)."""
+    need_root_netns()
+    reference = tmp_path / "reference"
+    common = dict(mode="lockstep", capture=True,
+                  supervise_args=["--duration", "6", "--no-rrd", "--no-report", "--quiet"])
+    done = run_on_hosts(HERE / "two_robots.toml", 1, out=reference, prefix="tlft-ref",
+                        sim_args=["--duration", "6"], **common)
+    assert done.returncode == 0, done.stderr[-3000:]
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(HERE / "two_robots.toml", 1, out=run_dir, prefix="tlft-lscut",
+                          faults=(parse_fault("cut:sim@2+3"),),
+                          sim_args=["--duration", "6", "--tick-timeout", "10", "--max-speed",
+                                    "4"], **common)
+    assert "tlft-lscut" not in netns_list() and "tlft-ref" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]  # degraded: the fault
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    assert end["data"]["lasted"] >= 3.0 and end["t"] - start["t"] < 0.1  # the fleet waited
+    assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
+    assert (run_dir / "trajectory.csv").read_bytes() == \
+        (reference / "trajectory.csv").read_bytes()
