@@ -308,6 +308,9 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
         client_conf = run_dir / "logs" / "client.json5"
         client_conf.write_text(f"{{ {RECONNECT} }}\n")
         client = ["--zenoh-config", str(client_conf)]
+    # with faults, agents that read only every d-th frame watch the sim's clock key too, so they
+    # notice a lost simulator within --stale-after like the others (issue 13 §2)
+    beat = ["--heartbeat"] if injecting else []
     with net:
         try:
             if own_keys is not None:
@@ -343,7 +346,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                 name = f"agent-{robot}"
                 launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
                                       *tlfleet_command("agent", path, "--robot", str(robot),
-                                                       *agent_args, "--connect",
+                                                       *agent_args, *beat, "--connect",
                                                        endpoint_of(name), *secure, *lease,
                                                        *client)])
             plan: list[str] = []
