@@ -12,10 +12,14 @@ with a :class:`HostsActuator` built from it:
 * while a process is cut (and for ``CUT_GRACE`` seconds after the restore, but not after the
   mission's end), the loss of its liveliness token is a ``link_lost`` of the supervisor, not a
   death, and its return a ``link_restored`` (:class:`coordinator.supervisor.Supervisor`);
+* ``partition:A,B`` — only in the peer layout (:func:`coordinator.hosts.place_peers`, which
+  :func:`coordinator.hosts.run_on_hosts` chooses for a run with a partition): an nft bridge
+  rule drops what the bridge forwards between A's and B's hosts, so their direct peer link is
+  gone while both keep their links to the router and to every other peer (a router does not
+  relay between peers); in the router layout the hosts' routers form a mesh and would route
+  around a dropped pair (§5.5). In the peer layout a cut is always the host's carrier loss;
 * ``freeze:`` and ``kill:`` signal the child's process group by the pid in the plan (the same
-  pid namespace); ``restart:`` needs the launcher's own process and is rejected here, as are
-  partitions: the routers of the hosts form a mesh and route around a dropped pair (§5.5), so a
-  pairwise drop between namespace hosts would not separate two processes.
+  pid namespace); ``restart:`` needs the launcher's own process and is rejected here.
 """
 
 from __future__ import annotations
@@ -51,10 +55,11 @@ def check_hosts_fault(fault: Fault, placement: Placement | None = None) -> None:
         raise FaultError(f"fault {spec}: restart is not supported on namespace hosts yet (the "
                          "launcher would have to start the process again); use kill, or run "
                          "without link cuts")
-    if fault.kind == "partition":
-        raise FaultError(f"fault {spec}: partitions are not supported yet: the namespace hosts' "
-                         "routers form a mesh and route around a dropped pair, so no topology "
-                         "of `--hosts` separates two processes while both stay connected")
+    if fault.kind == "partition" and placement is not None and placement.layout != "peers":
+        raise FaultError(f"fault {spec}: a partition needs the peer layout (every process a peer "
+                         "on a host of its own, which `tlfleet run` chooses for a run with a "
+                         "partition): with a router per host the routers route around a dropped "
+                         "pair")
     if "router" in fault.targets:
         raise FaultError(f"fault {spec}: on namespace hosts every host has its router; cut the "
                          "host (host<i>) instead")
@@ -74,8 +79,7 @@ class HostsActuator:
     """Injects faults into a fleet on namespace hosts (see the module docstring)."""
 
     def __init__(self, plan: dict[str, Any], supervisor: Any = None):
-        p = plan["placement"]
-        self.placement = Placement(int(p["hosts"]), dict(p["host_of"]), dict(p["port_of"]))
+        self.placement = Placement.from_dict(plan["placement"])
         self.net = NetnsHosts(int(plan["count"]), prefix=str(plan["prefix"]),
                               subnet=int(plan["subnet"]))  # created empty: never deleted here
         self.pids: dict[str, int] = {k: int(v) for k, v in plan["pids"].items()}
@@ -101,14 +105,28 @@ class HostsActuator:
             for name in self._cut_names(target):
                 self.supervisor.cut[name] = until
 
+    def _host(self, target: str) -> int:
+        """The host of a cut (``host-<i>``, or in the peer layout the process's own host)."""
+        if target.startswith("host-"):
+            return int(target[5:])
+        return self.placement.host_of[target]
+
+    def _host_cut(self, target: str) -> bool:
+        return target.startswith("host-") or self.placement.layout == "peers"
+
     def start(self, fault: Fault) -> dict[str, Any]:
         target = fault.target
+        if fault.kind == "partition":
+            a, b = (self._host(t) for t in fault.targets)
+            self.net.partition(a, b)
+            return {"how": f"bridge drops between p{a} and p{b} (nft)"}
         if fault.kind == "cut":
             self._mark(target, math.inf)
-            if target.startswith("host-"):
-                self.net.cut_host(int(target[5:]))
-                return {"how": f"bridge port p{target[5:]} down", "processes":
-                        self._cut_names(target)}
+            if self._host_cut(target):
+                host = self._host(target)
+                self.net.cut_host(host)
+                return {"how": f"bridge port p{host} down", "processes":
+                        self._cut_names(f"host-{host}")}
             host, port = self.placement.link(target)
             self.net.cut_process(self.placement, target)
             return {"how": f"nft drop of port {port} in {self.net.name(host)}"}
@@ -118,9 +136,11 @@ class HostsActuator:
 
     def end(self, fault: Fault) -> dict[str, Any]:
         target = fault.target
-        if fault.kind == "cut":
-            if target.startswith("host-"):
-                self.net.restore_host(int(target[5:]))
+        if fault.kind == "partition":
+            self.net.heal(*(self._host(t) for t in fault.targets))
+        elif fault.kind == "cut":
+            if self._host_cut(target):
+                self.net.restore_host(self._host(target))
             else:
                 self.net.restore_process(self.placement, target)
             self._mark(target, time.monotonic() + CUT_GRACE)

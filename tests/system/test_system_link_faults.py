@@ -113,6 +113,61 @@ def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_pat
           "restore")
 
 
+def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobody_deadlocks(
+        tmp_path):
+    """Scenario 1, lockstep paced at 2× wall time: robot 3 asked robot 4 for help (stage 2) at
+    t ≈ 35 s; a partition of the pair from t = 36 s for 3 s wall (both keep every other link:
+    the peer layout, coordinator.hosts.place_peers). Robot 4 sees robot 3's token go (its lease)
+    and releases itself; robot 3's messages to robot 4 go unanswered, it sees robot 4
+    unreachable and its next critical events get stage 3 (Algorithm 2); after the heal it asks
+    again; the mission runs to its end."""
+    need_root_netns()
+    run_dir = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "cli.main", "run", str(SCENARIOS / "scenario1.toml"),
+         "--lockstep", "--max-speed", "2", "--duration", "62", "--lease-ms", str(LEASE_MS),
+         "--fault", "partition:robot3,robot4@36+3", "--out", str(run_dir), "--no-rrd",
+         "--no-figures", "--quiet"],
+        capture_output=True, text=True, cwd=ROOT, timeout=400)
+    assert "link faults: running on 7 namespace host(s)" in done.stderr, done.stderr[-2000:]
+    assert done.returncode == 4, done.stderr[-3000:]  # degraded: a fault happened
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration") and info["t_end"] == pytest.approx(62.0)
+    assert info["hosts"]["layout"] == "peers"
+    for name in info["addresses"]:
+        assert name not in netns_list()
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    assert start["data"]["targets"] == ["agent-3", "agent-4"] and 36.0 <= start["t"] < 36.3
+    evs = events(run_dir)
+    request = [e for e in evs if e["kind"] == "collab_request" and e["source"] == "agent/3"]
+    assert request and request[0]["t"] < start["t"]  # the collaboration was under way
+    # the helper releases on its own: robot 3's token is gone for it (lease), not a release
+    released = [e for e in evs if e["kind"] == "collab_follow" and e["source"] == "agent/4"
+                and e["data"]["previous"] == 3 and start["t"] <= e["t"] <= end["t"]]
+    assert released and released[0]["data"]["requester"] == -1
+    assert not [e for e in evs if e["kind"] == "collab_release"
+                and start["t"] <= e["t"] <= end["t"]]
+    # the requester: its messages to robot 4 went unanswered, stage 3 during the partition
+    assert agent_stats(run_dir, 3)["collab_failed"] >= 1
+    stage3 = [e for e in evs if e["kind"] == "repair" and e["source"] == "agent/3"
+              and e["data"]["stage"] == 3 and start["t"] <= e["t"] <= end["t"] + 0.5]
+    assert stage3, "robot 3 had no stage-3 repair during the partition"
+    # nobody deadlocks: the fleet's sim time went on through the partition, and after the heal
+    # robot 3 asks robot 4 again
+    t, _states = load_trajectory(run_dir)
+    assert t[-1] == pytest.approx(62.0) and (np.diff(t) > 0).all()
+    assert [e for e in request if e["t"] > end["t"]]
+    assert by_kind(run_dir, "process_died") == [] and robot_robot_contacts(run_dir) == []
+    # the report shows the stage-3 repairs and the fault
+    report = json.loads((run_dir / "report.json").read_text())
+    assert report["stl"]["3"]["subtasks"][1]["repairs"]["stage3"] >= len(stage3)
+    (row,) = report["faults"]
+    assert row["spec"] == "partition:robot3,robot4@36+3" and row["min_clearance"] > 0
+    print(f"partition robot3,robot4: robot 4 released {released[0]['t'] - start['t']:.2f} s "
+          f"(sim) after the start; {len(stage3)} stage-3 repairs of robot 3; "
+          f"{agent_stats(run_dir, 3)['collab_failed']} unanswered messages")
+
+
 def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path):
     need_root_netns()
     scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
