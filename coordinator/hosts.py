@@ -453,8 +453,9 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                 from coordinator.fault_hosts import PLAN_NAME, write_plan
 
                 pids = {c.name: c.pid for c in launcher.children}
+                argv = {c.name: c.argv for c in launcher.children}
                 plan = ["--fault-plan", str(write_plan(run_dir / "logs" / PLAN_NAME, net,
-                                                       placement, pids))]
+                                                       placement, pids, argv))]
                 for fault in faults:
                     plan += ["--fault", fault.text or fault.spec]
             coordinator = [*net.exec_prefix(0), *tlfleet_command(
@@ -463,6 +464,10 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
             done = subprocess.run(coordinator, capture_output=capture, text=True)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
+            if injecting:  # what `restart:` started again, as a child of supervise
+                from coordinator.fault_hosts import stop_restarted
+
+                stop_restarted(run_dir / "logs", kill_grace)
             codes = launcher.stop_all(kill_grace)
             if own_keys is not None:
                 shutil.rmtree(own_keys, ignore_errors=True)

@@ -230,3 +230,36 @@ def test_a_simulator_cut_in_lockstep_shorter_than_the_lease_loses_no_frame(tmp_p
     assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
     assert (run_dir / "trajectory.csv").read_bytes() == \
         (reference / "trajectory.csv").read_bytes()
+
+
+def test_an_agent_restarted_on_namespace_hosts_comes_back_and_nothing_is_left(tmp_path):
+    """``restart:`` in a run on namespace hosts (here with a link cut of the other robot, which
+    is what sends a run to the hosts): the supervisor kills robot 2's agent, starts its command
+    line again in its namespace, and the launcher stops the new process at the end."""
+    need_root_netns()
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(HERE / "two_robots.toml", 1, out=run_dir, mode="realtime",
+                          lease_ms=LEASE_MS, prefix="tlft-restart", capture=True,
+                          faults=(parse_fault("restart:robot2@2"), parse_fault("cut:robot1@5+1")),
+                          supervise_args=["--duration", "9", "--no-rrd", "--no-figures",
+                                          "--quiet"], sim_args=["--duration", "9"])
+    assert "tlft-restart" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]  # degraded: faults happened
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration") and info["t_end"] == pytest.approx(9.0)
+    start = next(e for e in by_kind(run_dir, "fault_start") if e["data"]["kind"] == "restart")
+    new_pid = start["data"]["new_pid"]
+    assert start["data"]["pid"] != new_pid and 2.0 <= start["t"] < 2.3
+    kinds = collections.Counter(e["kind"] for e in events(run_dir))
+    assert kinds["process_died"] == 1 and kinds["process_recovered"] == 1
+    logs = (run_dir / "logs" / "agent-2.log").read_text()
+    assert logs.count("waiting for start") == 2  # one log, two processes
+    t, states = load_trajectory(run_dir)
+    recovered = next(e for e in events(run_dir) if e["kind"] == "process_recovered")
+    after = t > recovered["t"] + 1.0
+    assert after.sum() > 100
+    assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05  # driven again
+    assert agent_stats(run_dir, 2)["frames"] > 0  # the new process's own statistics
+    # nothing is left: the restarted process (a child of supervise) was stopped too
+    assert subprocess.run(["ps", "-o", "pid=", "-g", str(new_pid)], capture_output=True,
+                          text=True).stdout.strip() == ""
