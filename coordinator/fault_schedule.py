@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import signal
 import time
@@ -175,12 +176,21 @@ class FaultScheduler:
 PROCESS_KINDS = frozenset({"freeze", "kill", "restart"})
 
 
-def check_restartable(fault: Fault) -> None:
-    """Only agents can be restarted: the run ends when its router or simulator dies."""
-    if fault.kind == "restart" and fault.target in ("router", "sim"):
+def check_restartable(fault: Fault, router: bool = False) -> None:
+    """Agents can be restarted, and (``router``: where the actuator started the router itself)
+    the router; not the simulator: the run ends when it dies."""
+    if fault.kind != "restart":
+        return
+    if fault.target == "sim" or (fault.target == "router" and not router):
+        where = "" if fault.target == "sim" else " here (only a fleet on loopback that tlfleet " \
+            "run started restarts its router)"
         raise FaultError(f"fault {fault.text or fault.spec}: the run ends when its "
                          f"{fault.target} dies ({fault.target}_died), so a restarted "
-                         f"{fault.target} would join no run; use kill:{fault.target}")
+                         f"{fault.target} would join no run{where}; use kill:{fault.target}")
+
+
+ROUTER_RESTART_GRACE = 5.0  # [s] wall after a router restart during which every lost token is
+#                             a link loss (the clients reconnect within zenoh's retry period)
 
 
 class StartAgain:
@@ -224,13 +234,17 @@ def kill_group(pid: int, wait: float, poll: Callable[[], bool] | None = None) ->
 class ProcessActuator:
     """Freeze, kill and restart the children of ``launcher``; ``children`` is the supervisor's
     map (a restarted child replaces the old one there, so its token's return is a recovery).
-    Link cuts and partitions are rejected: they need namespace hosts."""
+    Link cuts and partitions are rejected: they need namespace hosts. ``restart:router`` kills
+    the router and starts it again on the same endpoint; every process's token goes and comes
+    back with it, which the supervisor reports as link losses and restorations
+    (``ROUTER_RESTART_GRACE``), not deaths."""
 
     def __init__(self, launcher: Launcher, children: MutableMapping[str, Any],
                  kill_wait: float = 5.0, supervisor: Any = None):
         self.launcher = launcher
         self.children = children
         self.kill_wait = kill_wait  # [s] wall, for a killed group to be gone
+        self.supervisor = supervisor  # coordinator.supervisor.Supervisor (None in unit tests)
         self.start_again = StartAgain(supervisor)  # re-sends the start to restarted agents
 
     def poll(self) -> None:
@@ -246,7 +260,7 @@ class ProcessActuator:
         if fault.kind not in PROCESS_KINDS:
             raise FaultError(f"fault {fault.text or fault.spec}: {fault.kind} drops links, which "
                              "needs namespace hosts (--hosts N, root, iproute2 and nftables)")
-        check_restartable(fault)
+        check_restartable(fault, router=True)
 
     def _child(self, name: str) -> Child:
         for child in reversed(self.launcher.children):
@@ -263,13 +277,23 @@ class ProcessActuator:
         name = fault.target
         if fault.kind == "freeze":
             return {"pid": self._signal(name, signal.SIGSTOP)}
+        if fault.kind == "restart" and name == "router":
+            self._mark_everyone(math.inf)
         pid = self._kill(name)
         if fault.kind == "kill":
             return {"pid": pid}
         child = self.launcher.restart(name)
+        if name == "router":
+            self._mark_everyone(time.monotonic() + ROUTER_RESTART_GRACE)
         self.children[name] = child
         self.start_again.add(name)
         return {"pid": pid, "new_pid": child.pid}
+
+    def _mark_everyone(self, until: float) -> None:
+        """While the router restarts, a lost token is a link loss (``Supervisor.cut``)."""
+        if self.supervisor is not None:
+            for name in self.supervisor.tokens.values():
+                self.supervisor.cut[name] = until
 
     def end(self, fault: Fault) -> dict[str, Any]:
         if fault.kind == "freeze":

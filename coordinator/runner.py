@@ -44,7 +44,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from agent.scenario import Scenario
@@ -53,6 +53,7 @@ from bus.transport import Transport, TransportConfig, check_config
 from coordinator.cleanup import Cleanup
 from coordinator.fault_schedule import FaultScheduler, ProcessActuator
 from coordinator.faults import run_faults
+from coordinator.hosts import RECONNECT
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -170,6 +171,14 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
                            duration=config.duration, seed=config.seed, endpoint=endpoint,
                            secure=config.secure, lease_ms=config.lease_ms)
     info = prepared.info
+    if config.zenoh_config is None and any(f.kind == "restart" and f.target == "router"
+                                           for f in faults):
+        # every client (the coordinator's too) back within a retry period of the new router,
+        # instead of zenoh's back-off of up to 4 s (fault-injection notes §5.3)
+        conf = prepared.run_dir / "logs" / "client.json5"
+        conf.parent.mkdir(parents=True, exist_ok=True)
+        conf.write_text(f"{{ {RECONNECT} }}\n")
+        config = replace(config, zenoh_config=conf)
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(prepared.run_dir / "logs")
     transport: Transport | None = None
