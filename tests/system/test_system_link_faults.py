@@ -263,3 +263,39 @@ def test_an_agent_restarted_on_namespace_hosts_comes_back_and_nothing_is_left(tm
     # nothing is left: the restarted process (a child of supervise) was stopped too
     assert subprocess.run(["ps", "-o", "pid=", "-g", str(new_pid)], capture_output=True,
                           text=True).stdout.strip() == ""
+
+
+def test_a_partition_between_an_agent_and_the_simulator_in_realtime(tmp_path):
+    """Realtime, two-robot fleet in the peer layout: robot 2's agent and the simulator lose each
+    other for 2 s while both keep the router (the coordinator sees both all along): the
+    watchdog stops robot 2, its agent sees stale mocap, resumes on the newest frame after the
+    heal, and robot 1 is untouched."""
+    need_root_netns()
+    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
+                          faults=(parse_fault("partition:robot2,sim@3+2"),), capture=True,
+                          supervise_args=["--duration", "8", "--no-rrd", "--no-figures",
+                                          "--quiet"],
+                          sim_args=["--duration", "8"], agent_args=["--stale-after", "0.15"],
+                          prefix="tlft-part")
+    assert "tlft-part" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]
+    assert result.placement.layout == "peers" and result.placement.hosts == 4
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    # nobody lost the router: no link loss, no death
+    assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
+    (stop,) = [e for e in by_kind(run_dir, "watchdog_stop") if e["data"]["robot"] == 2
+               and start["t"] - 0.2 < e["t"] < end["t"]]
+    assert stop["t"] - stop["data"]["last_command_t"] <= 0.2
+    stale = [e for e in by_kind(run_dir, "stale_mocap") if e["source"] == "agent/2"
+             and start["t"] - 0.1 <= e["t"] <= end["t"]]
+    assert stale and stale[0]["data"]["sim_silence"] <= 0.2
+    resumed = [e for e in by_kind(run_dir, "resumed") if e["source"] == "agent/2"]
+    assert resumed and resumed[0]["t"] >= end["t"] - 0.1
+    assert resumed[0]["t"] - end["t"] < 1.0  # the direct link is back within a retry period
+    assert agent_stats(run_dir, 1)["stale_episodes"] == 0  # robot 1 saw every frame
+    assert robot_robot_contacts(run_dir) == []
+    print(f"partition robot2,sim: stopped {stop['t'] - stop['data']['last_command_t']:.3f} s "
+          f"after its last command; stale after {stale[0]['data']['sim_silence']:.3f} s; "
+          f"resumed {resumed[0]['t'] - end['t']:.2f} s after the heal")
