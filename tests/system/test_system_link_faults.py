@@ -115,18 +115,20 @@ def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_pat
 
 def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobody_deadlocks(
         tmp_path):
-    """Scenario 1, lockstep paced at 2× wall time: robot 3 asked robot 4 for help (stage 2) at
-    t ≈ 35 s; a partition of the pair from t = 36 s for 3 s wall (both keep every other link:
+    """Scenario 1, lockstep paced at ≤ 2× wall time: robot 3 asked robot 4 for help (stage 2) at
+    t ≈ 35 s; a partition of the pair from t = 36 s for 6 s wall (both keep every other link:
     the peer layout, coordinator.hosts.place_peers). Robot 4 sees robot 3's token go (its lease)
     and releases itself; robot 3's messages to robot 4 go unanswered, it sees robot 4
-    unreachable and its next critical events get stage 3 (Algorithm 2); after the heal it asks
-    again; the mission runs to its end."""
+    unreachable and its next critical events get stage 3 (Algorithm 2); the mission runs to its
+    end and robot 3 finishes its sub-task. (6 s of wall time: every unanswered message stalls
+    the lockstep fleet for the collab timeout, so a loaded machine covered only 1.7 s of sim
+    time in 3 s of wall time, less than robot 3 takes to its next critical event, ≈ 2 s.)"""
     need_root_netns()
     run_dir = tmp_path / "run"
     done = subprocess.run(
         [sys.executable, "-m", "cli.main", "run", str(SCENARIOS / "scenario1.toml"),
          "--lockstep", "--max-speed", "2", "--duration", "62", "--lease-ms", str(LEASE_MS),
-         "--fault", "partition:robot3,robot4@36+3", "--out", str(run_dir), "--no-rrd",
+         "--fault", "partition:robot3,robot4@36+6", "--out", str(run_dir), "--no-rrd",
          "--no-figures", "--quiet"],
         capture_output=True, text=True, cwd=ROOT, timeout=400)
     assert "link faults: running on 7 namespace host(s)" in done.stderr, done.stderr[-2000:]
@@ -152,17 +154,18 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
     stage3 = [e for e in evs if e["kind"] == "repair" and e["source"] == "agent/3"
               and e["data"]["stage"] == 3 and start["t"] <= e["t"] <= end["t"] + 0.5]
     assert stage3, "robot 3 had no stage-3 repair during the partition"
-    # nobody deadlocks: the fleet's sim time went on through the partition, and after the heal
-    # robot 3 asks robot 4 again
+    # nobody deadlocks: the fleet's sim time went on through the partition and to the end, and
+    # robot 3's sub-task ran to its window's end
     t, _states = load_trajectory(run_dir)
     assert t[-1] == pytest.approx(62.0) and (np.diff(t) > 0).all()
-    assert [e for e in request if e["t"] > end["t"]]
+    assert [e for e in evs if e["kind"] == "subtask_done" and e["source"] == "agent/3"
+            and e["data"]["subtask"] == 1 and e["data"]["ended_by"] == "window_end"]
     assert by_kind(run_dir, "process_died") == [] and robot_robot_contacts(run_dir) == []
     # the report shows the stage-3 repairs and the fault
     report = json.loads((run_dir / "report.json").read_text())
     assert report["stl"]["3"]["subtasks"][1]["repairs"]["stage3"] >= len(stage3)
     (row,) = report["faults"]
-    assert row["spec"] == "partition:robot3,robot4@36+3" and row["min_clearance"] > 0
+    assert row["spec"] == "partition:robot3,robot4@36+6" and row["min_clearance"] > 0
     print(f"partition robot3,robot4: robot 4 released {released[0]['t'] - start['t']:.2f} s "
           f"(sim) after the start; {len(stage3)} stage-3 repairs of robot 3; "
           f"{agent_stats(run_dir, 3)['collab_failed']} unanswered messages")
