@@ -92,6 +92,28 @@ def test_a_restarted_agent_comes_back_and_the_run_completes(tmp_path):
     assert leftover_in_groups(run_dir) == []
 
 
+def test_a_restarted_ltl_agent_plans_again_from_where_its_robot_is(tmp_path):
+    """Issue 13 §2: the new process of LTL robot 1 (``G F a1 & G F a2``), restarted inside a1
+    on its way out, finds its robot away from the start pose, plans again from there
+    (``plan_ready`` with ``reason.joined``, the plan starting at a1) and goes on to a2."""
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, mode="realtime", duration=14.0, rrd=False, report=False,
+                 faults=(parse_fault("restart:robot1@2.8"),))
+    assert result.outcome.reason in ("sim_done", "duration") and result.outcome.deaths == []
+    assert_restarted_agent_drove_again(run_dir, 1)
+    evs = events(run_dir)
+    recovered = next(e for e in evs if e["kind"] == "process_recovered")
+    joined = [e for e in evs if e["kind"] == "plan_ready" and e["source"] == "agent/1"
+              and e["data"].get("reason", {}).get("joined")]
+    assert len(joined) == 1 and joined[0]["t"] >= recovered["t"] - 0.5
+    assert joined[0]["data"]["reason"]["away"] > 0.1
+    assert joined[0]["data"]["prefix"][0] == "a1"  # it is inside a1: the plan starts there
+    visits = {e["data"]["region"] for e in evs if e["kind"] == "region_visited"
+              and e["source"] == "agent/1" and e["t"] > joined[0]["t"]}
+    assert "a2" in visits, visits
+    assert leftover_in_groups(run_dir) == []
+
+
 def test_a_frozen_agent_in_lockstep_pauses_the_fleet_and_changes_nothing(tmp_path):
     """Lockstep: the simulator waits for the frozen agent's command (tick timeout 6 s > 3 s), so
     the trajectory is byte-identical to the run without the fault; paced at 4 × wall time so the
