@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import tempfile
@@ -116,9 +117,16 @@ def one_run(number: int, seed: int, mode: str, coupling: bool, tmp: Path) -> dic
                                  supervisor=SupervisorConfig(ready_timeout=90.0,
                                                              wall_timeout=900.0)))
     wall = time.perf_counter() - t0
-    data = build_report(out).data
-    row = {"scenario": number, "seed": seed, "mode": mode, "coupling": coupling,
-           "clean": result.clean, "wall_s": wall, **goals(number, data)}
+    meta = {"scenario": number, "seed": seed, "mode": mode, "coupling": coupling,
+            "clean": result.clean, "wall_s": wall, "load_avg": list(os.getloadavg())}
+    (out / "bench_run.json").write_text(json.dumps(meta, indent=2) + "\n")
+    return evaluate(out, meta)
+
+
+def evaluate(out: Path, meta: dict) -> dict:
+    """The row of one run directory: its bench metadata and the goals from its report."""
+    number = meta["scenario"]
+    row = {**meta, **goals(number, build_report(out).data)}
     if number == 1:
         row["phi4_prime_bound_given_z3_z5"] = phi4_prime_bound(out / "trajectory.csv")
     return row
@@ -161,18 +169,33 @@ def main(argv: list[str] | None = None) -> int:
                         choices=[1, 2, 3])
     parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results"
                         / "scenario_bench.json")
+    parser.add_argument("--keep", type=Path, default=None,
+                        help="keep the run directories under this folder (default: a temporary "
+                             "one, removed at the end)")
+    parser.add_argument("--rebuild", type=Path, nargs="+", default=None,
+                        help="run nothing: rebuild the rows from run directories kept with "
+                             "--keep (each has its bench_run.json)")
     args = parser.parse_args(argv)
     if args.quick:
         args.seeds, args.modes, args.coupling = [1], ["lockstep"], ["on"]
     rows = []
-    with tempfile.TemporaryDirectory(prefix="scenario_bench_") as tmp:
-        for number in args.scenarios:
-            for coupling in args.coupling:
-                for mode in args.modes:
-                    for seed in args.seeds:
-                        row = one_run(number, seed, mode, coupling == "on", Path(tmp))
-                        rows.append(row)
-                        print(render([row]).splitlines()[1], flush=True)
+    if args.rebuild is not None:
+        runs = sorted(m.parent for d in args.rebuild for m in d.glob("*/bench_run.json"))
+        if not runs:
+            parser.error(f"no run directory with bench_run.json under {args.rebuild}")
+        rows = [evaluate(d, json.loads((d / "bench_run.json").read_text())) for d in runs]
+        rows.sort(key=lambda r: (r["scenario"], not r["coupling"], r["mode"], r["seed"]))
+    else:
+        with tempfile.TemporaryDirectory(prefix="scenario_bench_") as tmp:
+            keep = args.keep if args.keep is not None else Path(tmp)
+            keep.mkdir(parents=True, exist_ok=True)
+            for number in args.scenarios:
+                for coupling in args.coupling:
+                    for mode in args.modes:
+                        for seed in args.seeds:
+                            row = one_run(number, seed, mode, coupling == "on", keep)
+                            rows.append(row)
+                            print(render([row]).splitlines()[1], flush=True)
     print()
     print(render(rows))
     args.out.parent.mkdir(parents=True, exist_ok=True)
