@@ -9,9 +9,12 @@ STL sub-task from the trajectory, the verdicts and held fractions (``coordinator
 LTL visits, contacts and stationary episodes. The goals checked per run:
 
 * S1: every sub-task ≥ its paper bound and within 0.05 of the best achievable of
-  ``scenarios.md``; 0 contacts. Beside it, φ′4's bound given robots 3 and 5's trajectories,
-  min over [5, 30] of 1 − ‖z3 − z5‖/2 (robot 4 anywhere: min(1 − ‖z4 − z3‖, 1 − ‖z4 − z5‖) is
-  at most that), which tells how far the least-violating solution is from what was possible;
+  ``scenarios.md``; 0 contacts. Beside the goals of φ′3, φ′4, φ′5, their joint optimum
+  (``coordinator.joint_optimum``, docs/coupling.md §3): ρ′4 + (ρ′3 + ρ′5)/2 ≤ −0.9 from the
+  scenario's geometry, each task's bound given the other two's ρ of the run, the distance to it,
+  and φ′4's bound given robots 3 and 5's recorded trajectories (min over [5, 30] of
+  1 − ‖z3 − z5‖/2), which tells how far the least-violating solution is from what was possible.
+  The three goals (best − 0.05) leave zero slack on that plane;
 * S2: ρ(φ3), ρ(φ4) ≥ −0.2; both LTL tasks accepting with every region visited ≥ 2 times;
   0 contacts; no robot stationary > 5 s while its task wants it to move;
 * S3: every formation task ρ ≥ −0.1 and its predicate held ≥ 90 % of [10, 100]; the five
@@ -40,7 +43,9 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
+from agent.scenario.loader import load_scenario  # noqa: E402
 from agent.stl.monitor import read_trajectory_csv  # noqa: E402
+from coordinator.joint_optimum import find_pinches  # noqa: E402
 from coordinator.report import build_report  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
@@ -126,19 +131,66 @@ def one_run(number: int, seed: int, mode: str, coupling: bool, tmp: Path) -> dic
 def evaluate(out: Path, meta: dict) -> dict:
     """The row of one run directory: its bench metadata and the goals from its report."""
     number = meta["scenario"]
-    row = {**meta, **goals(number, build_report(out).data)}
-    if number == 1:
-        row["phi4_prime_bound_given_z3_z5"] = phi4_prime_bound(out / "trajectory.csv")
+    data = build_report(out).data
+    row = {**meta, **goals(number, data)}
+    row["joint"] = joint_rows(load_scenario(out / "scenario.toml"), data,
+                              read_trajectory_csv(out / "trajectory.csv"))
     return row
 
 
-def phi4_prime_bound(path: Path) -> float:
-    """min over [5, 30] of 1 − ‖z3 − z5‖/2: the best ρ(φ′4) any robot 4 could have had beside
-    robots 3 and 5 as they moved (module docstring)."""
-    traj = read_trajectory_csv(path)
-    inside = (traj.t >= 5.0) & (traj.t <= 30.0)
-    gap = np.hypot(*(traj.states[3][inside, :2] - traj.states[5][inside, :2]).T)
-    return float((1.0 - gap / 2.0).min())
+def joint_rows(scenario, data: dict, traj) -> list[dict]:
+    """Per pinch of the scenario (``coordinator.joint_optimum``; Scenario 1's φ′3, φ′4, φ′5), each
+    task's ρ, its goal (best of scenarios.md − S1_GAP), and its jointly achievable bound given the
+    other two tasks' ρ of this run (for the leader also given robots j and k's trajectories)."""
+    entry = {int(rid): {s["index"]: s for s in e["subtasks"]} for rid, e in data["stl"].items()}
+    out = []
+    for pinch in find_pinches(scenario):
+        lead = entry[pinch.leader][pinch.leader_index]
+        rj, rk = (entry[r.robot][r.index] for r in pinch.regions)
+        rho = [lead["robustness"], rj["robustness"], rk["robustness"]]
+        if any(v is None or not np.isfinite(v) for v in rho):
+            continue
+        bounds = [pinch.leader_bound(rho[1], rho[2]), pinch.region_bound(0, rho[0], rho[2]),
+                  pinch.region_bound(1, rho[0], rho[1])]
+        tasks = []
+        for k, (sub, bound) in enumerate(zip((lead, rj, rk), bounds, strict=True)):
+            best = sub["paper"]["best"] if sub["paper"] else None
+            others = [x["label"] for i, x in enumerate((lead, rj, rk)) if i != k]
+            tasks.append({"label": sub["label"], "rho": rho[k], "best": best,
+                          "goal": None if best is None else best - S1_GAP,
+                          "joint_bound": bound, "given": others, "to_joint": rho[k] - bound})
+        goal = [t["goal"] for t in tasks]
+        tasks[0]["trajectory_bound"] = pinch.trajectory_bound(traj)
+        tasks[0]["to_trajectory_bound"] = rho[0] - tasks[0]["trajectory_bound"]
+        out.append({"plane": pinch.plane, "tasks": tasks,
+                    "robots": [pinch.leader, *(r.robot for r in pinch.regions)],
+                    "goal_slack": (None if None in goal else
+                                   round(pinch.plane - goal[0] - (goal[1] + goal[2]) / 2, 12))})
+    return out
+
+
+def render_joint(joint: list[dict]) -> list[str]:
+    """The joint-optimum table of one run (``joint_rows``)."""
+    lines = []
+    for p in joint:
+        lead, rj, rk = (t["label"] for t in p["tasks"])
+        _, zj, zk = p["robots"]
+        slack = "–" if p["goal_slack"] is None else f"{p['goal_slack'] + 0.0:+.3f}"
+        lines.append(f"      joint optimum: ρ({lead}) + (ρ({rj}) + ρ({rk}))/2 ≤ {p['plane']:+.3f}; "
+                     f"slack of the three goals {slack}")
+        lines.append(f"      {'task':<6}{'ρ':>8}{'goal':>8}  {'met':<4}{'joint bound':>12}"
+                     f"  {'given':<11}{'ρ − bound':>10}")
+        for t in p["tasks"]:
+            goal = "–" if t["goal"] is None else f"{t['goal']:+.3f}"
+            met = "–" if t["goal"] is None else ("yes" if t["rho"] >= t["goal"] else "NO")
+            extra = ""
+            if "trajectory_bound" in t:
+                extra = (f"; given z{zj}, z{zk}: {t['trajectory_bound']:+.3f} "
+                         f"(ρ − it {t['to_trajectory_bound']:+.3f})")
+            lines.append(f"      {t['label']:<6}{t['rho']:>+8.3f}{goal:>8}  {met:<4}"
+                         f"{t['joint_bound']:>+12.3f}  {', '.join(t['given']):<11}"
+                         f"{t['to_joint']:>+10.3f}{extra}")
+    return lines
 
 
 def render(rows: list[dict]) -> str:
@@ -147,14 +199,13 @@ def render(rows: list[dict]) -> str:
         rho = ", ".join(f"{k} {v:+.3f}" for k, v in r["rho"].items() if isinstance(v, float))
         held = (", held " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in r["held"].items()
                                       if v is not None)) if r.get("held") else ""
-        if r.get("phi4_prime_bound_given_z3_z5") is not None:
-            rho += f" (φ′4 bound given z3, z5: {r['phi4_prime_bound_given_z3_z5']:+.3f})"
         failed = [k for k, v in r["goals"].items() if not v]
         lines.append(f"S{r['scenario']:<4}{r['seed']:>5} {r['mode']:<9}"
                      f"{'on' if r['coupling'] else 'off':<6}{'yes' if r['met'] else 'NO':<5}"
                      f"{rho}{held}; contacts {r['contacts']}, stationary {r['stationary']}, "
                      f"recoveries {r['recoveries']}"
                      + (f"; failed: {', '.join(failed)}" if failed else ""))
+        lines.extend(render_joint(r.get("joint", [])))
     return "\n".join(lines)
 
 
