@@ -1,7 +1,8 @@
 """Goals of the paper's Scenarios 1–3 (issue 15): scenario × seed × mode × coupling-awareness.
 
     .venv/bin/python bench/scenario_bench.py [--quick] [--seeds 1 2 3 4 5]
-        [--modes lockstep realtime] [--coupling on off] [--scenarios 1 2 3] [--out FILE.json]
+        [--modes lockstep realtime] [--coupling on off] [--scenarios 1 2 3 recovery]
+        [--keep DIR] [--rebuild DIR...] [--out FILE.json]
 
 Every run is a real fleet (``coordinator.runner.run_fleet``: router, sim and one process per robot,
 as ``tlfleet run``); its report (``coordinator.report.build_report``) gives the robustness of each
@@ -18,7 +19,16 @@ LTL visits, contacts and stationary episodes. The goals checked per run:
 * S2: ρ(φ3), ρ(φ4) ≥ −0.2; both LTL tasks accepting with every region visited ≥ 2 times;
   0 contacts; no robot stationary > 5 s while its task wants it to move;
 * S3: every formation task ρ ≥ −0.1 and its predicate held ≥ 90 % of [10, 100]; the five
-  regions visited; 0 contacts.
+  regions visited; 0 contacts;
+* recovery (``bench/recovery_case.toml``, coupling-aware limits off in the file; here ``--coupling
+  on``/``off`` switches ``[stl] recovery`` instead, off being the paper's Algorithm 2 as a
+  contrast): after a forced slowdown (the escort cannot keep up; repairs lower r̄ below 0) the leader
+  stops, and the escort's ρ^ψ, recomputed from the trajectory, is ≥ 0 again within 10 s; 0
+  contacts.
+
+Each run directory gets ``bench_run.json`` (case, seed, mode, coupling, clean, wall time, load
+average at its end); ``--keep DIR`` keeps them, ``--rebuild DIR`` recomputes the rows from kept
+directories without running anything.
 
 ``--coupling off`` runs the scenario with ``[navigation] coupling_aware = false`` (the paper's
 reactive leaders). Lockstep is deterministic and independent of the machine's load; realtime
@@ -45,28 +55,39 @@ import numpy as np  # noqa: E402
 
 from agent.scenario.loader import load_scenario  # noqa: E402
 from agent.stl.monitor import read_trajectory_csv  # noqa: E402
+from agent.stl.robustness import participants, psi_array  # noqa: E402
 from coordinator.joint_optimum import find_pinches  # noqa: E402
 from coordinator.report import build_report  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
 
-SCENARIOS = ROOT / "scenarios"
+CASES = {"1": ROOT / "scenarios" / "scenario1.toml", "2": ROOT / "scenarios" / "scenario2.toml",
+         "3": ROOT / "scenarios" / "scenario3.toml",
+         "recovery": ROOT / "bench" / "recovery_case.toml"}
 S2_BOUND = -0.2
 S3_BOUND = -0.1
 S3_HELD = 0.9
 S1_GAP = 0.05
+RECOVERY_WITHIN = 10.0  # [s] ρ^ψ ≥ 0 again this soon after the leader stops
+LEADER_STOPPED = 0.005  # [m/s] the leader counts as stopped below this speed
 
 
-def scenario_file(number: int, coupling: bool, tmp: Path) -> Path:
-    source = SCENARIOS / f"scenario{number}.toml"
+def scenario_file(case: str, coupling: bool, tmp: Path) -> Path:
+    source = CASES[case]
+    if case == "recovery":  # coupling_aware = false in the file; ``coupling`` switches recovery
+        if coupling:
+            return source
+        path = tmp / "recovery_case_off.toml"
+        path.write_text(source.read_text() + "\n[stl]\nrecovery = false\n")
+        return path
     if coupling:
         return source
-    path = tmp / f"scenario{number}_reactive.toml"
+    path = tmp / f"scenario{case}_reactive.toml"
     path.write_text(source.read_text() + "\n[navigation]\ncoupling_aware = false\n")
     return path
 
 
-def goals(number: int, data: dict) -> dict:
+def goals(number: int | str, data: dict) -> dict:
     """{goal name: bool} and the figures behind them, from a report's data."""
     subtasks = [(rid, s) for rid, e in data["stl"].items() for s in e["subtasks"]]
     verdicts = {(rid, row["label"]): row for rid, rows in data["verdicts"]["subtasks"].items()
@@ -114,15 +135,18 @@ def goals(number: int, data: dict) -> dict:
     return out
 
 
-def one_run(number: int, seed: int, mode: str, coupling: bool, tmp: Path) -> dict:
-    path = scenario_file(number, coupling, tmp)
-    out = tmp / f"s{number}-seed{seed}-{mode}-{'on' if coupling else 'off'}"
+def one_run(case: str, seed: int, mode: str, coupling: bool, tmp: Path) -> dict:
+    path = scenario_file(case, coupling, tmp)
+    number = int(case) if case.isdigit() else case
+    out = tmp / f"s{case}-seed{seed}-{mode}-{'on' if coupling else 'off'}"
     t0 = time.perf_counter()
     result = run_fleet(RunConfig(path, mode=mode, out=out, seed=seed, figures=False, rrd=False,
                                  supervisor=SupervisorConfig(ready_timeout=90.0,
                                                              wall_timeout=900.0)))
     wall = time.perf_counter() - t0
-    meta = {"scenario": number, "seed": seed, "mode": mode, "coupling": coupling,
+    meta = {"scenario": number, "seed": seed, "mode": mode,
+            "coupling": coupling if number != "recovery" else False,
+            "recovery_mechanism": coupling if number == "recovery" else True,
             "clean": result.clean, "wall_s": wall, "load_avg": list(os.getloadavg())}
     (out / "bench_run.json").write_text(json.dumps(meta, indent=2) + "\n")
     return evaluate(out, meta)
@@ -133,9 +157,39 @@ def evaluate(out: Path, meta: dict) -> dict:
     number = meta["scenario"]
     data = build_report(out).data
     row = {**meta, **goals(number, data)}
-    row["joint"] = joint_rows(load_scenario(out / "scenario.toml"), data,
-                              read_trajectory_csv(out / "trajectory.csv"))
+    scenario = load_scenario(out / "scenario.toml")
+    traj = read_trajectory_csv(out / "trajectory.csv")
+    row["joint"] = joint_rows(scenario, data, traj)
+    if number == "recovery":
+        row["recovery_goal"] = recovery_goal(scenario, data, traj)
+        row["goals"][f"ρ ≥ 0 within {RECOVERY_WITHIN:g} s of the stop"] = \
+            row["recovery_goal"]["met"]
+        row["met"] = all(row["goals"].values())
     return row
+
+
+def recovery_goal(scenario, data: dict, traj) -> dict:
+    """The recovery case's goal (bench/recovery_case.toml): the escort's ρ^ψ, recomputed from the
+    trajectory, is ≥ 0 again within RECOVERY_WITHIN of the leader's stop (its last sample faster
+    than LEADER_STOPPED), after a slowdown that really lowered r (least r in force < 0)."""
+    (escort,) = [r for r in scenario.robots if r.is_stl]
+    (phi,) = escort.stl_trees
+    (leader,) = [j for j in participants(phi.body) if scenario.robot(j).is_ltl]
+    xy = traj.states[leader][:, :2]
+    speed = np.hypot(*np.diff(xy, axis=0).T) / np.diff(traj.t)
+    moving = np.flatnonzero(speed > LEADER_STOPPED)
+    t_stop = float(traj.t[moving[-1] + 1]) if moving.size else float(traj.t[0])
+    rho = psi_array(phi.body, {j: traj.states[j] for j in participants(phi.body)})
+    (sub,) = data["stl"][str(escort.id)]["subtasks"]
+    after = traj.t >= t_stop
+    back = traj.t[after & (rho >= 0.0)]
+    t_back = float(back[0]) if back.size else None
+    slowed = bool(sub["r_bar"] is not None and sub["r_bar"] < 0.0 and rho[~after].min() < 0.0)
+    return {"t_stop": t_stop, "t_back": t_back, "rho_at_stop": float(rho[after][0]),
+            "r_bar": sub["r_bar"], "r_final": sub["r_final"], "slowed": slowed,
+            "delay": None if t_back is None else t_back - t_stop,
+            "rho_min_after_back": None if t_back is None else float(rho[traj.t >= t_back].min()),
+            "met": slowed and t_back is not None and t_back - t_stop <= RECOVERY_WITHIN}
 
 
 def joint_rows(scenario, data: dict, traj) -> list[dict]:
@@ -193,15 +247,30 @@ def render_joint(joint: list[dict]) -> list[str]:
     return lines
 
 
+def _switch(row: dict) -> str:
+    """The column 'coupl': coupling-aware limits, or for the recovery case recovery itself."""
+    if row["scenario"] == "recovery":
+        return "rec " + ("on" if row.get("recovery_mechanism", True) else "off")
+    return "on" if row["coupling"] else "off"
+
+
 def render(rows: list[dict]) -> str:
-    lines = [f"{'scen':<5}{'seed':>5} {'mode':<9}{'coupl':<6}{'met':<5} figures"]
+    lines = [f"{'scen':<5}{'seed':>5} {'mode':<9}{'coupl':<8}{'met':<5} figures"]
     for r in rows:
         rho = ", ".join(f"{k} {v:+.3f}" for k, v in r["rho"].items() if isinstance(v, float))
         held = (", held " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in r["held"].items()
                                       if v is not None)) if r.get("held") else ""
+        if r.get("recovery_goal"):
+            g = r["recovery_goal"]
+            back = "never" if g["t_back"] is None else f"{g['t_back']:.2f} s (+{g['delay']:.2f} s)"
+            rho += (f"; leader stopped {g['t_stop']:.2f} s (ρ^ψ {g['rho_at_stop']:+.3f}, r̄ "
+                    f"{g['r_bar']:+.3f}), ρ^ψ ≥ 0 at {back}")
+            if g["rho_min_after_back"] is not None:
+                rho += f", min after {g['rho_min_after_back']:+.3f}"
         failed = [k for k, v in r["goals"].items() if not v]
-        lines.append(f"S{r['scenario']:<4}{r['seed']:>5} {r['mode']:<9}"
-                     f"{'on' if r['coupling'] else 'off':<6}{'yes' if r['met'] else 'NO':<5}"
+        name = f"S{r['scenario']}" if isinstance(r["scenario"], int) else "rec"  # "on": recovery
+        lines.append(f"{name:<5}{r['seed']:>5} {r['mode']:<9}"
+                     f"{_switch(r):<8}{'yes' if r['met'] else 'NO':<5}"
                      f"{rho}{held}; contacts {r['contacts']}, stationary {r['stationary']}, "
                      f"recoveries {r['recoveries']}"
                      + (f"; failed: {', '.join(failed)}" if failed else ""))
@@ -216,8 +285,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--modes", nargs="+", default=["lockstep"],
                         choices=["lockstep", "realtime"])
     parser.add_argument("--coupling", nargs="+", default=["on", "off"], choices=["on", "off"])
-    parser.add_argument("--scenarios", type=int, nargs="+", default=[1, 2, 3],
-                        choices=[1, 2, 3])
+    parser.add_argument("--scenarios", nargs="+", default=list(CASES), choices=list(CASES),
+                        help="the paper's scenarios 1–3 and the recovery case")
     parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results"
                         / "scenario_bench.json")
     parser.add_argument("--keep", type=Path, default=None,
@@ -235,16 +304,18 @@ def main(argv: list[str] | None = None) -> int:
         if not runs:
             parser.error(f"no run directory with bench_run.json under {args.rebuild}")
         rows = [evaluate(d, json.loads((d / "bench_run.json").read_text())) for d in runs]
-        rows.sort(key=lambda r: (r["scenario"], not r["coupling"], r["mode"], r["seed"]))
+        rows.sort(key=lambda r: (str(r["scenario"]), not r["coupling"],
+                                 not r.get("recovery_mechanism", True), r["mode"], r["seed"]))
     else:
         with tempfile.TemporaryDirectory(prefix="scenario_bench_") as tmp:
             keep = args.keep if args.keep is not None else Path(tmp)
             keep.mkdir(parents=True, exist_ok=True)
-            for number in args.scenarios:
+            for case in args.scenarios:
+                # the recovery case keeps coupling-aware limits off; its "off" is recovery off
                 for coupling in args.coupling:
                     for mode in args.modes:
                         for seed in args.seeds:
-                            row = one_run(number, seed, mode, coupling == "on", keep)
+                            row = one_run(case, seed, mode, coupling == "on", keep)
                             rows.append(row)
                             print(render([row]).splitlines()[1], flush=True)
     print()
