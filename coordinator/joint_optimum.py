@@ -1,22 +1,24 @@
-"""Joint optimum of a leader G task pinched between two region G tasks (Scenario 1's φ′3, φ′4, φ′5).
+"""Joint optimum of a G task pinched between two region G tasks (Scenario 1's φ′3, φ′4, φ′5).
 
 The best achievable values of ``scenarios.md`` are per sub-task. Where one robot's task asks it to
 stay near two robots whose own tasks hold them in distant regions, the three values are coupled:
 they cannot all reach their best at once. This module finds that pattern in a scenario and gives
 the jointly achievable bounds (derivation: docs/coupling.md §3, paper §II-B notation).
 
-Pattern (a *pinch*): robot L has a sub-task ``G[a_L,b_L] (dist(pL, pj) <= d_j & dist(pL, pk) <= d_k)``
-and robots j, k each have ``G[a,b] (dist(pj, c_j) <= r_j)`` with constant centres c_j, c_k, the three
-windows sharing an instant. Over the common window, with ρ_j, ρ_k the standard robustness of the
-region tasks (ρ_j ≤ r_j), the robots sit ‖z_j − z_k‖ ≥ D_min = ‖c_j − c_k‖ − (r_j − ρ_j) − (r_k − ρ_k)
-apart, and for any z_L
+Pattern (a *pinch*): robot L has a sub-task
+``G[a_L,b_L] (dist(pL, pj) <= d_j & dist(pL, pk) <= d_k)`` and robots j, k each have
+``G[a,b] (dist(pj, c_j) <= r_j)`` with constant centres c_j, c_k, the three windows sharing an
+instant. Over the common window, with ρ_j, ρ_k the standard robustness of the region tasks
+(ρ_j ≤ r_j), the robots sit ‖z_j − z_k‖ ≥ D_min = ‖c_j − c_k‖ − (r_j − ρ_j) − (r_k − ρ_k) apart,
+and for any z_L
 
     min(d_j − ‖z_L − z_j‖, d_k − ‖z_L − z_k‖) ≤ min(d_j, d_k, (d_j + d_k − ‖z_j − z_k‖)/2),
 
-(triangle inequality; equality on the segment z_j z_k), so ρ_L ≤ min(d_j, d_k, (d_j + d_k − D_min)/2).
-While D_min ≥ |d_j − d_k| that is the plane ρ_L + (ρ_j + ρ_k)/2 ≤ K with
+(triangle inequality; equality on the segment z_j z_k), so
+ρ_L ≤ min(d_j, d_k, (d_j + d_k − D_min)/2). While D_min ≥ |d_j − d_k| that is the plane
+ρ_L + (ρ_j + ρ_k)/2 ≤ K with
 
-    K = (d_j + d_k − ‖c_j − c_k‖ + r_j + r_k)/2        (Scenario 1: (1 + 1 − 4 + 0.1 + 0.1)/2 = −0.9).
+    K = (d_j + d_k − ‖c_j − c_k‖ + r_j + r_k)/2    (Scenario 1: (1 + 1 − 4 + 0.1 + 0.1)/2 = −0.9).
 
 All distances in m, robustness values in m (the predicates are distances).
 """

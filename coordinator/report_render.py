@@ -128,8 +128,8 @@ def render_markdown(data: dict[str, Any]) -> str:
                 ev = "/".join(str(s["repair_events"][f"stage{k}"]) for k in (1, 2, 3))
                 out.append(
                     f"| {rid} | {s['label']} | `{s['task']}` | {_fmt(s['robustness'])} | "
-                    f"{_fmt(s['r_bar'])} | {_fmt(s['r_final'])} | {_fmt(s['robustness_ge_r_bar'])} | "
-                    f"{rep} ({ev}) | "
+                    f"{_fmt(s['r_bar'])} | {_fmt(s['r_final'])} | "
+                    f"{_fmt(s['robustness_ge_r_bar'])} | {rep} ({ev}) | "
                     f"{_paper_text(p)} | {_fmt(p['best'], '+.2f') if p else '–'} | "
                     f"{_fmt(p['gap_to_best']) if p else '–'} | {_met(p['met']) if p else '–'} |")
                 if p and p["note"]:

@@ -119,7 +119,7 @@ def test_trajectory_bound_matches_a_brute_force_search_over_robot4(s1):
 def test_the_three_goals_meet_only_at_one_point(s1):
     """Goal = best of scenarios.md − 0.05 for each of φ′3, φ′4, φ′5: the plane leaves zero slack,
     so the goals hold together only with ρ′3 = ρ′5 = 0.05 and ρ′4 = −0.95 exactly."""
-    scenario, pinch, tasks = s1
+    scenario, pinch, _ = s1
     best = {j: paper_values.lookup(scenario.name, j, scenario.robot(j).stl[0]).best
             for j in (3, 4, 5)}
     goal = {j: best[j] - 0.05 for j in (3, 4, 5)}
