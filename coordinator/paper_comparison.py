@@ -4,9 +4,9 @@
 the guaranteed bound r̄ (``r_bar``: the least r in force over the sub-task, so ρ^φ ≥ r̄; see
 ``coordinator.summary``) and the final funnel's r (``r_final``, above r̄ after a recovery), the
 paper's reported lower bound and the best achievable value (``coordinator.paper_values``, matched
-by scenario name *and* canonical sub-task text) with ``met`` ⇔ ρ ≥ bound, and ``gap_to_best`` = ρ − best. Repairs per stage come
-from the agent's counters (last status row of the sub-task) and from ``repair`` events
-(``data.subtask``, ``data.stage``).
+by scenario name *and* canonical sub-task text) with ``met`` ⇔ ρ ≥ bound, and ``gap_to_best`` =
+ρ − best. Repairs per stage come from the agent's counters (last status row of the sub-task) and
+from ``repair`` events (``data.subtask``, ``data.stage``).
 """
 
 from __future__ import annotations
