@@ -31,8 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from agent.scenario.model import Scenario
+from agent.stl.analysis import literal_value
 from agent.stl.monitor import Trajectory
-from agent.stl.syntax import And, BinOp, Call, Const, Neg, Position, Predicate, Temporal, VecLit
+from agent.stl.syntax import And, Call, Position, Predicate, Temporal, VecLit
 
 
 @dataclass(frozen=True)
@@ -97,29 +98,11 @@ def _gap(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
-def _constant(expr) -> float | None:
-    """The value of a constant expression (numbers, unary minus, + − * /), else None."""
-    match expr:
-        case Const(value):
-            return value
-        case Neg(arg):
-            value = _constant(arg)
-            return None if value is None else -value
-        case BinOp(op, left, right):
-            a, b = _constant(left), _constant(right)
-            if a is None or b is None or (op == "/" and b == 0.0):
-                return None
-            if op == "/":
-                return a / b
-            return {"+": a + b, "-": a - b, "*": a * b}[op]
-    return None
-
-
 def _dist_at_most(pred) -> tuple[object, object, float] | None:
     """(a, b, c) for ``dist(a, b) <= c`` with constant c, else None."""
     if not isinstance(pred, Predicate) or pred.cmp not in ("<=", "<"):
         return None
-    c = _constant(pred.rhs)
+    c = literal_value(pred.rhs)
     if c is None or not (isinstance(pred.lhs, Call) and pred.lhs.func == "dist"
                          and len(pred.lhs.args) == 2):
         return None
@@ -136,7 +119,7 @@ def region_task(robot: int, index: int, phi: Temporal) -> RegionTask | None:
         a, b = b, a
     if not (isinstance(a, Position) and a.robot == robot and isinstance(b, VecLit)):
         return None
-    cx, cy = _constant(b.x), _constant(b.y)
+    cx, cy = literal_value(b.x), literal_value(b.y)
     if cx is None or cy is None:
         return None
     return RegionTask(robot, index, (cx, cy), radius, (phi.a, phi.b))
