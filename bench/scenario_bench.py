@@ -278,6 +278,47 @@ def render(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def render_goals(rows: list[dict]) -> str:
+    """Per case × mode × switch: each goal met in how many runs, and the range of each figure."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        name = f"S{r['scenario']}" if isinstance(r["scenario"], int) else "recovery"
+        groups.setdefault((name, r["mode"], _switch(r)), []).append(r)
+    lines = ["goals (met in k of n runs; figures: min … max over the runs; load: 1-min load "
+             "average at the runs' ends)"]
+    for (name, mode, switch), runs in groups.items():
+        seeds = ",".join(str(r["seed"]) for r in runs)
+        loads = [r["load_avg"][0] for r in runs if r.get("load_avg")]
+        load = f", load {min(loads):.1f}–{max(loads):.1f}" if loads else ""
+        lines.append(f"  {name} {mode} {switch} (seeds {seeds}{load}):")
+        for goal in runs[0]["goals"]:
+            met = sum(bool(r["goals"].get(goal)) for r in runs)
+            lines.append(f"    {'ok ' if met == len(runs) else 'NOT'} {goal}: {met}/{len(runs)}")
+        for label in runs[0]["rho"]:
+            values = [r["rho"][label] for r in runs if isinstance(r["rho"].get(label), float)]
+            if values:
+                lines.append(f"        ρ {label} {min(values):+.3f} … {max(values):+.3f}")
+        for label in (runs[0].get("held") or {}):
+            values = [r["held"][label] for r in runs if r["held"].get(label) is not None]
+            if values:
+                lines.append(f"        held {label} {100 * min(values):.0f} … "
+                             f"{100 * max(values):.0f} %")
+        delays = [r["recovery_goal"]["delay"] for r in runs
+                  if r.get("recovery_goal") and r["recovery_goal"]["delay"] is not None]
+        if delays:
+            lines.append(f"        ρ^ψ ≥ 0 after the stop: {min(delays):.2f} … {max(delays):.2f} s")
+        for k, label in enumerate(t["label"] for t in (runs[0].get("joint") or [{}])[0].get(
+                "tasks", [])):
+            gaps = [r["joint"][0]["tasks"][k]["to_joint"] for r in runs if r.get("joint")]
+            lines.append(f"        {label} − its joint bound {min(gaps):+.3f} … {max(gaps):+.3f}")
+            if k == 0:
+                gaps = [r["joint"][0]["tasks"][0]["to_trajectory_bound"] for r in runs
+                        if r.get("joint")]
+                lines.append(f"        {label} − its bound given the recorded trajectories "
+                             f"{min(gaps):+.3f} … {max(gaps):+.3f}")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="seed 1, lockstep, coupling on")
@@ -320,6 +361,8 @@ def main(argv: list[str] | None = None) -> int:
                             print(render([row]).splitlines()[1], flush=True)
     print()
     print(render(rows))
+    print()
+    print(render_goals(rows))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"machine": platform.platform(), "rows": rows}, indent=2,
                                    ensure_ascii=False) + "\n")
