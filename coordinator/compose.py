@@ -33,8 +33,10 @@ anything is written. Such a file also gives every client a zenoh config beside t
 (``<name>.zenoh.json5``, mounted at ``/fleet/zenoh.json5``) that retries a lost router every
 250 ms (``coordinator.hosts.RECONNECT``: zenoh's default backs off to 4 s, notes §4.1), and
 resolver options ``timeout:1 attempts:1``: a lookup of ``router`` started while the container's
-network is cut otherwise hangs 10 s (measured) and holds the reconnection back after the restore. ``--lease-ms MS`` goes to every service (zenoh's default
-lease is 10 s: a cut is noticed only after it; 500 ms notices it within 1 s).
+network is cut otherwise hangs 10 s (measured) and holds the reconnection back after the restore.
+``--lease-ms MS`` goes to every service but the coordinator (zenoh's default lease is 10 s: a cut
+is noticed only after it; 500 ms notices it within 1 s; a lease is what a process announces, so
+the coordinator's own 10 s does not slow that down).
 """
 
 from __future__ import annotations
@@ -64,7 +66,7 @@ class ComposeConfig:
     duration: float | None = None  # [s] sim time; None: the scenario's
     secure: bool = True  # mutual TLS + the router's ACL, keys from ${TLFLEET_KEYS}
     faults: tuple[Fault, ...] = ()  # --fault specs, beside the scenario's [[faults]]
-    lease_ms: int | None = None  # [ms] zenoh link lease of every service (None: zenoh's 10 s)
+    lease_ms: int | None = None  # [ms] zenoh lease of every service but the coordinator
 
 
 def compose_path(out: Path) -> Path:
@@ -99,10 +101,14 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
     secure = ["--secure", KEYS_IN] if config.secure else []
     keys_volume = [f"      - {json.dumps(f'{KEYS}:{KEYS_IN}:ro')}"] if config.secure else []
     lease = [] if config.lease_ms is None else ["--lease-ms", str(config.lease_ms)]
-    client_flags = [*secure, *lease]
+    zenoh = [] if zenoh_ref is None else ["--zenoh-config", ZENOH_IN]
     if zenoh_ref is not None:
         keys_volume.append(f"      - {json.dumps(f'{zenoh_ref}:{ZENOH_IN}:ro')}")
-        client_flags += ["--zenoh-config", ZENOH_IN]
+    client_flags = [*secure, *lease, *zenoh]
+    # the coordinator keeps zenoh's 10 s lease: a lease is what a process announces, so the
+    # router still drops a cut robot after *its* lease, while a coordinator stalled for 0.5 s
+    # on a loaded machine would otherwise lose every token at once (seen once at load 12)
+    coordinator_flags = [*secure, *zenoh]
     router_volumes = keys_volume[:1] if config.secure else []
     # a name lookup started while a container's network is cut hangs 10 s (resolv.conf's 5 s ×
     # 2 attempts, measured) and holds the reconnection back after the restore: 1 s × 1 at most
@@ -160,7 +166,7 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         for fault in config.faults:
             faults += ["--fault", fault.text or fault.spec]
     client("coordinator", ["supervise", SCENARIO_IN, f"--{config.mode}", "--connect", endpoint,
-                           *client_flags, "--out", "/out", "--wait", f"{config.wait:g}",
+                           *coordinator_flags, "--out", "/out", "--wait", f"{config.wait:g}",
                            "--quiet", *length, *faults],
            ['      - "${TLFLEET_OUT:-../runs/compose}:/out"'])
     lines.extend([
