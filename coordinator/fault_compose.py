@@ -44,12 +44,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Control
 from agent.scenario.faults import Fault
 from coordinator.fault_hosts import CUT_GRACE
-from coordinator.fault_schedule import FaultError
+from coordinator.fault_schedule import FaultError, start_again
 
 HANDOFF_IN = "/out/logs/faults"  # the coordinator's handoff directory inside its container
 EXECUTOR_NAME = "executor.json"
@@ -218,13 +215,7 @@ class ComposeActuator:
     def poll(self) -> None:
         """A restarted agent waits for ``Control(start)``: once its token is back, it goes out
         again (agents already started ignore it)."""
-        if self.supervisor is None or not self.awaiting:
-            return
-        back = {name for name in self.awaiting if name in self.supervisor.alive}
-        if back:
-            self.awaiting -= back
-            self.supervisor.transport.publish(keys.control(self.supervisor.fleet),
-                                              encode(Control(cmd="start", t0=0.0)))
+        start_again(self.supervisor, self.awaiting)
 
 
 class RestartedContainer:

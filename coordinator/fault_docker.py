@@ -9,15 +9,15 @@ answers each with ``ack-NNNN.json``. The containers are found by compose's own l
 (``com.docker.compose.project`` / ``.service``, the same for Compose v1 and v2), the fleet network
 by ``com.docker.compose.network=fleet``:
 
-=========  ==============================================  =========================================
-fault      start                                           end
-=========  ==============================================  =========================================
-cut        ``docker network disconnect NET C``             ``docker network connect --alias S NET C``
-freeze     ``docker pause C``                              ``docker unpause C``
-kill       ``docker kill C`` (SIGKILL)                     —
-restart    ``docker kill C``, ``docker wait C``,           —
-           ``docker start C``
-=========  ==============================================  =========================================
+=======  ======================================  ===========================================
+fault    start                                   end
+=======  ======================================  ===========================================
+cut      ``docker network disconnect NET C``     ``docker network connect --alias S NET C``
+freeze   ``docker pause C``                      ``docker unpause C``
+kill     ``docker kill C`` (SIGKILL)             —
+restart  ``docker kill C``, ``docker wait C``,   —
+         ``docker start C``
+=======  ======================================  ===========================================
 
 (``--alias S``: a container reconnected to a network loses its service name otherwise, and the
 clients find the router by that name.) Every docker command has a timeout (``COMMAND_TIMEOUT``);

@@ -172,6 +172,19 @@ class FaultScheduler:
 # ---------------------------------------------------------------------- process faults
 
 
+def start_again(supervisor: Any, awaiting: set[str]) -> None:
+    """``Control(start)`` again once a restarted agent of ``awaiting`` has its token back (it
+    waits for one; agents already started ignore it); those agents leave ``awaiting``."""
+    if supervisor is None or not awaiting:
+        return
+    back = {name for name in awaiting if name in supervisor.alive}
+    if back:
+        awaiting -= back
+        supervisor.transport.publish(keys.control(supervisor.fleet),
+                                     encode(Control(cmd="start", t0=0.0)))
+        logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+
+
 PROCESS_KINDS = frozenset({"freeze", "kill", "restart"})
 
 
@@ -191,14 +204,7 @@ class ProcessActuator:
     def poll(self) -> None:
         """A restarted agent waits for ``Control(start)`` (realtime frames list nobody as due):
         once its token is back, the start goes out again (agents already started ignore it)."""
-        if self.supervisor is None or not self.awaiting:
-            return
-        back = {name for name in self.awaiting if name in self.supervisor.alive}
-        if back:
-            self.awaiting -= back
-            self.supervisor.transport.publish(keys.control(self.supervisor.fleet),
-                                              encode(Control(cmd="start", t0=0.0)))
-            logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+        start_again(self.supervisor, self.awaiting)
 
     @staticmethod
     def check_all(faults: Iterable[Fault]) -> None:

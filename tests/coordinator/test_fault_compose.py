@@ -213,12 +213,12 @@ def test_a_failing_docker_command_is_a_fault_error_and_lifts_the_mark(tmp_path):
 
 def test_without_an_executor_the_coordinator_says_how_to_start_one(tmp_path):
     began = time.monotonic()
-    with pytest.raises(FaultError, match="none announced itself in .* within 0.2 s: run the "
-                                         "fleet with docker/compose-run.sh"):
+    with pytest.raises(FaultError, match=r"none announced itself in .* within 0\.2 s: run the "
+                                         r"fleet with docker/compose-run\.sh"):
         wait_for_executor(tmp_path, 0.2)
     actuator = ComposeActuator(tmp_path, FakeSupervisor(), ack_timeout=0.2, poll=0.01)
-    with pytest.raises(FaultError, match="did not answer request 1 \\(start freeze:robot1@1\\+1"
-                                         "\\) within 0.2 s"):
+    with pytest.raises(FaultError, match=r"did not answer request 1 \(start freeze:robot1@1\+1"
+                                         r"\) within 0\.2 s"):
         actuator.start(parse_fault("freeze:robot1@1+1"))
     assert time.monotonic() - began < 3.0
 

@@ -112,7 +112,15 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
     with pytest.raises(ProcessLookupError):
         os.kill(executor["pid"], 0)  # the host's executor ended with the script
     assert "4 request(s) handled" in (run_dir / "logs" / "compose-faults.log").read_text()
+    for process, (stopped, lost, back) in check_outcomes(run_dir).items():
+        print(f"compose {process}: stopped {stopped:.3f} s after its last command; link_lost "
+              f"after {lost:.3f} s; link_restored {back:.3f} s after the restore")
 
+
+def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
+    """What the namespace-host cut and the freeze tests assert, on the compose run's directory
+    → {process: (stopped after its last command [s sim], link_lost after the fault [s wall],
+    link_restored after the restore [s wall])}."""
     from coordinator import rundir
 
     files = rundir.read_run(run_dir, strict=True)  # every file is there and parses
@@ -126,7 +134,8 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
         [e["data"]["spec"] for e in ends]
     t, states = load_trajectory(run_dir)
     figures = {}
-    for (start, end), robot, at in zip(zip(starts, ends), (3, 1), (20.0, 35.0), strict=True):
+    pairs = zip(starts, ends, strict=True)
+    for (start, end), robot, at in zip(pairs, (3, 1), (20.0, 35.0), strict=True):
         process = f"agent-{robot}"
         assert at <= start["t"] < at + 0.3 and 3.0 <= end["data"]["lasted"] < 3.5
         assert start["data"]["how"].startswith(("docker network disconnect", "docker pause"))
@@ -149,15 +158,20 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
         figures[process] = (stop["t"] - stop["data"]["last_command_t"],
                             lost["data"]["wall"] - start["data"]["wall"],
                             restored["data"]["wall"] - end["data"]["wall"])
+        kinds = [(e["kind"], e["data"].get("robot")) for e in events(run_dir)
+                 if e["kind"] in ("agent_silent", "agent_back")]
+        silent = kinds.index(("agent_silent", robot))  # in the order recorded: an event's t
+        assert ("agent_back", robot) in kinds[silent:]  # is the agent's newest frame time
         assert [e["data"]["robot"] for e in by_kind(run_dir, "agent_silent")
                 if start["t"] <= e["t"] <= end["t"] + 1.0] == [robot]
-        assert any(e["data"]["robot"] == robot and e["t"] >= end["t"] - 0.5
-                   for e in by_kind(run_dir, "agent_back"))
-        # the agent answers the newest frame after the fault (no burst of stale commands)
+        # the agent catches up with the newest frame (no burst of stale commands): the
+        # simulator ignored at most the one command computed on the frame before the fault
+        # (a paused agent answers the frame it was reading when it was paused)
         resumed = by_kind(run_dir, "resumed", f"agent/{robot}")
-        assert resumed and resumed[0]["t"] > end["t"] - 0.5 and resumed[0]["data"]["gap"] >= 2.5
-    sim_stats = json.loads((run_dir / "summary.json").read_text())["deadlines"]["sim_stats"]
-    assert sim_stats["stale_commands"] <= 2, sim_stats  # at most one per fault
+        assert resumed and resumed[0]["t"] >= start["t"] and resumed[0]["data"]["gap"] >= 2.5
+        late = [e for e in by_kind(run_dir, "stale_command", "sim") if e["data"]["robot"] == robot
+                and start["t"] <= e["t"] <= end["t"] + 2.0]
+        assert len(late) <= 1 and all(e["data"]["command_t"] < start["t"] + 0.6 for e in late)
     stats = {e["source"]: e["data"] for e in by_kind(run_dir, "agent_stats")}
     assert stats["agent/3"]["stale_episodes"] >= 1 and stats["agent/3"]["stale_commands"] >= 1
     for robot in (2, 4, 5):  # the others never lost their frames
@@ -173,6 +187,4 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
         assert row["min_clearance"] > 0
     text = (run_dir / "report.md").read_text()
     assert CUT in text and FREEZE in text
-    for process, (stopped, lost, back) in figures.items():
-        print(f"compose {process}: stopped {stopped:.3f} s after its last command; link_lost "
-              f"after {lost:.3f} s; link_restored {back:.3f} s after the restore")
+    return figures
