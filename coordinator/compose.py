@@ -34,9 +34,9 @@ anything is written. Such a file also gives every client a zenoh config beside t
 250 ms (``coordinator.hosts.RECONNECT``: zenoh's default backs off to 4 s, notes §4.1), and
 resolver options ``timeout:1 attempts:1``: a lookup of ``router`` started while the container's
 network is cut otherwise hangs 10 s (measured) and holds the reconnection back after the restore.
-``--lease-ms MS`` goes to every service but the coordinator (zenoh's default lease is 10 s: a cut
-is noticed only after it; 500 ms notices it within 1 s; a lease is what a process announces, so
-the coordinator's own 10 s does not slow that down).
+``--lease-ms MS`` goes to every service but the coordinator; with faults only to the router and
+the targets of cuts and freezes (:func:`leased_services` says why). zenoh's default lease is 10 s:
+a cut is noticed only after it; 500 ms notices it within 1 s.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ class ComposeConfig:
     duration: float | None = None  # [s] sim time; None: the scenario's
     secure: bool = True  # mutual TLS + the router's ACL, keys from ${TLFLEET_KEYS}
     faults: tuple[Fault, ...] = ()  # --fault specs, beside the scenario's [[faults]]
-    lease_ms: int | None = None  # [ms] zenoh lease of every service but the coordinator
+    lease_ms: int | None = None  # [ms] zenoh lease (of the services leased_services names)
 
 
 def compose_path(out: Path) -> Path:
@@ -91,24 +91,44 @@ def _flow(items: list[str]) -> str:
     return "[" + ", ".join(json.dumps(item) for item in items) + "]"
 
 
+def leased_services(faults: tuple[Fault, ...]) -> frozenset[str] | None:
+    """The services that get ``--lease-ms`` (None: every one but the coordinator). With faults,
+    the router and the targets of cuts and freezes: a lease is what a process announces (the
+    router drops a cut robot after *that robot's* lease), and every short lease is a false link
+    loss when its process is not scheduled for that long (seen at load 11-12: two untouched
+    agents lost at once, and the coordinator losing every token); a killed or restarted
+    container's link closes at once, without a lease. A cut router: every service."""
+    from coordinator.fault_compose import service_of
+
+    if not faults:
+        return None
+    targets = {service_of(t) for f in faults if f.kind in ("cut", "freeze") for t in f.targets}
+    return None if "router" in targets else frozenset({"router", *targets})
+
+
 def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
-           generated_by: str, zenoh_ref: str | None = None) -> str:
+           generated_by: str, zenoh_ref: str | None = None,
+           leased: frozenset[str] | None = None) -> str:
     """The compose file's text for ``scenario`` mounted from ``scenario_ref`` (relative path);
-    ``zenoh_ref``: the clients' zenoh config (relative path) of a file that carries faults."""
+    ``zenoh_ref``: the clients' zenoh config (relative path) of a file that carries faults;
+    ``leased``: the services that get ``config.lease_ms`` (:func:`leased_services`)."""
     scheme = "tls" if config.secure else "tcp"
     endpoint = f"{scheme}/router:{ROUTER_PORT}"
     volume = f"{scenario_ref}:{SCENARIO_IN}:ro"
     secure = ["--secure", KEYS_IN] if config.secure else []
     keys_volume = [f"      - {json.dumps(f'{KEYS}:{KEYS_IN}:ro')}"] if config.secure else []
-    lease = [] if config.lease_ms is None else ["--lease-ms", str(config.lease_ms)]
     zenoh = [] if zenoh_ref is None else ["--zenoh-config", ZENOH_IN]
     if zenoh_ref is not None:
         keys_volume.append(f"      - {json.dumps(f'{zenoh_ref}:{ZENOH_IN}:ro')}")
-    client_flags = [*secure, *lease, *zenoh]
-    # the coordinator keeps zenoh's 10 s lease: a lease is what a process announces, so the
-    # router still drops a cut robot after *its* lease, while a coordinator stalled for 0.5 s
-    # on a loaded machine would otherwise lose every token at once (seen once at load 12)
-    coordinator_flags = [*secure, *zenoh]
+
+    def lease(service: str) -> list[str]:
+        if config.lease_ms is None or service == "coordinator" or (
+                leased is not None and service not in leased):
+            return []
+        return ["--lease-ms", str(config.lease_ms)]
+
+    def client_flags(service: str) -> list[str]:
+        return [*secure, *lease(service), *zenoh]
     router_volumes = keys_volume[:1] if config.secure else []
     # a name lookup started while a container's network is cut hangs 10 s (resolv.conf's 5 s ×
     # 2 attempts, measured) and holds the reconnection back after the restore: 1 s × 1 at most
@@ -124,7 +144,8 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         "  router:",
         f"    image: {IMAGE}",
         "    command: " + _flow(["router", "--fleet", scenario.fleet, "--listen",
-                                 f"{scheme}/0.0.0.0:{ROUTER_PORT}", *secure, *lease]),
+                                 f"{scheme}/0.0.0.0:{ROUTER_PORT}", *secure,
+                                 *lease("router")]),
         "    networks: [fleet]",
         *(["    volumes:", *router_volumes] if router_volumes else []),
         "    healthcheck:",
@@ -154,10 +175,10 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
 
     length = [] if config.duration is None else ["--duration", f"{config.duration:g}"]
     client("sim", ["sim", SCENARIO_IN, f"--{config.mode}", *length, "--connect", endpoint,
-                   *client_flags])
+                   *client_flags("sim")])
     for robot in sorted(scenario.robot_ids):
         client(f"robot{robot}", ["agent", SCENARIO_IN, "--robot", str(robot),
-                                 "--connect", endpoint, *client_flags])
+                                 "--connect", endpoint, *client_flags(f"robot{robot}")])
     faults: list[str] = []
     if zenoh_ref is not None:
         from coordinator.fault_compose import HANDOFF_IN
@@ -166,8 +187,8 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         for fault in config.faults:
             faults += ["--fault", fault.text or fault.spec]
     client("coordinator", ["supervise", SCENARIO_IN, f"--{config.mode}", "--connect", endpoint,
-                           *coordinator_flags, "--out", "/out", "--wait", f"{config.wait:g}",
-                           "--quiet", *length, *faults],
+                           *client_flags("coordinator"), "--out", "/out", "--wait",
+                           f"{config.wait:g}", "--quiet", *length, *faults],
            ['      - "${TLFLEET_OUT:-../runs/compose}:/out"'])
     lines.extend([
         "networks:",
@@ -201,7 +222,7 @@ def compose_text(config: ComposeConfig) -> str:
     for fault in config.faults:
         by += f" --fault {fault.text or fault.spec}"
     return render(scenario, ref, config, by,
-                  f"./{zenoh_path(path).name}" if faults else None)
+                  f"./{zenoh_path(path).name}" if faults else None, leased_services(faults))
 
 
 def compose_faults(scenario: Scenario, config: ComposeConfig) -> tuple[Fault, ...]:

@@ -213,9 +213,16 @@ class ComposeActuator:
         return {"restore": self._record(ack)}
 
     def poll(self) -> None:
-        """A restarted agent waits for ``Control(start)``: once its token is back, it goes out
-        again (agents already started ignore it)."""
+        """A restarted agent waits for ``Control(start)``: once its token is back (the supervisor
+        has recorded its recovery), it goes out again (agents already started ignore it) and
+        its stand-in leaves the supervisor's children (whose exit it would wait for at the end)."""
+        if self.supervisor is None:
+            return
+        back = {name for name in self.awaiting if name in self.supervisor.alive}
         start_again(self.supervisor, self.awaiting)
+        for name in back:
+            if isinstance(self.supervisor.children.get(name), RestartedContainer):
+                del self.supervisor.children[name]
 
 
 class RestartedContainer:

@@ -14,7 +14,13 @@ import pytest
 from agent.protocol.codec import decode
 from agent.protocol.messages import Control
 from agent.scenario.faults import parse_fault
-from coordinator.compose import ComposeConfig, compose_text, write_compose, zenoh_path
+from coordinator.compose import (
+    ComposeConfig,
+    compose_text,
+    leased_services,
+    write_compose,
+    zenoh_path,
+)
 from coordinator.fault_compose import (
     EXECUTOR_NAME,
     ComposeActuator,
@@ -190,6 +196,7 @@ def test_a_restarted_agent_recovers_and_gets_the_start_again(executor):
     actuator.poll()
     ((key, control),) = supervisor.transport.sent  # once
     assert key.endswith("/control") and control.cmd == "start"
+    assert "agent-3" not in supervisor.children  # recovered: nothing to wait for at the end
 
 
 def test_a_failing_docker_command_is_a_fault_error_and_lifts_the_mark(tmp_path):
@@ -282,9 +289,19 @@ def test_the_compose_file_carries_the_faults_to_the_coordinator(tmp_path, scenar
     coordinator = next(line for line in text.splitlines() if '"supervise"' in line)
     assert coordinator.endswith('"--fault-handoff", "/out/logs/faults", "--fault", '
                                 '"cut:robot3@20+3", "--fault", "freeze:robot1@35+3"]')
-    for service in ("sim", "robot1", "robot5"):  # every client but the coordinator
-        command = text.split(f"  {service}:\n", 1)[1].split("networks:", 1)[0]
-        assert '"--lease-ms", "500", "--zenoh-config", "/fleet/zenoh.json5"' in command, service
+    def command(service):
+        return text.split(f"  {service}:\n", 1)[1].split("networks:", 1)[0]
+
+    for service in ("robot1", "robot3"):  # the targets of the cut and the freeze
+        assert '"--lease-ms", "500", "--zenoh-config", "/fleet/zenoh.json5"' in command(service)
+    for service in ("sim", "robot2", "robot4", "robot5"):  # zenoh's lease: no false losses
+        assert '"--secure", "/fleet/keys", "--zenoh-config", "/fleet/zenoh.json5"]' in \
+            command(service), service
+    assert leased_services((parse_fault("restart:robot2@5"),)) == frozenset({"router"})
+    assert leased_services((parse_fault("cut:router@5+1"),)) is None  # everyone notices it
+    assert leased_services(()) is None
+    every = compose_text(ComposeConfig(s1, out, lease_ms=700))  # no faults: every service
+    assert every.count('"--lease-ms", "700"') == 7
     assert '"--secure", "/fleet/keys", "--zenoh-config", "/fleet/zenoh.json5", "--out"' in \
         coordinator  # zenoh's lease: a stalled coordinator must not lose every token
     assert text.count('"./compose.zenoh.json5:/fleet/zenoh.json5:ro"') == 7

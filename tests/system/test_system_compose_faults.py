@@ -1,7 +1,8 @@
 """Faults in a docker compose fleet (issue 13 §2 "In compose"): ``docker network disconnect`` /
 ``connect`` of robot 3's container and ``docker pause`` / ``unpause`` of robot 1's give the
 outcomes the namespace-host cut (test_system_link_faults.py) and the process freeze
-(test_system_fault_injection.py) give.
+(test_system_fault_injection.py) give; ``docker kill`` + ``docker start`` of robot 2's container
+gives those of the loopback restart (a death that comes back, the robot driven again).
 
 One compose run of Scenario 1, **realtime** (in lockstep the fleet's sim time stands still while
 a robot is cut or frozen, so the watchdog, the stale mocap and the catching up would not show),
@@ -19,6 +20,7 @@ is removed in ``finally``.
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -34,7 +36,7 @@ from agent.scenario.faults import parse_fault
 from coordinator.compose import ComposeConfig, write_compose
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system, pytest.mark.slow]
-CUT, FREEZE = "cut:robot3@20+3", "freeze:robot1@35+3"
+CUT, FREEZE, RESTART = "cut:robot3@20+3", "freeze:robot1@35+3", "restart:robot2@42"
 
 
 WORK = os.environ.get("TLFLEET_DOCKER_WORK", "/tmp/tlfleet-docker")
@@ -70,7 +72,7 @@ def about(run_dir, kind, process):
     return [e for e in by_kind(run_dir, kind) if e["data"].get("process") == process]
 
 
-def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
+def test_scenario1_in_compose_a_cut_a_pause_and_a_restart_as_on_namespace_hosts(tmp_path):
     need_docker()
     had_daemon = daemon_answers()
     scenario = link_faults.fast_watchdog(SCENARIOS / "scenario1.toml",
@@ -78,7 +80,7 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
     file = write_compose(ComposeConfig(scenario, tmp_path / "compose.faults.yaml",
                                        mode="realtime", duration=60.0,
                                        lease_ms=link_faults.LEASE_MS,
-                                       faults=(parse_fault(CUT), parse_fault(FREEZE))))
+                                       faults=tuple(map(parse_fault, (CUT, FREEZE, RESTART)))))
     run_dir = tmp_path / "run"
     script = subprocess.Popen(["bash", str(ROOT / "docker" / "compose-run.sh"), str(file),
                                str(run_dir)], cwd=ROOT, env=dict(os.environ, PYTHON=sys.executable),
@@ -111,30 +113,49 @@ def test_scenario1_in_compose_a_cut_and_a_pause_as_on_namespace_hosts(tmp_path):
     executor = json.loads((run_dir / "logs" / "faults" / "executor.json").read_text())
     with pytest.raises(ProcessLookupError):
         os.kill(executor["pid"], 0)  # the host's executor ended with the script
-    assert "4 request(s) handled" in (run_dir / "logs" / "compose-faults.log").read_text()
+    assert "5 request(s) handled" in (run_dir / "logs" / "compose-faults.log").read_text()
     for process, (stopped, lost, back) in check_outcomes(run_dir).items():
-        print(f"compose {process}: stopped {stopped:.3f} s after its last command; link_lost "
-              f"after {lost:.3f} s; link_restored {back:.3f} s after the restore")
+        if math.isnan(stopped):
+            print(f"compose {process} restarted: process_died after {lost:.3f} s; "
+                  f"process_recovered {back:.2f} s (sim) after the fault")
+        else:
+            print(f"compose {process}: stopped {stopped:.3f} s after its last command; "
+                  f"link_lost after {lost:.3f} s; link_restored {back:.3f} s after the restore")
 
 
 def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
     """What the namespace-host cut and the freeze tests assert, on the compose run's directory
     → {process: (stopped after its last command [s sim], link_lost after the fault [s wall],
-    link_restored after the restore [s wall])}."""
+    link_restored after the restore [s wall])}; for the restarted agent (nan, process_died after
+    the fault [s wall], process_recovered after the fault [s sim])."""
     from coordinator import rundir
 
     files = rundir.read_run(run_dir, strict=True)  # every file is there and parses
     assert files.trajectory is not None and files.trajectory.t[-1] == pytest.approx(60.0)
     info = json.loads((run_dir / "run.json").read_text())
     assert info["reason"] in ("sim_done", "duration")
-    assert [f["spec"] for f in info["faults"]] == [CUT, FREEZE]
-    assert by_kind(run_dir, "process_died") == []  # neither fault is a death
+    assert [f["spec"] for f in info["faults"]] == [CUT, FREEZE, RESTART]
     starts, ends = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
-    assert [e["data"]["spec"] for e in starts] == [CUT, FREEZE] == \
+    assert [e["data"]["spec"] for e in starts] == [CUT, FREEZE, RESTART] == \
         [e["data"]["spec"] for e in ends]
     t, states = load_trajectory(run_dir)
     figures = {}
-    pairs = zip(starts, ends, strict=True)
+    # the restart: robot 2's container killed and started again; its agent is a death that
+    # comes back (a recovery), gets Control(start) again and drives its robot again
+    (died,), (recovered,) = by_kind(run_dir, "process_died"), by_kind(run_dir,
+                                                                      "process_recovered")
+    assert died["data"]["process"] == "agent-2" == recovered["data"]["process"]
+    how = [part.split()[:2] for part in starts[2]["data"]["how"].split("; ")]
+    assert how == [["docker", "kill"], ["docker", "wait"], ["docker", "start"]]
+    assert 42.0 <= starts[2]["t"] < 42.3 and died["t"] >= starts[2]["t"] - 0.1
+    after = t > recovered["t"] + 1.0
+    assert after.sum() > 100
+    assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05
+    logs = (run_dir / "logs" / "agent-2.log").read_text()
+    assert logs.count("waiting for start") == 2  # one container, two processes
+    figures["agent-2"] = (math.nan, died["data"]["wall"] - starts[2]["data"]["wall"],
+                          recovered["t"] - starts[2]["t"])
+    pairs = zip(starts[:2], ends[:2], strict=True)
     for (start, end), robot, at in zip(pairs, (3, 1), (20.0, 35.0), strict=True):
         process = f"agent-{robot}"
         assert at <= start["t"] < at + 0.3 and 3.0 <= end["data"]["lasted"] < 3.5
@@ -174,17 +195,17 @@ def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
         assert len(late) <= 1 and all(e["data"]["command_t"] < start["t"] + 0.6 for e in late)
     stats = {e["source"]: e["data"] for e in by_kind(run_dir, "agent_stats")}
     assert stats["agent/3"]["stale_episodes"] >= 1 and stats["agent/3"]["stale_commands"] >= 1
-    for robot in (2, 4, 5):  # the others never lost their frames
+    for robot in (4, 5):  # the others never lost their frames
         assert stats[f"agent/{robot}"]["stale_episodes"] == 0
     # no contact; robot 3 completes its later sub-task F[57,58]
     assert robot_robot_contacts(run_dir) == []
     report = json.loads((run_dir / "report.json").read_text())
     assert report["verdicts"]["subtasks"]["3"][1]["verdict"] == "satisfied"
     rows = report["faults"]
-    assert [r["spec"] for r in rows] == [CUT, FREEZE]
-    for row in rows:
-        assert row["detection"]["kind"] == "link_lost" and row["detection"]["after_wall"] < 1.0
+    assert [r["spec"] for r in rows] == [CUT, FREEZE, RESTART]
+    for row, kind in zip(rows, ("link_lost", "link_lost", "process_died"), strict=True):
+        assert row["detection"]["kind"] == kind and row["detection"]["after_wall"] < 1.0
         assert row["min_clearance"] > 0
     text = (run_dir / "report.md").read_text()
-    assert CUT in text and FREEZE in text
+    assert CUT in text and FREEZE in text and RESTART in text
     return figures
