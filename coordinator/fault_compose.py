@@ -22,9 +22,9 @@ client; a bind-mounted directory gives the coordinator exactly one power — ask
 Targets map to compose services (:func:`service_of`): ``agent-3`` → ``robot3``, ``sim``,
 ``router``. What each fault does (:mod:`coordinator.fault_docker`): cut → ``docker network
 disconnect`` / ``connect --alias SERVICE`` of the fleet network; freeze → ``docker pause`` /
-``unpause``; kill → ``docker kill``; restart → ``docker kill`` then ``docker start`` (the same
-container, command and network alias: the agent starts again from the beginning of its
-``main``, declares its token, and the coordinator sends ``Control(start)`` again once it is back,
+``unpause``; kill → ``docker kill``; restart → ``docker kill`` then, after the ack, ``docker
+start`` (the same container, command and network alias: the agent starts again from the
+beginning of its ``main``, declares its token, and the coordinator sends ``Control(start)`` again once it is back,
 as :class:`coordinator.fault_schedule.ProcessActuator` does).
 
 While a container's network is cut or it is paused (its session misses its keep-alives, so the
@@ -188,7 +188,9 @@ class ComposeActuator:
 
     @staticmethod
     def _record(ack: dict[str, Any]) -> dict[str, Any]:
-        return {"how": ack.get("how"), "docker_wall": ack.get("wall"), "docker_s": ack.get("took")}
+        record = {"how": ack.get("how"), "docker_wall": ack.get("wall"),
+                  "docker_s": ack.get("took")}
+        return {**record, "then": ack["then"]} if ack.get("then") else record
 
     def start(self, fault: Fault) -> dict[str, Any]:
         if fault.kind in ("cut", "freeze"):

@@ -124,8 +124,10 @@ def test_each_fault_is_the_docker_commands_of_the_table():
     assert ex.commands("start", "freeze", "sim") == [["pause", "id-sim"]]
     assert ex.commands("end", "freeze", "sim") == [["unpause", "id-sim"]]
     assert ex.commands("start", "kill", "router") == [["kill", "id-router"]]
-    assert ex.commands("start", "restart", "robot2") == [
-        ["kill", "id-robot2"], ["wait", "id-robot2"], ["start", "id-robot2"]]
+    assert ex.commands("start", "restart", "robot2") == [["kill", "id-robot2"],
+                                                          ["wait", "id-robot2"]]
+    assert ex.after_ack("start", "restart", "robot2") == [["start", "id-robot2"]]
+    assert ex.after_ack("start", "kill", "robot2") == ex.after_ack("end", "cut", "robot3") == []
     # containers and the network are found by compose's labels, once each
     lookups = [c for c in docker.calls if c[0] == "ps" or c[:2] == ["network", "ls"]]
     assert ["ps", "-aq", "--filter", "label=com.docker.compose.project=proj", "--filter",
@@ -184,7 +186,12 @@ def test_a_restarted_agent_recovers_and_gets_the_start_again(executor):
     docker, directory = executor
     supervisor = FakeSupervisor()
     actuator = ComposeActuator(directory, supervisor, ack_timeout=5.0, poll=0.002)
-    actuator.start(parse_fault("restart:robot3@5"))
+    record = actuator.start(parse_fault("restart:robot3@5"))
+    assert record["how"] == "docker kill id-robot3; docker wait id-robot3"
+    assert record["then"] == "docker start id-robot3"  # after the ack
+    deadline = time.monotonic() + 5.0
+    while len(docker.actions()) < 3 and time.monotonic() < deadline:
+        time.sleep(0.01)
     assert docker.actions() == [["kill", "id-robot3"], ["wait", "id-robot3"],
                                 ["start", "id-robot3"]]
     child = supervisor.children["agent-3"]

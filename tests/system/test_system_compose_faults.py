@@ -146,7 +146,8 @@ def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
                                                                       "process_recovered")
     assert died["data"]["process"] == "agent-2" == recovered["data"]["process"]
     how = [part.split()[:2] for part in starts[2]["data"]["how"].split("; ")]
-    assert how == [["docker", "kill"], ["docker", "wait"], ["docker", "start"]]
+    assert how == [["docker", "kill"], ["docker", "wait"]]
+    assert starts[2]["data"]["then"].startswith("docker start ")  # after the ack
     assert 42.0 <= starts[2]["t"] < 42.3 and died["t"] >= starts[2]["t"] - 0.1
     after = t > recovered["t"] + 1.0
     assert after.sum() > 100
