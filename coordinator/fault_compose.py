@@ -24,8 +24,8 @@ Targets map to compose services (:func:`service_of`): ``agent-3`` → ``robot3``
 disconnect`` / ``connect --alias SERVICE`` of the fleet network; freeze → ``docker pause`` /
 ``unpause``; kill → ``docker kill``; restart → ``docker kill`` then, after the ack, ``docker
 start`` (the same container, command and network alias: the agent starts again from the
-beginning of its ``main``, declares its token, and the coordinator sends ``Control(start)`` again once it is back,
-as :class:`coordinator.fault_schedule.ProcessActuator` does).
+beginning of its ``main``, declares its token, and the coordinator sends ``Control(start)``
+again once it is back, as :class:`coordinator.fault_schedule.ProcessActuator` does).
 
 While a container's network is cut or it is paused (its session misses its keep-alives, so the
 router drops its link after the lease just as for a cut), and for ``CUT_GRACE`` seconds after
