@@ -187,6 +187,7 @@ def test_under_supervise_a_returning_token_is_a_recovery_too(fleet):  # noqa: F8
     net.transport("agent-1-again").declare_alive(keys.alive(scenario.fleet, "agent", 1))
     sup.check()
     assert "agent-1" not in sup.deaths and [d.process for d in sup.recovered] == ["agent-1"]
+    assert "agent-1 is back" in reports[-1]
 
 
 class Clock:

@@ -8,7 +8,6 @@ import threading
 import time
 
 import pytest
-
 from runtime_helpers import FakeClock
 
 from agent.protocol import keys
