@@ -139,6 +139,10 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
 
     initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula)))
     option_cache: dict[int, tuple[list[_Group], bool]] = {}
+    # The product after the first k members of a state, keyed by those members (a bitmask):
+    # states share prefixes (every state of G(…) starts with the G state), and the product of
+    # a prefix depends on nothing else.
+    prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
     while queue:
         s = queue.popleft()
         sid = state_id[s]
@@ -149,7 +153,19 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         groups: list[_Group] | None = None
         disjoint = False
         members = ordered(s)
-        for k, q in enumerate(members):
+        start, prefix = 0, 0
+        masks = [0]
+        for q in members:
+            masks.append(masks[-1] | 1 << q)
+        for k in range(len(members), 0, -1):
+            cached = prefix_cache.get(masks[k])
+            if cached is not None:
+                partials, groups, disjoint = cached
+                start, prefix = k, masks[k]
+                break
+        for k in range(start, len(members)):
+            q = members[k]
+            prefix |= 1 << q
             if groups is None:
                 bad_bit = 1 << mark_of[q] if q in mark_of else 0
                 product: list[_Partial] = []
@@ -166,6 +182,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                     groups = _minimal_per_letter(_groups_of(partials))
                     disjoint = _disjoint(groups)
                     groups.sort(key=_group_order)
+                prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
             options = option_cache.get(q)
             if options is None:
@@ -174,12 +191,16 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             groups = _combine(groups, options[0])
             disjoint = disjoint and options[1]
             # Dominated groups are removed at the end, and on the way when they pile up.
-            if not disjoint and (k == len(members) - 1 or len(groups) > 24):
+            if not disjoint and len(groups) > 24:
                 groups = _minimal_per_letter(groups)
                 disjoint = _disjoint(groups)
             groups.sort(key=_group_order)
+            prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
             groups = _minimal_per_letter(_groups_of(partials))
+        elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
+            groups = _minimal_per_letter(groups)
+            groups.sort(key=_group_order)
         raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
