@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from agent.ltl.bdd import FALSE, TRUE, disjoin
 from agent.ltl.branching import postpone_branching
 from agent.ltl.degeneralize import degeneralize, mark_order_matters
+from agent.ltl.fair_simulation import remove_fair_little_brothers
 from agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
@@ -179,6 +180,11 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
         if single[0] <= full[0]:
             full = single
+    lighter = remove_fair_little_brothers(full)  # states that fair simulation proves useless
+    if lighter is not None:
+        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)))
+        if lighter[0] < full[0]:
+            full = lighter
     if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
 
         def negation():

@@ -1,0 +1,152 @@
+"""Fair simulation, and the states it lets go (ltl-planning.md §2, "Small").
+
+Etessami, Wilke & Schuller (SIAM J. Comput. 2005), "Fair simulation relations, parity games,
+and state space reduction for Büchi automata": ``p ≼f q`` when Duplicator, answering Spoiler's
+moves from ``p`` letter for letter from ``q``, builds an accepting run whenever Spoiler's run is
+accepting. It implies ``L(p) ⊆ L(q)`` and, unlike direct simulation, it does not ask the two
+runs to accept at the same steps — it sees through the accepting copies that degeneralisation
+adds, where direct simulation does not.
+
+:func:`remove_fair_little_brothers` removes a state ``p`` when every edge ``s → p`` (``s ≠ p``)
+can be replaced, letter for letter, by an edge ``s → q`` of the same state to a strict fair
+simulator ``q`` of ``p`` (``p ≼f q``, not ``q ≼f p``). Pruning with fair simulation is **not
+sound in general** (Clemente & Mayr, POPL 2013: the run through ``q`` may keep postponing
+acceptance), so each pruned automaton ``A'`` is kept only if the initial state of ``A`` is fair-
+simulated by that of ``A'`` — a proof of ``L(A) ⊆ L(A')``; ``L(A') ⊆ L(A)`` holds because
+``A'`` only lost edges.
+
+The game: positions ``(p, q)``; priority 2 where ``q`` accepts, 1 where only ``p`` accepts, 0
+elsewhere; Duplicator wins a play iff the largest priority seen infinitely often is even (or
+Spoiler gets stuck): a parity game with three priorities, solved by the nested fixpoint
+``νZ2. μZ1. νZ0. ⋃ᵢ (Pᵢ ∩ CPre(Zᵢ))`` (Emerson & Jutla 1991). Spoiler's moves from ``(p, q)``
+are precomputed symbolically: for each edge ``p –g→ p'`` the cells of ``g`` cut by ``q``'s
+guards, each with the answers ``q'`` it allows.
+
+Automata are the translator's tuples ``(n, initial, accepting, edges)`` with BDD guards.
+"""
+
+from __future__ import annotations
+
+from agent.ltl.bdd import FALSE, disjoin
+
+MAX_STATES = 12
+"""Largest automaton (states) for which the games are played (positions: states²)."""
+MAX_CELLS = 64
+"""Letter cells per Spoiler edge before giving up."""
+
+Moves = list[list[list[tuple[int, tuple[int, ...]]]]]
+
+
+def remove_fair_little_brothers(aut):
+    """``aut`` with the states that fair simulation proves unnecessary cut off (still listed
+    but unreachable: the caller removes useless states), or ``None`` when none is."""
+    n, initial, accepting, edges = aut
+    if n < 3 or n > MAX_STATES or len(initial) != 1:
+        return None
+    # Only states whose every entry has an alternative on the same letters can go.
+    alternatives = _alternatives(n, initial, edges)
+    if not alternatives:
+        return None
+    moves = _moves(edges, edges)
+    if moves is None:
+        return None
+    win = fair_simulation_positions(n, n, accepting, accepting, moves)
+    current = [list(out) for out in edges]
+    changed = False
+    for p, entries in alternatives.items():
+        trial = [list(out) for out in current]
+        for s in entries:
+            sims = [g for q, g in current[s]
+                    if q != p and (p, q) in win and (q, p) not in win]
+            cover = disjoin(sims)
+            into = disjoin(g for d, g in current[s] if d == p)
+            if into is FALSE or not into.implies(cover):
+                break
+            trial[s] = [(d, g) for d, g in trial[s] if d != p]
+        else:
+            check = _moves(edges, trial)
+            if check is not None and (initial[0], initial[0]) in fair_simulation_positions(
+                    n, n, accepting, accepting, check):
+                current = trial
+                changed = True
+    return (n, initial, accepting, current) if changed else None
+
+
+def _alternatives(n, initial, edges) -> dict[int, list[int]]:
+    """Non-initial states ``p`` whose entries ``s → p`` (``s ≠ p``) all overlap another edge of
+    ``s``: ``p`` → the states ``s`` entering it."""
+    entries: dict[int, list[int]] = {}
+    blocked = set(initial)
+    for s in range(n):
+        for p, g in edges[s]:
+            if p == s or p in blocked:
+                continue
+            others = disjoin(h for q, h in edges[s] if q != p)
+            if not g.implies(others):
+                blocked.add(p)
+                entries.pop(p, None)
+            elif s not in entries.setdefault(p, []):
+                entries[p].append(s)
+    return {p: ss for p, ss in entries.items() if p not in blocked}
+
+
+def _moves(spoiler_edges, duplicator_edges) -> Moves | None:
+    """``moves[p][q]`` = Spoiler's choices ``(p', answers)`` from ``(p, q)``, keeping per ``p'``
+    only the cells with the fewest answers (more answers only help Duplicator)."""
+    moves = []
+    for out_p in spoiler_edges:
+        row = []
+        for out_q in duplicator_edges:
+            choices: dict[int, list[frozenset[int]]] = {}
+            for p2, g in out_p:
+                cells = [(g, frozenset())]
+                for q2, h in out_q:
+                    split = []
+                    for cell, answers in cells:
+                        inside = cell & h
+                        if inside is not FALSE:
+                            split.append((inside, answers | {q2}))
+                        outside = cell - h
+                        if outside is not FALSE:
+                            split.append((outside, answers))
+                    cells = split
+                    if len(cells) > MAX_CELLS:
+                        return None
+                found = choices.setdefault(p2, [])
+                for _cell, answers in cells:
+                    if answers not in found:
+                        found.append(answers)
+            row.append([(p2, tuple(sorted(a))) for p2, sets in choices.items()
+                        for a in sets if not any(b < a for b in sets)])
+        moves.append(row)
+    return moves
+
+
+def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves: Moves) -> set[tuple[int, int]]:
+    """The positions ``(p, q)`` (``p`` of the Spoiler automaton, ``q`` of Duplicator's) from
+    which Duplicator wins the fair-simulation game, i.e. ``p ≼f q``."""
+    positions = [(p, q) for p in range(n) for q in range(m)]
+    priority = [2 if q in acc_b else (1 if p in acc_a else 0) for p, q in positions]
+
+    def cpre(x: tuple[int, int], target: set) -> bool:
+        p, q = x
+        return all(any((p2, q2) in target for q2 in answers) for p2, answers in moves[p][q])
+
+    z2 = set(positions)
+    while True:
+        z1: set = set()
+        while True:
+            z0 = set(positions)
+            while True:
+                levels = (z0, z1, z2)
+                new = {x for x, k in zip(positions, priority, strict=True)
+                       if cpre(x, levels[k])}
+                if new == z0:
+                    break
+                z0 = new
+            if z0 == z1:
+                break
+            z1 = z0
+        if z1 == z2:
+            return z2
+        z2 = z1
