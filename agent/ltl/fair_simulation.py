@@ -27,12 +27,12 @@ Automata are the translator's tuples ``(n, initial, accepting, edges)`` with BDD
 
 from __future__ import annotations
 
-from agent.ltl.bdd import FALSE, disjoin
+from agent.ltl.bdd import FALSE, TRUE, disjoin
 
-MAX_STATES = 12
+MAX_STATES = 10
 """Largest automaton (states) for which the games are played (positions: states²)."""
 MAX_CELLS = 64
-"""Letter cells per Spoiler edge before giving up."""
+"""Letter cells per Duplicator state (its guards cut the letters) before giving up."""
 
 Moves = list[list[list[tuple[int, tuple[int, ...]]]]]
 
@@ -64,7 +64,7 @@ def remove_fair_little_brothers(aut):
                 break
             trial[s] = [(d, g) for d, g in trial[s] if d != p]
         else:
-            check = _moves(edges, trial)
+            check = _moves(edges, trial, base=moves, changed=set(entries))
             if check is not None and (initial[0], initial[0]) in fair_simulation_positions(
                     n, n, accepting, accepting, check):
                 current = trial
@@ -90,31 +90,44 @@ def _alternatives(n, initial, edges) -> dict[int, list[int]]:
     return {p: ss for p, ss in entries.items() if p not in blocked}
 
 
-def _moves(spoiler_edges, duplicator_edges) -> Moves | None:
+def _moves(spoiler_edges, duplicator_edges, base: Moves | None = None,
+           changed: set[int] | None = None) -> Moves | None:
     """``moves[p][q]`` = Spoiler's choices ``(p', answers)`` from ``(p, q)``, keeping per ``p'``
-    only the cells with the fewest answers (more answers only help Duplicator)."""
+    only the cells with the fewest answers (more answers only help Duplicator). With ``base``
+    (the moves against the same Spoiler automaton), only the Duplicator states in ``changed``
+    are recomputed."""
+    # The letters cut into cells by each Duplicator state's guards, with the answers of each.
+    cells_of: dict[int, list[tuple[object, frozenset[int]]]] = {}
+    for q, out_q in enumerate(duplicator_edges):
+        if base is not None and q not in changed:
+            continue
+        cells = [(TRUE, frozenset())]
+        for q2, h in out_q:
+            split = []
+            for cell, answers in cells:
+                inside = cell & h
+                if inside is not FALSE:
+                    split.append((inside, answers | {q2}))
+                outside = cell - h
+                if outside is not FALSE:
+                    split.append((outside, answers))
+            cells = split
+            if len(cells) > MAX_CELLS:
+                return None
+        cells_of[q] = cells
     moves = []
-    for out_p in spoiler_edges:
+    for p, out_p in enumerate(spoiler_edges):
         row = []
-        for out_q in duplicator_edges:
+        for q in range(len(duplicator_edges)):
+            cells = cells_of.get(q)
+            if cells is None:
+                row.append(base[p][q])
+                continue
             choices: dict[int, list[frozenset[int]]] = {}
             for p2, g in out_p:
-                cells = [(g, frozenset())]
-                for q2, h in out_q:
-                    split = []
-                    for cell, answers in cells:
-                        inside = cell & h
-                        if inside is not FALSE:
-                            split.append((inside, answers | {q2}))
-                        outside = cell - h
-                        if outside is not FALSE:
-                            split.append((outside, answers))
-                    cells = split
-                    if len(cells) > MAX_CELLS:
-                        return None
                 found = choices.setdefault(p2, [])
-                for _cell, answers in cells:
-                    if answers not in found:
+                for cell, answers in cells:
+                    if answers not in found and g & cell is not FALSE:
                         found.append(answers)
             row.append([(p2, tuple(sorted(a))) for p2, sets in choices.items()
                         for a in sets if not any(b < a for b in sets)])
@@ -124,29 +137,53 @@ def _moves(spoiler_edges, duplicator_edges) -> Moves | None:
 
 def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves: Moves) -> set[tuple[int, int]]:
     """The positions ``(p, q)`` (``p`` of the Spoiler automaton, ``q`` of Duplicator's) from
-    which Duplicator wins the fair-simulation game, i.e. ``p ≼f q``."""
-    positions = [(p, q) for p in range(n) for q in range(m)]
-    priority = [2 if q in acc_b else (1 if p in acc_a else 0) for p, q in positions]
+    which Duplicator wins the fair-simulation game, i.e. ``p ≼f q``.
 
-    def cpre(x: tuple[int, int], target: set) -> bool:
-        p, q = x
-        return all(any((p2, q2) in target for q2 in answers) for p2, answers in moves[p][q])
+    The nested fixpoint with positions numbered ``p·m + q``; each ``ν`` level is refined with a
+    worklist (a position that leaves a set re-examines only the positions whose moves reach it).
+    """
+    count = n * m
+    priority = [2 if q in acc_b else (1 if p in acc_a else 0)
+                for p in range(n) for q in range(m)]
+    # choices[x] = list of answer lists (position numbers); Duplicator needs one answer in
+    # each list inside the target set.
+    choices = [[[p2 * m + q2 for q2 in answers] for p2, answers in moves[p][q]]
+               for p in range(n) for q in range(m)]
+    pred: list[set[int]] = [set() for _ in range(count)]
+    for x, lists in enumerate(choices):
+        for answers in lists:
+            for y in answers:
+                pred[y].add(x)
 
-    z2 = set(positions)
+    def inner(z2: bytearray, z1: bytearray) -> bytearray:
+        """νZ0: positions that can stay in Z_priority; refined from everything."""
+        z0 = bytearray(b"\x01") * count
+        levels = (z0, z1, z2)
+        pending = list(range(count))
+        queued = bytearray(b"\x01") * count
+        while pending:
+            x = pending.pop()
+            queued[x] = 0
+            if not z0[x]:
+                continue
+            target = levels[priority[x]]
+            if all(any(target[y] for y in answers) for answers in choices[x]):
+                continue
+            z0[x] = 0
+            for w in pred[x]:
+                if z0[w] and not queued[w] and priority[w] == 0:
+                    queued[w] = 1
+                    pending.append(w)
+        return z0
+
+    z2 = bytearray(b"\x01") * count
     while True:
-        z1: set = set()
+        z1 = bytearray(count)
         while True:
-            z0 = set(positions)
-            while True:
-                levels = (z0, z1, z2)
-                new = {x for x, k in zip(positions, priority, strict=True)
-                       if cpre(x, levels[k])}
-                if new == z0:
-                    break
-                z0 = new
+            z0 = inner(z2, z1)
             if z0 == z1:
                 break
             z1 = z0
         if z1 == z2:
-            return z2
+            return {(x // m, x % m) for x in range(count) if z2[x]}
         z2 = z1

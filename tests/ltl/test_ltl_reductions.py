@@ -68,6 +68,12 @@ shapes = st.one_of(
               st.sampled_from([Atom("a"), Atom("b")]), small, small),
     st.builds(lambda a, b: Or((Globally(Not(a)), Finally(And((a, Finally(b)))))),
               st.sampled_from([Atom("a"), Atom("b")]), small),
+    # universal u: u U (u & x) = u & F x, x U (x & e) = x & e; duals with an eventual e
+    st.builds(lambda a, b: Until(Globally(a), And((Globally(a), b))), small, small),
+    st.builds(lambda a, b: Until(Next(Globally(a)), And((b, Next(Globally(a))))), small, small),
+    st.builds(lambda a, b: Until(a, And((a, Finally(b)))), small, small),
+    st.builds(lambda a, b: Release(Finally(a), Or((Finally(a), b))), small, small),
+    st.builds(lambda a, b: Release(a, Or((Globally(b), a))), small, small),
 )
 
 
@@ -86,6 +92,10 @@ def test_rewrite_rules_fire():
     assert to_string(normalize(parse("G a | a U b"))) == to_string(normalize(parse("a W b")))
     assert to_string(normalize(parse("G !a | F(a & F b)"))) == to_string(
         normalize(parse("!a W (a & F b)")))
+    assert to_string(normalize(parse("G a U (b U c & G a)"))) == "G a & F c"
+    assert to_string(normalize(parse("F a R (b R c | F a)"))) == "F a | G c"
+    assert to_string(normalize(parse("a U (a & F b)"))) == "a & F b"
+    assert to_string(normalize(parse("a R (a | G b)"))) == "a | G b"
 
 
 @settings(max_examples=600, deadline=None)
