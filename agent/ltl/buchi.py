@@ -185,25 +185,29 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)))
         if lighter[0] < full[0]:
             full = lighter
+    negated: list = []  # the negation's automaton, built at most once (weak DBA, validity)
+
+    def negation():
+        if not negated:
+            negated.append(_remove_useless(*degeneralize(
+                build_tgba(normalize(Not(tree)), index)[0])))
+        return negated[0]
+
     if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
-
-        def negation():
-            return _remove_useless(*degeneralize(build_tgba(normalize(Not(tree)), index)[0]))
-
         wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES)
         if wdba is not None:
             full = _merge_transient(*_remove_useless(*wdba))
     result = [_renumbered(text, atoms, *aut[1:])
               for aut in ((full,) if only_best else (full, *cheap))]
-    if 1 < min(b.num_states for b in result) <= 8 and _is_valid(tree, index, result[0]):
+    if 1 < min(b.num_states for b in result) <= 8 and _is_valid(result[0], negation):
         return [Buchi(text, atoms, (0,), frozenset({0}), (((0, TRUE),),))]
     return result
 
 
-def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
-    """Whether every word satisfies ``tree`` (its negation has an empty automaton). Only tried
-    for small automata (≤ 8 states) whose initial state reads every letter, a necessary
-    condition, so that it costs little."""
+def _is_valid(buchi: Buchi, negation) -> bool:
+    """Whether every word satisfies the formula (``negation()``, its negation's automaton, is
+    empty). Only tried for small automata (≤ 8 states) whose initial state reads every letter,
+    a necessary condition, so that it costs little."""
     if disjoin(g for q in buchi.initial for _d, g in buchi.edges[q]) is not TRUE:
         return False
     n = len(buchi.atoms)
@@ -211,8 +215,7 @@ def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
         if not accepts_constant((buchi.num_states, buchi.initial, buchi.accepting,
                                  buchi.edges), v):
             return False
-    tgba = build_tgba(normalize(Not(tree)), index)[0]
-    return _remove_useless(*degeneralize(tgba))[0] == 0
+    return negation()[0] == 0
 
 
 def _cheap_reduce(aut):
