@@ -34,9 +34,6 @@ MAX_STATES = 10
 MAX_CELLS = 64
 """Letter cells per Duplicator state (its guards cut the letters) before giving up."""
 
-Moves = list[list[list[tuple[int, tuple[int, ...]]]]]
-
-
 def remove_fair_little_brothers(aut):
     """``aut`` with the states that fair simulation proves unnecessary cut off (still listed
     but unreachable: the caller removes useless states), or ``None`` when none is."""
@@ -47,10 +44,20 @@ def remove_fair_little_brothers(aut):
     alternatives = _alternatives(n, initial, edges)
     if not alternatives:
         return None
-    moves = _moves(edges, edges)
-    if moves is None:
+    moves = _Moves(edges, edges)
+    asked = {(p, q) for p, entries in alternatives.items() for s in entries
+             for q, _g in edges[s] if q != p}
+    try:
+        return _remove(n, initial, accepting, edges, alternatives, moves, asked)
+    except _TooManyCells:
         return None
-    win = fair_simulation_positions(n, n, accepting, accepting, moves)
+
+
+def _remove(n, initial, accepting, edges, alternatives, moves, asked):
+    """One candidate state at a time: its entries go to strict fair simulators; kept if the
+    original automaton's initial state is fair-simulated by the pruned one's."""
+    win = fair_simulation_positions(n, n, accepting, accepting, moves,
+                                    starts=sorted(asked | {(q, p) for p, q in asked}))
     current = [list(out) for out in edges]
     changed = False
     for p, entries in alternatives.items():
@@ -64,10 +71,12 @@ def remove_fair_little_brothers(aut):
                 break
             trial[s] = [(d, g) for d, g in trial[s] if d != p]
         else:
-            check = _moves(edges, trial, base=moves, changed=set(entries))
-            if check is not None and (initial[0], initial[0]) in fair_simulation_positions(
-                    n, n, accepting, accepting, check):
+            check = _Moves(edges, trial, base=moves, changed=set(entries))
+            start = (initial[0], initial[0])
+            if start in fair_simulation_positions(n, n, accepting, accepting, check,
+                                                  starts=[start]):
                 current = trial
+                moves = check
                 changed = True
     return (n, initial, accepting, current) if changed else None
 
@@ -90,65 +99,101 @@ def _alternatives(n, initial, edges) -> dict[int, list[int]]:
     return {p: ss for p, ss in entries.items() if p not in blocked}
 
 
-def _moves(spoiler_edges, duplicator_edges, base: Moves | None = None,
-           changed: set[int] | None = None) -> Moves | None:
-    """``moves[p][q]`` = Spoiler's choices ``(p', answers)`` from ``(p, q)``, keeping per ``p'``
-    only the cells with the fewest answers (more answers only help Duplicator). With ``base``
-    (the moves against the same Spoiler automaton), only the Duplicator states in ``changed``
-    are recomputed."""
-    # The letters cut into cells by each Duplicator state's guards, with the answers of each.
-    cells_of: dict[int, list[tuple[object, frozenset[int]]]] = {}
-    for q, out_q in enumerate(duplicator_edges):
-        if base is not None and q not in changed:
-            continue
-        cells = [(TRUE, frozenset())]
-        for q2, h in out_q:
-            split = []
-            for cell, answers in cells:
-                inside = cell & h
-                if inside is not FALSE:
-                    split.append((inside, answers | {q2}))
-                outside = cell - h
-                if outside is not FALSE:
-                    split.append((outside, answers))
-            cells = split
-            if len(cells) > MAX_CELLS:
-                return None
-        cells_of[q] = cells
-    moves = []
-    for p, out_p in enumerate(spoiler_edges):
-        row = []
-        for q in range(len(duplicator_edges)):
-            cells = cells_of.get(q)
-            if cells is None:
-                row.append(base[p][q])
-                continue
-            choices: dict[int, list[frozenset[int]]] = {}
-            for p2, g in out_p:
-                found = choices.setdefault(p2, [])
+class _TooManyCells(Exception):
+    """A Duplicator state's guards cut the letters into more than :data:`MAX_CELLS` cells."""
+
+
+class _Moves:
+    """Spoiler's moves, computed on demand: ``moves(p, q)`` = the choices ``(p', answers)``
+    from ``(p, q)``, keeping per ``p'`` only the cells with the fewest answers (more answers
+    only help Duplicator). With ``base`` (the moves against the same Spoiler automaton), the
+    Duplicator states outside ``changed`` are answered from it."""
+
+    def __init__(self, spoiler_edges, duplicator_edges, base: _Moves | None = None,
+                 changed: set[int] = frozenset()):
+        self.spoiler = spoiler_edges
+        self.duplicator = duplicator_edges
+        self.base = base
+        self.changed = changed
+        self._cells: dict[int, list] = {}
+        self._moves: dict[tuple[int, int], list[tuple[int, tuple[int, ...]]]] = {}
+
+    def cells(self, q: int):
+        """The letters cut by ``q``'s guards, each cell with the answers ``q'`` it allows."""
+        cells = self._cells.get(q)
+        if cells is None:
+            cells = [(TRUE, frozenset())]
+            for q2, h in self.duplicator[q]:
+                split = []
                 for cell, answers in cells:
+                    inside = cell & h
+                    if inside is not FALSE:
+                        split.append((inside, answers | {q2}))
+                    outside = cell - h
+                    if outside is not FALSE:
+                        split.append((outside, answers))
+                cells = split
+                if len(cells) > MAX_CELLS:
+                    raise _TooManyCells
+            self._cells[q] = cells
+        return cells
+
+    def __call__(self, p: int, q: int) -> list[tuple[int, tuple[int, ...]]]:
+        if self.base is not None and q not in self.changed:
+            return self.base(p, q)
+        hit = self._moves.get((p, q))
+        if hit is None:
+            choices: dict[int, list[frozenset[int]]] = {}
+            for p2, g in self.spoiler[p]:
+                found = choices.setdefault(p2, [])
+                for cell, answers in self.cells(q):
                     if answers not in found and g & cell is not FALSE:
                         found.append(answers)
-            row.append([(p2, tuple(sorted(a))) for p2, sets in choices.items()
-                        for a in sets if not any(b < a for b in sets)])
-        moves.append(row)
-    return moves
+            hit = self._moves[(p, q)] = [
+                (p2, tuple(sorted(a))) for p2, sets in choices.items()
+                for a in sets if not any(b < a for b in sets)]
+        return hit
 
 
-def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves: Moves) -> set[tuple[int, int]]:
+def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves,
+                              starts=None) -> set[tuple[int, int]]:
     """The positions ``(p, q)`` (``p`` of the Spoiler automaton, ``q`` of Duplicator's) from
-    which Duplicator wins the fair-simulation game, i.e. ``p ≼f q``.
+    which Duplicator wins the fair-simulation game, i.e. ``p ≼f q``; ``moves(p, q)`` lists
+    Spoiler's choices (:class:`_Moves`). With ``starts``, only
+    among the positions reachable from those (the others are not decided).
 
-    The nested fixpoint with positions numbered ``p·m + q``; each ``ν`` level is refined with a
-    worklist (a position that leaves a set re-examines only the positions whose moves reach it).
+    The nested fixpoint over the positions numbered in discovery order; each ``ν`` level is
+    refined with a worklist (a position that leaves a set re-examines only the positions whose
+    moves reach it).
     """
-    count = n * m
-    priority = [2 if q in acc_b else (1 if p in acc_a else 0)
-                for p in range(n) for q in range(m)]
+    if starts is None:
+        starts = [(p, q) for p in range(n) for q in range(m)]
+    number: dict[tuple[int, int], int] = {}
+    positions: list[tuple[int, int]] = []
+    for x in starts:
+        if x not in number:
+            number[x] = len(positions)
+            positions.append(x)
     # choices[x] = list of answer lists (position numbers); Duplicator needs one answer in
     # each list inside the target set.
-    choices = [[[p2 * m + q2 for q2 in answers] for p2, answers in moves[p][q]]
-               for p in range(n) for q in range(m)]
+    choices: list[list[list[int]]] = []
+    k = 0
+    while k < len(positions):
+        p, q = positions[k]
+        lists = []
+        for p2, answers in moves(p, q):
+            row = []
+            for q2 in answers:
+                y = number.get((p2, q2))
+                if y is None:
+                    y = number[(p2, q2)] = len(positions)
+                    positions.append((p2, q2))
+                row.append(y)
+            lists.append(row)
+        choices.append(lists)
+        k += 1
+    count = len(positions)
+    priority = [2 if q in acc_b else (1 if p in acc_a else 0) for p, q in positions]
     pred: list[set[int]] = [set() for _ in range(count)]
     for x, lists in enumerate(choices):
         for answers in lists:
@@ -166,8 +211,7 @@ def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves: Moves) -> set
             queued[x] = 0
             if not z0[x]:
                 continue
-            target = levels[priority[x]]
-            if all(any(target[y] for y in answers) for answers in choices[x]):
+            if _answers_all(choices[x], levels[priority[x]]):
                 continue
             z0[x] = 0
             for w in pred[x]:
@@ -185,5 +229,16 @@ def fair_simulation_positions(n: int, m: int, acc_a, acc_b, moves: Moves) -> set
                 break
             z1 = z0
         if z1 == z2:
-            return {(x // m, x % m) for x in range(count) if z2[x]}
+            return {positions[x] for x in range(count) if z2[x]}
         z2 = z1
+
+
+def _answers_all(lists: list[list[int]], target: bytearray) -> bool:
+    """Whether every Spoiler choice has an answer in ``target`` (plain loops: the hot path)."""
+    for answers in lists:
+        for y in answers:
+            if target[y]:
+                break
+        else:
+            return False
+    return True

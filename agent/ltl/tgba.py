@@ -46,6 +46,8 @@ class Tgba:
 
 
 _CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
+EAGER_MAX_STATES = 64
+"""Largest TGBA (states) also returned with the eager marking (see :func:`build_tgba`)."""
 
 
 def _prune(partials: list[_Partial]) -> list[_Partial]:
@@ -106,7 +108,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     two is sound and complete (the lazy marks already are, and the eager ones only add marks on
     steps where φ_j was not pending). Which one degeneralises into fewer states depends on the
     formula (``G(a -> F b)`` prefers lazy), so the caller may try both. When no edge spawns an
-    acceptance state the variants coincide and only one is returned.
+    acceptance state the variants coincide and only one is returned; beyond
+    :data:`EAGER_MAX_STATES` states only the lazy one is (on the benchmark's random formulas
+    the eager marking never gave the smaller automaton there, and it doubles the work after).
     """
     vwaa = Vwaa(index)
     mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
@@ -217,7 +221,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
     variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)))]
-    if eager != lazy:
+    if eager != lazy and len(raw_edges) <= EAGER_MAX_STATES:
         variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of))))
     return tuple(variants)
 

@@ -20,7 +20,7 @@ from agent.ltl.buchi import (
 )
 from agent.ltl.degeneralize import degeneralize
 from agent.ltl.fair_simulation import (
-    _moves,
+    _Moves,
     fair_simulation_positions,
     remove_fair_little_brothers,
 )
@@ -164,7 +164,7 @@ def test_fair_simulation_sees_through_an_accepting_copy():
     # step later) although 1 ≼ 0 fails for direct simulation; a^ω-only 2 is not above F a.
     edges = _edges([(0, "!a"), (1, "a")], [(0, "!a"), (1, "a")], [(2, "a")])
     aut = (3, (0,), frozenset({1, 2}), edges)
-    win = fair_simulation_positions(3, 3, aut[2], aut[2], _moves(edges, edges))
+    win = fair_simulation_positions(3, 3, aut[2], aut[2], _Moves(edges, edges))
     assert (1, 0) in win and (0, 1) in win
     assert (0, 2) not in win and (2, 0) in win  # L(G a) ⊆ L(G F a), not conversely
 
