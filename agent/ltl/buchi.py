@@ -54,7 +54,6 @@ WDBA_MAX_INPUT = 40
 """Largest reduced automaton (states) for which the minimal weak DBA is tried."""
 WDBA_MAX_STATES = 64
 """Largest subset construction (states) the weak-DBA minimisation builds."""
-HOA_TASK_PREFIX = "hoa:"  # the same as agent.ltl.hoa_reader.HOA_TASK_PREFIX
 
 
 @dataclass(frozen=True)
@@ -128,13 +127,9 @@ def _atoms_in_order(f: Formula) -> tuple[str, ...]:
 def translate(formula: Formula | str) -> Buchi:
     """Translate an LTL formula (tree or Spot-syntax text) into a small state-based Büchi automaton.
 
-    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. A scenario's
-    HOA task (``hoa:<path>``, :data:`HOA_TASK_PREFIX`) is read from its file instead.
+    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. (A scenario's
+    task may also name an HOA file: :func:`agent.ltl.task.task_automaton` tells them apart.)
     """
-    if isinstance(formula, str) and formula.startswith(HOA_TASK_PREFIX):
-        from agent.ltl.hoa_reader import read_hoa_file
-
-        return read_hoa_file(formula[len(HOA_TASK_PREFIX):])
     with recursion_headroom():
         candidates = translation_candidates(formula, only_best=True)
     return min(candidates, key=lambda b: (b.num_states, b.num_edges))
