@@ -114,6 +114,15 @@ def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
         cache[key] = (version[d], result)
         return result
 
+    def answers(q: int, dst: int, marks: int, guard) -> bool:
+        """Whether ``q`` answers ``p –guard,marks→ dst``: one matching edge reading all of
+        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover."""
+        members = sim[dst]
+        for d2, m2, g in edges[q]:
+            if d2 in members and not marks & ~m2 and guard.implies(g):
+                return True
+        return guard.implies(cover(q, dst, marks))
+
     pending = set(range(n))  # states whose simulators must be re-checked
     while pending:
         p = pending.pop()
@@ -122,7 +131,7 @@ def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
             if q == p:
                 continue
             for dst, marks, guard in edges[p]:
-                if not guard.implies(cover(q, dst, marks)):
+                if not answers(q, dst, marks, guard):
                     sim[p].discard(q)
                     shrunk = True
                     break
