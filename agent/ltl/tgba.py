@@ -147,6 +147,14 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     # states share prefixes (every state of G(…) starts with the G state), and the product of
     # a prefix depends on nothing else.
     prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
+
+    def options_of(q: int) -> tuple[list[_Group], bool]:
+        """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
+        options = option_cache.get(q)
+        if options is None:
+            bad_bit = 1 << mark_of[q] if q in mark_of else 0
+            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+        return options
     while queue:
         s = queue.popleft()
         sid = state_id[s]
@@ -167,6 +175,11 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                 partials, groups, disjoint = cached
                 start, prefix = k, masks[k]
                 break
+        else:
+            if members and all(options_of(q)[1] for q in members):
+                # Every member's options partition the letters (F a1 & … & F an): their
+                # product is a partition too, built symbolically with nothing to prune.
+                groups, disjoint = [(0, 0, bdd.TRUE, 0)], True
         for k in range(start, len(members)):
             q = members[k]
             prefix |= 1 << q
@@ -188,10 +201,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                     groups.sort(key=_group_order)
                 prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
-            options = option_cache.get(q)
-            if options is None:
-                bad_bit = 1 << mark_of[q] if q in mark_of else 0
-                options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+            options = options_of(q)
             groups = _combine(groups, options[0])
             disjoint = disjoint and options[1]
             # Dominated groups are removed at the end, and on the way when they pile up.
