@@ -38,7 +38,12 @@ from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, va
 from agent.ltl.parser import parse
 from agent.ltl.printer import to_string
 from agent.ltl.rewrite import normalize
-from agent.ltl.simulation import reduce_by_simulation, saturate_acceptance, single_initial
+from agent.ltl.simulation import (
+    is_deterministic,
+    reduce_by_simulation,
+    saturate_acceptance,
+    single_initial,
+)
 from agent.ltl.tgba import build_tgba
 from agent.ltl.tgba_simulation import reduce_tgba
 from agent.ltl.wdba import accepts_constant, minimize_obligation
@@ -219,7 +224,12 @@ def _cheap_reduce(aut):
 
 
 def _reduce(aut):
-    """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`)."""
+    """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`).
+
+    A deterministic automaton is returned as it is: simulation has nothing to prune there, and
+    :func:`_cheap_reduce` already removed what the other two steps would."""
+    if is_deterministic(aut[1], aut[3]):
+        return aut
     for _round in range(3):
         before = (aut[0], sum(len(out) for out in aut[3]))
         aut = _remove_useless(*reduce_by_simulation(*aut))
