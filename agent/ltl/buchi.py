@@ -14,7 +14,9 @@
    bisimulation quotient (equal acceptance, equal guarded edges to equal classes), and the
    merging of *transient* states (on no cycle, so visited at most once and their acceptance
    is irrelevant) into a state with the same outgoing edges; direct-simulation rounds
-   (``agent.ltl.simulation``);
+   (``agent.ltl.simulation``); on small automata, the removal of states that fair simulation
+   proves unnecessary, each removal checked by a fair-simulation game
+   (``agent.ltl.fair_simulation``);
 6. for obligation formulas, the minimal weak DBA when it is smaller and provably equivalent
    (``agent.ltl.wdba``).
 
