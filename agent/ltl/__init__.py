@@ -14,6 +14,6 @@ Modules, from formula to plan:
 * ``transition_system`` (§3), ``product`` (§4), ``search`` and ``planner`` (§5), ``diagnose``
   (why a task is unsatisfiable); ``graphs`` holds the shared SCC/BFS helpers.
 
-Entry points: ``parser.parse``, ``buchi.translate``, ``task.task_automaton``, ``hoa.to_hoa``, ``lasso.holds``,
-``planner.plan_robot``, ``planner.plan``, ``planner.replan``, ``planner.buchi_step``.
+Entry points: ``parser.parse``, ``buchi.translate``, ``task.task_automaton``, ``hoa.to_hoa``,
+``lasso.holds``, ``planner.plan_robot``, ``planner.plan``, ``planner.replan``, ``planner.buchi_step``.
 """
