@@ -15,5 +15,6 @@ Modules, from formula to plan:
   (why a task is unsatisfiable); ``graphs`` holds the shared SCC/BFS helpers.
 
 Entry points: ``parser.parse``, ``buchi.translate``, ``task.task_automaton``, ``hoa.to_hoa``,
-``lasso.holds``, ``planner.plan_robot``, ``planner.plan``, ``planner.replan``, ``planner.buchi_step``.
+``lasso.holds``, ``planner.plan_robot``, ``planner.plan``, ``planner.replan``,
+``planner.buchi_step``.
 """
