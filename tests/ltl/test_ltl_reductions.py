@@ -183,3 +183,38 @@ def test_dac_response_chain_loses_the_state_of_its_early_choice():
         loop = [frozenset(f"p{i}" for i in range(6) if rng.random() < 0.4)
                 for _ in range(1 + rng.randrange(4))]
         assert automaton_accepts(b, prefix, loop) == holds(f, prefix, loop)
+
+
+PRUNED_BY_FAIR_SIMULATION = [  # seeded random formulas on which the removal fires
+    "F X(p0 <-> true) M ((p3 -> G p3) & p2)",
+    "!(G p3 M (F p0 -> p3) W (!p3 | p2) W p0)",
+    "G(F(!(F X p2 M p3) <-> X p0) & p3)",
+    "!X p1 & F(p0 W (p1 | G p0))",
+    "X F p3 U G p0",
+    "(!p0 & X p1) U F(p0 R p0 | X X p0)",
+    "G p3 U !p3 -> G p3",
+    "p3 R p1 & F(F p3 | X p0)",
+    "!(X p2 R p3 & (G p3 M p1 U p3) R X p2)",
+    "p2 <-> F G(G p1 & !p0)",
+]
+
+
+def test_fair_little_brothers_removal_on_seeded_lassos():
+    rng = random.Random(2024)
+    fired = 0
+    for text in PRUNED_BY_FAIR_SIMULATION:
+        f = parse(text)
+        for b in translation_candidates(f):
+            lighter = remove_fair_little_brothers(_tuple(b))
+            if lighter is None:
+                continue
+            fired += 1
+            pruned = _buchi(f, b.atoms, _remove_useless(*lighter))
+            assert pruned.num_states < b.num_states
+            for _ in range(300):
+                prefix = [frozenset(f"p{i}" for i in range(4) if rng.random() < 0.5)
+                          for _ in range(rng.randrange(4))]
+                loop = [frozenset(f"p{i}" for i in range(4) if rng.random() < 0.5)
+                        for _ in range(1 + rng.randrange(4))]
+                assert automaton_accepts(pruned, prefix, loop) == holds(f, prefix, loop), text
+    assert fired >= len(PRUNED_BY_FAIR_SIMULATION)
