@@ -229,7 +229,20 @@ def bench_issue16(quick: bool, runs: int, seed: int) -> dict:
         text = "F(" + " & ".join(f"p{i}" for i in range(n)) + ")"
         cpu, wall, b = cpu_wall(lambda text=text: translate(text), runs)
         props.append(_row("F(p0 & … & pn-1)", n, text, cpu, wall, b))
-    return {"families": rows, "random": randoms, "propositions": props}
+    return {"families": rows, "random": randoms, "propositions": props,
+            "random_tail": {"over_target": random_tail(randoms)["over_target"],
+                            "target_ms": RANDOM_TARGET_MS}}
+
+
+RANDOM_TARGET_MS = 100.0
+"""Issue 16: every random 6-proposition formula of size 20 translated within this CPU time."""
+
+
+def random_tail(randoms: list[dict]) -> dict:
+    """The random formulas over :data:`RANDOM_TARGET_MS` (CPU) and the five slowest."""
+    slowest = sorted(randoms, key=lambda r: -r["cpu_ms"])[:5]
+    return {"over_target": sum(r["cpu_ms"] > RANDOM_TARGET_MS for r in randoms),
+            "slowest": slowest}
 
 
 def _row(family: str, n: int, text: str, cpu: float, wall: float, b: object) -> dict:
@@ -266,6 +279,7 @@ def bench_spot(path: Path) -> dict | None:
     return {"formulas": len(rows), "states": ours, "spot_states": spot, "ratio": ours / spot,
             "larger": len(larger), "more_than_one_above": sum(
                 r["states"] > r["spot"] + 1 for r in rows),
+            "worst_excess": max(r["states"] - r["spot"] for r in rows),
             "smaller": sum(r["states"] < r["spot"] for r in rows),
             "several_initial": sum(r["initial"] > 1 for r in rows),
             "worst": worst, "suites": suites, "rows": rows}
@@ -281,9 +295,14 @@ def print_issue16(result: dict) -> None:
               f"{row['wall_ms']:>10.2f}")
     randoms = data["random"]
     cpus = sorted(r["cpu_ms"] for r in randoms)
+    tail = random_tail(randoms)
     print(f"\n== random formulas (size 20, 6 propositions, {len(randoms)}): median "
           f"{statistics.median(cpus):.2f} ms CPU, max {cpus[-1]:.2f} ms, "
+          f"{tail['over_target']} over {RANDOM_TARGET_MS:.0f} ms (target: 0), "
           f"states total {sum(r.get('states', 0) for r in randoms)}")
+    for r in tail["slowest"]:
+        print(f"   slow: #{r['n']:<3} {r['cpu_ms']:>8.1f} ms CPU {r['wall_ms']:>8.1f} ms wall "
+              f"{r.get('states', '-'):>4} states  {r['formula'][:70]}")
     spot = result.get("spot")
     if spot:
         print(f"\n== state counts vs Spot 2.9 ltl2tgba -B ({spot['formulas']} formulas): "
@@ -294,6 +313,8 @@ def print_issue16(result: dict) -> None:
         for name, s in spot["suites"].items():
             print(f"   {name:<12} {s['formulas']:>4} formulas  {s['states']:>5} vs {s['spot']:>5}"
                   f"  = {s['states'] / s['spot']:.3f}×")
+        print(f"   per formula, worst vs Spot: {spot['worst_excess']:+d} states "
+              "(target: at most +1)")
         for r in spot["worst"]:
             print(f"   worst: {r['name']} {r['polarity']}: {r['states']} vs {r['spot']}")
 
@@ -419,6 +440,22 @@ def main(argv: list[str] | None = None) -> int:
         Figure("algorithm1_cold_ms", "the same, map weights computed inside the timing",
                worst["cold_cpu_ms"], "ms", wall=worst["cold_wall_ms"]),
     ]
+    randoms = result["issue16"]["random"]
+    slowest = random_tail(randoms)["slowest"][0]
+    figures += [
+        Figure("random_max_ms", f"random size-20 formulas, slowest of {len(randoms)} "
+               f"(#{slowest['n']})", slowest["cpu_ms"], "ms", RANDOM_TARGET_MS,
+               wall=slowest["wall_ms"]),
+        Figure("random_over_target", f"random formulas over {RANDOM_TARGET_MS:g} ms CPU",
+               random_tail(randoms)["over_target"], "formulas", 0),
+    ]
+    if result["spot"]:
+        figures += [
+            Figure("spot_ratio", "total states vs Spot's ltl2tgba -B", result["spot"]["ratio"],
+                   "x", 1.0),
+            Figure("spot_worst_excess", "worst formula: states above Spot's",
+                   result["spot"]["worst_excess"], "states", 1),
+        ]
     load_after = load_average()
     print()
     print_table("ltl_bench", figures, load_before, load_after)

@@ -34,10 +34,10 @@ from typing import Any
 import numpy as np
 
 from agent.errors import UnsatisfiableTask
-from agent.ltl.buchi import translate
 from agent.ltl.emptiness import accepts_lasso
 from agent.ltl.lasso import holds
 from agent.ltl.planner import plan_robot
+from agent.ltl.task import task_automaton
 from agent.protocol.messages import LtlStatus
 from agent.scenario import Scenario
 from agent.stl.monitor import Trajectory
@@ -134,7 +134,7 @@ def ltl_robot_report(scenario: Scenario, robot_id: int, traj: Trajectory | None,
     prefix = [_labels(scenario, n) for n in u]
     loop = [_labels(scenario, n) for n in v]
     by_lasso = holds(robot.ltl_tree, prefix, loop)
-    by_buchi = accepts_lasso(translate(robot.ltl_tree), prefix, loop)
+    by_buchi = accepts_lasso(task_automaton(robot.ltl_tree), prefix, loop)
     entry.update({
         "word": [{"t": t, "region": name} for t, name in word],
         "cycles_completed": len(ends),

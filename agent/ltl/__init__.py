@@ -7,12 +7,14 @@ Modules, from formula to plan:
   (§1; the grammar table is docs/ltl.md);
 * ``lasso`` — exact evaluation on lasso words u·v^ω (§2, the reference semantics);
 * ``rewrite`` → ``alternating`` → ``tgba`` (→ ``branching``) → ``degeneralize`` →
-  ``simulation`` → ``buchi`` — the translator (§2); ``bdd`` and ``guards`` hold the symbolic
-  Boolean guards, ``hoa`` the HOA v1 export, ``hoa_reader`` the HOA import, ``batch`` the
-  ``translate -F`` driver, ``emptiness`` the emptiness check with witness;
+  ``simulation`` (→ ``fair_simulation``, ``wdba``) → ``buchi`` — the translator (§2); ``bdd``
+  and ``guards`` hold the symbolic Boolean guards, ``hoa`` the HOA v1 export, ``hoa_reader``
+  the HOA import, ``task`` the one place that tells a task's formula from its HOA file,
+  ``batch`` the ``translate -F`` driver, ``emptiness`` the emptiness check with witness;
 * ``transition_system`` (§3), ``product`` (§4), ``search`` and ``planner`` (§5), ``diagnose``
   (why a task is unsatisfiable); ``graphs`` holds the shared SCC/BFS helpers.
 
-Entry points: ``parser.parse``, ``buchi.translate``, ``hoa.to_hoa``, ``lasso.holds``,
-``planner.plan_robot``, ``planner.plan``, ``planner.replan``, ``planner.buchi_step``.
+Entry points: ``parser.parse``, ``buchi.translate``, ``task.task_automaton``, ``hoa.to_hoa``,
+``lasso.holds``, ``planner.plan_robot``, ``planner.plan``, ``planner.replan``,
+``planner.buchi_step``.
 """

@@ -48,8 +48,9 @@ from typing import Any
 import numpy as np
 
 from agent.errors import UnsatisfiableTask
-from agent.ltl.buchi import Buchi, buchi_step, translate
+from agent.ltl.buchi import Buchi, buchi_step
 from agent.ltl.planner import Plan, plan_robot, replan
+from agent.ltl.task import task_automaton
 from agent.ltl.transition_system import START, from_regions, from_scenario
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
@@ -144,7 +145,7 @@ class LtlAgent:
         self.distance = distance or path_length_function(scenario)
         self.executor = executor or Executor.from_scenario(scenario, robot)
         t0 = time.perf_counter()
-        self.buchi: Buchi = translate(spec.ltl_tree)  # the one translation of this task
+        self.buchi: Buchi = task_automaton(spec.ltl_tree)  # the one translation of this task
         self.translate_time = time.perf_counter() - t0  # [s]
         ts = from_scenario(scenario, robot, self.distance)
         self.labels = dict(zip(ts.names, ts.labels, strict=True))

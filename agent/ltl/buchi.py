@@ -14,7 +14,9 @@
    bisimulation quotient (equal acceptance, equal guarded edges to equal classes), and the
    merging of *transient* states (on no cycle, so visited at most once and their acceptance
    is irrelevant) into a state with the same outgoing edges; direct-simulation rounds
-   (``agent.ltl.simulation``);
+   (``agent.ltl.simulation``); on small automata, the removal of states that fair simulation
+   proves unnecessary, each removal checked by a fair-simulation game
+   (``agent.ltl.fair_simulation``);
 6. for obligation formulas, the minimal weak DBA when it is smaller and provably equivalent
    (``agent.ltl.wdba``).
 
@@ -31,13 +33,19 @@ from dataclasses import dataclass, field
 from agent.ltl.bdd import FALSE, TRUE, disjoin
 from agent.ltl.branching import postpone_branching
 from agent.ltl.degeneralize import degeneralize, mark_order_matters
+from agent.ltl.fair_simulation import remove_fair_little_brothers
 from agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
 from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
 from agent.ltl.parser import parse
 from agent.ltl.printer import to_string
 from agent.ltl.rewrite import normalize
-from agent.ltl.simulation import reduce_by_simulation, saturate_acceptance, single_initial
+from agent.ltl.simulation import (
+    is_deterministic,
+    reduce_by_simulation,
+    saturate_acceptance,
+    single_initial,
+)
 from agent.ltl.tgba import build_tgba
 from agent.ltl.tgba_simulation import reduce_tgba
 from agent.ltl.wdba import accepts_constant, minimize_obligation
@@ -53,7 +61,6 @@ WDBA_MAX_INPUT = 40
 """Largest reduced automaton (states) for which the minimal weak DBA is tried."""
 WDBA_MAX_STATES = 64
 """Largest subset construction (states) the weak-DBA minimisation builds."""
-HOA_TASK_PREFIX = "hoa:"  # the same as agent.ltl.hoa_reader.HOA_TASK_PREFIX
 
 
 @dataclass(frozen=True)
@@ -127,13 +134,9 @@ def _atoms_in_order(f: Formula) -> tuple[str, ...]:
 def translate(formula: Formula | str) -> Buchi:
     """Translate an LTL formula (tree or Spot-syntax text) into a small state-based Büchi automaton.
 
-    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. A scenario's
-    HOA task (``hoa:<path>``, :data:`HOA_TASK_PREFIX`) is read from its file instead.
+    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. (A scenario's
+    task may also name an HOA file: :func:`agent.ltl.task.task_automaton` tells them apart.)
     """
-    if isinstance(formula, str) and formula.startswith(HOA_TASK_PREFIX):
-        from agent.ltl.hoa_reader import read_hoa_file
-
-        return read_hoa_file(formula[len(HOA_TASK_PREFIX):])
     with recursion_headroom():
         candidates = translation_candidates(formula, only_best=True)
     return min(candidates, key=lambda b: (b.num_states, b.num_edges))
@@ -179,25 +182,34 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
         if single[0] <= full[0]:
             full = single
+    lighter = remove_fair_little_brothers(full)  # states that fair simulation proves useless
+    if lighter is not None:
+        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)))
+        if lighter[0] < full[0]:
+            full = lighter
+    negated: list = []  # the negation's automaton, built at most once (weak DBA, validity)
+
+    def negation():
+        if not negated:
+            negated.append(_remove_useless(*degeneralize(
+                build_tgba(normalize(Not(tree)), index)[0])))
+        return negated[0]
+
     if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
-
-        def negation():
-            return _remove_useless(*degeneralize(build_tgba(normalize(Not(tree)), index)[0]))
-
         wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES)
         if wdba is not None:
             full = _merge_transient(*_remove_useless(*wdba))
     result = [_renumbered(text, atoms, *aut[1:])
               for aut in ((full,) if only_best else (full, *cheap))]
-    if 1 < min(b.num_states for b in result) <= 8 and _is_valid(tree, index, result[0]):
+    if 1 < min(b.num_states for b in result) <= 8 and _is_valid(result[0], negation):
         return [Buchi(text, atoms, (0,), frozenset({0}), (((0, TRUE),),))]
     return result
 
 
-def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
-    """Whether every word satisfies ``tree`` (its negation has an empty automaton). Only tried
-    for small automata (≤ 8 states) whose initial state reads every letter, a necessary
-    condition, so that it costs little."""
+def _is_valid(buchi: Buchi, negation) -> bool:
+    """Whether every word satisfies the formula (``negation()``, its negation's automaton, is
+    empty). Only tried for small automata (≤ 8 states) whose initial state reads every letter,
+    a necessary condition, so that it costs little."""
     if disjoin(g for q in buchi.initial for _d, g in buchi.edges[q]) is not TRUE:
         return False
     n = len(buchi.atoms)
@@ -205,8 +217,7 @@ def _is_valid(tree: Formula, index: dict[str, int], buchi: Buchi) -> bool:
         if not accepts_constant((buchi.num_states, buchi.initial, buchi.accepting,
                                  buchi.edges), v):
             return False
-    tgba = build_tgba(normalize(Not(tree)), index)[0]
-    return _remove_useless(*degeneralize(tgba))[0] == 0
+    return negation()[0] == 0
 
 
 def _cheap_reduce(aut):
@@ -215,7 +226,12 @@ def _cheap_reduce(aut):
 
 
 def _reduce(aut):
-    """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`)."""
+    """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`).
+
+    A deterministic automaton is returned as it is: simulation has nothing to prune there, and
+    :func:`_cheap_reduce` already removed what the other two steps would."""
+    if is_deterministic(aut[1], aut[3]):
+        return aut
     for _round in range(3):
         before = (aut[0], sum(len(out) for out in aut[3]))
         aut = _remove_useless(*reduce_by_simulation(*aut))

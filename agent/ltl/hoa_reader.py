@@ -20,6 +20,7 @@ from pathlib import Path
 from agent.errors import LtlError
 from agent.ltl import bdd
 from agent.ltl.bdd import FALSE, TRUE, Bdd
+from agent.ltl.buchi import Buchi
 
 
 def _fail(source: str, line: int, what: str) -> LtlError:
@@ -90,8 +91,6 @@ class _Label:
 
 def read_hoa(text: str, source: str = "<hoa>"):
     """The first automaton of ``text`` as a state-based Büchi automaton."""
-    from agent.ltl.buchi import Buchi  # buchi imports this module's users, not this module
-
     lines = text.splitlines()
     if not any(line.strip().startswith("HOA:") for line in lines):
         raise _fail(source, 1, "not a HOA file (no 'HOA: v1' header)")
@@ -226,9 +225,9 @@ def read_hoa(text: str, source: str = "<hoa>"):
     return Buchi(formula, tuple(names), initial, accepting, tuple(tuple(e) for e in edges))
 
 
-HOA_TASK_PREFIX = "hoa:"  # also agent.ltl.buchi.HOA_TASK_PREFIX (no import cycle)
+HOA_TASK_PREFIX = "hoa:"
 """A scenario task ``ltl = { hoa = "file.hoa" }`` is carried as the text ``hoa:<absolute path>``
-(``agent.scenario.loader``); :func:`agent.ltl.buchi.translate` and the planner read the file."""
+(``agent.scenario.loader``); :func:`agent.ltl.task.task_automaton` reads the file."""
 
 
 def read_hoa_file(path: str | Path):

@@ -24,12 +24,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from agent.errors import UnsatisfiableTask
-from agent.ltl.buchi import HOA_TASK_PREFIX, Buchi, buchi_step, translate
+from agent.ltl.buchi import Buchi, buchi_step, translate
 from agent.ltl.diagnose import explain_unsatisfiable
 from agent.ltl.formula import Formula
 from agent.ltl.parser import parse
 from agent.ltl.product import ProductGraph, explore
 from agent.ltl.search import optimal_lasso
+from agent.ltl.task import is_hoa_task, task_automaton
 from agent.ltl.transition_system import Distance, TransitionSystem, from_scenario
 from agent.scenario.model import Scenario
 
@@ -112,8 +113,8 @@ def _automaton(task: Formula | str | Buchi) -> tuple[Buchi, float, float]:
     if isinstance(task, Buchi):
         return task, 0.0, 0.0
     t0 = time.perf_counter()
-    if isinstance(task, str) and task.startswith(HOA_TASK_PREFIX):  # ltl = { hoa = "…" }
-        buchi = translate(task)
+    if is_hoa_task(task):  # ltl = { hoa = "…" }
+        buchi = task_automaton(task)
         return buchi, 0.0, time.perf_counter() - t0
     tree = parse(task) if isinstance(task, str) else task
     t1 = time.perf_counter()

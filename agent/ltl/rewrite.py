@@ -253,6 +253,12 @@ def mk_until(a: Formula, b: Formula) -> Formula:
         # a U (b' | G a) = a W b' = b' R (a | b')
         rest = mk_or(x for x in b.args if x != Globally(a))
         return mk_release(rest, mk_or([a, rest]))
+    if isinstance(b, And) and a in b.args:
+        rest = [x for x in b.args if x != a]
+        if is_universal(a):  # a U (a & x) = a & F x: a holds now, hence forever
+            return mk_and([a, mk_finally(mk_and(rest))])
+        if all(is_eventual(x) for x in rest):  # a U (a & e) = e M a = a & e
+            return b
     return Until(a, b)
 
 
@@ -267,6 +273,12 @@ def mk_release(a: Formula, b: Formula) -> Formula:
         # a R (b' & F a) = a M b' = b' U (a & b')
         rest = mk_and(x for x in b.args if x != Finally(a))
         return mk_until(rest, mk_and([a, rest]))
+    if isinstance(b, Or) and a in b.args:
+        rest = [x for x in b.args if x != a]
+        if is_eventual(a):  # a R (a | x) = a | G x: a fails now, hence forever
+            return mk_or([a, mk_globally(mk_or(rest))])
+        if all(is_universal(x) for x in rest):  # a R (a | u) = u W a = a | u
+            return b
     return Release(a, b)
 
 

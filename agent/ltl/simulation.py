@@ -79,32 +79,49 @@ def saturate_acceptance(n, initial, accepting, edges):
 def direct_simulation(n, accepting, edges) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q`` (``q`` direct-simulates ``p``).
 
-    Greatest fixpoint: start from "``q`` accepting if ``p`` is, and ``q`` reads every letter
-    ``p`` reads", then drop ``q`` from ``sim[p]`` while some edge ``p –g→ d`` has letters that no
-    edge of ``q`` into ``sim[d]`` reads. The cover "letters on which ``q`` can answer ``d``" is
-    cached per ``(q, d)`` until ``sim[d]`` shrinks.
-    """
+    Greatest fixpoint (:func:`refine_simulation`) from "``q`` accepting if ``p`` is, and ``q``
+    reads every letter ``p`` reads"."""
     reads = [disjoin(g for _d, g in out) for out in edges]
     sim = [
         {q for q in range(n)
          if (q in accepting or p not in accepting) and (q == p or reads[p].implies(reads[q]))}
         for p in range(n)
     ]
+    return refine_simulation(n, sim, [[(d, 0, g) for d, g in out] for out in edges])
+
+
+def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
+    """Refine the candidate sets ``sim`` (``p ∈ sim[p]``) to the greatest simulation inside them,
+    for edges ``edges[p] = [(dst, marks, guard), …]`` (``marks`` 0 for state-based acceptance):
+    drop ``q`` from ``sim[p]`` while some edge ``p –g,M→ d`` has letters that no edge
+    ``q –g',M'→ d'`` with ``d' ∈ sim[d]`` and ``M ⊆ M'`` reads. The cover "letters on which ``q``
+    answers ``(d, M)``" is cached until ``sim[d]`` shrinks. Shared by the state-based reduction
+    here and the TGBA one (``agent.ltl.tgba_simulation``)."""
     version = [0] * n
-    cache: dict[tuple[int, int], tuple[int, object]] = {}
+    cache: dict[tuple[int, int, int], tuple[int, object]] = {}
     pred: list[set[int]] = [set() for _ in range(n)]
     for p in range(n):
-        for d, _g in edges[p]:
+        for d, _m, _g in edges[p]:
             pred[d].add(p)
 
-    def cover(q: int, d: int):
-        hit = cache.get((q, d))
+    def cover(q: int, d: int, marks: int):
+        key = (q, d, marks)
+        hit = cache.get(key)
         if hit is not None and hit[0] == version[d]:
             return hit[1]
         members = sim[d]
-        result = disjoin(g for d2, g in edges[q] if d2 in members)
-        cache[(q, d)] = (version[d], result)
+        result = disjoin(g for d2, m2, g in edges[q] if d2 in members and not marks & ~m2)
+        cache[key] = (version[d], result)
         return result
+
+    def answers(q: int, dst: int, marks: int, guard) -> bool:
+        """Whether ``q`` answers ``p –guard,marks→ dst``: one matching edge reading all of
+        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover."""
+        members = sim[dst]
+        for d2, m2, g in edges[q]:
+            if d2 in members and not marks & ~m2 and guard.implies(g):
+                return True
+        return guard.implies(cover(q, dst, marks))
 
     pending = set(range(n))  # states whose simulators must be re-checked
     while pending:
@@ -113,8 +130,8 @@ def direct_simulation(n, accepting, edges) -> list[set[int]]:
         for q in list(sim[p]):
             if q == p:
                 continue
-            for dst, guard in edges[p]:
-                if not guard.implies(cover(q, dst)):
+            for dst, marks, guard in edges[p]:
+                if not answers(q, dst, marks, guard):
                     sim[p].discard(q)
                     shrunk = True
                     break

@@ -46,6 +46,8 @@ class Tgba:
 
 
 _CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
+EAGER_MAX_STATES = 64
+"""Largest TGBA (states) also returned with the eager marking (see :func:`build_tgba`)."""
 
 
 def _prune(partials: list[_Partial]) -> list[_Partial]:
@@ -106,7 +108,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     two is sound and complete (the lazy marks already are, and the eager ones only add marks on
     steps where φ_j was not pending). Which one degeneralises into fewer states depends on the
     formula (``G(a -> F b)`` prefers lazy), so the caller may try both. When no edge spawns an
-    acceptance state the variants coincide and only one is returned.
+    acceptance state the variants coincide and only one is returned; beyond
+    :data:`EAGER_MAX_STATES` states only the lazy one is (on the benchmark's random formulas
+    the eager marking never gave the smaller automaton there, and it doubles the work after).
     """
     vwaa = Vwaa(index)
     mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
@@ -139,6 +143,18 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
 
     initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula)))
     option_cache: dict[int, tuple[list[_Group], bool]] = {}
+    # The product after the first k members of a state, keyed by those members (a bitmask):
+    # states share prefixes (every state of G(…) starts with the G state), and the product of
+    # a prefix depends on nothing else.
+    prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
+
+    def options_of(q: int) -> tuple[list[_Group], bool]:
+        """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
+        options = option_cache.get(q)
+        if options is None:
+            bad_bit = 1 << mark_of[q] if q in mark_of else 0
+            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+        return options
     while queue:
         s = queue.popleft()
         sid = state_id[s]
@@ -149,7 +165,24 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         groups: list[_Group] | None = None
         disjoint = False
         members = ordered(s)
-        for k, q in enumerate(members):
+        start, prefix = 0, 0
+        masks = [0]
+        for q in members:
+            masks.append(masks[-1] | 1 << q)
+        for k in range(len(members), 0, -1):
+            cached = prefix_cache.get(masks[k])
+            if cached is not None:
+                partials, groups, disjoint = cached
+                start, prefix = k, masks[k]
+                break
+        else:
+            if members and all(options_of(q)[1] for q in members):
+                # Every member's options partition the letters (F a1 & … & F an): their
+                # product is a partition too, built symbolically with nothing to prune.
+                groups, disjoint = [(0, 0, bdd.TRUE, 0)], True
+        for k in range(start, len(members)):
+            q = members[k]
+            prefix |= 1 << q
             if groups is None:
                 bad_bit = 1 << mark_of[q] if q in mark_of else 0
                 product: list[_Partial] = []
@@ -166,20 +199,22 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                     groups = _minimal_per_letter(_groups_of(partials))
                     disjoint = _disjoint(groups)
                     groups.sort(key=_group_order)
+                prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
-            options = option_cache.get(q)
-            if options is None:
-                bad_bit = 1 << mark_of[q] if q in mark_of else 0
-                options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+            options = options_of(q)
             groups = _combine(groups, options[0])
             disjoint = disjoint and options[1]
             # Dominated groups are removed at the end, and on the way when they pile up.
-            if not disjoint and (k == len(members) - 1 or len(groups) > 24):
+            if not disjoint and len(groups) > 24:
                 groups = _minimal_per_letter(groups)
                 disjoint = _disjoint(groups)
             groups.sort(key=_group_order)
+            prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
             groups = _minimal_per_letter(_groups_of(partials))
+        elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
+            groups = _minimal_per_letter(groups)
+            groups.sort(key=_group_order)
         raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
@@ -196,7 +231,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
     variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)))]
-    if eager != lazy:
+    if eager != lazy and len(raw_edges) <= EAGER_MAX_STATES:
         variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of))))
     return tuple(variants)
 
@@ -264,9 +299,13 @@ def _minimal_per_letter(groups: list[_Group]) -> list[_Group]:
     keyed = [(t << shift | b, g) for t, b, g, _l in groups]
     result = []
     for (ki, _g), (targets, bad, guard, lits) in zip(keyed, groups, strict=True):
-        dominators = [g for kj, g in keyed if kj != ki and not kj & ~ki]
-        if dominators:
-            guard = guard - bdd.disjoin(dominators)
+        # Dominator by dominator, only those that share letters: cheaper than one union of
+        # them all (most share none).
+        for kj, g in keyed:
+            if kj != ki and not kj & ~ki and guard & g is not FALSE:
+                guard = guard - g
+                if guard is FALSE:
+                    break
         if guard is not FALSE:
             result.append((targets, bad, guard, lits))
     return result

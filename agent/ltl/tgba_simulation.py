@@ -17,6 +17,7 @@ Computed as a greatest fixpoint with guards as BDDs, a letter set at a time.
 from __future__ import annotations
 
 from agent.ltl.bdd import FALSE, Bdd, disjoin
+from agent.ltl.simulation import refine_simulation
 from agent.ltl.tgba import Tgba
 
 MAX_TGBA_SIMULATION_STATES = 32
@@ -33,43 +34,12 @@ def _grouped(out) -> dict[tuple[int, int], Bdd]:
 
 def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]]) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q``; ``edges[p]`` maps ``(dst, marks)`` to a
-    guard."""
+    guard. Greatest fixpoint (``agent.ltl.simulation.refine_simulation``) from "``q`` reads
+    every letter ``p`` reads"."""
     reads = [disjoin(out.values()) for out in edges]
     sim = [{q for q in range(n) if q == p or reads[p].implies(reads[q])} for p in range(n)]
-    version = [0] * n
-    cache: dict[tuple[int, int, int], tuple[int, Bdd]] = {}
-    pred: list[set[int]] = [set() for _ in range(n)]
-    for p in range(n):
-        for d, _m in edges[p]:
-            pred[d].add(p)
-
-    def cover(q: int, d: int, marks: int) -> Bdd:
-        key = (q, d, marks)
-        hit = cache.get(key)
-        if hit is not None and hit[0] == version[d]:
-            return hit[1]
-        members = sim[d]
-        result = disjoin(g for (d2, m2), g in edges[q].items()
-                         if d2 in members and not marks & ~m2)
-        cache[key] = (version[d], result)
-        return result
-
-    pending = set(range(n))
-    while pending:
-        p = pending.pop()
-        shrunk = False
-        for q in list(sim[p]):
-            if q == p:
-                continue
-            for (dst, marks), guard in edges[p].items():
-                if not guard.implies(cover(q, dst, marks)):
-                    sim[p].discard(q)
-                    shrunk = True
-                    break
-        if shrunk:
-            version[p] += 1
-            pending |= pred[p]
-    return sim
+    return refine_simulation(n, sim, [[(d, m, g) for (d, m), g in out.items()]
+                                      for out in edges])
 
 
 def reduce_tgba(tgba: Tgba) -> Tgba:

@@ -121,6 +121,16 @@ def _singletons(start: int, by_state, max_states: int):
     return [frozenset((q,)) for q in order], det_edges
 
 
+def _intern(node, ids: dict, nodes: list) -> int:
+    """The number of ``node`` in an exploration (``ids`` numbers, ``nodes`` in order), adding
+    it at the end when new: the caller's loop visits ``nodes`` up to its growing end."""
+    j = ids.get(node)
+    if j is None:
+        j = ids[node] = len(nodes)
+        nodes.append(node)
+    return j
+
+
 def _accepts_cycle(subset, letters: list[int], accepting, edges) -> bool:
     """Whether ``A`` has an accepting run on ``letters^ω`` from some state of ``subset``."""
     length = len(letters)
@@ -135,12 +145,7 @@ def _accepts_cycle(subset, letters: list[int], accepting, edges) -> bool:
         out = []
         for dst, guard in edges[q]:
             if guard.holds(v):
-                node = (dst, (i + 1) % length)
-                j = ids.get(node)
-                if j is None:
-                    j = ids[node] = len(nodes)
-                    nodes.append(node)
-                out.append(j)
+                out.append(_intern((dst, (i + 1) % length), ids, nodes))
         succ.append(out)
         k += 1
     comp, components = strongly_connected_components(len(nodes), succ)
@@ -342,12 +347,7 @@ def _product_empty(left, right) -> bool:
             for d2, g2 in edges2[q]:
                 if (g1 & g2) is FALSE:
                     continue
-                node = (d1, d2)
-                j = ids.get(node)
-                if j is None:
-                    j = ids[node] = len(nodes)
-                    nodes.append(node)
-                out.append(j)
+                out.append(_intern((d1, d2), ids, nodes))
         succ.append(out)
         k += 1
     comp, components = strongly_connected_components(len(nodes), succ)

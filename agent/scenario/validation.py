@@ -285,10 +285,10 @@ def check_geometry(scenario: Any, source: str) -> None:
 
 @functools.lru_cache(maxsize=256)
 def _ltl_empty(text: str) -> bool:
-    from agent.ltl.buchi import translate
     from agent.ltl.emptiness import is_empty
+    from agent.ltl.task import task_automaton
 
-    return is_empty(translate(text))
+    return is_empty(task_automaton(text))
 
 
 def check_ltl(text: str, source: str, where: str) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from agent.ltl.buchi import translate
+from agent.ltl.task import task_automaton
 from agent.scenario import Scenario, load_scenario
 from agent.scenario.stl_checks import stl_warnings
 
@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario(path)
         for robot in scenario.robots:
             if robot.ltl is not None:
-                translate(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
+                task_automaton(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
         print(summarise(scenario))
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")

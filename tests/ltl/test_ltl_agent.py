@@ -39,13 +39,13 @@ def _drive(agent: LtlAgent, seconds: float, others=NOBODY):
 def test_one_translation_serves_planning_and_tracking(scenarios_dir, monkeypatch):
     scenario = load_scenario(scenarios_dir / "scenario1.toml")
     calls = []
-    real = ltl_agent_module.translate
+    real = ltl_agent_module.task_automaton
 
     def counting(formula):
         calls.append(formula)
         return real(formula)
 
-    monkeypatch.setattr(ltl_agent_module, "translate", counting)
+    monkeypatch.setattr(ltl_agent_module, "task_automaton", counting)
     agent = LtlAgent(scenario, 1)
     plan = agent.plan()
     assert len(calls) == 1 and calls[0] is scenario.robot(1).ltl_tree

@@ -8,12 +8,13 @@ import pytest
 from hypothesis import given, settings
 from ltl_helpers import automaton_accepts, formulas, lasso_words
 
-from agent.errors import LtlError, ScenarioError, TlfleetError
+from agent.errors import FormulaSyntaxError, LtlError, ScenarioError, TlfleetError
 from agent.ltl.buchi import translate
 from agent.ltl.hoa import to_hoa
-from agent.ltl.hoa_reader import read_hoa
+from agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa
 from agent.ltl.lasso import holds
 from agent.ltl.planner import plan_robot
+from agent.ltl.task import is_hoa_task, task_automaton
 from agent.scenario import load_scenario
 from cli.main import main
 
@@ -147,3 +148,15 @@ def test_cli_batch_stats_and_hoa_input(tmp_path, capsys):
     assert main(["translate"]) == 1
     _out, err = capsys.readouterr()
     assert "give exactly one of FORMULA, -F FILE or --hoa FILE" in err
+
+
+def test_task_automaton_reads_hoa_tasks_and_translates_formulas(tmp_path):
+    path = tmp_path / "gfa.hoa"
+    path.write_text(SPOT_STYLE, encoding="utf-8")
+    task = HOA_TASK_PREFIX + str(path)
+    assert is_hoa_task(task) and not is_hoa_task("G F a")
+    from_file = task_automaton(task)
+    assert from_file.atoms == ("a",) and from_file == read_hoa(SPOT_STYLE, str(path))
+    assert task_automaton("G F a") == translate("G F a")
+    with pytest.raises(FormulaSyntaxError):  # the translator itself reads formulas only
+        translate(task)

@@ -4,10 +4,13 @@ obligation formulas. Each is checked against the exact lasso semantics of the fo
 
 from __future__ import annotations
 
+import random
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from ltl_helpers import automaton_accepts, formulas, lasso_words
 
+from agent.ltl import bdd
 from agent.ltl.buchi import (
     Buchi,
     _atoms_in_order,
@@ -16,6 +19,11 @@ from agent.ltl.buchi import (
     translation_candidates,
 )
 from agent.ltl.degeneralize import degeneralize
+from agent.ltl.fair_simulation import (
+    _Moves,
+    fair_simulation_positions,
+    remove_fair_little_brothers,
+)
 from agent.ltl.formula import And, Atom, Finally, Globally, Next, Not, Or, Release, Until
 from agent.ltl.lasso import holds
 from agent.ltl.parser import parse
@@ -60,6 +68,12 @@ shapes = st.one_of(
               st.sampled_from([Atom("a"), Atom("b")]), small, small),
     st.builds(lambda a, b: Or((Globally(Not(a)), Finally(And((a, Finally(b)))))),
               st.sampled_from([Atom("a"), Atom("b")]), small),
+    # universal u: u U (u & x) = u & F x, x U (x & e) = x & e; duals with an eventual e
+    st.builds(lambda a, b: Until(Globally(a), And((Globally(a), b))), small, small),
+    st.builds(lambda a, b: Until(Next(Globally(a)), And((b, Next(Globally(a))))), small, small),
+    st.builds(lambda a, b: Until(a, And((a, Finally(b)))), small, small),
+    st.builds(lambda a, b: Release(Finally(a), Or((Finally(a), b))), small, small),
+    st.builds(lambda a, b: Release(a, Or((Globally(b), a))), small, small),
 )
 
 
@@ -78,6 +92,10 @@ def test_rewrite_rules_fire():
     assert to_string(normalize(parse("G a | a U b"))) == to_string(normalize(parse("a W b")))
     assert to_string(normalize(parse("G !a | F(a & F b)"))) == to_string(
         normalize(parse("!a W (a & F b)")))
+    assert to_string(normalize(parse("G a U (b U c & G a)"))) == "G a & F c"
+    assert to_string(normalize(parse("F a R (b R c | F a)"))) == "F a | G c"
+    assert to_string(normalize(parse("a U (a & F b)"))) == "a & F b"
+    assert to_string(normalize(parse("a R (a | G b)"))) == "a | G b"
 
 
 @settings(max_examples=600, deadline=None)
@@ -124,3 +142,79 @@ def test_equivalence_check_separates_languages():
     # L(F(a & b)) ⊊ L(F a & F b): the second product (F a & F b with ¬F(a & b)) is not empty.
     assert not _equivalent(_tuple(together), _tuple(both),
                            lambda: _tuple(translate("!F(a & b)")))
+
+
+@settings(max_examples=500, deadline=None)
+@given(formulas(), WORDS)
+def test_fair_little_brothers_removal_preserves_the_language(f, words):
+    for b in translation_candidates(f):
+        lighter = remove_fair_little_brothers(_tuple(b))
+        if lighter is not None:
+            _check(f, _buchi(f, b.atoms, _remove_useless(*lighter)), words)
+
+
+def _edges(*rows):
+    """Guards over one atom ``a`` (variable 0): 'a', '!a' or 'true'."""
+    guard = {"a": bdd.var(0), "!a": ~bdd.var(0), "true": bdd.TRUE}
+    return [[(d, guard[g]) for d, g in row] for row in rows]
+
+
+def test_fair_simulation_sees_through_an_accepting_copy():
+    # G F a with the accepting copy 1 of state 0: 1 ≼f 0 (same successors, acceptance one
+    # step later) although 1 ≼ 0 fails for direct simulation; a^ω-only 2 is not above F a.
+    edges = _edges([(0, "!a"), (1, "a")], [(0, "!a"), (1, "a")], [(2, "a")])
+    aut = (3, (0,), frozenset({1, 2}), edges)
+    win = fair_simulation_positions(3, 3, aut[2], aut[2], _Moves(edges, edges))
+    assert (1, 0) in win and (0, 1) in win
+    assert (0, 2) not in win and (2, 0) in win  # L(G a) ⊆ L(G F a), not conversely
+
+
+def test_dac_response_chain_loses_the_state_of_its_early_choice():
+    # Spot: 7 states; direct simulation alone leaves 9 (the G-branch entered before the pending
+    # X((!p2 & !p4) U p5) is fulfilled); fair simulation removes it.
+    f = parse("G(p0 -> ((p1 -> (!p2 U (!p2 & p3 & !p4 & X((!p2 & !p4) U p5)))) U "
+              "(p2 | G(p1 -> (p3 & !p4 & X(!p4 U p5))))))")
+    b = translate(f)
+    assert b.num_states == 8
+    rng = random.Random(7)
+    for _ in range(400):
+        prefix = [frozenset(f"p{i}" for i in range(6) if rng.random() < 0.4)
+                  for _ in range(rng.randrange(4))]
+        loop = [frozenset(f"p{i}" for i in range(6) if rng.random() < 0.4)
+                for _ in range(1 + rng.randrange(4))]
+        assert automaton_accepts(b, prefix, loop) == holds(f, prefix, loop)
+
+
+PRUNED_BY_FAIR_SIMULATION = [  # seeded random formulas on which the removal fires
+    "F X(p0 <-> true) M ((p3 -> G p3) & p2)",
+    "!(G p3 M (F p0 -> p3) W (!p3 | p2) W p0)",
+    "G(F(!(F X p2 M p3) <-> X p0) & p3)",
+    "!X p1 & F(p0 W (p1 | G p0))",
+    "X F p3 U G p0",
+    "(!p0 & X p1) U F(p0 R p0 | X X p0)",
+    "G p3 U !p3 -> G p3",
+    "p3 R p1 & F(F p3 | X p0)",
+    "!(X p2 R p3 & (G p3 M p1 U p3) R X p2)",
+    "p2 <-> F G(G p1 & !p0)",
+]
+
+
+def test_fair_little_brothers_removal_on_seeded_lassos():
+    rng = random.Random(2024)
+    fired = 0
+    for text in PRUNED_BY_FAIR_SIMULATION:
+        f = parse(text)
+        for b in translation_candidates(f):
+            lighter = remove_fair_little_brothers(_tuple(b))
+            if lighter is None:
+                continue
+            fired += 1
+            pruned = _buchi(f, b.atoms, _remove_useless(*lighter))
+            assert pruned.num_states < b.num_states
+            for _ in range(300):
+                prefix = [frozenset(f"p{i}" for i in range(4) if rng.random() < 0.5)
+                          for _ in range(rng.randrange(4))]
+                loop = [frozenset(f"p{i}" for i in range(4) if rng.random() < 0.5)
+                        for _ in range(1 + rng.randrange(4))]
+                assert automaton_accepts(pruned, prefix, loop) == holds(f, prefix, loop), text
+    assert fired >= len(PRUNED_BY_FAIR_SIMULATION)
