@@ -137,6 +137,18 @@ def _clock(msg: Any) -> None:
 def _mocap(msg: Any) -> None:
     _time(".t", msg.t)
     _int(".seq", msg.seq, 0)
+    # the happy path builds no strings (issue 17: every process checks 100 frames a second); a
+    # row out of range (or NaN, which fails every comparison) is checked again below with paths
+    for _robot_id, x, y, th in msg.poses:
+        if not (0 <= _robot_id <= MAX_ROBOT_ID and -MAX_COORD <= x <= MAX_COORD
+                and -MAX_COORD <= y <= MAX_COORD and -MAX_ANGLE <= th <= MAX_ANGLE):
+            break
+    else:
+        for robot in msg.due:
+            if not 0 <= robot <= MAX_ROBOT_ID:
+                break
+        else:
+            return
     for i, (robot, x, y, th) in enumerate(msg.poses):
         _robot(f".poses[{i}][0]", robot)
         _number(f".poses[{i}][1]", x, -MAX_COORD, MAX_COORD)
@@ -150,6 +162,11 @@ def _command(msg: Any) -> None:
     _robot(".robot", msg.robot)
     _time(".t", msg.t)
     _int(".seq", msg.seq, -1)  # -1: the stale-mocap stop sent before any frame
+    for value in msg.u:  # the happy path builds no strings (as _mocap)
+        if not -MAX_SPEED <= value <= MAX_SPEED:
+            break
+    else:
+        return
     for i, value in enumerate(msg.u):
         _number(f".u[{i}]", value, -MAX_SPEED, MAX_SPEED)
 
