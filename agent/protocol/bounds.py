@@ -224,6 +224,7 @@ _CHECKS = {"Clock": _clock, "MocapFrame": _mocap, "Command": _command, "LtlStatu
 
 # --------------------------------------------------------------------------- fleet bounds
 
+_WRAPPED = 4 * math.pi  # [rad] |θ| of a mocap heading (wrapped to (−π, π], noise included)
 ARENA_MARGIN = 2.0  # [m] a pose this far outside the arena walls is not a real robot
 SPEED_FACTOR = 100.0  # a command above this multiple of the robot's limits is not a real one
 TIME_SLACK = 1.0  # [s] beyond the run's duration
@@ -264,21 +265,22 @@ class FleetBounds:
             return why
         xmin, xmax, ymin, ymax = self.box
         m = self.margin
+        x_lo, x_hi, y_lo, y_hi = xmin - m, xmax + m, ymin - m, ymax + m
+        limits = self.limits
         previous = -1
-        for row in frame.poses:
-            robot, x, y, th = row
-            if self.limits and robot not in self.limits:
+        for robot, x, y, th in frame.poses:
+            if limits and robot not in limits:
                 return f"pose of unknown robot {robot}"
             if robot <= previous:
                 return f"robot ids not strictly ascending ({previous}, {robot})"
             previous = robot
-            if not (xmin - m <= x <= xmax + m and ymin - m <= y <= ymax + m):
+            if not (x_lo <= x <= x_hi and y_lo <= y <= y_hi):
                 return f"robot {robot} at ({x!r}, {y!r}) lies outside the arena"
-            if not -4 * math.pi <= th <= 4 * math.pi:
+            if not -_WRAPPED <= th <= _WRAPPED:
                 return f"robot {robot} heading {th!r} rad is not wrapped"
-        if self.limits:
+        if limits:
             for robot in frame.due:
-                if robot not in self.limits:
+                if robot not in limits:
                     return f"due robot {robot} is unknown"
         return None
 
