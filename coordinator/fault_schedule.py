@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import signal
 import time
@@ -175,22 +176,37 @@ class FaultScheduler:
 PROCESS_KINDS = frozenset({"freeze", "kill", "restart"})
 
 
-class ProcessActuator:
-    """Freeze, kill and restart the children of ``launcher``; ``children`` is the supervisor's
-    map (a restarted child replaces the old one there, so its token's return is a recovery).
-    Link cuts and partitions are rejected: they need namespace hosts."""
+def check_restartable(fault: Fault, router: bool = False) -> None:
+    """Agents can be restarted, and (``router``: where the actuator started the router itself)
+    the router; not the simulator: the run ends when it dies."""
+    if fault.kind != "restart":
+        return
+    if fault.target == "sim" or (fault.target == "router" and not router):
+        where = "" if fault.target == "sim" else " here (only a fleet on loopback that tlfleet " \
+            "run started restarts its router)"
+        raise FaultError(f"fault {fault.text or fault.spec}: the run ends when its "
+                         f"{fault.target} dies ({fault.target}_died), so a restarted "
+                         f"{fault.target} would join no run{where}; use kill:{fault.target}")
 
-    def __init__(self, launcher: Launcher, children: MutableMapping[str, Any],
-                 kill_wait: float = 5.0, supervisor: Any = None):
-        self.launcher = launcher
-        self.children = children
-        self.kill_wait = kill_wait  # [s] wall, for a killed group to be gone
-        self.supervisor = supervisor  # coordinator.supervisor.Supervisor: re-sends the start
+
+ROUTER_RESTART_GRACE = 5.0  # [s] wall after a router restart during which every lost token is
+#                             a link loss (the clients reconnect within zenoh's retry period)
+
+
+class StartAgain:
+    """A restarted agent waits for ``Control(start)`` (realtime frames list nobody as due): once
+    its token is back at ``supervisor`` (a :class:`coordinator.supervisor.Supervisor`), the start
+    goes out again (agents already started ignore it)."""
+
+    def __init__(self, supervisor: Any = None):
+        self.supervisor = supervisor
         self.awaiting: set[str] = set()  # restarted agents whose token is not back yet
 
+    def add(self, name: str) -> None:
+        if name.startswith("agent-"):
+            self.awaiting.add(name)
+
     def poll(self) -> None:
-        """A restarted agent waits for ``Control(start)`` (realtime frames list nobody as due):
-        once its token is back, the start goes out again (agents already started ignore it)."""
         if self.supervisor is None or not self.awaiting:
             return
         back = {name for name in self.awaiting if name in self.supervisor.alive}
@@ -199,6 +215,40 @@ class ProcessActuator:
             self.supervisor.transport.publish(keys.control(self.supervisor.fleet),
                                               encode(Control(cmd="start", t0=0.0)))
             logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+
+
+def kill_group(pid: int, wait: float, poll: Callable[[], bool] | None = None) -> None:
+    """SIGKILL process group ``pid`` (a stopped, frozen group dies too) and wait up to ``wait``
+    [s] wall until none of it is left (and ``poll()``, when given, says the leader is reaped);
+    :class:`FaultError` when it is not gone by then."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(pid, signal.SIGKILL)
+    deadline = time.monotonic() + wait
+    while (group_alive(pid) or (poll is not None and not poll())) \
+            and time.monotonic() < deadline:
+        time.sleep(0.005)
+    if group_alive(pid) or (poll is not None and not poll()):
+        raise FaultError(f"pid {pid} did not die within {wait:g} s")
+
+
+class ProcessActuator:
+    """Freeze, kill and restart the children of ``launcher``; ``children`` is the supervisor's
+    map (a restarted child replaces the old one there, so its token's return is a recovery).
+    Link cuts and partitions are rejected: they need namespace hosts. ``restart:router`` kills
+    the router and starts it again on the same endpoint; every process's token goes and comes
+    back with it, which the supervisor reports as link losses and restorations
+    (``ROUTER_RESTART_GRACE``), not deaths."""
+
+    def __init__(self, launcher: Launcher, children: MutableMapping[str, Any],
+                 kill_wait: float = 5.0, supervisor: Any = None):
+        self.launcher = launcher
+        self.children = children
+        self.kill_wait = kill_wait  # [s] wall, for a killed group to be gone
+        self.supervisor = supervisor  # coordinator.supervisor.Supervisor (None in unit tests)
+        self.start_again = StartAgain(supervisor)  # re-sends the start to restarted agents
+
+    def poll(self) -> None:
+        self.start_again.poll()
 
     @staticmethod
     def check_all(faults: Iterable[Fault]) -> None:
@@ -210,10 +260,7 @@ class ProcessActuator:
         if fault.kind not in PROCESS_KINDS:
             raise FaultError(f"fault {fault.text or fault.spec}: {fault.kind} drops links, which "
                              "needs namespace hosts (--hosts N, root, iproute2 and nftables)")
-        if fault.kind == "restart" and fault.target in ("router", "sim"):
-            raise FaultError(f"fault {fault.text or fault.spec}: the run ends when its "
-                             f"{fault.target} dies ({fault.target}_died), so a restarted "
-                             f"{fault.target} would join no run; use kill:{fault.target}")
+        check_restartable(fault, router=True)
 
     def _child(self, name: str) -> Child:
         for child in reversed(self.launcher.children):
@@ -230,14 +277,23 @@ class ProcessActuator:
         name = fault.target
         if fault.kind == "freeze":
             return {"pid": self._signal(name, signal.SIGSTOP)}
+        if fault.kind == "restart" and name == "router":
+            self._mark_everyone(math.inf)
         pid = self._kill(name)
         if fault.kind == "kill":
             return {"pid": pid}
         child = self.launcher.restart(name)
+        if name == "router":
+            self._mark_everyone(time.monotonic() + ROUTER_RESTART_GRACE)
         self.children[name] = child
-        if name.startswith("agent-"):
-            self.awaiting.add(name)
+        self.start_again.add(name)
         return {"pid": pid, "new_pid": child.pid}
+
+    def _mark_everyone(self, until: float) -> None:
+        """While the router restarts, a lost token is a link loss (``Supervisor.cut``)."""
+        if self.supervisor is not None:
+            for name in self.supervisor.tokens.values():
+                self.supervisor.cut[name] = until
 
     def end(self, fault: Fault) -> dict[str, Any]:
         if fault.kind == "freeze":
@@ -247,12 +303,9 @@ class ProcessActuator:
 
     def _kill(self, name: str) -> int:
         child = self._child(name)
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(child.pid, signal.SIGKILL)  # a stopped (frozen) group dies too
-        deadline = time.monotonic() + self.kill_wait
-        while (child.process.poll() is None or group_alive(child.pid)) \
-                and time.monotonic() < deadline:
-            time.sleep(0.005)
-        if child.process.poll() is None:
-            raise FaultError(f"{name} (pid {child.pid}) did not die within {self.kill_wait:g} s")
+        try:
+            kill_group(child.pid, self.kill_wait, lambda: child.process.poll() is not None)
+        except FaultError:
+            raise FaultError(f"{name} (pid {child.pid}) did not die within "
+                             f"{self.kill_wait:g} s") from None
         return child.pid

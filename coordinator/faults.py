@@ -60,10 +60,16 @@ def hosts_for(scenario_path: Path, extra: Iterable[Fault] = (),
               duration: float | None = None) -> int:
     """How many namespace hosts a run with these faults needs: 0 when none drops a link, else
     one more than the highest ``host<i>`` named (at least 1: on one host every process still
-    has a router port of its own). Scenario and fault errors, and :class:`FaultError` when this
-    machine has no namespaces, come first."""
-    faults = run_faults(load_scenario(scenario_path), extra, duration)
+    has a router port of its own); with a partition, the peer layout's count (a host per
+    process, :func:`coordinator.hosts.place_peers`). Scenario and fault errors, and
+    :class:`FaultError` when this machine has no namespaces, come first."""
+    scenario = load_scenario(scenario_path)
+    faults = run_faults(scenario, extra, duration)
     if not need_hosts(faults):
         return 0
+    if any(f.kind == "partition" for f in faults):
+        from coordinator.hosts import place_peers
+
+        return place_peers(scenario).hosts
     hosts = [int(t[5:]) for f in faults for t in f.targets if t.startswith("host-")]
     return max(hosts, default=0) + 1

@@ -15,6 +15,17 @@ of its own; nothing is attached to the root namespace, so nothing can leave the 
   process placed on it**; it connects to the routers ``0 … i-1`` (explicit endpoints: the links
   come back after a cut, fault-injection notes §5.5).
 
+**Peer layout** (``layout="peers"``, chosen by :func:`run_on_hosts` when a fault partitions two
+processes, issue 13 §1): one router only, on host 0 with the coordinator; the simulator on host 1
+and robot number ``j`` on host ``2 + j``, each a zenoh **peer** listening on ``PEER_PORT`` of its
+own host, connected to its port on router 0 and, explicitly, to every fleet peer before it (a full
+mesh; gossip off). A router does not relay between peers (fault-injection notes §5.5, and checked
+again on zenoh 1.10: a router's client gets every peer's data, a peer gets another peer's only
+over their direct link), so dropping the bridge traffic between two hosts
+(:meth:`NetnsHosts.partition`) separates exactly those two processes while both keep their links
+to the router and to everyone else; the explicit connect brings their link back after the heal.
+A cut in this layout is the process's host's carrier loss (all of its links).
+
 Because every process reaches the fleet through its own port, one process's link can be cut and
 restored on command (:meth:`NetnsHosts.cut_process` / :meth:`NetnsHosts.restore_process`: an nft
 table in the host's namespace that drops that port, a silent partition) and so can a whole host's
@@ -62,6 +73,8 @@ ROUTER_PORT = 7447
 RECONNECT = ("connect: { retry: { period_init_ms: 250, period_max_ms: 250, "
              "period_increase_factor: 1.0 } }")
 PROCESS_PORT0 = 7500  # process k of a host gets PROCESS_PORT0 + k on its host's router
+PEER_PORT = 7700  # peer layout: where every fleet peer listens on its own host
+LAYOUTS = ("routers", "peers")
 
 
 class HostsError(TlfleetError, RuntimeError):
@@ -191,13 +204,40 @@ class NetnsHosts:
         host, port = placement.link(process)
         self.restore_port(host, port)
 
+    def partition(self, a: int, b: int) -> None:
+        """Drop every frame the bridge would forward between hosts ``a`` and ``b`` (both ways;
+        an nft bridge-family table in the bridge's namespace, fault-injection notes §5.5); both
+        keep their links to every other host."""
+        table = self._pair_table(a, b)
+        rules = (f"add table bridge {table}; "
+                 f"add chain bridge {table} filt {{ type filter hook forward priority 0; }}; "
+                 f"add rule bridge {table} filt iifname \"p{a}\" oifname \"p{b}\" drop; "
+                 f"add rule bridge {table} filt iifname \"p{b}\" oifname \"p{a}\" drop")
+        self._nft_in(self.bridge, rules)
+        self.cuts.add(f"{self.bridge}/{table}")
+
+    def heal(self, a: int, b: int) -> None:
+        table = self._pair_table(a, b)
+        self._nft_in(self.bridge, f"delete table bridge {table}")
+        self.cuts.discard(f"{self.bridge}/{table}")
+
+    @staticmethod
+    def _pair_table(a: int, b: int) -> str:
+        if a == b:
+            raise HostsError(f"a partition needs two hosts, got host {a} twice")
+        low, high = sorted((a, b))
+        return f"tlfleet_part_{low}_{high}"
+
     def _nft(self, host: int, rules: str) -> None:
+        self._nft_in(self.name(host), rules)
+
+    def _nft_in(self, namespace: str, rules: str) -> None:
         if shutil.which("nft") is None:
             raise HostsError("cutting a process link needs `nft` (Debian package nftables)")
-        done = subprocess.run([*self.exec_prefix(host), "nft", rules], capture_output=True,
-                              text=True)
+        done = subprocess.run(["ip", "netns", "exec", namespace, "nft", rules],
+                              capture_output=True, text=True)
         if done.returncode != 0:
-            raise HostsError(f"nft in {self.name(host)} failed: {done.stderr.strip()}")
+            raise HostsError(f"nft in {namespace} failed: {done.stderr.strip()}")
 
 
 @dataclass(frozen=True)
@@ -206,18 +246,34 @@ class Placement:
 
     hosts: int
     host_of: dict[str, int]  # process name (sim, agent-<id>, coordinator) -> host
-    port_of: dict[str, int]  # process name -> port of its host's router
+    port_of: dict[str, int]  # process name -> its port on its router (host 0's in "peers")
+    layout: str = "routers"  # "routers": a router per host; "peers": see the module docstring
+
+    def router_host(self, process: str) -> int:
+        """The host whose router ``process`` connects to."""
+        return 0 if self.layout == "peers" else self.host_of[process]
+
+    @property
+    def peers(self) -> list[str]:
+        """Peer layout: the fleet's peers in mesh order (sim, then agents by robot number)."""
+        return [p for p in self.host_of if p != "coordinator"] if self.layout == "peers" else []
 
     def link(self, process: str) -> tuple[int, int]:
         if process not in self.host_of:
             raise HostsError(f"no process {process!r} (known: {', '.join(self.host_of)})")
-        return self.host_of[process], self.port_of[process]
+        return self.router_host(process), self.port_of[process]
 
     def on(self, host: int) -> list[str]:
         return [p for p, h in self.host_of.items() if h == host]
 
     def as_dict(self) -> dict[str, object]:
-        return {"hosts": self.hosts, "host_of": self.host_of, "port_of": self.port_of}
+        return {"hosts": self.hosts, "host_of": self.host_of, "port_of": self.port_of,
+                "layout": self.layout}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, object]) -> Placement:
+        return cls(int(data["hosts"]), dict(data["host_of"]), dict(data["port_of"]),
+                   str(data.get("layout", "routers")))
 
 
 def place(scenario: Scenario, hosts: int) -> Placement:
@@ -230,6 +286,21 @@ def place(scenario: Scenario, hosts: int) -> Placement:
         for k, process in enumerate(p for p, h in host_of.items() if h == host):
             port_of[process] = PROCESS_PORT0 + k
     return Placement(hosts, host_of, port_of)
+
+
+def certificate_name(process: str) -> str:
+    """The certificate name of a launched process: ``agent-3`` → ``robot3``; others as named."""
+    return f"robot{process[6:]}" if process.startswith("agent-") else process
+
+
+def place_peers(scenario: Scenario) -> Placement:
+    """Peer layout: coordinator (and the one router) on host 0, the sim on host 1, robot number
+    j (ids ascending) on host 2 + j; every process has its own port on router 0."""
+    host_of = {"coordinator": 0, "sim": 1}
+    for j, robot in enumerate(sorted(scenario.robot_ids)):
+        host_of[f"agent-{robot}"] = 2 + j
+    port_of = {process: PROCESS_PORT0 + k for k, process in enumerate(host_of)}
+    return Placement(len(host_of), host_of, port_of, "peers")
 
 
 def wait_listening(hosts: NetnsHosts, host: int, port: int, timeout: float) -> None:
@@ -270,7 +341,9 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  faults: Sequence[Fault] = ()) -> HostsRun:
     """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults`` (issue 13)
     the supervisor on host 0 injects them from a fault plan (:mod:`coordinator.fault_hosts`) and
-    every client reconnects fast (``RECONNECT``); ``lease_ms`` goes to every process."""
+    every client reconnects fast (``RECONNECT``); ``lease_ms`` goes to every process. A
+    partition fault puts the fleet in the peer layout (:func:`place_peers`; ``hosts`` is then
+    the layout's own count)."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
     if keys is not None and insecure:
@@ -281,14 +354,23 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
         check_keys(scenario, keys)
     path = str(Path(scenario_path).resolve())
     run_dir = Path(out) if out else default_run_dir(scenario.name)
-    placement = place(scenario, hosts)
-    if scenario.faults or faults:  # FaultSpecError / FaultError before anything starts
-        from coordinator.fault_hosts import check_hosts_fault
+    all_faults: tuple[Fault, ...] = ()
+    if scenario.faults or faults:  # FaultSpecError before anything starts
         from coordinator.faults import run_faults
 
-        for fault in run_faults(scenario, faults):
+        all_faults = run_faults(scenario, faults)
+    peers = any(f.kind == "partition" for f in all_faults)
+    if peers and keys is not None:
+        raise HostsError("a partition run makes its own keys (its peers' certificates carry "
+                         "their hosts' addresses): leave out --secure DIR, or use --insecure")
+    placement = place_peers(scenario) if peers else place(scenario, hosts)
+    hosts = placement.hosts
+    if all_faults:  # FaultError before anything starts
+        from coordinator.fault_hosts import check_hosts_fault
+
+        for fault in all_faults:
             check_hosts_fault(fault, placement)
-    injecting = bool(scenario.faults or faults)
+    injecting = bool(all_faults)
     net = NetnsHosts(hosts, **({"prefix": prefix} if prefix else {}))
     launcher = Launcher(run_dir / "logs")
     done: subprocess.CompletedProcess | None = None
@@ -297,8 +379,12 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     router_conf = run_dir / "logs" / "router.json5"
     router_conf.parent.mkdir(parents=True, exist_ok=True)
     # explicit router mesh only: no gossip, so no router links another over a process's port
+    # peer layout: the router must not broker between two peers that lost their direct link
+    # (zenoh's peers_failover_brokering), or a partition would not separate them
     router_conf.write_text("{ scouting: { gossip: { enabled: false } }"
-                           + (f", {RECONNECT}" if injecting else "") + " }\n")
+                           + (f", {RECONNECT}" if injecting else "")
+                           + (", routing: { router: { peers_failover_brokering: false } }"
+                              if peers else "") + " }\n")
     scheme = "tcp" if insecure else "tls"
     own_keys = None if insecure or keys is not None else Path(
         tempfile.mkdtemp(prefix="tlfleet-keys-"))  # 0700: private to this user
@@ -308,19 +394,24 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
         client_conf = run_dir / "logs" / "client.json5"
         client_conf.write_text(f"{{ {RECONNECT} }}\n")
         client = ["--zenoh-config", str(client_conf)]
+    # with faults, agents that read only every d-th frame watch the sim's clock key too, so they
+    # notice a lost simulator within --stale-after like the others (issue 13 §2)
+    beat = ["--heartbeat"] if injecting else []
     with net:
         try:
             if own_keys is not None:
                 from coordinator.keys import write_keys  # cryptography: secured runs only
 
                 write_keys(scenario, own_keys, force=True, mesh=True,
-                           hosts=tuple(net.address(h) for h in range(hosts)))
+                           hosts=tuple(net.address(h) for h in range(hosts)),
+                           addresses={certificate_name(p): [net.address(placement.host_of[p])]
+                                      for p in placement.peers})
             keydir = own_keys or keys
             secure = () if keydir is None else ("--secure", str(Path(keydir).resolve()))
-            for host in range(hosts):
+            for host in sorted({placement.router_host(p) for p in placement.host_of}):
                 listen = [f"{scheme}/{net.address(host)}:{ROUTER_PORT}"] + [
                     f"{scheme}/{net.address(host)}:{placement.port_of[p]}"
-                    for p in placement.on(host)]
+                    for p in placement.host_of if placement.router_host(p) == host]
                 argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf),
                         *secure, *lease]
                 for endpoint in listen:
@@ -329,30 +420,42 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                     argv += ["--connect", f"{scheme}/{net.address(other)}:{ROUTER_PORT}"]
                 launcher.start(f"router-{host}", [*net.exec_prefix(host),
                                                   *tlfleet_command(*argv)])
-            for host in range(hosts):
+            for host in sorted({placement.router_host(p) for p in placement.host_of}):
                 wait_listening(net, host, ROUTER_PORT, router_timeout)
 
             def endpoint_of(process: str) -> str:
                 host, port = placement.link(process)
                 return f"{scheme}/{net.address(host)}:{port}"
 
-            launcher.start("sim", [*net.exec_prefix(0), *tlfleet_command(
-                "sim", path, f"--{mode}", *sim_args, "--connect", endpoint_of("sim"),
-                *secure, *lease, *client)])
+            def links_of(process: str) -> list[str]:
+                """--connect to its router port; in the peer layout also --mode peer, --listen
+                on its own host and --connect to every fleet peer before it (the mesh)."""
+                links = ["--connect", endpoint_of(process)]
+                if process in placement.peers:
+                    links += ["--mode", "peer", "--listen",
+                              f"{scheme}/{net.address(placement.host_of[process])}:{PEER_PORT}"]
+                    for other in placement.peers[:placement.peers.index(process)]:
+                        links += ["--connect", f"{scheme}/"
+                                  f"{net.address(placement.host_of[other])}:{PEER_PORT}"]
+                return links
+
+            launcher.start("sim", [*net.exec_prefix(placement.host_of["sim"]), *tlfleet_command(
+                "sim", path, f"--{mode}", *sim_args, *links_of("sim"), *secure, *lease,
+                *client)])
             for robot in sorted(scenario.robot_ids):
                 name = f"agent-{robot}"
                 launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
                                       *tlfleet_command("agent", path, "--robot", str(robot),
-                                                       *agent_args, "--connect",
-                                                       endpoint_of(name), *secure, *lease,
-                                                       *client)])
+                                                       *agent_args, *beat, *links_of(name),
+                                                       *secure, *lease, *client)])
             plan: list[str] = []
             if injecting:
                 from coordinator.fault_hosts import PLAN_NAME, write_plan
 
                 pids = {c.name: c.pid for c in launcher.children}
+                argv = {c.name: c.argv for c in launcher.children}
                 plan = ["--fault-plan", str(write_plan(run_dir / "logs" / PLAN_NAME, net,
-                                                       placement, pids))]
+                                                       placement, pids, argv))]
                 for fault in faults:
                     plan += ["--fault", fault.text or fault.spec]
             coordinator = [*net.exec_prefix(0), *tlfleet_command(
@@ -361,6 +464,10 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
             done = subprocess.run(coordinator, capture_output=capture, text=True)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
+            if injecting:  # what `restart:` started again, as a child of supervise
+                from coordinator.fault_hosts import stop_restarted
+
+                stop_restarted(run_dir / "logs", kill_grace)
             codes = launcher.stop_all(kill_grace)
             if own_keys is not None:
                 shutil.rmtree(own_keys, ignore_errors=True)

@@ -27,7 +27,7 @@ import datetime
 import ipaddress
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -116,12 +116,15 @@ def planned_files(out: Path, names: Sequence[str]) -> tuple[Path, ...]:
 
 def write_keys(scenario: Scenario, out: Path, *, force: bool = False,
                hosts: Sequence[str] = (), days: int = 365, mesh: bool = False,
+               addresses: Mapping[str, Sequence[str]] | None = None,
                now: datetime.datetime | None = None) -> KeySet:
     """Write the CA, every process's key and certificate, ``acl.json`` and ``fleet.json``.
 
     ``hosts``: extra names of the router's certificate (multi-host fleets); ``days``: validity
     of the process certificates; ``mesh``: the policy lets routers forward to each other
-    (several routers, :func:`coordinator.acl.fleet_grants`). Raises :class:`KeysError` before
+    (several routers, :func:`coordinator.acl.fleet_grants`); ``addresses``: extra names of a
+    process's own certificate (``{"robot3": ["10.251.7.15"]}``: a peer that others connect to by
+    address, the peer layout of :mod:`coordinator.hosts`). Raises :class:`KeysError` before
     writing anything when a file exists and ``force`` is false.
     """
     if days < 1:
@@ -154,7 +157,8 @@ def write_keys(scenario: Scenario, out: Path, *, force: bool = False,
     _write(out / CA_CERT, ca_cert.public_bytes(serialization.Encoding.PEM), 0o644)
     for name in names:
         key = ec.generate_private_key(ec.SECP256R1())
-        alt = router_names if name == "router" else [x509.DNSName(name)]
+        alt = router_names if name == "router" else [
+            x509.DNSName(name), *(_general_name(a) for a in (addresses or {}).get(name, ()))]
         cert = (x509.CertificateBuilder().subject_name(_name(name)).issuer_name(ca_subject)
                 .public_key(key.public_key()).serial_number(x509.random_serial_number())
                 .not_valid_before(start).not_valid_after(now + datetime.timedelta(days=days))

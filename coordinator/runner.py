@@ -44,7 +44,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from agent.scenario import Scenario
@@ -53,6 +53,7 @@ from bus.transport import Transport, TransportConfig, check_config
 from coordinator.cleanup import Cleanup
 from coordinator.fault_schedule import FaultScheduler, ProcessActuator
 from coordinator.faults import run_faults
+from coordinator.hosts import RECONNECT
 from coordinator.launcher import (
     Child,
     Launcher,
@@ -123,7 +124,8 @@ PEER_LISTEN = f"tcp/{HOST}:0"
 
 def peer_links(config: RunConfig) -> bool:
     """Whether the sim and the agents of this run are zenoh **peers** (architecture.md §1,
-    issue 17): in lockstep, without ``--secure`` and without ``--zenoh-config``. Each then
+    issue 17): in lockstep, without ``--secure`` and without ``--zenoh-config`` (``run_fleet``
+    also turns them off for a run with faults). Each then
     listens on a free loopback port, connects to the router and learns the others' locators
     from it (zenoh's gossip), so frames and commands go sim ↔ agent directly instead of through
     the router (one hop and two wake-ups less per sample); the coordinator stays a client of the
@@ -191,6 +193,16 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
                            duration=config.duration, seed=config.seed, endpoint=endpoint,
                            secure=config.secure, lease_ms=config.lease_ms)
     info = prepared.info
+    if config.zenoh_config is None and any(f.kind == "restart" and f.target == "router"
+                                           for f in faults):
+        # every client (the coordinator's too) back within a retry period of the new router,
+        # instead of zenoh's back-off of up to 4 s (fault-injection notes §5.3)
+        conf = prepared.run_dir / "logs" / "client.json5"
+        conf.parent.mkdir(parents=True, exist_ok=True)
+        conf.write_text(f"{{ {RECONNECT} }}\n")
+        config = replace(config, zenoh_config=conf)
+    if faults:  # fault runs keep the topology their plans and measurements were made for
+        config = replace(config, direct_links=False)
     info["links"] = "peer" if peer_links(config) else "router"
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(prepared.run_dir / "logs")

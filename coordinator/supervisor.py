@@ -222,9 +222,10 @@ class Supervisor:
 
     def _maybe_recovered(self, name: str) -> None:
         death = self.deaths.get(name)
-        child = self.children.get(name)
-        if (death is None or name in ("sim", "router") or child is None
-                or child.returncode is not None or self.stopping):
+        child = self.children.get(name)  # None under `tlfleet supervise`: the token is all
+        #                                  there is to go by (a restart on hosts, a partition)
+        if (death is None or name in ("sim", "router") or self.stopping
+                or (child is not None and child.returncode is not None)):
             return
         del self.deaths[name]
         self.recovered.append(death)

@@ -22,6 +22,7 @@ class AgentConfig:
     scenario: Path | None = None  # scenario file (None when the caller passes a loaded Scenario)
     stale_after: float = 0.5  # [s] wall: no mocap frame for this long → zero command
     collab_timeout: float = 0.25  # [s] wall: longest wait for a partner's stage-2 reply
+    heartbeat: bool = False  # a decimated agent also watches the sim's clock key (LoopConfig)
     transport: TransportConfig = field(default_factory=TransportConfig)
 
     def __post_init__(self) -> None:

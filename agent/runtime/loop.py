@@ -22,7 +22,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   with ``seq % d == 0``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
   only be due at those ticks, lockstep or realtime;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
-  the gap between its frames, ``LoopConfig.stale_limit``) → the zero command (with the
+  the gap between its frames, ``LoopConfig.stale_limit``; with ``LoopConfig.heartbeat`` it
+  also calls mocap stale after ``stale_after`` without the sim's ``Clock``, issue 13 §2) → the
+  zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
 * malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
@@ -50,7 +52,7 @@ from typing import Any, Protocol
 from agent.protocol import keys
 from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import CollabMessage, Command, Control, Event, MocapFrame
+from agent.protocol.messages import Clock, CollabMessage, Command, Control, Event, MocapFrame
 from agent.protocol.plausibility import FrameGate, Verdict
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
@@ -76,6 +78,10 @@ class LoopConfig:
     # by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
     decimated: bool = False
     mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
+    # A decimated loop also watches the sim's ``clock`` key (one tiny ``Clock`` every tick) and
+    # calls mocap stale after ``stale_after`` without one, so it notices a lost simulator as
+    # fast as a loop that reads every frame (issue 13 §2) at the price of a callback per tick.
+    heartbeat: bool = False
 
     def __post_init__(self) -> None:
         if self.divider < 1:
@@ -97,6 +103,12 @@ class LoopConfig:
         if not self.frames_decimated:
             return self.stale_after
         return self.stale_after + 2.0 * (self.divider - 1) / self.mocap_rate
+
+    @property
+    def watches_clock(self) -> bool:
+        """True when the loop watches ``clock`` for staleness (a decimated loop with
+        ``heartbeat``; a loop that reads every frame needs no heartbeat)."""
+        return self.heartbeat and self.frames_decimated
 
 
 @dataclass(frozen=True)
@@ -174,6 +186,7 @@ class AgentLoop:
         self.stopped = False
         self._handles: list[Closeable] = []
         self._last_frame_wall: float | None = None
+        self._last_clock_wall: float | None = None  # [s] wall of the last Clock (heartbeat)
         self._last_frame: MocapFrame | None = None
         self._last_period: int | None = None
         self._last_seq: int | None = None
@@ -187,7 +200,8 @@ class AgentLoop:
         self._stale_limit = config.stale_limit
         self._keys = {"mocap": mocap, "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
-                      "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot)}
+                      "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot),
+                      "clock": keys.clock(fleet)}
 
     # set-up and tear-down -------------------------------------------------------------------
 
@@ -212,6 +226,8 @@ class AgentLoop:
             def on_control(_key: str, payload: bytes) -> None:
                 box.put_control(payload)
         self._handles.append(self.transport.subscribe(self._keys["control"], on_control))
+        if self.config.watches_clock:
+            self._handles.append(self.transport.subscribe(self._keys["clock"], self._on_clock))
         if self.link is not None:
             self.link.open()
 
@@ -341,6 +357,17 @@ class AgentLoop:
             return
         self.mailbox.put_frame(payload, frame)
 
+    def _on_clock(self, key: str, payload: bytes) -> None:
+        """Transport callback (heartbeat): note when the sim was last heard from. A malformed
+        ``Clock`` is counted and does not count as a heartbeat; the frame limit
+        (``stale_limit``) still applies whatever the clock key carries."""
+        try:
+            decode(Clock, payload)
+        except ProtocolError as exc:
+            self.malformed.record(key, exc, self.last_t, sender="sim")
+            return
+        self._last_clock_wall = self.clock()
+
     def _on_frame(self, payload: bytes, decoded: object = None) -> None:
         if isinstance(decoded, MocapFrame):
             frame = decoded
@@ -464,16 +491,21 @@ class AgentLoop:
         if not self.started or self._last_frame_wall is None:
             return
         now = self.clock()
-        if now - self._last_frame_wall < self._stale_limit:
+        heard = self._last_frame_wall  # [s] wall: the last we heard from the simulator
+        if self.config.watches_clock and self._last_clock_wall is not None:
+            heard = max(heard, self._last_clock_wall)
+        silent = (self.config.watches_clock and now - heard >= self.config.stale_after)
+        if now - self._last_frame_wall < self._stale_limit and not silent:
             return
         if not self._stale:
             self._stale = True
             self._stale_sent = -float("inf")
             self.stats.stale_episodes += 1
             silence = now - self._last_frame_wall
-            logger.warning("%s: no mocap frame for %.2f s: zero command", self.source, silence)
+            logger.warning("%s: no mocap frame for %.2f s (nothing from the simulator for "
+                           "%.2f s): zero command", self.source, silence, now - heard)
             self.publish_event(Event(self.last_t, self.source, "stale_mocap",
-                                     {"silence": silence,
+                                     {"silence": silence, "sim_silence": now - heard,
                                       "last_seq": self._last_frame.seq
                                       if self._last_frame is not None else -1}))
         if now - self._stale_sent >= self.config.stale_after:

@@ -98,7 +98,8 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             return 1
         core, state, events, link = built
         loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after,
-                                 **plausibility(scenario), **frame_subscription(scenario))
+                                 **plausibility(scenario), **frame_subscription(scenario),
+                                 heartbeat=config.heartbeat)
         loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)
         loop.open()
         loop.ready()

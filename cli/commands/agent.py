@@ -26,6 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--collab-timeout", type=float, default=0.25, metavar="S",
                         help="wait at most S seconds (wall) for a partner's collab reply "
                              "(STL robots; default 0.25)")
+    parser.add_argument("--heartbeat", action="store_true",
+                        help="an agent that reads only every d-th frame (an LTL robot) also "
+                             "watches the simulator's clock key, so it notices a lost simulator "
+                             "within --stale-after instead of --stale-after plus two frame gaps; "
+                             "costs one tiny message per tick (tlfleet run turns it on for runs "
+                             "with link faults)")
     add_transport_arguments(parser)
 
 
@@ -33,6 +39,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
     try:
         return AgentConfig(robot=args.robot, scenario=Path(args.scenario),
                            stale_after=args.stale_after, collab_timeout=args.collab_timeout,
+                           heartbeat=args.heartbeat,
                            transport=transport_config(args, f"robot{args.robot}"))
     except AgentConfigError as exc:
         raise SystemExit(f"tlfleet agent: {exc}") from None

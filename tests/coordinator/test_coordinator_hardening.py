@@ -173,6 +173,22 @@ def test_an_agent_back_after_a_partition_is_recovered_not_dead(fleet):  # noqa: 
     assert sup.tap.recorder.event_kinds["process_recovered"] == 1
 
 
+def test_under_supervise_a_returning_token_is_a_recovery_too(fleet):  # noqa: F811
+    """``tlfleet supervise`` starts no child (a restart on namespace hosts, a partition longer
+    than the lease): the token coming back is all there is to go by."""
+    scenario, net, sup, _children, reports = fleet
+    sup.children.clear()
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    peers["agent-1"].kill()
+    sup.check()
+    assert "agent-1" in sup.deaths
+    net.transport("agent-1-again").declare_alive(keys.alive(scenario.fleet, "agent", 1))
+    sup.check()
+    assert "agent-1" not in sup.deaths and [d.process for d in sup.recovered] == ["agent-1"]
+
+
 class Clock:
     def __init__(self):
         self.now = 100.0

@@ -51,6 +51,24 @@ def test_every_other_run_goes_through_the_router(change):
     assert not any(has_peer_flags(argv) or "peer" in argv for argv in argv_of(config).values())
 
 
+def test_a_run_with_faults_goes_through_the_router(tmp_path):
+    """``run_fleet`` turns peer links off when the run has faults (their plans are made for
+    the router topology): run.json says so; the stand-in children never start (bad argv)."""
+    import json
+
+    from agent.scenario.faults import parse_fault
+    from coordinator.launcher import LaunchError
+    from coordinator.runner import run_fleet
+
+    fault = parse_fault("kill:robot3@5")
+    config = RunConfig(SCENARIO, mode="lockstep", out=tmp_path / "run", faults=(fault,),
+                       child_argv=lambda *_args: ["/nonexistent/tlfleet"], report=False,
+                       rrd=False)
+    with pytest.raises(LaunchError):
+        run_fleet(config)
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["links"] == "router"
+
+
 def test_the_cli_flag_via_router_turns_peer_links_off():
     import argparse
 

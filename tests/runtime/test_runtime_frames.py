@@ -11,7 +11,7 @@ from runtime_helpers import FakeClock
 
 from agent.protocol import keys
 from agent.protocol.codec import decode, encode
-from agent.protocol.messages import Command, Control, MocapFrame
+from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame
 from agent.runtime.inbox import MalformedCounter
 from agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
 from bus.fake import FakeChannel, FakeNetwork
@@ -129,3 +129,42 @@ def test_the_channel_loop_keeps_the_newest_valid_frame():
     loop.run_once(0.0)
     assert [c.seq for c in commands(network)] == [7]
     assert loop.mailbox.frames_overwritten == 2 and loop.malformed.total == 1
+
+
+def test_a_decimated_loop_with_heartbeat_notices_a_silent_simulator_within_stale_after():
+    """Issue 13 §2: the clock key (every tick) is the decimated loop's heartbeat; frames alone
+    would take stale_after plus two frame gaps."""
+    network = FakeNetwork()
+    loop, clock = make(network, divider=20, decimated=True, stale_after=0.15, heartbeat=True)
+    assert loop.config.watches_clock
+    publish(network, keys.control(FLEET), Control("start"))
+    publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.2, 20, POSES, due=(1,)))
+    loop.run_once(0.0)
+    for k in range(21, 30):  # the sim ticks on; its frames for robot 1 come every 20 ticks
+        clock.advance(0.01)
+        publish(network, keys.clock(FLEET), Clock(k / 100, k, "lockstep"))
+        loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0  # 0.09 s after the frame, the sim is still heard
+    clock.advance(0.14)  # 0.14 s of silence: not yet
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0
+    network.transport("x").publish(keys.clock(FLEET), b"\x93garbage")  # no heartbeat
+    clock.advance(0.02)  # 0.16 s without a Clock, 0.25 s after the frame: stale
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 1 and loop.malformed.total == 1
+    assert commands(network)[-1].u == (0.0, 0.0)
+    stale = [decode(Event, p) for k, p in network.published if k == keys.event(FLEET)
+             if decode(Event, p).kind == "stale_mocap"]
+    assert len(stale) == 1 and abs(stale[0].data["sim_silence"] - 0.16) < 1e-9
+    assert abs(stale[0].data["silence"] - 0.25) < 1e-9
+    # without the heartbeat the same silence is within the frame limit (0.15 + 2·19/100 s)
+    quiet = FakeNetwork()
+    loop, clock = make(quiet, divider=20, decimated=True, stale_after=0.15)
+    assert not loop.config.watches_clock
+    assert keys.clock(FLEET) not in [expr for _, expr, _ in quiet._subscribers]
+    publish(quiet, keys.control(FLEET), Control("start"))
+    publish(quiet, keys.mocap_every(FLEET, 20), MocapFrame(0.2, 20, POSES, due=(1,)))
+    loop.run_once(0.0)
+    clock.advance(0.25)
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0

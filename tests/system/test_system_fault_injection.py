@@ -134,6 +134,35 @@ def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_
     assert leftover_in_groups(run_dir) == []
 
 
+def test_a_restarted_router_is_rejoined_by_every_client_and_the_run_completes(tmp_path):
+    """Issue 13 §2: the router is killed and started again on the same endpoint; every token
+    goes and comes back with it (link losses and restorations, not deaths), the clients
+    reconnect within zenoh's retry period (250 ms in fault runs), the run completes and every
+    file parses; the frames published while the coordinator had no router are the gap."""
+    from coordinator import rundir
+
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, mode="realtime", duration=8.0, rrd=False, report=False,
+                 lease_ms=500, faults=(parse_fault("restart:router@2"),))
+    assert result.outcome.reason in ("sim_done", "duration") and result.outcome.deaths == []
+    assert result.exit_codes == {"router": 0, "sim": 0, "agent-1": 0, "agent-2": 0}
+    files = rundir.read_run(run_dir, strict=True)  # every file parses
+    (start,) = [e for e in files.events if e.kind == "fault_start"]
+    assert start.data["pid"] != start.data["new_pid"]
+    lost = {e.data["process"] for e in files.events if e.kind == "link_lost"}
+    restored = [e for e in files.events if e.kind == "link_restored"]
+    assert lost == {"sim", "agent-1", "agent-2"} == {e.data["process"] for e in restored}
+    assert max(e.data["lost_for"] for e in restored) < 3.0
+    assert not [e for e in files.events if e.kind == "process_died"]
+    t = files.trajectory.t
+    assert t[-1] == pytest.approx(8.0) and (np.diff(t) > 0).all()
+    assert (np.diff(t) > 0.015).sum() <= 1  # one gap: the outage
+    assert result.verdict.label == "degraded"
+    assert leftover_in_groups(run_dir) == []
+    print(f"router restart: clients back after {max(e.data['lost_for'] for e in restored):.2f} "
+          f"s; trajectory gap {float(np.diff(t).max()):.2f} s")
+
+
 def test_bad_fault_specs_exit_before_anything_starts(tmp_path):
     for spec, message in (("cut:robot3@x+3", "fault 'cut:robot3@x+3': time: 'x' is not a "
                                              "number of seconds"),

@@ -113,6 +113,64 @@ def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_pat
           "restore")
 
 
+def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobody_deadlocks(
+        tmp_path):
+    """Scenario 1, lockstep paced at ≤ 2× wall time: robot 3 asked robot 4 for help (stage 2) at
+    t ≈ 35 s; a partition of the pair from t = 36 s for 6 s wall (both keep every other link:
+    the peer layout, coordinator.hosts.place_peers). Robot 4 sees robot 3's token go (its lease)
+    and releases itself; robot 3's messages to robot 4 go unanswered, it sees robot 4
+    unreachable and its next critical events get stage 3 (Algorithm 2); the mission runs to its
+    end and robot 3 finishes its sub-task. (6 s of wall time: every unanswered message stalls
+    the lockstep fleet for the collab timeout, so a loaded machine covered only 1.7 s of sim
+    time in 3 s of wall time, less than robot 3 takes to its next critical event, ≈ 2 s.)"""
+    need_root_netns()
+    run_dir = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "cli.main", "run", str(SCENARIOS / "scenario1.toml"),
+         "--lockstep", "--max-speed", "2", "--duration", "62", "--lease-ms", str(LEASE_MS),
+         "--fault", "partition:robot3,robot4@36+6", "--out", str(run_dir), "--no-rrd",
+         "--no-figures", "--quiet"],
+        capture_output=True, text=True, cwd=ROOT, timeout=400)
+    assert "link faults: running on 7 namespace host(s)" in done.stderr, done.stderr[-2000:]
+    assert done.returncode == 4, done.stderr[-3000:]  # degraded: a fault happened
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration") and info["t_end"] == pytest.approx(62.0)
+    assert info["hosts"]["layout"] == "peers"
+    for name in info["addresses"]:
+        assert name not in netns_list()
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    assert start["data"]["targets"] == ["agent-3", "agent-4"] and 36.0 <= start["t"] < 36.3
+    evs = events(run_dir)
+    request = [e for e in evs if e["kind"] == "collab_request" and e["source"] == "agent/3"]
+    assert request and request[0]["t"] < start["t"]  # the collaboration was under way
+    # the helper releases on its own: robot 3's token is gone for it (lease), not a release
+    released = [e for e in evs if e["kind"] == "collab_follow" and e["source"] == "agent/4"
+                and e["data"]["previous"] == 3 and start["t"] <= e["t"] <= end["t"]]
+    assert released and released[0]["data"]["requester"] == -1
+    assert not [e for e in evs if e["kind"] == "collab_release"
+                and start["t"] <= e["t"] <= end["t"]]
+    # the requester: its messages to robot 4 went unanswered, stage 3 during the partition
+    assert agent_stats(run_dir, 3)["collab_failed"] >= 1
+    stage3 = [e for e in evs if e["kind"] == "repair" and e["source"] == "agent/3"
+              and e["data"]["stage"] == 3 and start["t"] <= e["t"] <= end["t"] + 0.5]
+    assert stage3, "robot 3 had no stage-3 repair during the partition"
+    # nobody deadlocks: the fleet's sim time went on through the partition and to the end, and
+    # robot 3's sub-task ran to its window's end
+    t, _states = load_trajectory(run_dir)
+    assert t[-1] == pytest.approx(62.0) and (np.diff(t) > 0).all()
+    assert [e for e in evs if e["kind"] == "subtask_done" and e["source"] == "agent/3"
+            and e["data"]["subtask"] == 1 and e["data"]["ended_by"] == "window_end"]
+    assert by_kind(run_dir, "process_died") == [] and robot_robot_contacts(run_dir) == []
+    # the report shows the stage-3 repairs and the fault
+    report = json.loads((run_dir / "report.json").read_text())
+    assert report["stl"]["3"]["subtasks"][1]["repairs"]["stage3"] >= len(stage3)
+    (row,) = report["faults"]
+    assert row["spec"] == "partition:robot3,robot4@36+6" and row["min_clearance"] > 0
+    print(f"partition robot3,robot4: robot 4 released {released[0]['t'] - start['t']:.2f} s "
+          f"(sim) after the start; {len(stage3)} stage-3 repairs of robot 3; "
+          f"{agent_stats(run_dir, 3)['collab_failed']} unanswered messages")
+
+
 def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path):
     need_root_netns()
     scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
@@ -128,16 +186,13 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     info = json.loads((run_dir / "run.json").read_text())
     assert info["reason"] in ("sim_done", "duration")
     (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
-    # every agent stops commanding motion on stale mocap: the STL agent (every frame) within
-    # 0.2 s of its last frame; the LTL agent (10 Hz) reads only every 10th frame (issue 17's
-    # decimated key), so its limit is --stale-after plus two frame gaps (LoopConfig.stale_limit:
-    # 0.15 + 2 · 0.09 = 0.33 s) plus one wait slice (0.05 s) plus scheduling (≤ 0.07 s; measured
-    # 0.34–0.38 s) — the issue's 0.2 s is not met for decimated agents (closing note of issue
-    # 13); the simulator's watchdog stops robot 1 within 0.2 s of its last command anyway
+    # every agent stops commanding motion on stale mocap within 0.2 s of the last it heard from
+    # the simulator: the STL agent reads every frame; the LTL agent (10 Hz) reads only every 10th
+    # frame (issue 17's decimated key), and a run with faults gives it --heartbeat, so it watches
+    # the sim's clock key (every tick) too and does not wait for two frame gaps
     stale = [e for e in by_kind(run_dir, "stale_mocap") if start["t"] - 0.1 <= e["t"] <= end["t"]]
     assert sorted({e["source"] for e in stale}) == ["agent/1", "agent/2"]
-    limit = {"agent/2": 0.2, "agent/1": 0.15 + 2 * 9 / 100 + 0.05 + 0.07}
-    assert all(e["data"]["silence"] <= limit[e["source"]] for e in stale), stale
+    assert all(e["data"]["sim_silence"] <= 0.2 for e in stale), stale
     (lost,), (restored,) = by_kind(run_dir, "link_lost"), by_kind(run_dir, "link_restored")
     assert lost["data"]["process"] == "sim" == restored["data"]["process"]
     assert lost["data"]["wall"] - start["data"]["wall"] < 1.0
@@ -148,7 +203,7 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     steps = np.diff(t)
     assert (steps > 0).all()
     gaps = steps[steps > 0.015]
-    print(f"sim cut: agents stale after {[round(e['data']['silence'], 3) for e in stale]} s; "
+    print(f"sim cut: agents stale after {[round(e['data']['sim_silence'], 3) for e in stale]} s; "
           f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; trajectory "
           f"gaps {[round(float(g), 2) for g in gaps]} s")
     kinds = collections.Counter(e["kind"] for e in events(run_dir))
@@ -178,3 +233,72 @@ def test_a_simulator_cut_in_lockstep_shorter_than_the_lease_loses_no_frame(tmp_p
     assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
     assert (run_dir / "trajectory.csv").read_bytes() == \
         (reference / "trajectory.csv").read_bytes()
+
+
+def test_an_agent_restarted_on_namespace_hosts_comes_back_and_nothing_is_left(tmp_path):
+    """``restart:`` in a run on namespace hosts (here with a link cut of the other robot, which
+    is what sends a run to the hosts): the supervisor kills robot 2's agent, starts its command
+    line again in its namespace, and the launcher stops the new process at the end."""
+    need_root_netns()
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(HERE / "two_robots.toml", 1, out=run_dir, mode="realtime",
+                          lease_ms=LEASE_MS, prefix="tlft-restart", capture=True,
+                          faults=(parse_fault("restart:robot2@2"), parse_fault("cut:robot1@5+1")),
+                          supervise_args=["--duration", "9", "--no-rrd", "--no-figures",
+                                          "--quiet"], sim_args=["--duration", "9"])
+    assert "tlft-restart" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]  # degraded: faults happened
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["reason"] in ("sim_done", "duration") and info["t_end"] == pytest.approx(9.0)
+    start = next(e for e in by_kind(run_dir, "fault_start") if e["data"]["kind"] == "restart")
+    new_pid = start["data"]["new_pid"]
+    assert start["data"]["pid"] != new_pid and 2.0 <= start["t"] < 2.3
+    kinds = collections.Counter(e["kind"] for e in events(run_dir))
+    assert kinds["process_died"] == 1 and kinds["process_recovered"] == 1
+    logs = (run_dir / "logs" / "agent-2.log").read_text()
+    assert logs.count("waiting for start") == 2  # one log, two processes
+    t, states = load_trajectory(run_dir)
+    recovered = next(e for e in events(run_dir) if e["kind"] == "process_recovered")
+    after = t > recovered["t"] + 1.0
+    assert after.sum() > 100
+    assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05  # driven again
+    assert agent_stats(run_dir, 2)["frames"] > 0  # the new process's own statistics
+    # nothing is left: the restarted process (a child of supervise) was stopped too
+    assert subprocess.run(["ps", "-o", "pid=", "-g", str(new_pid)], capture_output=True,
+                          text=True).stdout.strip() == ""
+
+
+def test_a_partition_between_an_agent_and_the_simulator_in_realtime(tmp_path):
+    """Realtime, two-robot fleet in the peer layout: robot 2's agent and the simulator lose each
+    other for 2 s while both keep the router (the coordinator sees both all along): the
+    watchdog stops robot 2, its agent sees stale mocap, resumes on the newest frame after the
+    heal, and robot 1 is untouched."""
+    need_root_netns()
+    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
+                          faults=(parse_fault("partition:robot2,sim@3+2"),), capture=True,
+                          supervise_args=["--duration", "8", "--no-rrd", "--no-figures",
+                                          "--quiet"],
+                          sim_args=["--duration", "8"], agent_args=["--stale-after", "0.15"],
+                          prefix="tlft-part")
+    assert "tlft-part" not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]
+    assert result.placement.layout == "peers" and result.placement.hosts == 4
+    (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
+    # nobody lost the router: no link loss, no death
+    assert by_kind(run_dir, "link_lost") == [] and by_kind(run_dir, "process_died") == []
+    (stop,) = [e for e in by_kind(run_dir, "watchdog_stop") if e["data"]["robot"] == 2
+               and start["t"] - 0.2 < e["t"] < end["t"]]
+    assert stop["t"] - stop["data"]["last_command_t"] <= 0.2
+    stale = [e for e in by_kind(run_dir, "stale_mocap") if e["source"] == "agent/2"
+             and start["t"] - 0.1 <= e["t"] <= end["t"]]
+    assert stale and stale[0]["data"]["sim_silence"] <= 0.2
+    resumed = [e for e in by_kind(run_dir, "resumed") if e["source"] == "agent/2"]
+    assert resumed and resumed[0]["t"] >= end["t"] - 0.1
+    assert resumed[0]["t"] - end["t"] < 1.0  # the direct link is back within a retry period
+    assert agent_stats(run_dir, 1)["stale_episodes"] == 0  # robot 1 saw every frame
+    assert robot_robot_contacts(run_dir) == []
+    print(f"partition robot2,sim: stopped {stop['t'] - stop['data']['last_command_t']:.3f} s "
+          f"after its last command; stale after {stale[0]['data']['sim_silence']:.3f} s; "
+          f"resumed {resumed[0]['t'] - end['t']:.2f} s after the heal")
