@@ -31,6 +31,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "supervise": ("cli.commands.supervise",
                   "join a running fleet: wait for it, start, supervise and record the run"),
     "compose": ("cli.commands.compose", "write the docker compose file of a scenario's fleet"),
+    "compose-faults": ("cli.commands.compose_faults", "the host's side of a compose fleet's "
+                                                      "faults (run by compose-run.sh)"),
     "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
     "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }

@@ -175,6 +175,8 @@ class HostsActuator:
         pid = self.pids[target]
         if fault.kind == "restart":
             return self._restart(target)
+        if fault.kind == "freeze":  # a frozen process misses its keep-alives: a link loss
+            self._mark(target, math.inf)
         os.killpg(pid, signal.SIGSTOP if fault.kind == "freeze" else signal.SIGKILL)
         return {"pid": pid}
 
@@ -205,4 +207,5 @@ class HostsActuator:
         elif fault.kind == "freeze":
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.pids[target], signal.SIGCONT)
+            self._mark(target, time.monotonic() + CUT_GRACE)
         return {}

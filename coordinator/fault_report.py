@@ -7,7 +7,10 @@ coordinator's first detection of it — the first ``link_lost``, ``process_died`
 ``agent_silent`` about its target after the start, with the delay in sim time and, where both
 events carry it, in wall time — and the minimum clearance ‖p_i − p_j‖ − r_i − r_j [m] over every
 robot pair during the fault (for a kill or restart, which end at once: the ``RECOVERY_WINDOW``
-seconds of sim time after it).
+seconds of sim time after it). A partition leaves every process connected to the coordinator,
+so it is detected by its targets themselves: the first ``stale_mocap`` of a target agent (at its
+last frame's time plus the silence it measured) or a target agent releasing a partner it lost
+(``collab_follow`` with requester −1), whichever the coordinator's own signs do not precede.
 """
 
 from __future__ import annotations
@@ -31,6 +34,20 @@ def _about(event: Event, target: str) -> bool:
         return True
     robot = data.get("robot")
     return isinstance(robot, int) and target == f"agent-{robot}"
+
+
+def _partition_sign(event: Event, targets: list[str]) -> float | None:
+    """Sim time [s] at which a target agent noticed a partition, per ``event`` (None: not
+    such an event)."""
+    source = event.source
+    if not (source.startswith("agent/") and f"agent-{source[6:]}" in targets):
+        return None
+    data = event.data if isinstance(event.data, dict) else {}
+    if event.kind == "stale_mocap" and isinstance(data.get("silence"), int | float):
+        return event.t + float(data["silence"])
+    if event.kind == "collab_follow" and data.get("requester") == -1:
+        return event.t
+    return None
 
 
 def min_clearance(traj: Trajectory | None, radii: dict[int, float], a: float, b: float
@@ -74,6 +91,14 @@ def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | N
             wall = found.data.get("wall") if isinstance(found.data, dict) else None
             if isinstance(wall, int | float) and isinstance(data.get("wall"), int | float):
                 detection["after_wall"] = float(wall) - float(data["wall"])
+        if data.get("kind") == "partition":
+            signs = [(t, e) for e in events[n + 1:]
+                     if (t := _partition_sign(e, targets)) is not None and t >= start.t]
+            if signs:
+                t, sign = min(signs, key=lambda pair: pair[0])
+                if detection is None or t < detection["t"]:
+                    detection = {"kind": sign.kind, "t": t, "after_sim": t - start.t,
+                                 "by": sign.source}
         rows.append({
             "spec": spec, "kind": data.get("kind"), "targets": targets, "start_t": start.t,
             "end_t": end_t,

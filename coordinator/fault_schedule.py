@@ -173,6 +173,19 @@ class FaultScheduler:
 # ---------------------------------------------------------------------- process faults
 
 
+def start_again(supervisor: Any, awaiting: set[str]) -> None:
+    """``Control(start)`` again once a restarted agent of ``awaiting`` has its token back (it
+    waits for one; agents already started ignore it); those agents leave ``awaiting``."""
+    if supervisor is None or not awaiting:
+        return
+    back = {name for name in awaiting if name in supervisor.alive}
+    if back:
+        awaiting -= back
+        supervisor.transport.publish(keys.control(supervisor.fleet),
+                                     encode(Control(cmd="start", t0=0.0)))
+        logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+
+
 PROCESS_KINDS = frozenset({"freeze", "kill", "restart"})
 
 
@@ -207,14 +220,7 @@ class StartAgain:
             self.awaiting.add(name)
 
     def poll(self) -> None:
-        if self.supervisor is None or not self.awaiting:
-            return
-        back = {name for name in self.awaiting if name in self.supervisor.alive}
-        if back:
-            self.awaiting -= back
-            self.supervisor.transport.publish(keys.control(self.supervisor.fleet),
-                                              encode(Control(cmd="start", t0=0.0)))
-            logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+        start_again(self.supervisor, self.awaiting)
 
 
 def kill_group(pid: int, wait: float, poll: Callable[[], bool] | None = None) -> None:

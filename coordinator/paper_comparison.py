@@ -1,11 +1,12 @@
 """STL robots in the run report, beside the paper's reported values.
 
-**STL sub-tasks.** Beside the standard robustness ρ (min/max semantics, from the trajectory) and
-the guaranteed bound r̄ the agent ended the sub-task with, the paper's reported lower bound and the
-best achievable value (``coordinator.paper_values``, matched by scenario name *and* canonical
-sub-task text) with ``met`` ⇔ ρ ≥ bound, and ``gap_to_best`` = ρ − best. Repairs per stage come
-from the agent's counters (last status row of the sub-task) and from ``repair`` events
-(``data.subtask``, ``data.stage``).
+**STL sub-tasks.** Beside the standard robustness ρ (min/max semantics, from the trajectory),
+the guaranteed bound r̄ (``r_bar``: the least r in force over the sub-task, so ρ^φ ≥ r̄; see
+``coordinator.summary``) and the final funnel's r (``r_final``, above r̄ after a recovery), the
+paper's reported lower bound and the best achievable value (``coordinator.paper_values``, matched
+by scenario name *and* canonical sub-task text) with ``met`` ⇔ ρ ≥ bound, and ``gap_to_best`` =
+ρ − best. Repairs per stage come from the agent's counters (last status row of the sub-task) and
+from ``repair`` events (``data.subtask``, ``data.stage``).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ def stl_robot_report(scenario_name: str, robot_id: int, summary_entry: dict[str,
     for index, sub in enumerate(summary_entry["subtasks"]):
         value = paper_values.lookup(scenario_name, robot_id, sub["task"])
         rho = sub["robustness"]  # float (±inf: empty window) or None (not evaluated)
-        r_bar = sub["r_last"]
+        r_bar = sub["r_least"]
         stages = list(sub["repairs_status"]) if isinstance(sub["repairs_status"], list) else []
         by_event = [sum(1 for e in repair_events if e["subtask"] == index and e["stage"] == s)
                     for s in (1, 2, 3)]
@@ -51,7 +52,7 @@ def stl_robot_report(scenario_name: str, robot_id: int, summary_entry: dict[str,
             "window": window,
             "label": (paper_values.label(scenario_name, robot_id, sub["task"])
                       or f"r{robot_id}.{index + 1}"),
-            "robustness": sub["robustness"], "r_bar": sub["r_last"],
+            "robustness": sub["robustness"], "r_bar": r_bar, "r_final": sub["r_last"],
             "robustness_ge_r_bar": None if rho is None or r_bar is None else rho >= r_bar,
             "repairs": {f"stage{s}": (stages[s - 1] if len(stages) >= s else None)
                         for s in (1, 2, 3)},

@@ -37,7 +37,7 @@ from coordinator.summary import summarise
 
 __all__ = ["Report", "RunDirectoryError", "build_report", "write_report"]
 
-SCHEMA = 1
+SCHEMA = 2  # 2: r_bar is the least r in force (was the last status r, now r_final)
 
 
 @dataclass

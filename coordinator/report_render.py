@@ -42,13 +42,15 @@ def render_table(data: dict[str, Any]) -> str:
     if data["trajectory_error"]:
         lines.append(f"  trajectory: {data['trajectory_error']}")
     if data["stl"]:
-        lines.append(f"  {'STL sub-task':<14}{'ours':>9}{'r̄':>9}{'paper':>19}{'best':>8}  met")
+        lines.append(f"  {'STL sub-task':<14}{'ours':>9}{'r̄ least':>9}{'r final':>9}{'paper':>19}"
+                     f"{'best':>8}  met")
     for rid, entry in data["stl"].items():
         for s in entry["subtasks"]:
             p = s["paper"]
             label = (s["label"] if s["label"] == f"r{rid}.{s['index'] + 1}"
                      else f"{s['label']} (r{rid})")
             lines.append(f"  {label:<14}{_fmt(s['robustness']):>9}{_fmt(s['r_bar']):>9}"
+                         f"{_fmt(s['r_final']):>9}"
                          f"{_paper_text(p):>19}"
                          f"{_fmt(p['best'], '+.2f') if p else '–':>8}  "
                          f"{_met(p['met']) if p else '–'}")
@@ -109,13 +111,15 @@ def render_markdown(data: dict[str, Any]) -> str:
     if not data["stl"]:
         out += ["No STL robots.", ""]
     else:
-        out += ["ρ: standard robustness (min/max semantics) from `trajectory.csv`; r̄: the bound "
-                "the agent ended the sub-task with (ρ ≥ r̄ is the funnel's guarantee); repairs: the "
+        out += ["ρ: standard robustness (min/max semantics) from `trajectory.csv`; r̄ (least): the "
+                "least r in force over the sub-task (ρ ≥ r̄ is the funnel's guarantee; repairs "
+                "lower r, a recovery raises it again but never lowers the guarantee); r final: the "
+                "last funnel's r (above r̄ after a recovery); repairs: the "
                 "agent's counters per stage 1/2/3 (repair events in `events.jsonl`); met: ρ ≥ "
                 "the paper's bound. Best: best achievable ρ (scenarios.md).", "",
-                "| robot | label | sub-task | ρ | r̄ | ρ ≥ r̄ | repairs 1/2/3 (events) | paper | "
-                "best | ρ − best | met |",
-                "|---|---|---|---|---|---|---|---|---|---|---|"]
+                "| robot | label | sub-task | ρ | r̄ (least) | r final | ρ ≥ r̄ | repairs 1/2/3 "
+                "(events) | paper | best | ρ − best | met |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         notes = []
         for rid, entry in data["stl"].items():
             for s in entry["subtasks"]:
@@ -124,7 +128,8 @@ def render_markdown(data: dict[str, Any]) -> str:
                 ev = "/".join(str(s["repair_events"][f"stage{k}"]) for k in (1, 2, 3))
                 out.append(
                     f"| {rid} | {s['label']} | `{s['task']}` | {_fmt(s['robustness'])} | "
-                    f"{_fmt(s['r_bar'])} | {_fmt(s['robustness_ge_r_bar'])} | {rep} ({ev}) | "
+                    f"{_fmt(s['r_bar'])} | {_fmt(s['r_final'])} | "
+                    f"{_fmt(s['robustness_ge_r_bar'])} | {rep} ({ev}) | "
                     f"{_paper_text(p)} | {_fmt(p['best'], '+.2f') if p else '–'} | "
                     f"{_fmt(p['gap_to_best']) if p else '–'} | {_met(p['met']) if p else '–'} |")
                 if p and p["note"]:

@@ -6,8 +6,12 @@
 not evaluated None) and becomes ``summary.json`` only at the edge (:func:`write_summary`):
 
 * per STL robot and sub-task, the **standard** robustness (min/max semantics, stl-funnel.md §3)
-  recomputed offline from the trajectory with ``agent.stl.monitor``, the last r̄ reported for the
-  sub-task, and the repair counts per stage (from the last status and from ``repair`` events);
+  recomputed offline from the trajectory with ``agent.stl.monitor``; ``r_least``, the least r in
+  force over the sub-task (the bound r̄ of ρ^φ ≥ r̄, paper Alg. 2, docs/coupling.md §2 invariant
+  3): the agent's ``subtask_done`` r, or while none was reported the least of the sub-task's
+  status rows and its ``repair`` (r) and ``recovery`` (r_before) events; ``r_last``, the r of the
+  last status row (the final funnel's; above ``r_least`` after a recovery); and the repair
+  counts per stage (from the last status and from ``repair`` events);
 * per LTL robot, visits per region (reported by the agent, and recounted from the trajectory as
   entries into the region disc), GF rounds, and whether every region of its plan was visited;
 * contacts (robot–robot, robot–wall) from ``contact`` events, and the closest approach of two
@@ -126,9 +130,22 @@ def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
 def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
                  statuses: tuple[LtlStatus | StlStatus, ...], events: tuple[Event, ...]) -> dict:
     last: dict[tuple[int, int], StlStatus] = {}
+    least: dict[tuple[int, int], float] = {}
     for status in statuses:
         if isinstance(status, StlStatus):
             last[(status.robot, status.subtask)] = status
+            _lower(least, (status.robot, status.subtask), status.r)
+    done: dict[tuple[int, int], float] = {}
+    for e in events:
+        robot = _agent_id(e.source)
+        sub = e.data.get("subtask")
+        if robot is None or not isinstance(sub, int):
+            continue
+        value = {"repair": "r", "recovery": "r_before", "subtask_done": "r"}.get(e.kind)
+        if value is not None:
+            _lower(least, (robot, sub), e.data.get(value))
+        if e.kind == "subtask_done" and _finite(e.data.get("r")):
+            done[(robot, sub)] = float(e.data["r"])
     repairs: dict[int, Counter[int]] = defaultdict(Counter)
     for e in events:
         if e.kind == "repair" and e.source.startswith("agent/"):
@@ -156,6 +173,7 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
             subtasks.append({
                 "task": sub["task"], "window": sub["window"],
                 "robustness": _evaluated(sub["robustness"]),
+                "r_least": done.get((robot.id, index), least.get((robot.id, index))),
                 "r_last": _evaluated(status.r) if status else None,
                 "repairs_status": list(status.events) if status else [0, 0, 0],
             })
@@ -166,6 +184,16 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
             "error": error,
         }
     return out
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _lower(least: dict[tuple[int, int], float], key: tuple[int, int], value: Any) -> None:
+    """least[key] = min(least[key], value) for a finite number ``value`` (NaN: idle, skipped)."""
+    if _finite(value):
+        least[key] = min(least.get(key, math.inf), float(value))
 
 
 def _agent_id(source: str) -> int | None:
@@ -281,8 +309,9 @@ def format_summary(data: dict[str, Any]) -> str:
                      + (f"   repair events {stages}" if stages else ""))
         for sub in entry["subtasks"]:
             extra = ""
-            if sub["r_last"] is not None:
-                extra = (f"   r̄_last = {_fmt(sub['r_last'])}   repairs per stage "
+            if sub["r_least"] is not None or sub["r_last"] is not None:
+                extra = (f"   r̄ (least r in force) = {_fmt(sub['r_least'])}, final r = "
+                         f"{_fmt(sub['r_last'])}   repairs per stage "
                          f"{'/'.join(str(n) for n in sub['repairs_status'])}")
             lines.append(f"    {_fmt(sub['robustness'])}  {sub['task']}{extra}")
         if entry["error"]:

@@ -84,6 +84,7 @@ class SuperviseConfig:
     web_port: int = 0
     faults: tuple[Fault, ...] = ()  # issue 13: injected with the actuator of fault_plan
     fault_plan: Path | None = None  # coordinator.fault_hosts (written by tlfleet run --hosts)
+    fault_handoff: Path | None = None  # coordinator.fault_compose: the host's executor's directory
 
 
 @dataclass
@@ -394,14 +395,22 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
 
 def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fault, ...]:
     """The run's faults (the scenario's and ``config.faults``), checked before connecting; they
-    need the fault plan of the launcher that placed the fleet (issue 13)."""
+    need the fault plan of the launcher that placed the fleet (issue 13), or in a compose fleet
+    the host's executor announced in the handoff directory (:mod:`coordinator.fault_compose`)."""
     from coordinator.faults import run_faults
 
     faults = run_faults(scenario, config.faults, config.duration)
+    if faults and config.fault_handoff is not None:  # a compose fleet: the host injects them
+        from coordinator.fault_compose import check_compose_fault, wait_for_executor
+
+        for fault in faults:
+            check_compose_fault(fault)
+        wait_for_executor(config.fault_handoff, config.supervisor.ready_timeout)
+        return faults
     if faults and config.fault_plan is None:
         raise SuperviseError("faults need a fault plan (--fault-plan, written by `tlfleet run "
                              "--hosts N --fault …`): supervise alone does not know the fleet's "
-                             "processes and links")
+                             "processes and links (in compose: --fault-handoff DIR)")
     if faults:
         from coordinator.fault_hosts import HostsActuator
 
@@ -413,9 +422,15 @@ def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fau
 
 def hosts_schedule(faults: tuple[Fault, ...], config: SuperviseConfig, session: Supervision,
                    say: Say) -> Any:
-    from coordinator.fault_hosts import HostsActuator
     from coordinator.fault_schedule import FaultScheduler
 
-    assert config.fault_plan is not None
-    actuator = HostsActuator.from_file(config.fault_plan, session.supervisor)
+    if config.fault_handoff is not None:
+        from coordinator.fault_compose import ComposeActuator
+
+        actuator: Any = ComposeActuator(config.fault_handoff, session.supervisor)
+    else:
+        from coordinator.fault_hosts import HostsActuator
+
+        assert config.fault_plan is not None
+        actuator = HostsActuator.from_file(config.fault_plan, session.supervisor)
     return FaultScheduler(faults, actuator, session.prepared.recorder.on_event, say)

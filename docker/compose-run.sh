@@ -8,6 +8,10 @@
 # A secured compose file (the default of `tlfleet compose`: --secure /fleet/keys) gets its keys from
 # $TLFLEET_KEYS; when that is unset, a fresh key directory is made for this run (`tlfleet keys
 # SCENARIO --host router` into a private temporary directory) and deleted at the end.
+# A compose file with faults (`tlfleet compose --fault …`: the coordinator has --fault-handoff) gets
+# the host's fault executor (`tlfleet compose-faults`: docker network disconnect/connect, pause/
+# unpause, kill, start of this project's containers) in the background for the run, its log in
+# OUT/logs/compose-faults.log; it ends with this script, undoing what is still in effect.
 #   usage: docker/compose-run.sh [COMPOSE_FILE] [OUT]
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -28,8 +32,14 @@ if ! docker version >/dev/null 2>&1; then
   STARTED=1
 fi
 OWN_KEYS=
+EXECUTOR=
 cleanup() {
   set +e
+  if [[ -n $EXECUTOR ]]; then   # by its pid; it reconnects / unpauses what is still cut or paused
+    kill -TERM "$EXECUTOR" 2>/dev/null
+    for _ in $(seq 1 100); do kill -0 "$EXECUTOR" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$EXECUTOR" 2>/dev/null
+  fi
   "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" down --timeout 5 >/dev/null 2>&1
   if [[ $STARTED == 1 ]]; then docker/dockerd-stop.sh "$TLFLEET_DOCKER_WORK"; fi
   if [[ -n $OWN_KEYS ]]; then rm -rf "$OWN_KEYS"; fi
@@ -49,6 +59,11 @@ docker/build-image.sh
 mkdir -p "$OUT/logs"
 OUT_ABS=$(cd "$OUT" && pwd)
 export TLFLEET_OUT=$OUT_ABS   # the coordinator's /out: the run directory
+if grep -q '"--fault-handoff", "/out/logs/faults"' "$FILE"; then
+  "${PYTHON:-python3}" -m cli.main compose-faults --dir "$OUT_ABS/logs/faults" --project "$PROJECT" \
+    --parent $$ --max-wall 7200 >"$OUT_ABS/logs/compose-faults.log" 2>&1 &
+  EXECUTOR=$!
+fi
 "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" up -d --no-build >/dev/null 2>"$OUT_ABS/logs/compose-up.log" || {
   cat "$OUT_ABS/logs/compose-up.log" >&2; exit 1; }
 COORD=$("${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" ps -q coordinator)

@@ -25,6 +25,14 @@ no two translations have to number states alike. One step (5 Hz, ``scenario.ltl.
    next step, and a ``plan_ready`` notice;
 4. an :class:`LtlProgress` every step.
 
+A robot whose first step finds it more than ``JOIN_DISTANCE`` from the scenario's start pose (a
+restarted agent process, or one joining a running fleet: issue 13 §2) first plans again from
+where it is (:meth:`LtlAgent.plan_from`): Algorithm 1 over a transition system whose start is
+the current position, from the automaton's initial states. A new process does not know what the
+robot did before, so it satisfies the whole task from now on — a suffix of the trajectory that
+satisfies φ, which for the recurrence and reachability tasks of the scenarios asks no less than
+the run as a whole; a ``plan_ready`` notice with ``reason.joined`` says so.
+
 No I/O, no clock, no wire types: the runtime (``agent.runtime.ltl_agent``) turns notices into
 events and the progress into the status message.
 """
@@ -42,7 +50,7 @@ import numpy as np
 from agent.errors import UnsatisfiableTask
 from agent.ltl.buchi import Buchi, buchi_step, translate
 from agent.ltl.planner import Plan, plan_robot, replan
-from agent.ltl.transition_system import START, from_scenario
+from agent.ltl.transition_system import START, from_regions, from_scenario
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
 from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
@@ -54,6 +62,7 @@ logger = logging.getLogger(__name__)
 
 Point = tuple[float, float]
 Distance = Callable[[Sequence[float], Sequence[float]], float]
+JOIN_DISTANCE = 0.1  # [m] a first pose farther than this from the start pose: plan from it
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,6 +76,7 @@ class LtlState:
     pending_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
     penalties: tuple[tuple[Point, Point, float], ...] = ()
     replans: int = 0
+    stepped: bool = False  # a step has run (the first one checks where the robot is)
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,7 +189,39 @@ class LtlAgent:
 
     # the step -------------------------------------------------------------------------------
 
+    def plan_from(self, point: Point) -> Plan:
+        """Algorithm 1 from ``point`` [m] (instead of the start pose) and the automaton's
+        initial states, over the agent's map distances (see the module docstring)."""
+        ts = from_regions(self.scenario.regions, point, self.distance)
+        plan = replan(self.buchi, ts, ts.names[ts.initial], self.buchi.initial,
+                      self.scenario.ltl.suffix_weight, robot=self.robot)
+        return replace(plan, timings=replace(plan.timings, translate=0.0))
+
+    def _joined(self, state: LtlState, inputs: LtlStepInput
+                ) -> tuple[LtlState, Notice | None]:
+        """The first step of a robot away from its start pose: a plan from where it is."""
+        point = (float(inputs.pose[0]), float(inputs.pose[1]))
+        away = float(np.hypot(point[0] - self.start_point[0], point[1] - self.start_point[1]))
+        state = replace(state, stepped=True)
+        if away <= JOIN_DISTANCE:
+            return state, None
+        try:
+            plan = self.plan_from(point)
+        except UnsatisfiableTask as exc:
+            logger.warning("robot %d: no plan from (%.2f, %.2f): %s", self.robot, *point, exc)
+            return state, Notice(inputs.t, "replan_failed", {"joined": True, "error": str(exc)})
+        logger.info("robot %d: joined %.2f m from its start pose at t=%.2f: %s · (%s)^ω",
+                    self.robot, away, inputs.t, plan.prefix, plan.suffix)
+        state = replace(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
+                        buchi_states=frozenset(self.buchi.initial), replans=state.replans + 1)
+        return state, self.plan_notice(inputs.t, plan, replanned=True,
+                                       reason={"joined": True, "from": list(point),
+                                               "away": away})
+
     def step(self, state: LtlState, inputs: LtlStepInput) -> tuple[LtlState, LtlStepOutput]:
+        joined = None
+        if not state.stepped:
+            state, joined = self._joined(state, inputs)
         t = inputs.t
         prev = state.executor
         new_plan = state.pending_plan
@@ -194,7 +236,7 @@ class LtlAgent:
             first = prev.step
         buchi = self._track(state.buchi_states, ex_state, first)
         state = replace(state, executor=ex_state, buchi_states=buchi, pending_plan=None)
-        notices: list[Notice] = []
+        notices: list[Notice] = [] if joined is None else [joined]
         for nav_event in ex_out.events:
             if isinstance(nav_event, ReplanRequest):
                 state, notice = self.replan(state, nav_event, t)

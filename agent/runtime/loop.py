@@ -22,7 +22,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   with ``seq % d == 0``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
   only be due at those ticks, lockstep or realtime;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
-  the gap between its frames, ``LoopConfig.stale_limit``; with ``LoopConfig.heartbeat`` it
+  the gap between its frames, ``LoopConfig.stale_limit``, or of the gap they lately came at
+  when a lockstep fleet runs slower than real time, ``LoopConfig.stale_limit_at``; with
+  ``LoopConfig.heartbeat`` it
   also calls mocap stale after ``stale_after`` without the sim's ``Clock``, issue 13 §2) → the
   zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
@@ -43,8 +45,10 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
 from __future__ import annotations
 
 import logging
+import statistics
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -103,6 +107,15 @@ class LoopConfig:
         if not self.frames_decimated:
             return self.stale_after
         return self.stale_after + 2.0 * (self.divider - 1) / self.mocap_rate
+
+    def stale_limit_at(self, frame_gap: float) -> float:
+        """``stale_limit`` for a decimated loop whose frames have lately come ``frame_gap`` [s]
+        wall apart: a lockstep fleet slower than real time spaces them beyond the nominal
+        ``divider / mocap_rate``, which is the fleet's pace, not stale mocap."""
+        if not self.frames_decimated:
+            return self.stale_after
+        return max(self.stale_limit,
+                   self.stale_after + 2.0 * (frame_gap - 1.0 / self.mocap_rate))
 
     @property
     def watches_clock(self) -> bool:
@@ -198,6 +211,7 @@ class AgentLoop:
         mocap = (keys.mocap_every(fleet, config.divider) if config.frames_decimated
                  else keys.mocap(fleet))
         self._stale_limit = config.stale_limit
+        self._gaps: deque[float] = deque(maxlen=8)  # [s] wall per frame period, lately
         self._keys = {"mocap": mocap, "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
                       "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot),
@@ -393,8 +407,14 @@ class AgentLoop:
         if not self.started:
             return
         self.stats.frames += 1
+        now = self.clock()
+        if (self.config.frames_decimated and last is not None and not self._stale
+                and self._last_frame_wall is not None and frame.seq > last.seq):
+            periods = (frame.seq - last.seq) / self.config.divider
+            self._gaps.append((now - self._last_frame_wall) / max(periods, 1.0))
+            self._stale_limit = self.config.stale_limit_at(statistics.median(self._gaps))
         self._last_frame = frame
-        self._last_frame_wall = self.clock()
+        self._last_frame_wall = now
         if self._stale:
             self._stale = False
             logger.warning("%s: mocap frames are back (t = %.3f)", self.source, frame.t)

@@ -1,13 +1,17 @@
-"""``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]``: write
-the docker compose file of a scenario's fleet (:mod:`coordinator.compose`), secured by default
-(mutual TLS, the router's access control; keys from ``${TLFLEET_KEYS}``). An invalid scenario
-exits 1 before anything is written."""
+"""``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]
+[--lease-ms MS] [--fault SPEC …]``: write the docker compose file of a scenario's fleet
+(:mod:`coordinator.compose`), secured by default (mutual TLS, the router's access control; keys
+from ``${TLFLEET_KEYS}``). With faults (``--fault`` or the scenario's ``[[faults]]``) the
+coordinator hands them to the host's executor that ``make compose-run`` starts
+(:mod:`coordinator.fault_compose`). An invalid scenario or a fault a compose fleet cannot do
+(a partition, a host) exits 1 before anything is written."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
+from cli.arg_types import fault_spec
 from cli.run_flags import add_mode_arguments
 from coordinator.compose import ComposeConfig, write_compose
 
@@ -28,10 +32,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plain TCP links, no authentication, no access control (default: "
                              "mutual TLS with the keys of ${TLFLEET_KEYS}, `tlfleet keys "
                              "SCENARIO --out DIR --host router`)")
+    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
+                        help="zenoh link lease of every service [ms] (default zenoh's 10000; "
+                             "500 notices a cut within 1 s)")
+    parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
+                        metavar="SPEC",
+                        help="inject a fault (repeatable, as `tlfleet run --fault`): cut (docker "
+                             "network disconnect/connect), freeze (docker pause/unpause), kill, "
+                             "restart (agents); no partitions, no hosts")
 
 
 def run(args: argparse.Namespace) -> int:
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
-                                       args.duration, secure=not args.insecure))
+                                       args.duration, secure=not args.insecure,
+                                       faults=tuple(args.faults), lease_ms=args.lease_ms))
     print(path)
     return 0

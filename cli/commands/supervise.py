@@ -57,10 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_zenoh_config_argument(parser)
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
                         metavar="SPEC", help="inject a fault (as `tlfleet run --fault`); needs "
-                                             "--fault-plan")
+                                             "--fault-plan or --fault-handoff")
     parser.add_argument("--fault-plan", type=Path, default=None, metavar="FILE",
                         help="the fleet's namespaces, placement and pids (written by `tlfleet "
                              "run --hosts N --fault …`)")
+    parser.add_argument("--fault-handoff", type=Path, default=None, metavar="DIR",
+                        help="a compose fleet: hand each fault to the host's executor through "
+                             "DIR (`tlfleet compose-faults`, started by docker/compose-run.sh)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -76,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
         zenoh_config=args.zenoh_config, secure=args.secure, lease_ms=args.lease_ms,
         report=args.report, figures=args.figures, rrd=args.rrd, faults=tuple(args.faults),
-        fault_plan=args.fault_plan)
+        fault_plan=args.fault_plan, fault_handoff=args.fault_handoff)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def say(text: str) -> None:

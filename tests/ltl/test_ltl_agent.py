@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import agent.ltl.agent as ltl_agent_module
 from agent.ltl.agent import LtlAgent, LtlStepInput, Notice
@@ -70,3 +71,37 @@ def test_the_pure_agent_visits_its_regions_and_tracks_the_buchi_states(scenarios
     assert state.replans == 0
     assert all(isinstance(v, int | float | str | list | dict | bool | type(None))
                for n in notices for v in n.data.values())
+
+
+def test_a_robot_that_joins_away_from_its_start_plans_again_from_where_it_is(scenarios_dir):
+    """Issue 13 §2 (a restarted agent): the first step finds Scenario 3's robot 1 at region a3,
+    not at its start pose, so it plans Algorithm 1 again from there — the cheapest order of the
+    other four regions, checked by brute force over Euclidean distances — from the automaton's
+    initial states, and says so in a plan_ready notice."""
+    import itertools
+
+    scenario = load_scenario(scenarios_dir / "scenario3.toml")
+    agent = LtlAgent(scenario, 1, distance=math.dist)
+    state, _ready = agent.initial_state(agent.plan())
+    centres = {r.name: tuple(r.center) for r in scenario.regions}
+    here = centres["a3"]
+    state, out = agent.step(state, LtlStepInput(42.0, (*here, 0.0), NOBODY))
+    (joined,) = [n for n in out.notices if n.kind == "plan_ready"]
+    assert joined.data["replan"] and joined.data["reason"]["joined"]
+    assert joined.data["reason"]["away"] == pytest.approx(math.dist(here, (-2.0, -2.0)))
+    others = sorted(set(centres) - {"a3"})
+
+    def tour(order) -> float:
+        points = [here, *(centres[n] for n in order)]
+        return sum(math.dist(a, b) for a, b in itertools.pairwise(points))
+
+    best = min(tour(order) for order in itertools.permutations(others))
+    assert state.plan.prefix[0] == "a3"  # it is inside a3
+    assert state.plan.cost == pytest.approx(best)
+    assert state.buchi_states <= frozenset(range(agent.buchi.num_states))
+    # a robot at its start pose keeps the plan it had
+    fresh = LtlAgent(scenario, 1, distance=math.dist)
+    plan = fresh.plan()
+    state, _ = fresh.initial_state(plan)
+    state, out = fresh.step(state, LtlStepInput(0.0, (-2.0, -2.0, 0.0), NOBODY))
+    assert state.plan is plan and not [n for n in out.notices if n.kind == "plan_ready"]

@@ -29,6 +29,7 @@ from coordinator import paper_values
 from coordinator.figures import robustness_figure
 from coordinator.ltl_trace import completed_cycles, plan_cycle
 from coordinator.report import RunDirectoryError, build_report, write_report
+from coordinator.summary import summarise_run
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 DT = 0.1  # [s] sample period of the synthetic run
@@ -182,13 +183,70 @@ def test_stl_robustness_equals_direct_recomputation(synthetic) -> None:
 def test_stl_r_bar_repairs_and_no_paper_values(synthetic) -> None:
     _run_dir, data = synthetic
     sub = data["stl"]["4"]["subtasks"]
-    assert sub[1]["r_bar"] == pytest.approx(0.02 - 0.001 * 12.0)  # last status row of sub-task 1
+    # r decreases along the status rows, so the least r in force is the last row's
+    assert sub[1]["r_bar"] == sub[1]["r_final"] == pytest.approx(0.02 - 0.001 * 12.0)
     assert sub[1]["repairs"] == {"stage1": 1, "stage2": 0, "stage3": 12}
     assert sub[0]["repair_events"] == {"stage1": 0, "stage2": 0, "stage3": 2}
     assert data["stl"]["3"]["subtasks"][0]["repair_events"]["stage1"] == 1
     assert [s["label"] for s in data["stl"]["3"]["subtasks"]] == ["r3.1", "r3.2"]
     assert all(s["paper"] is None for e in data["stl"].values() for s in e["subtasks"])
     assert "not one of the paper's scenarios" in data["paper_note"]
+
+
+R0, R_DIP = 0.0225, -0.11  # robot 4's φ of sub-task 1: r before the repairs, after them
+
+
+def write_repair_then_recovery(run_dir: Path, *, done: bool) -> None:
+    """The synthetic run with robot 4's sub-task 1 repaired at 10.2 s (r → −0.05) and 10.6 s
+    (r → R_DIP), then recovered at 10.9 s (r → R0): no 0.5 s status row falls inside the dip,
+    so only the events show it; ``done``: the agent's ``subtask_done`` (r = R_DIP) is there too
+    (else the run is cut short before it)."""
+    write_synthetic(run_dir)
+    with open(run_dir / "status.csv", newline="") as f:
+        reader = csv.DictReader(f)
+        header, rows = reader.fieldnames, list(reader)
+    for row in rows:
+        if row["robot"] == "4" and row["subtask"] == "1":
+            row["r"] = f"{R0}"
+    with open(run_dir / "status.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, header)
+        w.writeheader()
+        w.writerows(rows)
+    events = [
+        {"t": 10.2, "source": "agent/4", "kind": "repair", "data": {"stage": 3, "r": -0.05,
+                                                                   "subtask": 1}},
+        {"t": 10.6, "source": "agent/4", "kind": "repair", "data": {"stage": 3, "r": R_DIP,
+                                                                   "subtask": 1}},
+        {"t": 10.9, "source": "agent/4", "kind": "recovery",
+         "data": {"r": R0, "r_before": R_DIP, "subtask": 1}},
+    ]
+    if done:
+        events.append({"t": 12.0, "source": "agent/4", "kind": "subtask_done",
+                       "data": {"subtask": 1, "satisfied": False, "r": R_DIP, "recoveries": 1}})
+    with open(run_dir / "events.jsonl", "a") as f:
+        f.write("".join(json.dumps(e) + "\n" for e in events))
+
+
+@pytest.mark.parametrize("done", [True, False])
+def test_r_bar_is_the_least_r_in_force_after_repairs_and_recovery(tmp_path: Path, done) -> None:
+    """Repairs lower r, a recovery raises it again: r̄ (report.json r_bar, report.md, the console
+    table, summary.txt) is the least r in force, as the agent's subtask_done says, with the final
+    funnel's r beside it; without subtask_done it comes from the repair/recovery events."""
+    run_dir = tmp_path / "run"
+    write_repair_then_recovery(run_dir, done=done)
+    report = write_report(run_dir, figures=False)
+    sub = json.loads((run_dir / "report.json").read_text())["stl"]["4"]["subtasks"][1]
+    assert sub["r_bar"] == pytest.approx(R_DIP) and sub["r_final"] == pytest.approx(R0)
+    assert sub["robustness_ge_r_bar"] == (sub["robustness"] >= R_DIP)
+    md = (run_dir / "report.md").read_text()
+    assert "| r̄ (least) | r final |" in md
+    row = next(line for line in md.splitlines() if "`F[10,12]" in line)
+    assert f"| {R_DIP:+.4f} | {R0:+.4f} |" in row
+    table = next(line for line in report.table.splitlines() if line.lstrip().startswith("r4.2"))
+    assert table.split()[2:4] == [f"{R_DIP:+.4f}", f"{R0:+.4f}"]
+    text, data = summarise_run(run_dir)
+    assert data["stl"][4]["subtasks"][1]["r_least"] == pytest.approx(R_DIP)
+    assert f"r̄ (least r in force) = {R_DIP:+.4f}, final r = {R0:+.4f}" in text
 
 
 def test_contacts_and_timing(synthetic) -> None:

@@ -7,6 +7,8 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
+
 from runtime_helpers import FakeClock
 
 from agent.protocol import keys
@@ -168,3 +170,29 @@ def test_a_decimated_loop_with_heartbeat_notices_a_silent_simulator_within_stale
     clock.advance(0.25)
     loop.run_once(0.0)
     assert loop.stats.stale_episodes == 0
+
+
+def test_a_decimated_loop_in_a_slow_lockstep_fleet_is_not_stale_at_the_fleets_pace():
+    """A lockstep fleet slower than real time spaces a decimated loop's frames beyond the nominal
+    divider / mocap_rate (here 0.8 s instead of 0.2 s): after a few such frames the limit follows
+    the pace (LoopConfig.stale_limit_at), so waiting for the fleet is not stale mocap; a real
+    outage at that pace still is."""
+    assert LoopConfig(FLEET, 1, 20, 0.5, decimated=True).stale_limit_at(0.2) == \
+        LoopConfig(FLEET, 1, 20, 0.5, decimated=True).stale_limit  # real time: unchanged
+    assert LoopConfig(FLEET, 1, 20, 0.5, decimated=True).stale_limit_at(0.8) == \
+        pytest.approx(0.5 + 2 * 0.79)
+    assert LoopConfig(FLEET, 1, 1, 0.5).stale_limit_at(0.8) == 0.5  # not decimated
+    network = FakeNetwork()
+    loop, clock = make(network, divider=20, decimated=True, stale_after=0.5)
+    publish(network, keys.control(FLEET), Control("start"))
+    for n in range(1, 6):  # five frames, 0.8 s apart
+        publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.2 * n, 20 * n, POSES, due=(1,)))
+        loop.run_once(0.0)
+        clock.advance(0.5)
+        loop.run_once(0.0)
+        clock.advance(0.3)
+        loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0 and loop.stats.frames == 5
+    clock.advance(2.2 - 0.8)  # 2.2 s since the last frame: beyond 0.5 + 2·0.79 = 2.08 s
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 1

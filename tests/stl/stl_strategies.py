@@ -1,11 +1,12 @@
 """Hypothesis strategies of random ψ expressions over three robots, shared by the gradient and the
-compiled-ψ properties (each file adds its own vector and predicate shapes)."""
+compiled-ψ properties: scalar expressions, 2-vector expressions and the scalar shapes a predicate's
+h takes (``predicate_expressions``)."""
 
 from __future__ import annotations
 
 from hypothesis import strategies as st
 
-from agent.stl.syntax import BinOp, Call, Const, Neg, StateVar
+from agent.stl.syntax import BinOp, Call, Const, Neg, Position, StateVar, VecLit
 
 ROBOTS = (1, 2, 3)
 coords = st.floats(-3, 3, allow_nan=False)
@@ -30,3 +31,32 @@ def _extend(children):
 def scalar_expressions(max_leaves: int):
     """Smooth-enough scalar expressions of the robots' states with at most ``max_leaves``."""
     return st.recursive(scalar_leaf, _extend, max_leaves=max_leaves)
+
+
+def vector_expressions(scalars):
+    """2-vector expressions: positions, literals of ``scalars``, and ±, scalar ×, ÷ of positions."""
+    robot = st.sampled_from(ROBOTS)
+    return st.one_of(
+        st.builds(Position, robot),
+        st.builds(VecLit, scalars, scalars),
+        st.builds(lambda a, b: BinOp("-", Position(a), VecLit(b, Call("cos", (b,)))),
+                  robot, scalars),
+        st.builds(lambda a, b: BinOp("+", Position(a), Neg(Position(b))), robot, robot),
+        st.builds(lambda c, v: BinOp("*", c, Position(v)), scalars, robot),
+        st.builds(lambda v, c: BinOp("*", Position(v), c), robot, scalars),
+        st.builds(lambda v, c: BinOp("/", Position(v), BinOp("+", Const(2.0),
+                                                             Call("cos", (c,)))), robot, scalars),
+    )
+
+
+def predicate_expressions(max_leaves: int):
+    """The scalar shapes of a predicate's h: a scalar expression, ‖v‖, dist(v, w) and s − ‖v‖."""
+    scalars = scalar_expressions(max_leaves)
+    vectors = vector_expressions(scalars)
+    norms = st.builds(lambda v: Call("norm", (v,)), vectors)
+    return st.one_of(
+        scalars,
+        norms,
+        st.builds(lambda a, b: Call("dist", (a, b)), vectors, vectors),
+        st.builds(lambda a, b: BinOp("-", a, b), scalars, norms),
+    )

@@ -14,46 +14,17 @@ from pathlib import Path
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from stl_strategies import ROBOTS, coords, numbers, scalar_expressions, states
+from stl_strategies import ROBOTS, coords, numbers, predicate_expressions, states
 
 from agent.scenario.loader import load_scenario
 from agent.stl.agent import build_agents
 from agent.stl.compiled import StraightLinePsi, generate_source
 from agent.stl.parser import parse_psi
 from agent.stl.robustness import CompiledPsi
-from agent.stl.syntax import (
-    And,
-    BinOp,
-    Call,
-    Const,
-    Neg,
-    Not,
-    Position,
-    Predicate,
-    VecLit,
-)
+from agent.stl.syntax import And, Const, Not, Predicate
 
 ROOT = Path(__file__).resolve().parents[2]
-scalars = scalar_expressions(max_leaves=6)
-vectors = st.one_of(
-    st.builds(Position, st.sampled_from(ROBOTS)),
-    st.builds(VecLit, scalars, scalars),
-    st.builds(lambda a, b: BinOp("-", Position(a), VecLit(b, Call("cos", (b,)))),
-              st.sampled_from(ROBOTS), scalars),
-    st.builds(lambda a, b: BinOp("+", Position(a), Neg(Position(b))),
-              st.sampled_from(ROBOTS), st.sampled_from(ROBOTS)),
-    st.builds(lambda c, v: BinOp("*", c, Position(v)), scalars, st.sampled_from(ROBOTS)),
-    st.builds(lambda v, c: BinOp("*", Position(v), c), st.sampled_from(ROBOTS), scalars),
-    st.builds(lambda v, c: BinOp("/", Position(v), BinOp("+", Const(2.0), Call("cos", (c,)))),
-              st.sampled_from(ROBOTS), scalars),
-)
-expressions = st.one_of(
-    scalars,
-    st.builds(lambda v: Call("norm", (v,)), vectors),
-    st.builds(lambda a, b: Call("dist", (a, b)), vectors, vectors),
-    st.builds(lambda a, b: BinOp("-", a, b), scalars,
-              st.builds(lambda v: Call("norm", (v,)), vectors)),
-)
+expressions = predicate_expressions(max_leaves=6)
 predicates = st.builds(Predicate, expressions, st.sampled_from(["<=", "<", ">=", ">"]),
                        numbers.map(Const))
 literal_ = st.one_of(predicates, st.builds(Not, predicates))

@@ -8,30 +8,14 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from stl_strategies import ROBOTS, coords, scalar_expressions, states
+from stl_strategies import ROBOTS, coords, predicate_expressions, states
 
 from agent.stl.evaluate import compile_expr, evaluate_array
 from agent.stl.parser import parse_psi
 from agent.stl.robustness import CompiledPsi, psi_array
-from agent.stl.syntax import BinOp, Call, Const, Position, VecLit, robots_of
+from agent.stl.syntax import robots_of
 
-scalars = scalar_expressions(max_leaves=5)
-vectors = st.one_of(
-    st.builds(Position, st.sampled_from(ROBOTS)),
-    st.builds(VecLit, scalars, scalars),
-    st.builds(lambda a, b: BinOp("-", Position(a), VecLit(b, Call("cos", (b,)))),
-              st.sampled_from(ROBOTS), scalars),
-    st.builds(lambda c, v: BinOp("*", c, Position(v)), scalars, st.sampled_from(ROBOTS)),
-    st.builds(lambda v, c: BinOp("/", Position(v), BinOp("+", Const(2.0), Call("cos", (c,)))),
-              st.sampled_from(ROBOTS), scalars),
-)
-expressions = st.one_of(
-    scalars,
-    st.builds(lambda v: Call("norm", (v,)), vectors),
-    st.builds(lambda a, b: Call("dist", (a, b)), vectors, vectors),
-    st.builds(lambda a, b: BinOp("-", a, b), scalars, st.builds(lambda v: Call("norm", (v,)),
-                                                                  vectors)),
-)
+expressions = predicate_expressions(max_leaves=5)
 
 
 def finite_difference(f, s, step, side=0):

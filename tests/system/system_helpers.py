@@ -122,3 +122,18 @@ def still_while(t: np.ndarray, xy: np.ndarray, wants: np.ndarray, window: float 
             out.append(float(t[k]))
     return out
 
+
+
+def assert_restarted_agent_drove_again(run_dir: Path, robot: int) -> None:
+    """After ``restart:robot<N>`` (issue 13): one death and one recovery, one log holding both
+    processes, and robot N driven again from a second after the recovery."""
+    evs = events(run_dir)
+    kinds = [e["kind"] for e in evs]
+    assert kinds.count("process_died") == 1 and kinds.count("process_recovered") == 1
+    logs = (run_dir / "logs" / f"agent-{robot}.log").read_text()
+    assert logs.count("waiting for start") == 2  # one log, two processes
+    t, states = load_trajectory(run_dir)
+    recovered = next(e for e in evs if e["kind"] == "process_recovered")
+    after = t > recovered["t"] + 1.0
+    assert after.sum() > 100
+    assert np.ptp(states[robot][after, 0]) + np.ptp(states[robot][after, 1]) > 0.05

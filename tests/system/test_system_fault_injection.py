@@ -16,7 +16,15 @@ import sys
 
 import numpy as np
 import pytest
-from system_helpers import HERE, ROOT, events, leftover_in_groups, load_trajectory, run
+from system_helpers import (
+    HERE,
+    ROOT,
+    assert_restarted_agent_drove_again,
+    events,
+    leftover_in_groups,
+    load_trajectory,
+    run,
+)
 
 from agent.scenario import load_scenario
 from agent.scenario.faults import parse_fault
@@ -77,18 +85,32 @@ def test_a_restarted_agent_comes_back_and_the_run_completes(tmp_path):
     start, end = fault_events(run_dir)
     assert start["data"]["pid"] != start["data"]["new_pid"]
     assert 2.0 <= start["t"] < 2.2 and end["data"]["lasted"] < 5.0
-    kinds = collections.Counter(e["kind"] for e in events(run_dir))
-    assert kinds["process_died"] == 1 and kinds["process_recovered"] == 1
     assert result.exit_codes["agent-2"] == 0 and result.exit_codes["sim"] == 0
-    logs = (run_dir / "logs" / "agent-2.log").read_text()
-    assert logs.count("waiting for start") == 2  # one log, two processes
-    t, states = load_trajectory(run_dir)
-    recovered = next(e for e in events(run_dir) if e["kind"] == "process_recovered")
-    after = t > recovered["t"] + 1.0
-    assert after.sum() > 100
-    assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05  # driven again
+    assert_restarted_agent_drove_again(run_dir, 2)
     assert result.verdict.label == "degraded"
     assert any("fault restart:robot2@2" in r for r in result.verdict.reasons)
+    assert leftover_in_groups(run_dir) == []
+
+
+def test_a_restarted_ltl_agent_plans_again_from_where_its_robot_is(tmp_path):
+    """Issue 13 §2: the new process of LTL robot 1 (``G F a1 & G F a2``), restarted inside a1
+    on its way out, finds its robot away from the start pose, plans again from there
+    (``plan_ready`` with ``reason.joined``, the plan starting at a1) and goes on to a2."""
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, mode="realtime", duration=14.0, rrd=False, report=False,
+                 faults=(parse_fault("restart:robot1@2.8"),))
+    assert result.outcome.reason in ("sim_done", "duration") and result.outcome.deaths == []
+    assert_restarted_agent_drove_again(run_dir, 1)
+    evs = events(run_dir)
+    recovered = next(e for e in evs if e["kind"] == "process_recovered")
+    joined = [e for e in evs if e["kind"] == "plan_ready" and e["source"] == "agent/1"
+              and e["data"].get("reason", {}).get("joined")]
+    assert len(joined) == 1 and joined[0]["t"] >= recovered["t"] - 0.5
+    assert joined[0]["data"]["reason"]["away"] > 0.1
+    assert joined[0]["data"]["prefix"][0] == "a1"  # it is inside a1: the plan starts there
+    visits = {e["data"]["region"] for e in evs if e["kind"] == "region_visited"
+              and e["source"] == "agent/1" and e["t"] > joined[0]["t"]}
+    assert "a2" in visits, visits
     assert leftover_in_groups(run_dir) == []
 
 

@@ -22,7 +22,15 @@ import sys
 import numpy as np
 import pytest
 from needs import need_root_netns
-from system_helpers import HERE, ROOT, SCENARIOS, events, load_trajectory, robot_robot_contacts
+from system_helpers import (
+    HERE,
+    ROOT,
+    SCENARIOS,
+    assert_restarted_agent_drove_again,
+    events,
+    load_trajectory,
+    robot_robot_contacts,
+)
 
 from agent.scenario.faults import parse_fault
 from coordinator.hosts import run_on_hosts
@@ -253,15 +261,7 @@ def test_an_agent_restarted_on_namespace_hosts_comes_back_and_nothing_is_left(tm
     start = next(e for e in by_kind(run_dir, "fault_start") if e["data"]["kind"] == "restart")
     new_pid = start["data"]["new_pid"]
     assert start["data"]["pid"] != new_pid and 2.0 <= start["t"] < 2.3
-    kinds = collections.Counter(e["kind"] for e in events(run_dir))
-    assert kinds["process_died"] == 1 and kinds["process_recovered"] == 1
-    logs = (run_dir / "logs" / "agent-2.log").read_text()
-    assert logs.count("waiting for start") == 2  # one log, two processes
-    t, states = load_trajectory(run_dir)
-    recovered = next(e for e in events(run_dir) if e["kind"] == "process_recovered")
-    after = t > recovered["t"] + 1.0
-    assert after.sum() > 100
-    assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05  # driven again
+    assert_restarted_agent_drove_again(run_dir, 2)
     assert agent_stats(run_dir, 2)["frames"] > 0  # the new process's own statistics
     # nothing is left: the restarted process (a child of supervise) was stopped too
     assert subprocess.run(["ps", "-o", "pid=", "-g", str(new_pid)], capture_output=True,

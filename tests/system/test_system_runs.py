@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from system_helpers import (
     HERE,
+    ROOT,
     SCENARIOS,
     dist_to,
     entries,
@@ -101,6 +102,16 @@ def test_scenario1_paper_bounds(scenario1_run):
               "phi''5": 0.05}
     failing = {k: v for k, v in measured.items() if not v >= bounds[k]}
     assert failing == {}, f"below the paper's bounds {bounds}: {failing}"
+    # issue 15: within 0.05 of the best achievable of scenarios.md (0.1 each), except φ′4, whose
+    # −0.9 − 0.05 is jointly feasible with φ′3's and φ′5's goals only at one knife-edge point
+    # (docs/coupling.md §3): φ′4 is held within 0.05 of its joint bound −0.9 − (ρ′3 + ρ′5)/2
+    # and to 1e-3 of its bound given robots 3 and 5's trajectories, 1 − max ‖z3 − z5‖/2
+    short = {k: v for k, v in measured.items() if k != "phi'4" and not v >= 0.1 - 0.05}
+    assert short == {}, f"more than 0.05 below the best 0.1: {short}"
+    joint = -0.9 - (measured["phi'3"] + measured["phi'5"]) / 2
+    assert joint - 0.05 <= measured["phi'4"] <= joint + 1e-12
+    given_z3_z5 = g_rob(t, 1 - np.hypot(*(s[3][:, :2] - s[5][:, :2]).T) / 2, 5, 30)
+    assert measured["phi'4"] == pytest.approx(given_z3_z5, abs=1e-3)
     reg = regions(path)
     for robot, names in ((1, ("a11", "a12")), (2, ("a21", "a22"))):
         for name in names:
@@ -108,6 +119,26 @@ def test_scenario1_paper_bounds(scenario1_run):
                 (robot, name)
     assert robot_robot_contacts(result.run_dir) == []
     assert leftover_in_groups(result.run_dir) == []
+
+
+def test_recovery_case_escort_back_within_10_s_of_the_leader_stop(tmp_path):
+    """Issue 15's recovery goal on a real fleet (bench/recovery_case.toml): a reactive leader
+    outruns its 0.2 m/s escort (stage-3 repairs lower r below 0), then parks; ρ^ψ = 1 − ‖z2 − z1‖,
+    recomputed here, is ≥ 0 again within 10 s of the stop, and stays ≥ 0 to the end."""
+    result = run(ROOT / "bench" / "recovery_case.toml", tmp_path / "run")
+    assert result.clean, result.summary_text
+    t, s = load_trajectory(tmp_path / "run")
+    speed = np.hypot(*np.diff(s[1][:, :2], axis=0).T) / np.diff(t)
+    t_stop = t[np.flatnonzero(speed > 0.005)[-1] + 1]
+    assert 10.0 < t_stop < 30.0  # it drove, then parked in its region
+    psi = 1.0 - dist_to(s, 2, 1)
+    assert psi[t <= t_stop].min() < -1.0  # the escort had fallen far behind
+    (sub,) = result.summary["stl"][2]["subtasks"]
+    assert sub["r_least"] < -1.0 < sub["r_last"]  # repairs lowered r, recoveries raised it
+    back = t[(t >= t_stop) & (psi >= 0.0)]
+    assert back.size and back[0] - t_stop <= 10.0, (t_stop, back[:1])
+    assert psi[t >= back[0]].min() >= 0.0
+    assert robot_robot_contacts(tmp_path / "run") == []
 
 
 @pytest.mark.slow

@@ -46,7 +46,7 @@ def test_scenario2_escorts_keep_their_guarantee_and_leaders_keep_cycling(tmp_pat
         rho = g_rob(t, 0.6 - dist_to(states, escort, leader), 0.0, 90.0)
         (subtask,) = summary["stl"][str(escort)]["subtasks"]
         assert subtask["robustness"] == pytest.approx(rho, abs=1e-9)
-        assert rho >= subtask["r_last"], (escort, rho, subtask["r_last"])
+        assert rho >= subtask["r_least"], (escort, rho, subtask["r_least"])  # ρ^φ ≥ r̄
         assert rho > -2.0  # the escort follows: parked, it would end at −4.4 (3) / −3.4 (4)
         assert rho >= -0.2, (escort, rho)  # issue 15 goal (paper: −0.45 / −0.47)
         psi = 0.6 - dist_to(states, escort, leader)

@@ -1,0 +1,57 @@
+"""The report's fault rows (coordinator.fault_report, issue 13 §2): detection and clearance."""
+
+from __future__ import annotations
+
+import pytest
+
+from agent.protocol.messages import Event
+from agent.scenario import load_scenario
+from coordinator.fault_report import fault_rows
+
+
+def start(t, spec, kind, targets, wall=1000.0):
+    return Event(t, "coordinator", "fault_start",
+                 {"spec": spec, "kind": kind, "targets": targets, "wall": wall})
+
+
+def end(t, spec, lasted):
+    return Event(t, "coordinator", "fault_end", {"spec": spec, "lasted": lasted})
+
+
+def test_a_cut_is_detected_by_the_coordinators_link_loss(scenarios_dir):
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    spec = "cut:robot3@20+3"
+    (row,) = fault_rows(scenario, [
+        start(20.0, spec, "cut", ["agent-3"]),
+        Event(20.6, "coordinator", "link_lost", {"process": "agent-3", "wall": 1000.55}),
+        end(23.1, spec, 3.1)], None)
+    assert row["detection"]["kind"] == "link_lost"
+    assert row["detection"]["after_sim"] == pytest.approx(0.6)
+    assert row["detection"]["after_wall"] == pytest.approx(0.55)
+    assert row["min_clearance"] is None  # no trajectory
+
+
+def test_a_partition_is_detected_by_its_targets_themselves(scenarios_dir):
+    """Nobody loses the coordinator in a partition: the first target agent that notices it —
+    stale mocap (at its last frame plus the silence) or a partner released — is the detection;
+    an unrelated agent's report is not."""
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    spec = "partition:robot2,sim@3+2"
+    (row,) = fault_rows(scenario, [
+        start(3.0, spec, "partition", ["agent-2", "sim"]),
+        Event(3.0, "agent/1", "stale_mocap", {"silence": 0.1}),  # not a target
+        Event(3.02, "agent/2", "stale_mocap", {"silence": 0.16}),
+        end(5.0, spec, 2.0)], None)
+    assert row["detection"] == {"kind": "stale_mocap", "t": pytest.approx(3.18),
+                                "after_sim": pytest.approx(0.18), "by": "agent/2"}
+    spec = "partition:robot3,robot4@36+6"
+    (row,) = fault_rows(scenario, [
+        start(36.0, spec, "partition", ["agent-3", "agent-4"]),
+        Event(36.2, "agent/4", "collab_follow", {"requester": 3, "previous": -1}),  # a follow
+        Event(36.35, "agent/4", "collab_follow", {"requester": -1, "previous": 3}),
+        end(39.0, spec, 6.0)], None)
+    assert row["detection"]["kind"] == "collab_follow"
+    assert row["detection"]["after_sim"] == pytest.approx(0.35)
+    (row,) = fault_rows(scenario, [start(36.0, spec, "partition", ["agent-3", "agent-4"]),
+                                   end(39.0, spec, 6.0)], None)
+    assert row["detection"] is None  # nobody noticed
