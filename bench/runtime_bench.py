@@ -208,6 +208,7 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
     due = stats.get("due", 0)
     return {
         "clean": result.clean, "reason": result.outcome.reason, "t_end": result.outcome.t_end,
+        "links": result.info.get("links"),  # "peer": sim ↔ agents directly (lockstep)
         "wall_time": result.info.get("wall_time", math.nan),
         "ready_time": result.info.get("ready_time", math.nan),
         "speedup": result.info.get("speedup", math.nan),

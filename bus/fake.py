@@ -126,10 +126,12 @@ class FakeTransport:
             self.network._subscribers.append(entry)
         return Handle(lambda: self.network._remove(self.network._subscribers, entry))
 
-    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> FakeChannel:
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None,
+                          capacity: int | None = None) -> FakeChannel:
         """A :class:`bus.transport.Channel` of ``key_expr``: deliveries are queued for ``recv``
-        (``wake_key`` is zenoh's concern: the fake's wake-up never travels)."""
-        del wake_key
+        (``wake_key`` is zenoh's concern: the fake's wake-up never travels; its queue has no
+        ``capacity``)."""
+        del wake_key, capacity
         channel = FakeChannel()
         channel._handle = self.subscribe(key_expr, channel._put)
         return channel

@@ -39,8 +39,11 @@ class Channel(Protocol):
     (coarse: the zenoh channel's timer ticks every :data:`CHANNEL_TICK`) or ``wake()`` was
     called (from any thread); ``recv(0.0)`` never blocks. A wake-up queued before samples is
     skipped (the caller is awake anyway). A sample without payload (a zenoh DELETE) reads as a
-    wake-up. Created by ``subscribe_channel(key_expr, wake_key=None)`` of the transports that
-    have one (``wake_key``: a concrete key matching ``key_expr``, when that has wildcards).
+    wake-up. Created by ``subscribe_channel(key_expr, wake_key=None, capacity=None)`` of the
+    transports that have one (``wake_key``: a concrete key matching ``key_expr``, when that has
+    wildcards; ``capacity``: samples queued at most, ``None`` for the transport's default — a
+    full zenoh channel holds up the link it is read from, so a reader that drains only now and
+    then, like the coordinator's recorder, asks for room for seconds of samples).
     """
 
     def recv(self, timeout: float) -> tuple[str, bytes] | None: ...

@@ -122,10 +122,12 @@ class ZenohTransport:
         self._entities.append(sub)
         return Handle(sub.undeclare)
 
-    def subscribe_channel(self, key_expr: str, wake_key: str | None = None) -> ZenohChannel:
+    def subscribe_channel(self, key_expr: str, wake_key: str | None = None,
+                          capacity: int | None = None) -> ZenohChannel:
         """A :class:`bus.transport.Channel` of ``key_expr`` (issue 17); ``wake_key``: the
-        concrete key matching it that ``wake()`` uses (default ``key_expr`` itself)."""
-        channel = ZenohChannel(self._session, key_expr, wake_key)
+        concrete key matching it that ``wake()`` uses (default ``key_expr`` itself);
+        ``capacity``: samples queued at most (default :attr:`ZenohChannel.CAPACITY`)."""
+        channel = ZenohChannel(self._session, key_expr, wake_key, capacity)
         self._entities.append(channel)
         return channel
 
@@ -222,24 +224,28 @@ class ZenohChannel:
     directly. zenoh's ``recv`` has no timeout: ``wake()`` puts a session-local DELETE on the key
     (``allowed_destination=SESSION_LOCAL``: it reaches only this session's subscribers, never
     the network), and a timer thread calls it once a blocked ``recv`` is past its deadline (it
-    ticks every :data:`bus.transport.CHANNEL_TICK`, and only checks a number).
+    ticks every :data:`bus.transport.CHANNEL_TICK`, and only checks a number). The timer
+    starts with the first ``recv`` that may block: a channel only polled with ``recv(0.0)``
+    (the coordinator's recorder) has none.
     """
 
-    CAPACITY = 1024  # samples queued before zenoh drops the newest (the loop keeps up)
+    CAPACITY = 1024  # samples queued at most: a full channel holds up zenoh's reader of the link
 
-    def __init__(self, session: Any, key: str, wake_key: str | None = None):
+    def __init__(self, session: Any, key: str, wake_key: str | None = None,
+                 capacity: int | None = None):
         import zenoh
 
         self._session = session
         self._key = wake_key or key
         self._local = zenoh.Locality.SESSION_LOCAL
         self._delete = zenoh.SampleKind.DELETE
-        self._sub = session.declare_subscriber(key, zenoh.handlers.FifoChannel(self.CAPACITY))
+        self._sub = session.declare_subscriber(
+            key, zenoh.handlers.FifoChannel(capacity or self.CAPACITY))
         self._deadline: float | None = None  # monotonic [s] of the blocked recv, if any
         self._closed = threading.Event()
         self._timer = threading.Thread(target=self._tick, name=f"channel-timer {key}",
                                        daemon=True)
-        self._timer.start()
+        self._timing = False
 
     def _tick(self) -> None:
         from bus.transport import CHANNEL_TICK
@@ -258,6 +264,9 @@ class ZenohChannel:
             woken = True  # a wake-up queued before the samples behind it: skip it
         if woken or timeout <= 0.0 or self._closed.is_set():
             return None
+        if not self._timing:  # the first recv that may block (one thread recvs a channel)
+            self._timing = True
+            self._timer.start()
         self._deadline = time.monotonic() + timeout
         try:
             sample = self._sub.recv()

@@ -25,7 +25,7 @@ from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, peek_kind
 from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
 from agent.protocol.plausibility import FrameGate, Verdict
-from bus.transport import Closeable, Transport
+from bus.transport import Channel, Closeable, Transport
 from coordinator import rundir
 
 logger = logging.getLogger(__name__)
@@ -154,8 +154,10 @@ class Recorder:
 class RecorderTap:
     """Subscribes a :class:`Recorder` to a fleet's mocap, status and event keys.
 
-    Transport callbacks only queue ``(key, payload)``; :meth:`drain` (called from the coordinator's
-    loop) decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
+    The samples wait in one channel per key (``Transport.subscribe_channel``; issue 17: no
+    Python thread is woken per sample, 100+ times a second) or, on a transport without
+    channels, are queued by callbacks; :meth:`drain` (called from the coordinator's loop)
+    decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
     per (kind, claimed source) in ``malformed_by_source``, logged at most once a second per kind,
     never raised. With ``bounds``/``max_jump`` (issue 11), implausible frames (outside the run,
     the arena, or a sequence jump not confirmed by the next frame: ``FrameGate``) count as
@@ -165,6 +167,9 @@ class RecorderTap:
     """
 
     LOG_PERIOD = 1.0  # [s] wall between two log lines of one kind
+    #: samples each of the tap's channels holds (zenoh: a full one holds up the coordinator's
+    #: link): the coordinator drains every 50 ms; this is minutes of a 100 Hz fleet's frames
+    CHANNEL_CAPACITY = 1 << 16
 
     def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
                  on_message: Callable[[str, Any], None] | None = None, *,
@@ -183,9 +188,16 @@ class RecorderTap:
         self._on_message = on_message
         self._queue: queue.SimpleQueue[tuple[str, str, bytes]] = queue.SimpleQueue()
         self._handles: list[Closeable] = []
+        self._channels: list[tuple[str, Channel]] = []
+        subscribe_channel = getattr(transport, "subscribe_channel", None)
         for what, key in (("mocap", keys.mocap(fleet)), ("status", keys.all_statuses(fleet)),
                           ("event", keys.event(fleet))):
-            self._handles.append(transport.subscribe(key, self._enqueue(what)))
+            if subscribe_channel is not None:
+                channel = subscribe_channel(key, capacity=self.CHANNEL_CAPACITY)
+                self._channels.append((what, channel))
+                self._handles.append(channel)
+            else:
+                self._handles.append(transport.subscribe(key, self._enqueue(what)))
 
     def _enqueue(self, what: str) -> Callable[[str, bytes], None]:
         put = self._queue.put
@@ -196,8 +208,18 @@ class RecorderTap:
         return callback
 
     def drain(self, limit: int | None = None) -> int:
-        """Decode and record what has arrived (at most ``limit`` samples); returns the count."""
+        """Decode and record what has arrived (at most ``limit`` samples); returns the count.
+
+        With channels, frames first, then statuses, then events (each kind in its arrival
+        order; the sim publishes its last frame before ``sim_done``)."""
         n = 0
+        for what, channel in self._channels:
+            while limit is None or n < limit:
+                item = channel.recv(0.0)
+                if item is None:
+                    break
+                n += 1
+                self._handle(what, item[0], item[1])
         while limit is None or n < limit:
             try:
                 what, key, payload = self._queue.get_nowait()
@@ -288,6 +310,8 @@ class RecorderTap:
         return True
 
     def close(self) -> None:
+        # what the channels still hold is not recorded: the coordinator drains before closing
+        self._channels.clear()
         for handle in self._handles:
             handle.close()
         self._handles.clear()

@@ -76,7 +76,7 @@ from coordinator.supervise import (
 )
 from coordinator.supervisor import Outcome, SupervisorConfig
 
-__all__ = ["RunConfig", "RunResult", "default_child_argv", "run_fleet"]
+__all__ = ["RunConfig", "RunResult", "default_child_argv", "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
@@ -114,6 +114,26 @@ class RunConfig:
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
     #                                   every process of the run (bus.zenoh_config)
     faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
+    direct_links: bool = True  # lockstep, unsecured: sim and agents linked as zenoh peers
+    #                            (peer_links; False: every sample through the router)
+
+
+#: what a sim or agent process listens on when it is a peer (peer_links): a free loopback port
+PEER_LISTEN = f"tcp/{HOST}:0"
+
+
+def peer_links(config: RunConfig) -> bool:
+    """Whether the sim and the agents of this run are zenoh **peers** (architecture.md §1,
+    issue 17): in lockstep, without ``--secure`` and without ``--zenoh-config`` (``run_fleet``
+    also turns them off for a run with faults). Each then
+    listens on a free loopback port, connects to the router and learns the others' locators
+    from it (zenoh's gossip), so frames and commands go sim ↔ agent directly instead of through
+    the router (one hop and two wake-ups less per sample); the coordinator stays a client of the
+    router, which also carries liveliness, control, status and events. A secured run keeps
+    every link on the router, where the access-control policy is enforced
+    (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
+    return (config.direct_links and config.mode == "lockstep" and config.secure is None
+            and config.zenoh_config is None)
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
@@ -123,6 +143,8 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
     lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
     lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
+    lease += ("--mode", "peer", "--listen", PEER_LISTEN) if role != "router" and peer_links(
+        config) else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)
@@ -179,6 +201,9 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
         conf.parent.mkdir(parents=True, exist_ok=True)
         conf.write_text(f"{{ {RECONNECT} }}\n")
         config = replace(config, zenoh_config=conf)
+    if faults:  # fault runs keep the topology their plans and measurements were made for
+        config = replace(config, direct_links=False)
+    info["links"] = "peer" if peer_links(config) else "router"
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(prepared.run_dir / "logs")
     transport: Transport | None = None

@@ -12,8 +12,9 @@ Protocol (architecture.md §3 and the issue-5 contract):
   ``preview_period`` wall seconds, so agents can initialise;
 * tick k after start, t_k = k / mocap_rate: ``Clock(t_k, k, mode)`` then
   ``MocapFrame(t_k, k, poses, due)``;
-  - **lockstep**: ``due`` = the live agents' robots due at k (:func:`sim.lockstep.due_robots`);
-    the loop waits for their ``Command(seq=k)`` (wall timeout ``tick_timeout`` → one
+  - **lockstep**: before tick 0 the loop waits (at most ``tick_timeout``) until it has seen
+    every robot's agent alive; ``due`` = the live agents' robots due at k
+    (:func:`sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall timeout ``tick_timeout`` → one
     ``deadline_miss`` event per missing robot; a dead agent is dropped at once), applies them,
     then steps the physics by one mocap period;
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
@@ -276,6 +277,7 @@ class SimProcess:
         last = self.clock.last_tick(self.config.duration)
         speed = self.config.max_speed
         pacer = Pacer(self.clock.period / speed, self._now) if speed is not None else None
+        self._await_agents()
         k = 0
         while not self.stopping:
             if pacer is not None and k > 0:
@@ -305,6 +307,23 @@ class SimProcess:
             answering = tuple(r for r in self.lockstep.due if r in self.alive)
             self._advance(k, self.lockstep.take(), answering)
             k += 1
+
+    def _await_agents(self) -> None:
+        """Lockstep, before tick 0: wait (at most ``tick_timeout`` wall) until the liveliness
+        token of every robot's agent has been seen. The coordinator starts the mission once it
+        has seen them all, but over peer links (architecture.md §1) the token may reach the sim
+        by another path than the start, and later: a robot left out of tick 0's ``due`` would
+        not move at t = 0 and the run would differ from the same run through the router."""
+        expected = set(self.world.ids)
+        deadline = self._now() + self.config.tick_timeout
+        while not self.stopping and not expected <= self.alive:
+            left = deadline - self._now()
+            if left <= 0.0:
+                logger.warning("lockstep: starting without the agents of robots %s (no "
+                               "liveliness token within %g s)", sorted(expected - self.alive),
+                               self.config.tick_timeout)
+                return
+            self._pump(min(left, self.config.poll))
 
     def _run_realtime(self) -> None:
         last = self.clock.last_tick(self.config.duration)

@@ -137,6 +137,18 @@ def _clock(msg: Any) -> None:
 def _mocap(msg: Any) -> None:
     _time(".t", msg.t)
     _int(".seq", msg.seq, 0)
+    # the happy path builds no strings (issue 17: every process checks 100 frames a second); a
+    # row out of range (or NaN, which fails every comparison) is checked again below with paths
+    for _robot_id, x, y, th in msg.poses:
+        if not (0 <= _robot_id <= MAX_ROBOT_ID and -MAX_COORD <= x <= MAX_COORD
+                and -MAX_COORD <= y <= MAX_COORD and -MAX_ANGLE <= th <= MAX_ANGLE):
+            break
+    else:
+        for robot in msg.due:
+            if not 0 <= robot <= MAX_ROBOT_ID:
+                break
+        else:
+            return
     for i, (robot, x, y, th) in enumerate(msg.poses):
         _robot(f".poses[{i}][0]", robot)
         _number(f".poses[{i}][1]", x, -MAX_COORD, MAX_COORD)
@@ -150,6 +162,11 @@ def _command(msg: Any) -> None:
     _robot(".robot", msg.robot)
     _time(".t", msg.t)
     _int(".seq", msg.seq, -1)  # -1: the stale-mocap stop sent before any frame
+    for value in msg.u:  # the happy path builds no strings (as _mocap)
+        if not -MAX_SPEED <= value <= MAX_SPEED:
+            break
+    else:
+        return
     for i, value in enumerate(msg.u):
         _number(f".u[{i}]", value, -MAX_SPEED, MAX_SPEED)
 
@@ -207,6 +224,7 @@ _CHECKS = {"Clock": _clock, "MocapFrame": _mocap, "Command": _command, "LtlStatu
 
 # --------------------------------------------------------------------------- fleet bounds
 
+_WRAPPED = 4 * math.pi  # [rad] |θ| of a mocap heading (wrapped to (−π, π], noise included)
 ARENA_MARGIN = 2.0  # [m] a pose this far outside the arena walls is not a real robot
 SPEED_FACTOR = 100.0  # a command above this multiple of the robot's limits is not a real one
 TIME_SLACK = 1.0  # [s] beyond the run's duration
@@ -247,21 +265,22 @@ class FleetBounds:
             return why
         xmin, xmax, ymin, ymax = self.box
         m = self.margin
+        x_lo, x_hi, y_lo, y_hi = xmin - m, xmax + m, ymin - m, ymax + m
+        limits = self.limits
         previous = -1
-        for row in frame.poses:
-            robot, x, y, th = row
-            if self.limits and robot not in self.limits:
+        for robot, x, y, th in frame.poses:
+            if limits and robot not in limits:
                 return f"pose of unknown robot {robot}"
             if robot <= previous:
                 return f"robot ids not strictly ascending ({previous}, {robot})"
             previous = robot
-            if not (xmin - m <= x <= xmax + m and ymin - m <= y <= ymax + m):
+            if not (x_lo <= x <= x_hi and y_lo <= y <= y_hi):
                 return f"robot {robot} at ({x!r}, {y!r}) lies outside the arena"
-            if not -4 * math.pi <= th <= 4 * math.pi:
+            if not -_WRAPPED <= th <= _WRAPPED:
                 return f"robot {robot} heading {th!r} rad is not wrapped"
-        if self.limits:
+        if limits:
             for robot in frame.due:
-                if robot not in self.limits:
+                if robot not in limits:
                     return f"due robot {robot} is unknown"
         return None
 

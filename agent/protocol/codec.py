@@ -118,11 +118,22 @@ def peek_kind(data: bytes) -> str | None:
 # --------------------------------------------------------------------------- encoding
 
 
+#: field values that are never dataclasses: encoded as they are, without asking (issue 17: a
+#: command, a frame or a status is encoded 100 times a second in every process)
+_PLAIN = frozenset({float, int, str, bool, tuple, list, dict, type(None)})
+
+
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls))
+
+
 def _to_wire(msg: Any) -> dict[str, Any]:
     out = {}
-    for f in dataclasses.fields(msg):
-        value = getattr(msg, f.name)
-        out[f.name] = _to_wire(value) if dataclasses.is_dataclass(value) else value
+    for name in _field_names(type(msg)):
+        value = getattr(msg, name)
+        out[name] = value if type(value) in _PLAIN or not dataclasses.is_dataclass(value) \
+            else _to_wire(value)
     return out
 
 

@@ -503,7 +503,7 @@ class AgentLoop:
         self.stats.max_collab_time = max(self.stats.max_collab_time, spent)
 
     def _publish_command(self, frame: MocapFrame, u: tuple[float, ...]) -> None:
-        command = Command(self.config.robot, frame.t, frame.seq, tuple(float(x) for x in u))
+        command = Command(self.config.robot, frame.t, frame.seq, tuple(map(float, u)))
         self.transport.publish(self._keys["cmd"], encode(command))
         self.stats.commands += 1
 

@@ -38,6 +38,7 @@ from agent.runtime.inbox import CollabInbox, MalformedCounter
 from bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
+_NOBODY: frozenset[int] = frozenset()
 
 
 class CollabLink:
@@ -77,6 +78,8 @@ class CollabLink:
 
     @property
     def unreachable(self) -> frozenset[int]:
+        if not self._gone and not self._failed:  # every tick, nearly always: nothing to build
+            return _NOBODY
         now = self._clock()
         with self._lock:
             failed = {p for p, when in self._failed.items() if now - when < self.retry_after}

@@ -83,6 +83,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run across N network-namespace hosts, one zenoh router each, "
                              "routers connected (root only; coordinator.hosts); secured by "
                              "default with keys made for the run (or --secure DIR)")
+    parser.add_argument("--via-router", dest="direct_links", action="store_false",
+                        help="lockstep: send frames and commands through the router too (by "
+                             "default an unsecured lockstep run links the sim and the agents as "
+                             "zenoh peers; architecture.md §1)")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
 
@@ -193,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
+        direct_links=args.direct_links, sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
     def report(text: str) -> None:

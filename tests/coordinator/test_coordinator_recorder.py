@@ -109,11 +109,20 @@ def test_status_and_event_rows(tmp_path):
                        "data": {"stage": 2, "r": 0.07}}]
 
 
-def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path):
+class CallbacksOnly:
+    """A transport without ``subscribe_channel``: the tap queues samples from callbacks."""
+
+    def __init__(self, inner):
+        self.subscribe = inner.subscribe
+
+
+@pytest.mark.parametrize("channels", [True, False], ids=["channels", "callbacks"])
+def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path, channels):
     net = FakeNetwork()
     coord, sim = net.transport("coordinator"), net.transport("sim")
     rec = Recorder(tmp_path, [1, 3])
-    tap = RecorderTap(coord, "f", rec)
+    tap = RecorderTap(coord if channels else CallbacksOnly(coord), "f", rec)
+    assert len(tap._channels) == (3 if channels else 0)
     rec.start()
     sim.publish(keys.mocap("f"), encode(frame(0)))
     sim.publish(keys.mocap("f"), b"\xc1garbage")
@@ -121,8 +130,9 @@ def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path):
     sim.publish(keys.status("f", 3), b"")
     sim.publish(keys.event("f"), encode(Event(0.5, "sim", "sim_done", {})))
     sim.publish(keys.mocap("f"), encode(frame(1)))
-    assert rec.frames_written == 0  # callbacks only queue
-    assert tap.drain() == 6
+    assert rec.frames_written == 0  # channels and callbacks only queue
+    assert tap.drain(limit=2) == 2  # at most limit samples, the rest stays queued
+    assert tap.drain() == 4
     tap.close()
     rec.close()
     assert dict(tap.malformed) == {"mocap": 2, "status": 1}

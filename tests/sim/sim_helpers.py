@@ -64,11 +64,11 @@ class FakeAgent:
     """
 
     def __init__(self, network: FakeNetwork, robot: int, policy: Policy,
-                 realtime_divider: int | None = None):
+                 realtime_divider: int | None = None, started: bool = False):
         self.robot = robot
         self.policy = policy
         self.divider = realtime_divider
-        self.started = False
+        self.started = started  # True: it had the start before its token appeared
         self.frames: list[MocapFrame] = []
         self.transport: FakeTransport = network.transport(f"agent{robot}")
         self.transport.subscribe(keys.mocap(FLEET), self._on_frame)

@@ -366,3 +366,29 @@ def test_realtime_counts_missed_control_deadlines():
     # ticks 1..9 are due (tick 0 looks like the preview frame); the even ones 2..8 are missed
     assert (stats["due"], stats["missed"], stats["commands"]) == (9, 4, 5)
     assert stats["ignored"] == {"unknown_robot": 10}
+
+
+def test_lockstep_tick_0_waits_for_an_agent_the_sim_has_not_seen_yet():
+    """Issue 17 (peer links): the start may reach the sim before an agent's liveliness token;
+    the sim waits for every robot's agent before tick 0 (at most the tick timeout), so the
+    late agent is due at tick 0 like the others."""
+    net = FakeNetwork()
+    observer = Observer(net)
+    FakeAgent(net, 1, STILL_OMNI)
+    with SimRun(net, scenario(omni(1, 0, 0), omni(2, 1, 1), duration=0.05)) as run:
+        observer.start_mission()
+        time.sleep(0.2)  # the sim has the start, not robot 2's token
+        assert all(f.due == () for f in observer.frames) and run.process.stats.ticks == 0
+        FakeAgent(net, 2, STILL_OMNI, started=True)
+        assert run.join() == 0
+    frames = mission_frames(observer.frames)
+    assert frames[0].seq == 0 and frames[0].due == (1, 2)
+    assert observer.events_of("deadline_miss") == []
+
+
+def test_lockstep_starts_without_an_agent_that_never_comes_after_the_tick_timeout():
+    observer, run, _ = run_lockstep(scenario(omni(1, 0, 0), omni(2, 1, 1), duration=0.03),
+                                    {1: STILL_OMNI}, tick_timeout=0.2)
+    frames = mission_frames(observer.frames)
+    assert [f.due for f in frames] == [(1,), (1,), (1,), ()]
+    assert run.process.stats.ticks == 3

@@ -27,6 +27,7 @@ from system_helpers import (
 )
 
 from agent.scenario import load_scenario
+from coordinator.rundir import RUN_INFO, read_json
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
@@ -64,6 +65,20 @@ def test_lockstep_runs_with_the_same_seed_are_identical(tmp_path):
     assert first.clean and second.clean
     a = (tmp_path / "a" / "trajectory.csv").read_bytes()
     assert a == (tmp_path / "b" / "trajectory.csv").read_bytes()
+    assert len(a.splitlines()) == 1 + 801
+
+
+def test_lockstep_over_peer_links_is_the_run_through_the_router(tmp_path):
+    """Issue 17: an unsecured lockstep run links the sim and the agents as zenoh peers; the
+    trajectory is byte for byte the one of the same run with every sample through the
+    router (``--via-router``)."""
+    peer = run(TWO, tmp_path / "peer", duration=8.0, seed=11)
+    routed = run(TWO, tmp_path / "routed", duration=8.0, seed=11, direct_links=False)
+    assert peer.clean and routed.clean
+    assert read_json(tmp_path / "peer" / RUN_INFO)["links"] == "peer"
+    assert read_json(tmp_path / "routed" / RUN_INFO)["links"] == "router"
+    a = (tmp_path / "peer" / "trajectory.csv").read_bytes()
+    assert a == (tmp_path / "routed" / "trajectory.csv").read_bytes()
     assert len(a.splitlines()) == 1 + 801
 
 

@@ -174,5 +174,7 @@ def test_zenoh_channel_is_read_by_the_calling_thread(loopback_pair):
     time.sleep(0.2)
     while (item := other.recv(0.0)) is not None:  # b's own hellos came back to it
         assert item[1] != b""
+    # the timer thread starts with the first recv that may block: a polled channel has none
+    assert channel._timer.is_alive() and not other._timer.is_alive()
     channel.close()
     other.close()

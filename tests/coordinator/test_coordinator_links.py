@@ -1,0 +1,80 @@
+"""Which links a run's processes use (issue 17, architecture.md §1): in an unsecured lockstep
+run the simulator and the agents are zenoh peers linked to each other, everything else goes
+through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from agent.scenario import load_scenario
+from coordinator.runner import PEER_LISTEN, RunConfig, default_child_argv, peer_links
+
+SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "scenario1.toml"
+ENDPOINT = "tcp/127.0.0.1:7447"
+PEER_FLAGS = ["--mode", "peer", "--listen", PEER_LISTEN]
+
+
+def argv_of(config: RunConfig) -> dict[str, list[str]]:
+    scenario = load_scenario(SCENARIO)
+    roles = {"router": None, "sim": None, "agent-3": 3}
+    return {name: default_child_argv(name.split("-")[0], config, scenario, robot, ENDPOINT)
+            for name, robot in roles.items()}
+
+
+def has_peer_flags(argv: list[str]) -> bool:
+    return any(argv[i:i + len(PEER_FLAGS)] == PEER_FLAGS for i in range(len(argv)))
+
+
+def test_an_unsecured_lockstep_run_links_sim_and_agents_as_peers():
+    config = RunConfig(SCENARIO, mode="lockstep")
+    assert peer_links(config)
+    argv = argv_of(config)
+    assert has_peer_flags(argv["sim"]) and has_peer_flags(argv["agent-3"])
+    assert not has_peer_flags(argv["router"]) and "peer" not in argv["router"]
+    # still connected to the router: liveliness, control, status and events go through it
+    for name in ("sim", "agent-3"):
+        assert argv[name][argv[name].index("--connect") + 1] == ENDPOINT
+    assert PEER_LISTEN == "tcp/127.0.0.1:0"  # loopback only, a free port
+
+
+@pytest.mark.parametrize("change", [
+    {"mode": "realtime"},
+    {"secure": Path("/keys")},  # the router enforces the access-control policy
+    {"zenoh_config": Path("/zenoh.json5")},  # the user's file describes the topology
+    {"direct_links": False},  # tlfleet run --via-router
+], ids=["realtime", "secure", "zenoh-config", "via-router"])
+def test_every_other_run_goes_through_the_router(change):
+    config = RunConfig(SCENARIO, **{"mode": "lockstep", **change})
+    assert not peer_links(config)
+    assert not any(has_peer_flags(argv) or "peer" in argv for argv in argv_of(config).values())
+
+
+def test_a_run_with_faults_goes_through_the_router(tmp_path):
+    """``run_fleet`` turns peer links off when the run has faults (their plans are made for
+    the router topology): run.json says so; the stand-in children never start (bad argv)."""
+    import json
+
+    from agent.scenario.faults import parse_fault
+    from coordinator.launcher import LaunchError
+    from coordinator.runner import run_fleet
+
+    fault = parse_fault("kill:robot3@5")
+    config = RunConfig(SCENARIO, mode="lockstep", out=tmp_path / "run", faults=(fault,),
+                       child_argv=lambda *_args: ["/nonexistent/tlfleet"], report=False,
+                       rrd=False)
+    with pytest.raises(LaunchError):
+        run_fleet(config)
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["links"] == "router"
+
+
+def test_the_cli_flag_via_router_turns_peer_links_off():
+    import argparse
+
+    from cli.commands import run as run_command
+
+    parser = argparse.ArgumentParser()
+    run_command.add_arguments(parser)
+    assert parser.parse_args([str(SCENARIO)]).direct_links is True
+    assert parser.parse_args([str(SCENARIO), "--via-router"]).direct_links is False
