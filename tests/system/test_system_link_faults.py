@@ -66,6 +66,28 @@ def agent_stats(run_dir, robot):
                 if e["source"] == f"agent/{robot}")
 
 
+STALE_AFTER = 0.1  # [s] --stale-after of the two-robot host runs: an agent checks every 50 ms
+#                    (its wait slice) and a zenoh channel's timed wait ends only at its timer's
+#                    50 ms tick, so mocap is called stale within STALE_AFTER + ≈ 0.1 s of the
+#                    last message from the sim (0.15 gave 0.153–0.223 s): 0.1 holds 0.2 s
+
+
+def two_robots_on_hosts(tmp_path, spec: str, duration: float, prefix: str):
+    """The two-robot fleet (fast watchdog, ``STALE_AFTER``) in realtime on namespace hosts
+    with one fault; the run's namespaces are gone afterwards and it ended degraded (exit 4)."""
+    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
+    run_dir = tmp_path / "run"
+    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
+                          faults=(parse_fault(spec),), capture=True,
+                          supervise_args=["--duration", f"{duration:g}", "--no-rrd",
+                                          "--no-figures", "--quiet"],
+                          sim_args=["--duration", f"{duration:g}"],
+                          agent_args=["--stale-after", str(STALE_AFTER)], prefix=prefix)
+    assert prefix not in netns_list()
+    assert result.returncode == 4, result.stderr[-3000:]
+    return run_dir, result
+
+
 @pytest.mark.slow
 def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_path):
     need_root_netns()
@@ -181,16 +203,7 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
 
 def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path):
     need_root_netns()
-    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
-    run_dir = tmp_path / "run"
-    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
-                          faults=(parse_fault("cut:sim@3+2"),), capture=True,
-                          supervise_args=["--duration", "10", "--no-rrd", "--no-figures",
-                                          "--quiet"],
-                          sim_args=["--duration", "10"], agent_args=["--stale-after", "0.15"],
-                          prefix="tlft-simcut")
-    assert "tlft-simcut" not in netns_list()
-    assert result.returncode == 4, result.stderr[-3000:]
+    run_dir, _result = two_robots_on_hosts(tmp_path, "cut:sim@3+2", 10.0, "tlft-simcut")
     info = json.loads((run_dir / "run.json").read_text())
     assert info["reason"] in ("sim_done", "duration")
     (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
@@ -274,16 +287,8 @@ def test_a_partition_between_an_agent_and_the_simulator_in_realtime(tmp_path):
     watchdog stops robot 2, its agent sees stale mocap, resumes on the newest frame after the
     heal, and robot 1 is untouched."""
     need_root_netns()
-    scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
-    run_dir = tmp_path / "run"
-    result = run_on_hosts(scenario, 1, out=run_dir, mode="realtime", lease_ms=LEASE_MS,
-                          faults=(parse_fault("partition:robot2,sim@3+2"),), capture=True,
-                          supervise_args=["--duration", "8", "--no-rrd", "--no-figures",
-                                          "--quiet"],
-                          sim_args=["--duration", "8"], agent_args=["--stale-after", "0.15"],
-                          prefix="tlft-part")
-    assert "tlft-part" not in netns_list()
-    assert result.returncode == 4, result.stderr[-3000:]
+    run_dir, result = two_robots_on_hosts(tmp_path, "partition:robot2,sim@3+2", 8.0,
+                                          "tlft-part")
     assert result.placement.layout == "peers" and result.placement.hosts == 4
     (start,), (end,) = by_kind(run_dir, "fault_start"), by_kind(run_dir, "fault_end")
     # nobody lost the router: no link loss, no death
