@@ -14,9 +14,9 @@ Protocol (architecture.md §3 and the issue-5 contract):
   ``MocapFrame(t_k, k, poses, due)``;
   - **lockstep**: before tick 0 the loop waits (at most ``tick_timeout``) until it has seen
     every robot's agent alive; ``due`` = the live agents' robots due at k
-    (:func:`sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall timeout ``tick_timeout`` → one
-    ``deadline_miss`` event per missing robot; a dead agent is dropped at once), applies them,
-    then steps the physics by one mocap period;
+    (:func:`sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall
+    timeout ``tick_timeout`` → one ``deadline_miss`` event per missing robot; a dead agent is
+    dropped at once), applies them, then steps the physics by one mocap period;
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
     (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
     from tick 1 (tick 0 looks like the preview frame, which agents do not answer);
