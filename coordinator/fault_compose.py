@@ -46,7 +46,7 @@ from typing import Any
 
 from agent.scenario.faults import Fault
 from coordinator.fault_hosts import CUT_GRACE
-from coordinator.fault_schedule import FaultError, start_again
+from coordinator.fault_schedule import FaultError, StartAgain
 
 HANDOFF_IN = "/out/logs/faults"  # the coordinator's handoff directory inside its container
 EXECUTOR_NAME = "executor.json"
@@ -146,7 +146,7 @@ class ComposeActuator:
         self._poll = poll  # [s] wall between looks for the ack
         self._clock = clock
         self.number = 0
-        self.awaiting: set[str] = set()  # restarted agents whose token is not back yet
+        self.start_again = StartAgain(supervisor)  # re-sends the start to restarted agents
 
     check = staticmethod(check_compose_fault)
 
@@ -202,7 +202,7 @@ class ComposeActuator:
             raise
         if fault.kind == "restart" and self.supervisor is not None:
             self.supervisor.children[fault.target] = RestartedContainer(fault.target)
-            self.awaiting.add(fault.target)
+            self.start_again.add(fault.target)
         return self._record(ack)
 
     def end(self, fault: Fault) -> dict[str, Any]:
@@ -220,9 +220,7 @@ class ComposeActuator:
         its stand-in leaves the supervisor's children (whose exit it would wait for at the end)."""
         if self.supervisor is None:
             return
-        back = {name for name in self.awaiting if name in self.supervisor.alive}
-        start_again(self.supervisor, self.awaiting)
-        for name in back:
+        for name in self.start_again.poll():
             if isinstance(self.supervisor.children.get(name), RestartedContainer):
                 del self.supervisor.children[name]
 

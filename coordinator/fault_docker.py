@@ -51,6 +51,7 @@ from coordinator.fault_compose import (
     write_json_atomically,
 )
 from coordinator.fault_schedule import FaultError
+from coordinator.launcher import process_alive
 
 logger = logging.getLogger(__name__)
 
@@ -173,16 +174,6 @@ class Executor:
         return failed
 
 
-def pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def serve(directory: Path, executor: Executor, *, parent: int | None = None,
           max_wall: float = 3600.0, poll: float = POLL,
           stop: Callable[[], bool] = lambda: False) -> int:
@@ -196,7 +187,7 @@ def serve(directory: Path, executor: Executor, *, parent: int | None = None,
     number = 1
     try:
         while time.monotonic() < deadline and not stop() and \
-                (parent is None or pid_alive(parent)):
+                (parent is None or process_alive(parent)):
             request = read_json(request_path(directory, number))
             if request is None:
                 time.sleep(poll)

@@ -173,19 +173,6 @@ class FaultScheduler:
 # ---------------------------------------------------------------------- process faults
 
 
-def start_again(supervisor: Any, awaiting: set[str]) -> None:
-    """``Control(start)`` again once a restarted agent of ``awaiting`` has its token back (it
-    waits for one; agents already started ignore it); those agents leave ``awaiting``."""
-    if supervisor is None or not awaiting:
-        return
-    back = {name for name in awaiting if name in supervisor.alive}
-    if back:
-        awaiting -= back
-        supervisor.transport.publish(keys.control(supervisor.fleet),
-                                     encode(Control(cmd="start", t0=0.0)))
-        logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
-
-
 PROCESS_KINDS = frozenset({"freeze", "kill", "restart"})
 
 
@@ -219,8 +206,19 @@ class StartAgain:
         if name.startswith("agent-"):
             self.awaiting.add(name)
 
-    def poll(self) -> None:
-        start_again(self.supervisor, self.awaiting)
+    def poll(self) -> set[str]:
+        """Send ``Control(start)`` again if an awaited agent's token is back → those agents
+        (they leave ``awaiting``)."""
+        supervisor = self.supervisor
+        if supervisor is None or not self.awaiting:
+            return set()
+        back = {name for name in self.awaiting if name in supervisor.alive}
+        if back:
+            self.awaiting -= back
+            supervisor.transport.publish(keys.control(supervisor.fleet),
+                                         encode(Control(cmd="start", t0=0.0)))
+            logger.info("Control(start) again for the restarted %s", ", ".join(sorted(back)))
+        return back
 
 
 def kill_group(pid: int, wait: float, poll: Callable[[], bool] | None = None) -> None:

@@ -102,16 +102,29 @@ class Child:
             self._log = None
 
 
+def process_alive(pid: int) -> bool:
+    """True while process ``pid`` exists (one we may not signal counts as alive)."""
+    return _signal_reaches(os.kill, pid)
+
+
 def group_alive(pgid: int) -> bool:
     """True while any process of process group ``pgid`` exists (zombies excluded)."""
+    if not _signal_reaches(os.killpg, pgid):
+        return False
+    # killpg(…, 0) succeeds for zombies too: look for a live member.
+    return any(state != "Z" for state in _group_states(pgid))
+
+
+def _signal_reaches(send, target: int) -> bool:
+    """Signal 0 to ``target`` by ``send`` (``os.kill`` or ``os.killpg``): False when nothing is
+    there."""
     try:
-        os.killpg(pgid, 0)
+        send(target, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
-    # killpg(…, 0) succeeds for zombies too: look for a live member.
-    return any(state != "Z" for state in _group_states(pgid))
+    return True
 
 
 def _group_states(pgid: int) -> list[str]:
