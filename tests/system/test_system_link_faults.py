@@ -173,12 +173,18 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
     evs = events(run_dir)
     request = [e for e in evs if e["kind"] == "collab_request" and e["source"] == "agent/3"]
     assert request and request[0]["t"] < start["t"]  # the collaboration was under way
-    # the helper releases on its own: robot 3's token is gone for it (lease), not a release
+    # the helper releases itself, not on a release from robot 3: robot 3's token is gone for it
+    # (lease), or a message of its to robot 3 went unanswered (on a loaded machine that can
+    # happen just before the cut too: a reply later than the collaboration timeout)
+    collab = [e for e in evs if e["kind"].startswith(("collab", "fault"))]
     released = [e for e in evs if e["kind"] == "collab_follow" and e["source"] == "agent/4"
-                and e["data"]["previous"] == 3 and start["t"] <= e["t"] <= end["t"]]
-    assert released and released[0]["data"]["requester"] == -1
+                and e["data"]["previous"] == 3 and request[0]["t"] <= e["t"] <= end["t"]]
+    assert released and released[0]["data"]["requester"] == -1, collab
     assert not [e for e in evs if e["kind"] == "collab_release"
-                and start["t"] <= e["t"] <= end["t"]]
+                and request[0]["t"] <= e["t"] <= end["t"]], collab
+    follows = [e for e in evs if e["kind"] == "collab_follow" and e["source"] == "agent/4"
+               and e["t"] <= end["t"]]
+    assert follows[-1]["data"]["requester"] != 3, collab  # not bound to robot 3 at the end
     # the requester: its messages to robot 4 went unanswered, stage 3 during the partition
     assert agent_stats(run_dir, 3)["collab_failed"] >= 1
     stage3 = [e for e in evs if e["kind"] == "repair" and e["source"] == "agent/3"
@@ -197,7 +203,7 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
     (row,) = report["faults"]
     assert row["spec"] == "partition:robot3,robot4@36+6" and row["min_clearance"] > 0
     print(f"partition robot3,robot4: robot 4 released {released[0]['t'] - start['t']:.2f} s "
-          f"(sim) after the start; {len(stage3)} stage-3 repairs of robot 3; "
+          f"(sim) after the start (negative: before it); {len(stage3)} stage-3 repairs of robot 3; "
           f"{agent_stats(run_dir, 3)['collab_failed']} unanswered messages")
 
 
