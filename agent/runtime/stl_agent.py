@@ -13,7 +13,8 @@ loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of 
   events read off the step's ``LogRecord`` and messages: ``critical_event`` and ``repair``
   (data: stage, r, …), ``recovery`` (a robustness recovery raised r: r, r_before, ρ, …;
   ``agent.stl.recovery``), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
-  starts or stops following a requester) and ``subtask_done``.
+  starts or stops following a requester), ``subtask_done`` and ``peers_unreachable`` (the set
+  of peers the runtime cannot reach changed: ``peers``, ``lost``, ``back``).
 
 ``main(config, scenario)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL
 robot); its
@@ -41,10 +42,12 @@ _EPS = 1e-9  # [s] so that frames at exactly k·0.1 s count as due despite float
 
 @dataclass(frozen=True, eq=False)
 class StlRuntimeState:
-    """The pure agent's state and when the last status went out [s]."""
+    """The pure agent's state, when the last status went out [s] and the peers it was last
+    told it cannot reach."""
 
     agent: AgentState
     last_status: float = -math.inf
+    unreachable: frozenset[int] = frozenset()
 
 
 class StlCore:
@@ -72,12 +75,16 @@ class StlCore:
                                                        inputs.unreachable))
         messages = tuple(to_wire(m, t) for m in out.messages)
         events = self._events(t, before, after, out.log, out.messages)
+        unreachable = inputs.unreachable
+        if unreachable is not state.unreachable and unreachable != state.unreachable:
+            events += (_reach_event(t, self.source, state.unreachable, unreachable),)
         status = None
         last = state.last_status
         if t - last >= self.status_period - _EPS:
             status = _status(self.robot, out.log, after)
             last = t
-        return StlRuntimeState(after, last), TickOutput(out.u, status, events, messages)
+        return (StlRuntimeState(after, last, unreachable),
+                TickOutput(out.u, status, events, messages))
 
     def _events(self, t: float, before: AgentState, after: AgentState, log: LogRecord,
                 sent) -> tuple[Event, ...]:
@@ -117,6 +124,14 @@ class StlCore:
                                  "events": list(outcome.events), "ended_by": outcome.ended_by,
                                  "recoveries": outcome.recoveries}))
         return tuple(events)
+
+
+def _reach_event(t: float, source: str, before: frozenset[int], now: frozenset[int]) -> Event:
+    """``peers_unreachable``: the peers this agent cannot reach changed (their liveliness token
+    went or came back, or a query to one failed or its retry wait ended; ``CollabLink``)."""
+    return Event(t, source, "peers_unreachable",
+                 {"peers": sorted(now), "lost": sorted(now - before),
+                  "back": sorted(before - now)})
 
 
 def _follow(follow: int | None) -> int:

@@ -156,6 +156,11 @@ def test_a_dead_partner_means_stage_3():
     assert repairs[2][0] > 34.0
     assert "collab_request" not in sim.kinds()
     assert loop3.link.unreachable == frozenset({4})
+    # robot 3 records the change once, at its first tick after the token went (34.0: the kill
+    # came before that tick)
+    (reach,) = [e for e in sim.events if e.kind == "peers_unreachable"]
+    assert reach.source == "agent/3" and 34.0 <= reach.t < repairs[2][0]
+    assert reach.data == {"peers": [4], "lost": [4], "back": []}
 
 
 def test_an_unanswered_request_leaves_stage_2():
@@ -183,8 +188,13 @@ def test_an_unanswered_request_leaves_stage_2():
     assert "collab_follow" not in sim.kinds()
     statuses = [s for s in sim.statuses if isinstance(s, StlStatus) and s.robot == 3]
     assert statuses[-1].c == 0
+    reach = [(e.source, e.data) for e in sim.events if e.kind == "peers_unreachable"]
+    assert reach == [("agent/3", {"peers": [4], "lost": [4], "back": []})]
     clock.advance(loop3.link.retry_after)  # a failed query is retried after a while
     assert loop3.link.unreachable == frozenset()
+    drive(sim, [loop3, loop4], poses, 4001, 1)
+    assert [e.data for e in sim.events if e.kind == "peers_unreachable"][-1] == \
+        {"peers": [], "lost": [], "back": [4]}
 
 
 def test_the_stl_process_main_on_the_fake_network():

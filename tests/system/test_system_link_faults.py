@@ -176,7 +176,7 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
     # the helper releases itself, not on a release from robot 3: robot 3's token is gone for it
     # (lease), or a message of its to robot 3 went unanswered (on a loaded machine that can
     # happen just before the cut too: a reply later than the collaboration timeout)
-    collab = [e for e in evs if e["kind"].startswith(("collab", "fault"))]
+    collab = [e for e in evs if e["kind"].startswith(("collab", "fault", "peers"))]
     released = [e for e in evs if e["kind"] == "collab_follow" and e["source"] == "agent/4"
                 and e["data"]["previous"] == 3 and request[0]["t"] <= e["t"] <= end["t"]]
     assert released and released[0]["data"]["requester"] == -1, collab
