@@ -117,6 +117,9 @@ class AgentState:
     announced: tuple[int, int, bool] | None = None  # last (c, k, active) sent to peers
     t_announced: float = -math.inf  # [s] time of that announcement
     recovery: rec.RecoveryState | None = None  # robustness recovery of sub-task k
+    # (requester, its sub-task) this agent released itself from because the requester was
+    # unreachable, not on its CollabRelease: its next CollabUpdate means it still counts on us
+    orphaned: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,7 +128,12 @@ class StepInput:
     message to them unanswered). [OUR CHOICE] The step forgets their status announcements, so
     they block stage 2 like a peer never heard of (§7.4); a follower whose requester is
     unreachable releases itself (as on ``CollabRelease``); a requester (c_i = i) whose helpers
-    are all unreachable leaves stage 2 (c_i := 0), so its next critical event gets stage 3."""
+    are all unreachable leaves stage 2 (c_i := 0), so its next critical event gets stage 3.
+    Reachability is each agent's own view: a helper can find its requester unreachable (a reply
+    late on a loaded machine) while the requester still finds the helper, stays in stage 2 and
+    sends updates. [OUR CHOICE] A helper that released itself that way follows that requester
+    again on its next ``CollabUpdate`` for the same sub-task (the update carries the funnel a
+    request would), so the two agree again once the requester is reachable."""
 
     t: float  # [s] absolute mission time
     poses: Mapping[int, object]  # id -> (x, y, θ)
@@ -211,17 +219,20 @@ class StlAgent:
             return None
         return np.random.default_rng([seed, self.cfg.robot_id, subtask, ce, round(t * 1000)])
 
-    def _read_inbox(self, state: AgentState, inbox: Sequence[Message]):
-        """Apply peer status and collaboration messages (§7.5, paper Alg. 2 lines 20–25).
+    def _read_inbox(self, state: AgentState, inbox: Sequence[Message],
+                    unreachable: frozenset[int] = frozenset()):
+        """Apply peer status and collaboration messages (§7.5, paper Alg. 2 lines 20–25; the
+        rejoin of an orphaned requester, ``StepInput``).
 
-        Returns (follow, follow_subtask, follow_funnel, peers, released); ``peers`` is a new dict
-        only if some status arrived.
+        Returns (follow, follow_subtask, follow_funnel, peers, released, orphaned); ``peers`` is
+        a new dict only if some status arrived.
         """
         i = self.cfg.robot_id
         follow, follow_subtask, follow_funnel = (state.follow, state.follow_subtask,
                                                  state.follow_funnel)
         peers = state.peers
         released = False
+        orphaned = state.orphaned
         for msg in inbox:
             if isinstance(msg, StatusAnnounce):
                 if peers is state.peers:
@@ -242,10 +253,21 @@ class StlAgent:
             elif isinstance(msg, CollabUpdate):
                 if msg.sender == follow and msg.subtask == follow_subtask:
                     follow_funnel = msg.funnel
-            elif isinstance(msg, CollabRelease) and msg.sender == follow:
-                follow, follow_subtask, follow_funnel = None, -1, None
-                released = True
-        return follow, follow_subtask, follow_funnel, peers, released
+                elif (follow is None and orphaned == (msg.sender, msg.subtask)
+                      and msg.sender not in unreachable):
+                    logger.info("robot %d: requester %d still collaborating, followed again",
+                                i, msg.sender)
+                    follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
+                    orphaned = None
+            elif isinstance(msg, CollabRelease):
+                if msg.sender == follow:
+                    follow, follow_subtask, follow_funnel = None, -1, None
+                    released = True
+                elif orphaned is not None and msg.sender == orphaned[0]:
+                    orphaned = None  # it does not count on us any more
+        if follow is not None and follow != state.follow:
+            orphaned = None  # following someone (a request): nobody is orphaned
+        return follow, follow_subtask, follow_funnel, peers, released, orphaned
 
     def _repair(self, task: Task, funnel: Funnel, rho: float, t: float, ce: int, c: int,
                 peers: Mapping[int, StatusAnnounce]) -> tuple[Funnel, int, int, list[Message]]:
@@ -320,18 +342,21 @@ class StlAgent:
         """Phase 1: peer status and collaboration messages (§7.5); unreachable peers forgotten,
         an unreachable requester released."""
         i = self.cfg.robot_id
-        follow, follow_subtask, follow_funnel, peers, reinit = self._read_inbox(state,
-                                                                              inputs.inbox)
         unreachable = inputs.unreachable
+        follow, follow_subtask, follow_funnel, peers, reinit, orphaned = self._read_inbox(
+            state, inputs.inbox, unreachable)
         if unreachable:
             if any(v in peers for v in unreachable):
                 peers = {v: status for v, status in peers.items() if v not in unreachable}
             if follow is not None and follow in unreachable:
                 logger.info("robot %d: requester %d unreachable, released", i, follow)
+                orphaned = (follow, follow_subtask)
                 follow, follow_subtask, follow_funnel, reinit = None, -1, None, True
         if follow != state.follow or follow_funnel is not state.follow_funnel:
             tick.changes.update(follow=follow, follow_subtask=follow_subtask,
                                 follow_funnel=follow_funnel)
+        if orphaned != state.orphaned:
+            tick.changes["orphaned"] = orphaned
         if peers is not state.peers:
             tick.changes["peers"] = peers
         tick.follow, tick.follow_subtask, tick.follow_funnel = follow, follow_subtask, follow_funnel

@@ -12,7 +12,7 @@ from agent.control.collision import CollisionParams
 from agent.stl.agent import StepInput, single_agent
 from agent.stl.funnel import Funnel
 from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRequest, StatusAnnounce
+from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
 from agent.stl.sequencer import build_sequence
 
 PSI_3 = "dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7"
@@ -75,3 +75,35 @@ def test_a_requester_with_every_helper_unreachable_leaves_stage_2():
     left, out = a3.step(requesting, StepInput(30.01, POSES, unreachable=frozenset({4})))
     assert still.c == 3 and left.c == 0 and out.log.c == 0
     assert any(isinstance(m, StatusAnnounce) and m.c == 0 for m in out.messages)
+
+
+def test_a_follower_that_released_itself_follows_its_requester_again_on_its_next_update():
+    """Reachability is each agent's own view: robot 4 found robot 3 unreachable (a late reply)
+    while robot 3 still counts on it and sends updates. Robot 4 follows again on the next update
+    for the same sub-task once robot 3 is reachable; not while it is unreachable, not after
+    robot 3 released it, and never on a stranger's update."""
+    _, a4, tasks = make_pair()
+    s4, _ = a4.step(a4.initial_state(), StepInput(30.0, POSES))
+    requested = Funnel.init("F", 57, 58, tasks[3][0].rho_opt, -1.5, 34.0)
+    s4, _ = a4.step(s4, StepInput(34.0, POSES, (CollabRequest(3, 4, 0, requested, c=3),)))
+    released, _ = a4.step(s4, StepInput(35.0, POSES, unreachable=frozenset({3})))
+    assert released.follow is None and released.orphaned == (3, 0)
+    updated = replace(requested, r=requested.r - 0.2)
+    update = CollabUpdate(3, 4, 0, updated)
+    still_gone, _ = a4.step(released, StepInput(35.5, POSES, (update,), frozenset({3})))
+    assert still_gone.follow is None and still_gone.orphaned == (3, 0)
+    again, out = a4.step(still_gone, StepInput(37.0, POSES, (update,)))
+    assert again.follow == 3 and again.follow_funnel == updated and out.log.follow == 3
+    assert again.follow_subtask == 0 and again.orphaned is None
+    other_subtask, _ = a4.step(released, StepInput(37.0, POSES, (CollabUpdate(3, 4, 1, updated),)))
+    assert other_subtask.follow is None
+    stranger, _ = a4.step(released, StepInput(37.0, POSES, (CollabUpdate(5, 4, 0, updated),)))
+    assert stranger.follow is None
+    let_go, _ = a4.step(released, StepInput(36.0, POSES, (CollabRelease(3, 4, 0),)))
+    assert let_go.orphaned is None
+    after, _ = a4.step(let_go, StepInput(37.0, POSES, (update,)))
+    assert after.follow is None  # robot 3 released it: its late update means nothing
+    # a new request (robot 3 asks again after a stage 3): followed, nobody orphaned any more
+    anew = CollabRequest(3, 4, 0, requested, c=3)
+    followed, _ = a4.step(released, StepInput(37.0, POSES, (anew,)))
+    assert followed.follow == 3 and followed.orphaned is None
