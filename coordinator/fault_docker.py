@@ -12,7 +12,8 @@ by ``com.docker.compose.network=fleet``:
 =======  ======================================  ===========================================
 fault    start                                   end
 =======  ======================================  ===========================================
-cut      ``docker network disconnect NET C``     ``docker network connect --alias S NET C``
+cut      ``docker network disconnect NET C``     ``docker network connect --alias S
+                                                 [--ip A] NET C``
 freeze   ``docker pause C``                      ``docker unpause C``
 kill     ``docker kill C`` (SIGKILL)             —
 restart  ``docker kill C``, ``docker wait C``;   —
@@ -23,17 +24,20 @@ A restart is acknowledged once the container is dead, and started again after th
 coordinator waits for the ack in its supervision loop, and ``docker start`` took 1.8 s at load 11
 (that long the loop would not notice the death).
 
-(``--alias S``: a container reconnected to a network loses its service name otherwise, and the
-clients find the router by that name.) Every docker command has a timeout (``COMMAND_TIMEOUT``);
-the executor ends when ``--parent`` (the script that started it) is gone or after
-``--max-wall`` seconds, and on the way out undoes what is still in effect (reconnects what it cut,
-unpauses what it paused). Safety (notes §1): it touches only containers and the network of
+(``--alias S``: a container reconnected to a network loses its service name otherwise; ``--ip
+A``: the address compose fixed for it, read by ``docker inspect`` before the cut — the router's,
+which the clients' hosts file names, :mod:`coordinator.compose`; without it a reconnected router
+would get another address.) Every docker command has a timeout (``COMMAND_TIMEOUT``); the
+executor ends when ``--parent`` (the script that started it) is gone or after ``--max-wall``
+seconds, and on the way out undoes what is still in effect (reconnects what it cut, unpauses
+what it paused). Safety (notes §1): it touches only containers and the network of
 project P, by id; nothing of the host's network.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import os
 import subprocess
@@ -86,6 +90,19 @@ class Executor:
     containers: dict[str, str] = field(default_factory=dict)  # service -> container id
     cut: set[str] = field(default_factory=set)  # services disconnected now
     paused: set[str] = field(default_factory=set)  # services paused now
+    fixed: dict[str, str | None] = field(default_factory=dict)  # a cut service's fixed address
+
+    def fixed_address(self, container: str, net: str) -> str | None:
+        """The address compose fixed for ``container`` on ``net`` (``ipv4_address``: the
+        router's in a file with faults, which the clients' hosts file names), or None."""
+        text = self.run(["inspect", "--format", "{{json .NetworkSettings.Networks}}",
+                         container]).strip()
+        try:
+            ipam = (json.loads(text or "{}").get(net) or {}).get("IPAMConfig") or {}
+        except (ValueError, AttributeError) as exc:
+            raise FaultError(f"docker inspect {container}: unreadable networks {text[:200]!r}") \
+                from exc
+        return ipam.get("IPv4Address") or None
 
     def container(self, service: str) -> str:
         if service not in self.containers:
@@ -114,8 +131,12 @@ class Executor:
         c = self.container(service)
         if kind == "cut":
             net = self.fleet_network()
-            return [["network", "disconnect", net, c]] if action == "start" else \
-                [["network", "connect", "--alias", service, net, c]]
+            if action == "start":
+                self.fixed[service] = self.fixed_address(c, net)
+                return [["network", "disconnect", net, c]]
+            address = self.fixed.get(service)
+            return [["network", "connect", "--alias", service,
+                     *(["--ip", address] if address else []), net, c]]
         if kind == "freeze":
             return [["pause" if action == "start" else "unpause", c]]
         if action != "start":

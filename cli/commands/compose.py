@@ -1,5 +1,5 @@
 """``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]
-[--lease-ms MS] [--fault SPEC …]``: write the docker compose file of a scenario's fleet
+[--lease-ms MS] [--fault SPEC …] [--fault-subnet CIDR]``: write the docker compose file of a scenario's fleet
 (:mod:`coordinator.compose`), secured by default (mutual TLS, the router's access control; keys
 from ``${TLFLEET_KEYS}``). With faults (``--fault`` or the scenario's ``[[faults]]``) the
 coordinator hands them to the host's executor that ``make compose-run`` starts
@@ -13,7 +13,7 @@ from pathlib import Path
 
 from cli.arg_types import fault_spec
 from cli.run_flags import add_mode_arguments
-from coordinator.compose import ComposeConfig, write_compose
+from coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
 
 NAME = "compose"
 HELP = "write the docker compose file of a scenario's fleet"
@@ -35,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
                         help="zenoh link lease of every service [ms] (default zenoh's 10000; "
                              "500 notices a cut within 1 s)")
+    parser.add_argument("--fault-subnet", default=FAULT_SUBNET, metavar="CIDR",
+                        help="with faults: the fleet network's IPv4 subnet, the router at its "
+                             f".2 (default {FAULT_SUBNET}; pick another when docker says the "
+                             "pool overlaps)")
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
                         metavar="SPEC",
                         help="inject a fault (repeatable, as `tlfleet run --fault`): cut (docker "
@@ -45,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
                                        args.duration, secure=not args.insecure,
-                                       faults=tuple(args.faults), lease_ms=args.lease_ms))
+                                       faults=tuple(args.faults), lease_ms=args.lease_ms,
+                                       fault_subnet=args.fault_subnet))
     print(path)
     return 0

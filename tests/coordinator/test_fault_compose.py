@@ -16,7 +16,9 @@ from agent.protocol.messages import Control
 from agent.scenario.faults import parse_fault
 from coordinator.compose import (
     ComposeConfig,
+    ComposeError,
     compose_text,
+    hosts_path,
     leased_services,
     write_compose,
     zenoh_path,
@@ -51,12 +53,16 @@ class FakeDocker:
             return f"id-{service}\n"
         if argv[:2] == ["network", "ls"]:
             return "proj_fleet\n"
+        if argv[0] == "inspect":  # compose fixed the router's address only
+            fixed = {"IPv4Address": "172.31.247.2"} if argv[-1] == "id-router" else None
+            return json.dumps({"proj_fleet": {"IPAMConfig": fixed, "IPAddress": "172.31.247.9"}})
         if argv[0] == self.fail:
             raise FaultError(f"docker {' '.join(argv)}: Error response from daemon: no such")
         return ""
 
     def actions(self):
-        return [c for c in self.calls if c[0] not in ("ps",) and c[:2] != ["network", "ls"]]
+        return [c for c in self.calls if c[0] not in ("ps", "inspect")
+                and c[:2] != ["network", "ls"]]
 
 
 class FakeTransport:
@@ -121,6 +127,12 @@ def test_each_fault_is_the_docker_commands_of_the_table():
         ["network", "disconnect", "proj_fleet", "id-robot3"]]
     assert ex.commands("end", "cut", "robot3") == [
         ["network", "connect", "--alias", "robot3", "proj_fleet", "id-robot3"]]
+    # the router keeps the address the clients' hosts file names; the others get any
+    assert ex.commands("start", "cut", "router") == [
+        ["network", "disconnect", "proj_fleet", "id-router"]]
+    assert ex.commands("end", "cut", "router") == [
+        ["network", "connect", "--alias", "router", "--ip", "172.31.247.2", "proj_fleet",
+         "id-router"]]
     assert ex.commands("start", "freeze", "sim") == [["pause", "id-sim"]]
     assert ex.commands("end", "freeze", "sim") == [["unpause", "id-sim"]]
     assert ex.commands("start", "kill", "router") == [["kill", "id-router"]]
@@ -135,7 +147,7 @@ def test_each_fault_is_the_docker_commands_of_the_table():
     assert ["network", "ls", "--format", "{{.Name}}", "--filter",
             "label=com.docker.compose.project=proj", "--filter",
             "label=com.docker.compose.network=fleet"] in lookups
-    assert len(lookups) == 5  # robot3, the network, sim, router, robot2
+    assert len(lookups) == 5  # robot3, the network, router, sim, robot2
 
 
 def test_an_executor_that_finds_no_single_container_says_so():
@@ -313,12 +325,31 @@ def test_the_compose_file_carries_the_faults_to_the_coordinator(tmp_path, scenar
         coordinator  # zenoh's lease: a stalled coordinator must not lose every token
     assert text.count('"./compose.zenoh.json5:/fleet/zenoh.json5:ro"') == 7
     assert text.count('dns_opt: ["timeout:1", "attempts:1"]') == 7
+    # the router at a fixed address of the network's subnet, named in every client's own hosts
+    # file (docker's /etc/hosts loses extra_hosts on a network disconnect)
+    assert text.count('"./compose.hosts:/etc/hosts:ro"') == 7
+    assert "ipv4_address: 172.31.247.2" in text.split("  sim:\n")[0]
+    assert text.endswith("        - subnet: 172.31.247.0/24\n")
+    assert "ipam" not in plain and "/etc/hosts" not in plain
     router = text.split("  router:\n", 1)[1].split("  sim:\n", 1)[0]
     assert '"--lease-ms", "500"]' in router and "zenoh.json5" not in router
     assert "--fault cut:robot3@20+3 --fault freeze:robot1@35+3" in text.splitlines()[0]
     path = write_compose(ComposeConfig(s1, out, faults=(parse_fault("kill:robot2@5"),)))
     assert RECONNECT in zenoh_path(path).read_text()
-    assert not zenoh_path(write_compose(ComposeConfig(s1, tmp_path / "plain.yaml"))).exists()
+    assert "172.31.247.2\trouter\n" in hosts_path(path).read_text()
+    plain_path = write_compose(ComposeConfig(s1, tmp_path / "plain.yaml"))
+    assert not zenoh_path(plain_path).exists() and not hosts_path(plain_path).exists()
+    other = write_compose(ComposeConfig(s1, tmp_path / "other.yaml", fault_subnet="10.9.8.0/24",
+                                        faults=(parse_fault("kill:robot2@5"),)))
+    assert "10.9.8.2\trouter\n" in hosts_path(other).read_text()
+    assert "ipv4_address: 10.9.8.2" in other.read_text()
+    assert "--fault-subnet 10.9.8.0/24" in other.read_text().splitlines()[0]
+    for bad, why in (("10.9.8.1/24", "host bits set"), ("fe80::/64", "expected an IPv4"),
+                     ("10.9.8.0/29", "5 address\\(es\\) for 8 containers")):
+        with pytest.raises(ComposeError, match=why):
+            write_compose(ComposeConfig(s1, tmp_path / "bad" / "c.yaml", fault_subnet=bad,
+                                        faults=(parse_fault("kill:robot2@5"),)))
+    assert not (tmp_path / "bad").exists()
 
 
 def test_a_scenarios_own_faults_get_the_handoff_and_partitions_write_nothing(tmp_path,
