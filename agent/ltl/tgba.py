@@ -24,11 +24,10 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-from agent.ltl import bdd
 from agent.ltl.alternating import Vwaa, is_acceptance_state
-from agent.ltl.bdd import FALSE
 from agent.ltl.formula import Formula
 from agent.ltl.guards import TRUE_CUBE, Cube, Guard
+from agent.ltl.truth_table import BddAlgebra, guard_algebra
 
 # (cube, targets, bad) where bad is the bitmask of acceptance states whose chosen
 # transition was not good.
@@ -75,25 +74,26 @@ def _prune(partials: list[_Partial]) -> list[_Partial]:
     return kept
 
 
-def _groups_of(partials: list[_Partial]) -> list[_Group]:
+def _groups_of(partials: list[_Partial], algebra) -> list[_Group]:
     """Partial products grouped by (targets, bad), in order of first occurrence."""
     grouped: dict[tuple[int, int], list] = {}
+    cube_of = algebra.cube
     for cube, targets, bad in partials:
         lits = (cube[0] | cube[1]).bit_count()
         entry = grouped.get((targets, bad))
         if entry is None:
-            grouped[(targets, bad)] = [bdd.cube(*cube), lits]
+            grouped[(targets, bad)] = [cube_of(*cube), lits]
         else:
-            entry[0] = entry[0] | bdd.cube(*cube)
+            entry[0] = entry[0] | cube_of(*cube)
             entry[1] = min(entry[1], lits)
     return [(t, b, g, lits) for (t, b), (g, lits) in grouped.items()]
 
 
-def _disjoint(groups: list[_Group]) -> bool:
+def _disjoint(groups: list[_Group], algebra) -> bool:
     """Whether no letter is read by two groups."""
-    seen = FALSE
+    seen = algebra.false
     for _t, _b, guard, _l in groups:
-        if guard & seen is not FALSE:
+        if guard & seen:
             return False
         seen = seen | guard
     return True
@@ -113,6 +113,8 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     the eager marking never gave the smaller automaton there, and it doubles the work after).
     """
     vwaa = Vwaa(index)
+    # Guards as truth tables over few atoms (the same automaton, faster), else BDDs.
+    algebra = guard_algebra(len(index))
     mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
     state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
     raw_edges: list[list[tuple[int, Guard, int]]] = []
@@ -153,7 +155,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         options = option_cache.get(q)
         if options is None:
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit, algebra)
         return options
     while queue:
         s = queue.popleft()
@@ -179,7 +181,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             if members and all(options_of(q)[1] for q in members):
                 # Every member's options partition the letters (F a1 & … & F an): their
                 # product is a partition too, built symbolically with nothing to prune.
-                groups, disjoint = [(0, 0, bdd.TRUE, 0)], True
+                groups, disjoint = [(0, 0, algebra.true, 0)], True
         for k in range(start, len(members)):
             q = members[k]
             prefix |= 1 << q
@@ -196,8 +198,8 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                                             bad if good else bad | bad_bit))
                 partials = _prune(product)
                 if len(partials) > _CUBE_LIMIT:
-                    groups = _minimal_per_letter(_groups_of(partials))
-                    disjoint = _disjoint(groups)
+                    groups = _minimal_per_letter(_groups_of(partials, algebra))
+                    disjoint = _disjoint(groups, algebra)
                     groups.sort(key=_group_order)
                 prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
@@ -207,11 +209,11 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             # Dominated groups are removed at the end, and on the way when they pile up.
             if not disjoint and len(groups) > 24:
                 groups = _minimal_per_letter(groups)
-                disjoint = _disjoint(groups)
+                disjoint = _disjoint(groups, algebra)
             groups.sort(key=_group_order)
             prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
-            groups = _minimal_per_letter(_groups_of(partials))
+            groups = _minimal_per_letter(_groups_of(partials, algebra))
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
@@ -230,10 +232,21 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     eager = tuple(
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
-    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)))]
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
     if eager != lazy and len(raw_edges) <= EAGER_MAX_STATES:
-        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of))))
-    return tuple(variants)
+        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of)),
+                                         algebra))
+    return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)
+
+
+def _with_bdd_guards(tgba: Tgba, algebra) -> Tgba:
+    """The automaton with its guards as BDDs (they were truth tables while it was built)."""
+    if isinstance(algebra, BddAlgebra):
+        return tgba
+    to_bdd = algebra.to_bdd
+    edges = tuple(tuple((dst, to_bdd(guard), marks) for dst, guard, marks in out)
+                  for out in tgba.edges)
+    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks)
 
 
 # A group of transitions of a TGBA state under construction: (targets, bad, guard, literals),
@@ -249,7 +262,7 @@ def _group_order(group: _Group) -> tuple[int, int, int]:
     return group[0].bit_count(), group[1].bit_count(), group[3]
 
 
-def _state_options(transitions, bad_bit: int) -> tuple[list[_Group], bool]:
+def _state_options(transitions, bad_bit: int, algebra) -> tuple[list[_Group], bool]:
     """The transitions of one VWAA state grouped by (targets, bad), minimal per letter; and
     whether their guards are pairwise disjoint."""
     grouped: dict[tuple[int, int], list] = {}
@@ -258,12 +271,12 @@ def _state_options(transitions, bad_bit: int) -> tuple[list[_Group], bool]:
         entry = grouped.get(key)
         lits = (cube[0] | cube[1]).bit_count()
         if entry is None:
-            grouped[key] = [bdd.cube(*cube), lits]
+            grouped[key] = [algebra.cube(*cube), lits]
         else:
-            entry[0] = entry[0] | bdd.cube(*cube)
+            entry[0] = entry[0] | algebra.cube(*cube)
             entry[1] = min(entry[1], lits)
     groups = _minimal_per_letter([(t, b, g, lits) for (t, b), (g, lits) in grouped.items()])
-    return groups, _disjoint(groups)
+    return groups, _disjoint(groups, algebra)
 
 
 def _combine(xs: list[_Group], ys: list[_Group]) -> list[_Group]:
@@ -276,7 +289,7 @@ def _combine(xs: list[_Group], ys: list[_Group]) -> list[_Group]:
     for tx, bx, gx, lx in xs:
         for ty, by, gy, ly in ys:
             g = gx & gy
-            if g is FALSE:
+            if not g:
                 continue
             key = (tx | ty, bx | by)
             entry = out.get(key)
@@ -302,16 +315,16 @@ def _minimal_per_letter(groups: list[_Group]) -> list[_Group]:
         # Dominator by dominator, only those that share letters: cheaper than one union of
         # them all (most share none).
         for kj, g in keyed:
-            if kj != ki and not kj & ~ki and guard & g is not FALSE:
-                guard = guard - g
-                if guard is FALSE:
+            if kj != ki and not kj & ~ki and guard & g:
+                guard = guard & ~g
+                if not guard:
                     break
-        if guard is not FALSE:
+        if guard:
             result.append((targets, bad, guard, lits))
     return result
 
 
-def _merge_bisimilar(tgba: Tgba) -> Tgba:
+def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
     """Quotient by the coarsest partition where merged states have equal outgoing edges."""
     n = tgba.num_states
     block = [0] * n
@@ -320,7 +333,7 @@ def _merge_bisimilar(tgba: Tgba) -> Tgba:
         signatures: dict[tuple, int] = {}
         new_block = []
         for s in range(n):
-            sig = (block[s], frozenset(_signature(tgba.edges[s], block)))
+            sig = (block[s], frozenset(_signature(tgba.edges[s], block, algebra.false)))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         if len(signatures) == num_blocks:
             break
@@ -336,15 +349,15 @@ def _merge_bisimilar(tgba: Tgba) -> Tgba:
         done.add(b)
         for dst, guard, marks in tgba.edges[s]:
             key = (block[dst], marks)
-            edges[b][key] = edges[b].get(key, FALSE) | guard
+            edges[b][key] = edges[b].get(key, algebra.false) | guard
     out = tuple(tuple((dst, guard, marks) for (dst, marks), guard in e.items()) for e in edges)
     initial = tuple(dict.fromkeys(block[i] for i in tgba.initial))
     return Tgba(num_blocks, initial, out, tgba.num_marks)
 
 
-def _signature(edges, block):
+def _signature(edges, block, false):
     grouped: dict[tuple[int, int], Guard] = {}
     for dst, guard, marks in edges:
         key = (block[dst], marks)
-        grouped[key] = grouped.get(key, FALSE) | guard
+        grouped[key] = grouped.get(key, false) | guard
     return grouped.items()
