@@ -177,14 +177,14 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
             cheap.append(other)
             if other[0] < best[0]:
                 best = other
-    full = _reduce(best)
+    full = _reduce(best, len(atoms))
     if len(full[1]) > 1:  # one initial state, when that costs no state
-        single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
+        single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))), len(atoms))
         if single[0] <= full[0]:
             full = single
     lighter = remove_fair_little_brothers(full)  # states that fair simulation proves useless
     if lighter is not None:
-        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)))
+        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)), len(atoms))
         if lighter[0] < full[0]:
             full = lighter
     negated: list = []  # the negation's automaton, built at most once (weak DBA, validity)
@@ -225,7 +225,7 @@ def _cheap_reduce(aut):
     return _merge_transient(*_merge_bisimilar(*saturate_acceptance(*aut)))
 
 
-def _reduce(aut):
+def _reduce(aut, atoms: int | None = None):
     """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`).
 
     A deterministic automaton is returned as it is: simulation has nothing to prune there, and
@@ -234,7 +234,7 @@ def _reduce(aut):
         return aut
     for _round in range(3):
         before = (aut[0], sum(len(out) for out in aut[3]))
-        aut = _remove_useless(*reduce_by_simulation(*aut))
+        aut = _remove_useless(*reduce_by_simulation(*aut, atoms=atoms))
         if (aut[0], sum(len(out) for out in aut[3])) == before:
             break
     return _merge_transient(*aut)

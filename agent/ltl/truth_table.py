@@ -4,11 +4,13 @@ Over ``n`` atoms a guard is a set of the 2ⁿ letters; as a Python int with one 
 ``&``, ``|`` and ``& ~`` are single machine-word loops and an empty guard is ``0``. For the few
 atoms of most formulas (≤ :data:`MAX_TABLE_ATOMS`) this is several times cheaper than the BDD
 operations of :mod:`agent.ltl.bdd` in the inner loops of :func:`agent.ltl.tgba.build_tgba`
-(per-letter domination, grouping, bisimulation); the finished automaton's guards are converted
+(per-letter domination, grouping, bisimulation) and of the direct simulation
+(:mod:`agent.ltl.simulation`); the finished automaton's guards are converted
 to the canonical BDDs, so the result is the same automaton, edge for edge. Beyond that many atoms
 the construction keeps the BDDs (a table grows as 2ⁿ, issue 16: "symbolic guards").
 
-Both algebras offer ``false``, ``true``, ``cube(pos, neg)`` and ``to_bdd(guard)``; guards of
+Both algebras offer ``false``, ``true``, ``cube(pos, neg)``, ``to_bdd(guard)`` and
+``from_bdd(bdd)``; guards of
 either support ``&``, ``|``, ``~`` (``a & ~b`` is the difference) and truthiness (non-empty).
 
 Layout: the letter with valuation ``v`` (bit ``i`` = atom ``i``) is bit ``rev(v)`` of the table,
@@ -50,6 +52,7 @@ class TableAlgebra:
             self._atom.append(pattern)
         self._cubes: dict[tuple[int, int], int] = {}
         self._bdds: dict[tuple[int, int], Bdd] = {}
+        self._tables: dict[Bdd, int] = {}
 
     def cube(self, pos: int, neg: int) -> int:
         """The letters where every atom of bitmask ``pos`` holds and none of ``neg``."""
@@ -64,6 +67,21 @@ class TableAlgebra:
                 table &= self._atom[i] if pos & low else ~self._atom[i]
                 both ^= low
             self._cubes[key] = table
+        return table
+
+    def from_bdd(self, guard: Bdd) -> int:
+        """The truth table of a BDD over atoms ``0..n-1``."""
+        if guard is bdd.FALSE:
+            return 0
+        if guard is bdd.TRUE:
+            return self.true
+        table = self._tables.get(guard)
+        if table is None:
+            atom = self._atom[guard.var]
+            table = (self.from_bdd(guard.low) & ~atom) | (self.from_bdd(guard.high) & atom)
+            if len(self._tables) > _CONVERSION_LIMIT:
+                self._tables.clear()
+            self._tables[guard] = table
         return table
 
     def to_bdd(self, table: int) -> Bdd:
@@ -101,6 +119,8 @@ class BddAlgebra:
     @staticmethod
     def to_bdd(guard: Bdd) -> Bdd:
         return guard
+
+    from_bdd = to_bdd
 
 
 _tables: dict[int, TableAlgebra] = {}
