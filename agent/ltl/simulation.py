@@ -133,13 +133,9 @@ def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> li
 
     def answers(q: int, dst: int, marks: int, guard) -> bool:
         """Whether ``q`` answers ``p –guard,marks→ dst``: one matching edge reading all of
-        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover."""
+        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover. (BDD guards;
+        the same inlined below for truth tables.)"""
         members = sim[dst]
-        if tables:
-            for d2, m2, g in edges[q]:
-                if d2 in members and not marks & ~m2 and not guard & ~g:
-                    return True
-            return not guard & ~cover(q, dst, marks)
         for d2, m2, g in edges[q]:
             if d2 in members and not marks & ~m2 and guard.implies(g):
                 return True
@@ -151,6 +147,19 @@ def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> li
         shrunk = False
         for q in list(sim[p]):
             if q == p:
+                continue
+            if tables:  # answers() inlined: one matching edge, else the cover
+                out_q = edges[q]
+                for dst, marks, guard in edges[p]:
+                    members = sim[dst]
+                    for d2, m2, g in out_q:
+                        if d2 in members and not marks & ~m2 and not guard & ~g:
+                            break
+                    else:
+                        if guard & ~cover(q, dst, marks):
+                            sim[p].discard(q)
+                            shrunk = True
+                            break
                 continue
             for dst, marks, guard in edges[p]:
                 if not answers(q, dst, marks, guard):

@@ -104,10 +104,12 @@ class _Layout:
                 kept.append(x)
         # GO's order; partials equal in it have as many bits, so they stay in the order of
         # their first occurrence.
+        if len(kept) < 2:
+            return kept
         ts, bs, bm, cm = self.targets_shift, self.bad_shift, self.bad_mask, self.cube_mask
-        kept.sort(key=lambda x: ((x >> ts).bit_count() << 20
-                                 | (x >> bs & bm).bit_count() << 10 | (x & cm).bit_count()))
-        return kept
+        keys = [(x >> ts).bit_count() << 20 | (x >> bs & bm).bit_count() << 10
+                | (x & cm).bit_count() for x in kept]
+        return [kept[i] for i in sorted(range(len(kept)), key=keys.__getitem__)]
 
     def groups_of(self, partials: list[_Partial], algebra) -> list[_Group]:
         """Partial products grouped by (targets, bad), in order of first occurrence."""
@@ -273,11 +275,11 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
               for dst, guard, bad in out)
         for src, out in enumerate(raw_edges)
     )
-    eager = tuple(
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
+    eager = lazy if len(raw_edges) > EAGER_MAX_STATES else tuple(
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
-    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
-    if eager != lazy and len(raw_edges) <= EAGER_MAX_STATES:
+    if eager != lazy:
         variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of)),
                                          algebra))
     return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)
