@@ -131,3 +131,17 @@ def test_beyond_the_table_limit_the_bdds_are_used(n):
              ([everything, frozenset({"p1"})], [frozenset({"p2"}), everything])]
     for prefix, loop in words:
         assert automaton_accepts(b, prefix, loop) == holds(f, prefix, loop)
+
+
+def test_translation_leaves_the_garbage_collector_as_it_found_it():
+    import gc
+
+    assert gc.isenabled()
+    translate("G(a <-> F b)")
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        translate("G(a xor F b)")
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
