@@ -8,7 +8,8 @@ Modules, from formula to plan:
 * ``lasso`` — exact evaluation on lasso words u·v^ω (§2, the reference semantics);
 * ``rewrite`` → ``alternating`` → ``tgba`` (→ ``branching``) → ``degeneralize`` →
   ``simulation`` (→ ``fair_simulation``, ``wdba``) → ``buchi`` — the translator (§2); ``bdd``
-  and ``guards`` hold the symbolic Boolean guards, ``hoa`` the HOA v1 export, ``hoa_reader``
+  and ``guards`` hold the symbolic Boolean guards (``truth_table`` the bit-parallel ones used
+  inside the construction over few atoms), ``hoa`` the HOA v1 export, ``hoa_reader``
   the HOA import, ``task`` the one place that tells a task's formula from its HOA file,
   ``batch`` the ``translate -F`` driver, ``emptiness`` the emptiness check with witness;
 * ``transition_system`` (§3), ``product`` (§4), ``search`` and ``planner`` (§5), ``diagnose``

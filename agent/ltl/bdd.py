@@ -18,7 +18,7 @@ operation caches are cleared when they grow large.
 
 from __future__ import annotations
 
-__all__ = ["FALSE", "TRUE", "Bdd", "conjoin", "cube", "disjoin", "pick_valuation", "var"]
+__all__ = ["FALSE", "TRUE", "Bdd", "conjoin", "cube", "disjoin", "node", "pick_valuation", "var"]
 
 _TERMINAL_VAR = 1 << 30
 
@@ -113,6 +113,14 @@ def _mk(v: int, low: Bdd, high: Bdd) -> Bdd:
         node = Bdd(v, low, high, len(_unique) + 2)
         _unique[key] = node
     return node
+
+
+def node(i: int, low: Bdd, high: Bdd) -> Bdd:
+    """The guard "if atom ``i`` then ``high`` else ``low``", for ``low`` and ``high`` over atoms
+    after ``i`` only (so the node is in order; :mod:`agent.ltl.truth_table` builds BDDs so)."""
+    if low.var <= i or high.var <= i:
+        raise ValueError(f"bdd.node: children must not test atom {i} or an earlier one")
+    return _mk(i, low, high)
 
 
 def var(i: int) -> Bdd:

@@ -26,8 +26,10 @@ The result ``A = (Q, 2^AP, Δ, Q0, F)`` has states ``0..num_states-1``; ``edges[
 
 from __future__ import annotations
 
+import gc
 from collections import deque
 from collections.abc import Iterable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from agent.ltl.bdd import FALSE, TRUE, disjoin
@@ -137,9 +139,27 @@ def translate(formula: Formula | str) -> Buchi:
     Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. (A scenario's
     task may also name an HOA file: :func:`agent.ltl.task.task_automaton` tells them apart.)
     """
-    with recursion_headroom():
+    with recursion_headroom(), _collector_paused():
         candidates = translation_candidates(formula, only_best=True)
     return min(candidates, key=lambda b: (b.num_states, b.num_edges))
+
+
+@contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off while one formula is translated.
+
+    The translation allocates many short-lived lists and tuples, which trigger collections,
+    and each full one walks every object alive — the BDD nodes and caches included — costing
+    up to ~20 ms on a slow formula (measured with ``gc.callbacks``). Its data are acyclic (BDD
+    nodes and formulas are DAGs), so reference counting frees them as before; a cycle, if
+    any, is collected after. Re-enabled only if it was enabled."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def translation_candidates(formula: Formula | str, only_best: bool = False) -> list[Buchi]:
@@ -177,14 +197,14 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
             cheap.append(other)
             if other[0] < best[0]:
                 best = other
-    full = _reduce(best)
+    full = _reduce(best, len(atoms))
     if len(full[1]) > 1:  # one initial state, when that costs no state
-        single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))))
+        single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))), len(atoms))
         if single[0] <= full[0]:
             full = single
     lighter = remove_fair_little_brothers(full)  # states that fair simulation proves useless
     if lighter is not None:
-        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)))
+        lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)), len(atoms))
         if lighter[0] < full[0]:
             full = lighter
     negated: list = []  # the negation's automaton, built at most once (weak DBA, validity)
@@ -225,7 +245,7 @@ def _cheap_reduce(aut):
     return _merge_transient(*_merge_bisimilar(*saturate_acceptance(*aut)))
 
 
-def _reduce(aut):
+def _reduce(aut, atoms: int | None = None):
     """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`).
 
     A deterministic automaton is returned as it is: simulation has nothing to prune there, and
@@ -234,7 +254,7 @@ def _reduce(aut):
         return aut
     for _round in range(3):
         before = (aut[0], sum(len(out) for out in aut[3]))
-        aut = _remove_useless(*reduce_by_simulation(*aut))
+        aut = _remove_useless(*reduce_by_simulation(*aut, atoms=atoms))
         if (aut[0], sum(len(out) for out in aut[3])) == before:
             break
     return _merge_transient(*aut)

@@ -64,7 +64,8 @@ def degeneralize(
                     target += 1
             did = intern(dst, target)
             edges[sid].setdefault(did, []).append(guard)
-    out = [[(d, disjoin(gs)) for d, gs in e.items()] for e in edges]  # balanced ORs
+    out = [[(d, gs[0] if len(gs) == 1 else disjoin(gs)) for d, gs in e.items()]
+           for e in edges]  # balanced ORs
     return len(ids), initial, frozenset(accepting), out
 
 

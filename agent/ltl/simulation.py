@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from agent.ltl.bdd import FALSE, disjoin
 from agent.ltl.graphs import nontrivial, strongly_connected_components
+from agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
 
 MAX_SIMULATION_STATES = 128
 """Larger automata skip the (quadratic) simulation; robot missions stay far below."""
@@ -76,27 +77,42 @@ def saturate_acceptance(n, initial, accepting, edges):
     return n, initial, frozenset(acc), edges
 
 
-def direct_simulation(n, accepting, edges) -> list[set[int]]:
+def direct_simulation(n, accepting, edges, tables: bool = False) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q`` (``q`` direct-simulates ``p``).
 
     Greatest fixpoint (:func:`refine_simulation`) from "``q`` accepting if ``p`` is, and ``q``
-    reads every letter ``p`` reads"."""
-    reads = [disjoin(g for _d, g in out) for out in edges]
-    sim = [
-        {q for q in range(n)
-         if (q in accepting or p not in accepting) and (q == p or reads[p].implies(reads[q]))}
-        for p in range(n)
-    ]
-    return refine_simulation(n, sim, [[(d, 0, g) for d, g in out] for out in edges])
+    reads every letter ``p`` reads". Guards are BDDs, or truth tables (ints,
+    ``agent.ltl.truth_table``) when ``tables``."""
+    if tables:
+        reads = [_union_of_tables(g for _d, g in out) for out in edges]
+        sim = [{q for q in range(n)
+                if (q in accepting or p not in accepting) and not reads[p] & ~reads[q]}
+               for p in range(n)]
+    else:
+        reads = [disjoin(g for _d, g in out) for out in edges]
+        sim = [
+            {q for q in range(n)
+             if (q in accepting or p not in accepting) and (q == p or reads[p].implies(reads[q]))}
+            for p in range(n)
+        ]
+    return refine_simulation(n, sim, [[(d, 0, g) for d, g in out] for out in edges], tables)
 
 
-def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
+def _union_of_tables(tables) -> int:
+    union = 0
+    for t in tables:
+        union |= t
+    return union
+
+
+def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> list[set[int]]:
     """Refine the candidate sets ``sim`` (``p ∈ sim[p]``) to the greatest simulation inside them,
     for edges ``edges[p] = [(dst, marks, guard), …]`` (``marks`` 0 for state-based acceptance):
     drop ``q`` from ``sim[p]`` while some edge ``p –g,M→ d`` has letters that no edge
     ``q –g',M'→ d'`` with ``d' ∈ sim[d]`` and ``M ⊆ M'`` reads. The cover "letters on which ``q``
     answers ``(d, M)``" is cached until ``sim[d]`` shrinks. Shared by the state-based reduction
-    here and the TGBA one (``agent.ltl.tgba_simulation``)."""
+    here and the TGBA one (``agent.ltl.tgba_simulation``). Guards are BDDs, or truth tables
+    (ints) when ``tables``: then inclusion is ``not a & ~b``, with no call."""
     version = [0] * n
     cache: dict[tuple[int, int, int], tuple[int, object]] = {}
     pred: list[set[int]] = [set() for _ in range(n)]
@@ -110,13 +126,15 @@ def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
         if hit is not None and hit[0] == version[d]:
             return hit[1]
         members = sim[d]
-        result = disjoin(g for d2, m2, g in edges[q] if d2 in members and not marks & ~m2)
+        union = _union_of_tables if tables else disjoin
+        result = union(g for d2, m2, g in edges[q] if d2 in members and not marks & ~m2)
         cache[key] = (version[d], result)
         return result
 
     def answers(q: int, dst: int, marks: int, guard) -> bool:
         """Whether ``q`` answers ``p –guard,marks→ dst``: one matching edge reading all of
-        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover."""
+        ``guard`` (an inclusion test, no BDD built) or, failing that, the cover. (BDD guards;
+        the same inlined below for truth tables.)"""
         members = sim[dst]
         for d2, m2, g in edges[q]:
             if d2 in members and not marks & ~m2 and guard.implies(g):
@@ -130,6 +148,19 @@ def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
         for q in list(sim[p]):
             if q == p:
                 continue
+            if tables:  # answers() inlined: one matching edge, else the cover
+                out_q = edges[q]
+                for dst, marks, guard in edges[p]:
+                    members = sim[dst]
+                    for d2, m2, g in out_q:
+                        if d2 in members and not marks & ~m2 and not guard & ~g:
+                            break
+                    else:
+                        if guard & ~cover(q, dst, marks):
+                            sim[p].discard(q)
+                            shrunk = True
+                            break
+                continue
             for dst, marks, guard in edges[p]:
                 if not answers(q, dst, marks, guard):
                     sim[p].discard(q)
@@ -141,11 +172,18 @@ def refine_simulation(n, sim: list[set[int]], edges) -> list[set[int]]:
     return sim
 
 
-def reduce_by_simulation(n, initial, accepting, edges):
-    """Quotient by simulation equivalence, then drop edges to strictly simulated brothers."""
+def reduce_by_simulation(n, initial, accepting, edges, atoms: int | None = None):
+    """Quotient by simulation equivalence, then drop edges to strictly simulated brothers.
+
+    With ``atoms`` (the number of atoms the guards range over) the work is done on truth
+    tables when there are few (``agent.ltl.truth_table``); the result is the same."""
     if n > MAX_SIMULATION_STATES or n == 0 or is_deterministic(initial, edges):
         return n, initial, accepting, edges
-    sim = direct_simulation(n, accepting, edges)
+    algebra = guard_algebra(atoms) if atoms is not None else BddAlgebra()
+    tables = isinstance(algebra, TableAlgebra)
+    if tables:
+        edges = [[(d, algebra.from_bdd(g)) for d, g in out] for out in edges]
+    sim = direct_simulation(n, accepting, edges, tables)
     # Equivalence classes: representative = smallest equivalent state.
     rep = list(range(n))
     for p in range(n):
@@ -159,17 +197,17 @@ def reduce_by_simulation(n, initial, accepting, edges):
         grouped: dict[int, object] = {}
         for dst, guard in edges[r]:
             d = rep[dst]
-            grouped[d] = grouped.get(d, FALSE) | guard
+            grouped[d] = grouped.get(d, algebra.false) | guard
         # Little brothers: letters to d are dropped when a strictly larger brother reads them.
         pruned = []
         for d, guard in grouped.items():
             for d2, g2 in grouped.items():
                 if d2 != d and d2 in sim[d] and d not in sim[d2]:
-                    guard = guard - g2
-                    if guard is FALSE:
+                    guard = guard & ~g2
+                    if not guard:
                         break
-            if guard is not FALSE:
-                pruned.append((new_id[d], guard))
+            if guard:
+                pruned.append((new_id[d], algebra.to_bdd(guard)))
         new_edges.append(pruned)
     return (
         len(reps),

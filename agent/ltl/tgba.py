@@ -24,15 +24,14 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-from agent.ltl import bdd
 from agent.ltl.alternating import Vwaa, is_acceptance_state
-from agent.ltl.bdd import FALSE
-from agent.ltl.formula import Formula
-from agent.ltl.guards import TRUE_CUBE, Cube, Guard
+from agent.ltl.formula import Formula, children
+from agent.ltl.guards import Guard
+from agent.ltl.truth_table import BddAlgebra, guard_algebra
 
-# (cube, targets, bad) where bad is the bitmask of acceptance states whose chosen
-# transition was not good.
-_Partial = tuple[Cube, int, int]  # targets: bitmask over Vwaa.states
+# A partial product of a TGBA state's transitions, (cube, targets, bad) with bad the bitmask of
+# acceptance marks whose chosen transition was not good, packed into one int (see _Layout).
+_Partial = int
 
 
 @dataclass(frozen=True)
@@ -50,50 +49,92 @@ EAGER_MAX_STATES = 64
 """Largest TGBA (states) also returned with the eager marking (see :func:`build_tgba`)."""
 
 
-def _prune(partials: list[_Partial]) -> list[_Partial]:
-    """Drop partial products dominated by another (GO §4.2: a weaker cube, fewer targets and
-    fewer unfulfilled marks)."""
-    unique = list(dict.fromkeys(partials))
-    if len(unique) < 2:
-        return unique
-    unique.sort(key=lambda t: (t[1].bit_count(), t[2].bit_count(),
-                               (t[0][0] | t[0][1]).bit_count()))
-    # Domination test inlined (the hot loop of large translations): k dominates t when
-    # k's targets ⊆ t's, k's bad ⊆ t's and t's cube implies k's (cube_implies).
-    shift = max(t[2] for t in unique).bit_length()
-    kept: list[_Partial] = []
-    keys: list[tuple[int, int, int]] = []
-    for t in unique:
-        (pos, neg), targets, bad = t
-        key = targets << shift | bad
-        for kkey, kpos, kneg in keys:
-            if not kkey & ~key and pos & kpos == kpos and neg & kneg == kneg:
-                break
-        else:
-            kept.append(t)
-            keys.append((key, pos, neg))
-    return kept
+class _Layout:
+    """The packing of a partial product into one int: ``neg`` in bits ``[0, A)``, ``pos`` in
+    ``[A, 2A)`` (A atoms), the ``bad`` marks in the next ``W`` bits (W bounds the number of
+    acceptance states) and the ``targets`` above. Domination (GO §4.2: fewer targets, fewer
+    unfulfilled marks, a cube with fewer literals) is then bitset subsumption, ``k & ~t == 0``,
+    and the product of two partials is their ``|`` (inconsistent when ``pos & neg``)."""
+
+    def __init__(self, atoms: int, marks: int):
+        self.atoms = atoms
+        self.marks = marks
+        self.bad_shift = 2 * atoms
+        self.targets_shift = 2 * atoms + marks
+        self.atom_mask = (1 << atoms) - 1
+        self.cube_mask = (1 << 2 * atoms) - 1
+        self.bad_mask = (1 << marks) - 1
+
+    def pack(self, pos: int, neg: int, targets: int, bad: int) -> _Partial:
+        return targets << self.targets_shift | bad << self.bad_shift | pos << self.atoms | neg
+
+    def unpack(self, x: _Partial) -> tuple[int, int, int, int]:
+        """``(pos, neg, targets, bad)``."""
+        return (x >> self.atoms & self.atom_mask, x & self.atom_mask, x >> self.targets_shift,
+                x >> self.bad_shift & self.bad_mask)
+
+    def product(self, partials: list[_Partial], delta: list[_Partial]) -> list[_Partial]:
+        """The consistent unions of a partial and a packed transition, undominated ones only."""
+        a, mask = self.atoms, self.atom_mask
+        out = []
+        for x in partials:
+            for d in delta:
+                y = x | d
+                if not (y >> a) & y & mask:  # pos & neg: an inconsistent cube
+                    out.append(y)
+        return self.prune(out)
+
+    def prune(self, partials: list[_Partial]) -> list[_Partial]:
+        """Drop partial products dominated by another. The survivors are the minimal elements;
+        they are returned in GO's order (fewer targets, fewer unfulfilled marks, fewer
+        literals), which the numbering of the TGBA's states follows."""
+        if len(partials) < 2:
+            return partials
+        # By number of bits (stable): a dominator comes first, since subsumption with as many
+        # bits is equality, and domination is transitive, so comparing with the kept ones only
+        # is enough (a repeated partial is dominated by its first occurrence).
+        ordered = sorted(partials, key=int.bit_count)
+        kept: list[_Partial] = []
+        for x in ordered:
+            nx = ~x
+            for k in kept:
+                if not k & nx:
+                    break
+            else:
+                kept.append(x)
+        # GO's order; partials equal in it have as many bits, so they stay in the order of
+        # their first occurrence.
+        if len(kept) < 2:
+            return kept
+        ts, bs, bm, cm = self.targets_shift, self.bad_shift, self.bad_mask, self.cube_mask
+        keys = [(x >> ts).bit_count() << 20 | (x >> bs & bm).bit_count() << 10
+                | (x & cm).bit_count() for x in kept]
+        return [kept[i] for i in sorted(range(len(kept)), key=keys.__getitem__)]
+
+    def groups_of(self, partials: list[_Partial], algebra) -> list[_Group]:
+        """Partial products grouped by (targets, bad), in order of first occurrence."""
+        grouped: dict[int, list] = {}
+        cube_of, a, am, cm, bs = (algebra.cube, self.atoms, self.atom_mask, self.cube_mask,
+                                  self.bad_shift)
+        for x in partials:
+            lits = (x & cm).bit_count()
+            guard = cube_of(x >> a & am, x & am)
+            key = x >> bs
+            entry = grouped.get(key)
+            if entry is None:
+                grouped[key] = [guard, lits]
+            else:
+                entry[0] = entry[0] | guard
+                entry[1] = min(entry[1], lits)
+        ms, bm = self.marks, self.bad_mask
+        return [(key >> ms, key & bm, g, lits) for key, (g, lits) in grouped.items()]
 
 
-def _groups_of(partials: list[_Partial]) -> list[_Group]:
-    """Partial products grouped by (targets, bad), in order of first occurrence."""
-    grouped: dict[tuple[int, int], list] = {}
-    for cube, targets, bad in partials:
-        lits = (cube[0] | cube[1]).bit_count()
-        entry = grouped.get((targets, bad))
-        if entry is None:
-            grouped[(targets, bad)] = [bdd.cube(*cube), lits]
-        else:
-            entry[0] = entry[0] | bdd.cube(*cube)
-            entry[1] = min(entry[1], lits)
-    return [(t, b, g, lits) for (t, b), (g, lits) in grouped.items()]
-
-
-def _disjoint(groups: list[_Group]) -> bool:
+def _disjoint(groups: list[_Group], algebra) -> bool:
     """Whether no letter is read by two groups."""
-    seen = FALSE
+    seen = algebra.false
     for _t, _b, guard, _l in groups:
-        if guard & seen is not FALSE:
+        if guard & seen:
             return False
         seen = seen | guard
     return True
@@ -113,6 +154,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     the eager marking never gave the smaller automaton there, and it doubles the work after).
     """
     vwaa = Vwaa(index)
+    layout = _Layout(len(index), _acceptance_bound(formula))
+    # Guards as truth tables over few atoms (the same automaton, faster), else BDDs.
+    algebra = guard_algebra(len(index))
     mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
     state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
     raw_edges: list[list[tuple[int, Guard, int]]] = []
@@ -138,6 +182,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             queue.append(s)
             for q in ordered(s):
                 if is_acceptance_state(vwaa.states[q]) and q not in mark_of:
+                    if len(mark_of) == layout.marks:
+                        raise RuntimeError("build_tgba: more acceptance states than "
+                                           "subformulas")
                     mark_of[q] = len(mark_of)
         return sid
 
@@ -148,12 +195,23 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     # a prefix depends on nothing else.
     prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
 
+    delta_cache: dict[int, list[_Partial]] = {}
+
+    def packed_delta(q: int) -> list[_Partial]:
+        """VWAA state ``q``'s transitions as packed partials."""
+        packed = delta_cache.get(q)
+        if packed is None:
+            bad_bit = 1 << mark_of[q] if q in mark_of else 0
+            packed = delta_cache[q] = [layout.pack(pos, neg, targets, 0 if good else bad_bit)
+                                       for (pos, neg), targets, good in vwaa.state_delta(q)]
+        return packed
+
     def options_of(q: int) -> tuple[list[_Group], bool]:
         """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
         options = option_cache.get(q)
         if options is None:
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit)
+            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit, algebra)
         return options
     while queue:
         s = queue.popleft()
@@ -161,7 +219,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         # Cube by cube (GO's products with domination pruning) while few; symbolic groups
         # (one BDD guard per (targets, bad)) once the products pile up, e.g. the 2^n
         # transitions of G F a1 & … & G F an, where pairwise pruning would cost 4^n.
-        partials: list[_Partial] = [(TRUE_CUBE, 0, 0)]
+        partials: list[_Partial] = [0]  # the true cube, no target, nothing unfulfilled
         groups: list[_Group] | None = None
         disjoint = False
         members = ordered(s)
@@ -179,25 +237,15 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             if members and all(options_of(q)[1] for q in members):
                 # Every member's options partition the letters (F a1 & … & F an): their
                 # product is a partition too, built symbolically with nothing to prune.
-                groups, disjoint = [(0, 0, bdd.TRUE, 0)], True
+                groups, disjoint = [(0, 0, algebra.true, 0)], True
         for k in range(start, len(members)):
             q = members[k]
             prefix |= 1 << q
             if groups is None:
-                bad_bit = 1 << mark_of[q] if q in mark_of else 0
-                product: list[_Partial] = []
-                delta = vwaa.state_delta(q)
-                for (pos, neg), targets, bad in partials:
-                    for (pos2, neg2), e2, good in delta:
-                        p = pos | pos2
-                        n = neg | neg2
-                        if not p & n:  # cube_and, inlined
-                            product.append(((p, n), targets | e2,
-                                            bad if good else bad | bad_bit))
-                partials = _prune(product)
+                partials = layout.product(partials, packed_delta(q))
                 if len(partials) > _CUBE_LIMIT:
-                    groups = _minimal_per_letter(_groups_of(partials))
-                    disjoint = _disjoint(groups)
+                    groups = _minimal_per_letter(layout.groups_of(partials, algebra))
+                    disjoint = _disjoint(groups, algebra)
                     groups.sort(key=_group_order)
                 prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
@@ -207,11 +255,11 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             # Dominated groups are removed at the end, and on the way when they pile up.
             if not disjoint and len(groups) > 24:
                 groups = _minimal_per_letter(groups)
-                disjoint = _disjoint(groups)
+                disjoint = _disjoint(groups, algebra)
             groups.sort(key=_group_order)
             prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
-            groups = _minimal_per_letter(_groups_of(partials))
+            groups = _minimal_per_letter(layout.groups_of(partials, algebra))
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
@@ -227,13 +275,24 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
               for dst, guard, bad in out)
         for src, out in enumerate(raw_edges)
     )
-    eager = tuple(
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
+    eager = lazy if len(raw_edges) > EAGER_MAX_STATES else tuple(
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
-    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)))]
-    if eager != lazy and len(raw_edges) <= EAGER_MAX_STATES:
-        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of))))
-    return tuple(variants)
+    if eager != lazy:
+        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of)),
+                                         algebra))
+    return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)
+
+
+def _with_bdd_guards(tgba: Tgba, algebra) -> Tgba:
+    """The automaton with its guards as BDDs (they were truth tables while it was built)."""
+    if isinstance(algebra, BddAlgebra):
+        return tgba
+    to_bdd = algebra.to_bdd
+    edges = tuple(tuple((dst, to_bdd(guard), marks) for dst, guard, marks in out)
+                  for out in tgba.edges)
+    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks)
 
 
 # A group of transitions of a TGBA state under construction: (targets, bad, guard, literals),
@@ -243,13 +302,26 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
 _Group = tuple[int, int, Guard, int]
 
 
+def _acceptance_bound(formula: Formula) -> int:
+    """The number of distinct subformulas: the VWAA's states, hence its acceptance states,
+    are among them."""
+    seen: set[Formula] = set()
+    stack = [formula]
+    while stack:
+        f = stack.pop()
+        if f not in seen:
+            seen.add(f)
+            stack.extend(children(f))
+    return len(seen)
+
+
 def _group_order(group: _Group) -> tuple[int, int, int]:
     """Fewer targets, fewer unfulfilled marks, fewer literals first (GO's order of
     transitions); it decides the order in which successor states are numbered."""
     return group[0].bit_count(), group[1].bit_count(), group[3]
 
 
-def _state_options(transitions, bad_bit: int) -> tuple[list[_Group], bool]:
+def _state_options(transitions, bad_bit: int, algebra) -> tuple[list[_Group], bool]:
     """The transitions of one VWAA state grouped by (targets, bad), minimal per letter; and
     whether their guards are pairwise disjoint."""
     grouped: dict[tuple[int, int], list] = {}
@@ -258,12 +330,12 @@ def _state_options(transitions, bad_bit: int) -> tuple[list[_Group], bool]:
         entry = grouped.get(key)
         lits = (cube[0] | cube[1]).bit_count()
         if entry is None:
-            grouped[key] = [bdd.cube(*cube), lits]
+            grouped[key] = [algebra.cube(*cube), lits]
         else:
-            entry[0] = entry[0] | bdd.cube(*cube)
+            entry[0] = entry[0] | algebra.cube(*cube)
             entry[1] = min(entry[1], lits)
     groups = _minimal_per_letter([(t, b, g, lits) for (t, b), (g, lits) in grouped.items()])
-    return groups, _disjoint(groups)
+    return groups, _disjoint(groups, algebra)
 
 
 def _combine(xs: list[_Group], ys: list[_Group]) -> list[_Group]:
@@ -276,7 +348,7 @@ def _combine(xs: list[_Group], ys: list[_Group]) -> list[_Group]:
     for tx, bx, gx, lx in xs:
         for ty, by, gy, ly in ys:
             g = gx & gy
-            if g is FALSE:
+            if not g:
                 continue
             key = (tx | ty, bx | by)
             entry = out.get(key)
@@ -295,23 +367,29 @@ def _minimal_per_letter(groups: list[_Group]) -> list[_Group]:
     if len(groups) < 2:
         return groups
     shift = max(b for _t, b, _g, _l in groups).bit_length()
-    # Domination = subset of this mask; keys are distinct (one group per (targets, bad)).
-    keyed = [(t << shift | b, g) for t, b, g, _l in groups]
+    # Domination = strict subset of this key (keys are distinct: one group per (targets, bad)),
+    # so a dominator has fewer bits: each group is compared with those of fewer bits only.
+    # The difference does not depend on the order in which the dominators are subtracted.
+    keyed = sorted(((t << shift | b).bit_count(), t << shift | b, g) for t, b, g, _l in groups)
     result = []
-    for (ki, _g), (targets, bad, guard, lits) in zip(keyed, groups, strict=True):
+    for targets, bad, guard, lits in groups:
+        ki = targets << shift | bad
+        size, nki = ki.bit_count(), ~ki
         # Dominator by dominator, only those that share letters: cheaper than one union of
         # them all (most share none).
-        for kj, g in keyed:
-            if kj != ki and not kj & ~ki and guard & g is not FALSE:
-                guard = guard - g
-                if guard is FALSE:
+        for kbits, kj, g in keyed:
+            if kbits >= size:
+                break
+            if not kj & nki and guard & g:
+                guard = guard & ~g
+                if not guard:
                     break
-        if guard is not FALSE:
+        if guard:
             result.append((targets, bad, guard, lits))
     return result
 
 
-def _merge_bisimilar(tgba: Tgba) -> Tgba:
+def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
     """Quotient by the coarsest partition where merged states have equal outgoing edges."""
     n = tgba.num_states
     block = [0] * n
@@ -320,7 +398,7 @@ def _merge_bisimilar(tgba: Tgba) -> Tgba:
         signatures: dict[tuple, int] = {}
         new_block = []
         for s in range(n):
-            sig = (block[s], frozenset(_signature(tgba.edges[s], block)))
+            sig = (block[s], frozenset(_signature(tgba.edges[s], block, algebra.false)))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         if len(signatures) == num_blocks:
             break
@@ -336,15 +414,15 @@ def _merge_bisimilar(tgba: Tgba) -> Tgba:
         done.add(b)
         for dst, guard, marks in tgba.edges[s]:
             key = (block[dst], marks)
-            edges[b][key] = edges[b].get(key, FALSE) | guard
+            edges[b][key] = edges[b].get(key, algebra.false) | guard
     out = tuple(tuple((dst, guard, marks) for (dst, marks), guard in e.items()) for e in edges)
     initial = tuple(dict.fromkeys(block[i] for i in tgba.initial))
     return Tgba(num_blocks, initial, out, tgba.num_marks)
 
 
-def _signature(edges, block):
+def _signature(edges, block, false):
     grouped: dict[tuple[int, int], Guard] = {}
     for dst, guard, marks in edges:
         key = (block[dst], marks)
-        grouped[key] = grouped.get(key, FALSE) | guard
+        grouped[key] = grouped.get(key, false) | guard
     return grouped.items()
