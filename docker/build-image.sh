@@ -18,6 +18,13 @@ if [[ $(docker image inspect -f '{{index .Config.Labels "tlfleet.sources"}}' "$I
 fi
 docker/base-image.sh "$BASE"
 docker/wheelhouse.sh "${PYTHON:-$ROOT/.venv/bin/python}"
+OLD=$(docker image inspect -f '{{.Id}}' "$IMAGE" 2>/dev/null || true)
 DOCKER_BUILDKIT=0 docker build --quiet --network none --build-arg "BASE_IMAGE=$BASE" \
   --label "tlfleet.sources=$SOURCES" -t "$IMAGE" -f docker/Dockerfile docker >/dev/null
 echo "build-image: built $IMAGE (sources $SOURCES)"
+# the image of the previous sources lost its tag: remove it (≈ 1.4 GB each) unless a container
+# still uses it or another tag names it (then docker refuses, and it stays)
+if [[ -n $OLD && $OLD != $(docker image inspect -f '{{.Id}}' "$IMAGE") ]] && \
+   [[ -z $(docker image inspect -f '{{join .RepoTags " "}}' "$OLD" 2>/dev/null) ]]; then
+  docker image rm "$OLD" >/dev/null 2>&1 && echo "build-image: removed the previous image ${OLD:7:12}" || true
+fi
