@@ -308,7 +308,11 @@ def test_a_partition_between_an_agent_and_the_simulator_in_realtime(tmp_path):
     resumed = [e for e in by_kind(run_dir, "resumed") if e["source"] == "agent/2"]
     assert resumed and resumed[0]["t"] >= end["t"] - 0.1
     assert resumed[0]["t"] - end["t"] < 1.0  # the direct link is back within a retry period
-    assert agent_stats(run_dir, 1)["stale_episodes"] == 0  # robot 1 saw every frame
+    # robot 1 kept its link: no silence anywhere near the partition's 2 s (on a loaded machine a
+    # frame can come 0.14 s late, e.g. at the heal, which --stale-after 0.1 calls stale)
+    calm = [e["data"]["sim_silence"] for e in by_kind(run_dir, "stale_mocap")
+            if e["source"] == "agent/1"]
+    assert all(s < 0.5 for s in calm), calm
     assert robot_robot_contacts(run_dir) == []
     print(f"partition robot2,sim: stopped {stop['t'] - stop['data']['last_command_t']:.3f} s "
           f"after its last command; stale after {stale[0]['data']['sim_silence']:.3f} s; "
