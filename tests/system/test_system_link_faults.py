@@ -32,6 +32,7 @@ from system_helpers import (
     robot_robot_contacts,
 )
 
+from agent.scenario import load_scenario
 from agent.scenario.faults import parse_fault
 from coordinator.hosts import run_on_hosts
 
@@ -218,15 +219,30 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     assert lost["data"]["process"] == "sim" == restored["data"]["process"]
     assert lost["data"]["wall"] - start["data"]["wall"] < 1.0
     assert by_kind(run_dir, "process_died") == []
-    # the run resumes: frames after the restore to the end; no duplicated or reordered frame
+    # the run resumes, and trajectory.csv has every frame once: the frames published while the
+    # sim's session was down (after the lease) were backfilled from its ring (issue 13)
     t, _states = load_trajectory(run_dir)
     assert t[-1] == pytest.approx(10.0)
-    steps = np.diff(t)
-    assert (steps > 0).all()
-    gaps = steps[steps > 0.015]
+    rate = load_scenario(HERE / "two_robots.toml").sim.mocap_rate  # [Hz]
+    seq = np.rint(t * rate).astype(int)
+    np.testing.assert_allclose(t, seq / rate, atol=1e-9)  # every row is a sim tick
+    assert seq[0] == 0 and (np.diff(seq) == 1).all(), f"gaps/duplicates after seq " \
+        f"{seq[:-1][np.diff(seq) != 1].tolist()}"
+    gaps, fills = by_kind(run_dir, "trajectory_gap"), by_kind(run_dir, "backfill")
+    assert gaps, "the cut lost no frame: nothing was backfilled, the test proves nothing"
+    assert [(g["data"]["first"], g["data"]["last"]) for g in gaps] == \
+        [(f["data"]["first"], f["data"]["last"]) for f in fills]
+    assert all(f["data"]["unrecovered"] == 0 for f in fills)
+    assert sum(f["data"]["backfilled"] + f["data"]["late"] for f in fills) == \
+        sum(g["data"]["frames"] for g in gaps)
+    summary = info["backfill"]
+    assert summary["unrecovered"] == 0 and summary["backfilled"] > 0
     print(f"sim cut: agents stale after {[round(e['data']['sim_silence'], 3) for e in stale]} s; "
-          f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; trajectory "
-          f"gaps {[round(float(g), 2) for g in gaps]} s")
+          f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; live-stream "
+          f"gaps {[g['data']['frames'] for g in gaps]} frames, backfilled "
+          f"{summary['backfilled']} (late {summary['late']}) after "
+          f"{[round(f['data']['waited'], 3) for f in fills]} s wall, {summary['queries']} "
+          f"queries")
     kinds = collections.Counter(e["kind"] for e in events(run_dir))
     assert kinds["resumed"] >= 2  # both agents answered the newest frame after the cut
 
