@@ -31,7 +31,7 @@ from agent.protocol.messages import BackfillReply, BackfillRequest
 #: link for 2 s and lose ≈ 2.5 s of frames (the cut, then zenoh's reconnect); 10 s covers a cut of
 #: ≈ 7 s plus zenoh's reconnect back-off (≤ 4 s when the link was down, notes §5.3) with margin
 BACKFILL_SECONDS = 10.0
-BACKFILL_BYTES = 8 * 1024 * 1024  # payload bytes the ring holds at most (≈ 30 000 frames of 5 robots)
+BACKFILL_BYTES = 8 * 1024 * 1024  # payload bytes held at most (≈ 44 000 frames of 5 robots)
 
 
 def ring_size(seconds: float, mocap_rate: float) -> int:
