@@ -172,6 +172,8 @@ class FrameMerger:
     def requests(self, force: bool = False) -> list[tuple[int, int]]:
         """The seq ranges to ask for now (each gap's lowest missing seqs, at most
         :data:`MAX_REQUEST_FRAMES`); ``force``: whether or not a request is due."""
+        if not self.gaps:
+            return []
         now = self._clock()
         out = []
         for gap in self.gaps:
