@@ -232,10 +232,10 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     gaps, fills = by_kind(run_dir, "trajectory_gap"), by_kind(run_dir, "backfill")
     assert gaps, "the cut lost no frame: nothing was backfilled, the test proves nothing"
     assert [(g["data"]["first"], g["data"]["last"]) for g in gaps] == \
-        [(f["data"]["first"], f["data"]["last"]) for f in fills]
-    assert all(f["data"]["unrecovered"] == 0 for f in fills)
+        [(f["data"]["first"], f["data"]["last"]) for f in fills], (gaps, fills)
+    assert all(f["data"]["unrecovered"] == 0 for f in fills), fills
     assert sum(f["data"]["backfilled"] + f["data"]["late"] for f in fills) == \
-        sum(g["data"]["frames"] for g in gaps)
+        sum(g["data"]["frames"] for g in gaps), (gaps, fills)
     summary = info["backfill"]
     assert summary["unrecovered"] == 0 and summary["backfilled"] > 0
     print(f"sim cut: agents stale after {[round(e['data']['sim_silence'], 3) for e in stale]} s; "
