@@ -6,15 +6,24 @@ import argparse
 import math
 
 
-def positive_float(text: str) -> float:
-    """A finite number > 0 (a factor or a time), e.g. ``--max-speed 2``."""
+def _number(text: str, ok, bound: str) -> float:
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, found {text!r}") from None
-    if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, found {text}")
+    if not (math.isfinite(value) and ok(value)):
+        raise argparse.ArgumentTypeError(f"must be a finite number {bound}, found {text}")
     return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0 (a factor or a time), e.g. ``--max-speed 2``."""
+    return _number(text, lambda v: v > 0.0, "> 0")
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number ≥ 0 (a time), e.g. ``--backfill-seconds 0``."""
+    return _number(text, lambda v: v >= 0.0, "≥ 0")
 
 
 def fault_spec(text: str):

@@ -12,9 +12,10 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
                ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d`` (each divider d ≥ 2 of the fleet),
                ``clock``, ``event``; subscribe ``robot/*/cmd``,
-               ``control``; token ``alive/sim/0``; watch ``alive/**``
-``coordinator`` publish ``control``, ``event``; subscribe ``**``; token ``alive/coordinator/0``;
+               ``control``; serve ``sim/backfill`` (issue 13); token ``alive/sim/0``;
                watch ``alive/**``
+``coordinator`` publish ``control``, ``event``; subscribe ``**``; query ``sim/backfill``;
+               token ``alive/coordinator/0``; watch ``alive/**``
 ``router``     nothing through its links (its own session is local to it); in a router mesh
                (``mesh=True``: ``tlfleet run --hosts N``, ``tlfleet keys --mesh``) everything
                under the fleet's prefix in both directions, because the routers forward each
@@ -72,9 +73,10 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
         Grant("sim", publish=(keys.mocap(fleet), *every, keys.clock(fleet), keys.event(fleet)),
               discover=everything,
               subscribe=(keys.all_cmds(fleet), keys.control(fleet)),
+              serve=(keys.sim_backfill(fleet),),
               token=(keys.alive(fleet, "sim", 0),), watch=everyone_alive),
         Grant("coordinator", publish=(keys.control(fleet), keys.event(fleet)),
-              discover=everything, subscribe=everything,
+              discover=everything, subscribe=everything, query=(keys.sim_backfill(fleet),),
               token=(keys.alive(fleet, "coordinator", 0),), watch=everyone_alive),
     ]
     for robot in sorted(scenario.robots, key=lambda r: r.id):

@@ -5,6 +5,13 @@ Everything is appended and flushed at least every ``flush_period`` (1 s), so a c
 the last second. :class:`Recorder` is a plain consumer of decoded messages (no transport);
 :class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
 (stack-notes.md §0) and decodes in the coordinator's loop.
+
+Backfill (issue 13): frames reach ``trajectory.csv`` through a
+:class:`~coordinator.frame_merge.FrameMerger`, so a gap in the live stream (a link cut longer
+than the zenoh lease) is held open while :class:`RecorderTap` asks the simulator for the missing
+frames (``BackfillRequest`` on ``sim/backfill``); they are merged by seq, and what cannot be
+recovered is named in ``events.jsonl`` (``trajectory_gap``, ``backfill``) and ``run.json``
+(``backfill``, :meth:`Recorder.backfill_summary`).
 """
 
 from __future__ import annotations
@@ -22,11 +29,19 @@ from typing import IO, Any
 
 from agent.protocol import keys
 from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import ProtocolError, decode, peek_kind
-from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from agent.protocol.codec import ProtocolError, decode, encode, peek_kind
+from agent.protocol.messages import (
+    BackfillReply,
+    BackfillRequest,
+    Event,
+    LtlStatus,
+    MocapFrame,
+    StlStatus,
+)
 from agent.protocol.plausibility import FrameGate, Verdict
 from bus.transport import Channel, Closeable, Transport
 from coordinator import rundir
+from coordinator.frame_merge import FrameMerger
 
 logger = logging.getLogger(__name__)
 
@@ -39,11 +54,14 @@ class Recorder:
     ``robot_ids`` fixes the trajectory columns (ascending). Frames are written only after
     :meth:`start` (the mission start), with strictly increasing ``seq``; the newest frame is held
     back until a newer one arrives (the sim's last pre-start frame and tick 0 both carry seq 0,
-    the later one wins), then written — so the file's times increase strictly.
+    the later one wins), then written — so the file's times increase strictly. After a jump in
+    ``seq`` the frames wait (at most ``backfill_wait`` s of wall time) for the missing ones: from
+    :meth:`on_backfill` or late on the live stream (:mod:`coordinator.frame_merge`).
     """
 
     def __init__(self, run_dir: Path, robot_ids: Sequence[int], *,
-                 flush_period: float = 1.0, clock: Callable[[], float] = time.monotonic):
+                 flush_period: float = 1.0, clock: Callable[[], float] = time.monotonic,
+                 backfill_wait: float = 3.0):
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.robot_ids = tuple(sorted(robot_ids))
@@ -51,10 +69,9 @@ class Recorder:
         self._clock = clock
         self._last_flush = clock()
         self._started = False
-        self._pending: MocapFrame | None = None
-        self._last_written_seq = -1
+        self._merger = FrameMerger(self._write_frame, self._record, clock, wait=backfill_wait)
         self.frames_written = 0
-        self.frames_skipped = 0
+        self.frames_invalid = 0
         self.last_t = 0.0  # [s] sim time of the newest frame seen after start
         self.statuses = 0
         self.events = 0
@@ -88,32 +105,62 @@ class Recorder:
     def on_mocap(self, frame: MocapFrame) -> None:
         if not self._started:
             return
-        if self._pending is not None and frame.seq < self._pending.seq:
-            self.frames_skipped += 1  # out of order (realtime) or a late pre-start frame
-            return
-        if self._pending is not None and frame.seq > self._pending.seq:
-            self._write_frame(self._pending)
-        self._pending = frame
+        self._merger.offer(frame)
         self.last_t = max(self.last_t, frame.t)
         self._maybe_flush()
 
+    def on_backfill(self, first: int, last: int, oldest: int,
+                    frames: list[MocapFrame]) -> None:
+        """A ``BackfillReply`` covering seqs ``first``..``last`` (its frames decoded and checked
+        by the tap; ``oldest``: the simulator ring's oldest seq)."""
+        if self._started and not self._traj.closed:
+            self._merger.backfill(first, last, oldest, frames)
+            self._maybe_flush()
+
+    def backfill_requests(self, force: bool = False) -> list[tuple[int, int]]:
+        """Seq ranges to ask the simulator for now (``force``: even if none is due)."""
+        return self._merger.requests(force) if not self._traj.closed else []
+
+    @property
+    def backfill_waiting(self) -> bool:
+        return self._merger.waiting
+
+    def poll(self) -> None:
+        """Give up gaps that waited too long and write what can be written (the tap calls
+        this every drain)."""
+        if not self._traj.closed:
+            self._merger.poll()
+
+    def backfill_summary(self) -> dict[str, Any]:
+        """The gaps of the live stream and what the backfill recovered (for ``run.json``)."""
+        return self._merger.summary()
+
+    def _record(self, kind: str, t: float, data: dict[str, Any]) -> None:
+        if kind == "backfill" and data["unrecovered"]:
+            logger.warning("trajectory.csv misses %d frames of the gap seq %d–%d (runs %s): "
+                           "not recovered", data["unrecovered"], data["first"], data["last"],
+                           data["unrecovered_ranges"])
+        self.on_event(Event(t=t, source=COORDINATOR_SOURCE, kind=kind, data=data))
+
+    @property
+    def frames_skipped(self) -> int:
+        """Frames not written: a robot missing or a value not finite, or a frame of that seq
+        (or a later one) already written."""
+        return self.frames_invalid + self._merger.stale
+
     def _write_frame(self, frame: MocapFrame) -> None:
-        if frame.seq <= self._last_written_seq:
-            self.frames_skipped += 1
-            return
         poses = {int(row[0]): row[1:4] for row in frame.poses}
         try:
             values = [float(v) for r in self.robot_ids for v in poses[r]]
         except KeyError as exc:
             logger.warning("mocap frame seq %d lacks robot %s: not recorded", frame.seq, exc)
-            self.frames_skipped += 1
+            self.frames_invalid += 1
             return
         if not all(math.isfinite(v) for v in values) or not math.isfinite(frame.t):
             logger.warning("mocap frame seq %d has a non-finite value: not recorded", frame.seq)
-            self.frames_skipped += 1
+            self.frames_invalid += 1
             return
         self._traj_writer.write(frame.t, values)
-        self._last_written_seq = frame.seq
         self.frames_written += 1
 
     def on_status(self, status: LtlStatus | StlStatus) -> None:
@@ -141,12 +188,11 @@ class Recorder:
         self._last_flush = self._clock()
 
     def close(self) -> None:
-        """Write the held-back frame and close every file (idempotent)."""
+        """Write the held-back frames (a gap still open is given up and named) and close every
+        file (idempotent)."""
         if self._traj.closed:
             return
-        if self._pending is not None:
-            self._write_frame(self._pending)
-            self._pending = None
+        self._merger.finish()
         for handle in (self._traj, self._status, self._events):
             handle.close()
 
@@ -164,12 +210,21 @@ class RecorderTap:
     malformed and are not recorded, so a spoofed frame neither ends the run (t = 10⁹) nor makes the
     recorder drop real rows (a high seq). With ``robot_ids``, events and statuses whose claimed
     identity does not hold (:mod:`coordinator.trust`) are recorded as ``flagged_event`` instead.
+
+    Backfill (issue 13): each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
+    simulator's ``sim/backfill`` queryable (``query_async``: the replies are queued by the
+    transport's thread and recorded by a later drain). Every frame of a reply is decoded and
+    checked (``bounds``) like a live one, but not by the gate: it is an old frame asked for. A
+    reply or frame that fails counts as malformed (kind ``backfill``). :meth:`close` makes one
+    last, blocking attempt (at most :attr:`FINAL_BACKFILL_TIMEOUT`) for a gap still open.
     """
 
     LOG_PERIOD = 1.0  # [s] wall between two log lines of one kind
     #: samples each of the tap's channels holds (zenoh: a full one holds up the coordinator's
     #: link): the coordinator drains every 50 ms; this is minutes of a 100 Hz fleet's frames
     CHANNEL_CAPACITY = 1 << 16
+    BACKFILL_TIMEOUT = 0.5  # [s] wall a backfill query waits for its reply
+    FINAL_BACKFILL_TIMEOUT = 1.0  # [s] wall of the last attempt, when the tap closes
 
     def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
                  on_message: Callable[[str, Any], None] | None = None, *,
@@ -177,6 +232,9 @@ class RecorderTap:
                  robot_ids: Sequence[int] | None = None):
         self.recorder = recorder
         self.fleet = fleet
+        self.transport = transport
+        self._backfill_key = keys.sim_backfill(fleet)
+        self.backfill_queries = 0
         self.bounds = bounds
         self.gate = FrameGate(max_jump) if max_jump else None
         self.robot_ids = frozenset(robot_ids) if robot_ids is not None else None
@@ -220,6 +278,7 @@ class RecorderTap:
                     break
                 n += 1
                 self._handle(what, item[0], item[1])
+        self._ask_backfill()
         while limit is None or n < limit:
             try:
                 what, key, payload = self._queue.get_nowait()
@@ -227,10 +286,31 @@ class RecorderTap:
                 break
             n += 1
             self._handle(what, key, payload)
+        self.recorder.poll()
         return n
+
+    def _ask_backfill(self, force: bool = False) -> None:
+        """Send the recorder's due backfill requests; the replies come back on the queue."""
+        put, key = self._queue.put, self._backfill_key
+
+        def on_done(replies: list[bytes]) -> None:
+            for reply in replies:
+                put(("backfill", key, reply))
+
+        for first, last in self.recorder.backfill_requests(force):
+            self.backfill_queries += 1
+            try:
+                self.transport.query_async(key, encode(BackfillRequest(first, last)),
+                                           self.BACKFILL_TIMEOUT, on_done)
+            except Exception:  # a closing session: the gap is given up and named later
+                logger.warning("backfill query for seqs %d–%d failed", first, last,
+                               exc_info=True)
 
     def _handle(self, what: str, key: str, payload: bytes) -> None:
         try:
+            if what == "backfill":
+                self._on_backfill(payload)
+                return
             if what == "mocap":
                 frame = decode(MocapFrame, payload)
                 self._check_frame(frame)
@@ -261,6 +341,21 @@ class RecorderTap:
             return
         if self._on_message is not None:
             self._on_message(what, message)
+
+    def _on_backfill(self, payload: bytes) -> None:
+        reply = decode(BackfillReply, payload)
+        frames = []
+        for data in reply.frames:
+            try:
+                frame = decode(MocapFrame, data)
+                problem = self.bounds.frame_problem(frame) if self.bounds is not None else None
+                if problem is not None:
+                    raise ProtocolError(f"MocapFrame: implausible: {problem}")
+            except ProtocolError as exc:
+                self._count("backfill", self._backfill_key, data, exc)
+                continue
+            frames.append(frame)
+        self.recorder.on_backfill(reply.first, reply.last, reply.oldest, frames)
 
     def _check_frame(self, frame: MocapFrame) -> None:
         problem = self.bounds.frame_problem(frame) if self.bounds is not None else None
@@ -302,6 +397,21 @@ class RecorderTap:
             logger.warning("malformed payload on %s (%d of this kind so far): %s", key,
                            self.malformed[what], exc)
 
+    def _final_backfill(self) -> None:
+        """The run ends with a gap still open: one blocking attempt for its frames."""
+        for first, last in self.recorder.backfill_requests(force=True):
+            self.backfill_queries += 1
+            try:
+                replies = self.transport.query(self._backfill_key,
+                                               encode(BackfillRequest(first, last)),
+                                               self.FINAL_BACKFILL_TIMEOUT)
+            except Exception:
+                logger.warning("final backfill query failed", exc_info=True)
+                return
+            for reply in replies:
+                self._handle("backfill", self._backfill_key, reply)
+        self.drain()
+
     def _may_log(self, what: str) -> bool:
         now = time.monotonic()
         if now - self._logged.get(what, -float("inf")) < self.LOG_PERIOD:
@@ -311,6 +421,8 @@ class RecorderTap:
 
     def close(self) -> None:
         # what the channels still hold is not recorded: the coordinator drains before closing
+        if self.recorder.backfill_waiting:
+            self._final_backfill()
         self._channels.clear()
         for handle in self._handles:
             handle.close()

@@ -244,7 +244,14 @@ class Supervision:
         cleanup.step("withdraw the coordinator's token", self._token.close)
 
     def findings(self) -> list[str]:
-        return self.health.findings()
+        """The agents' health findings, and each stretch of ``trajectory.csv`` the backfill
+        could not recover (issue 13)."""
+        return self.health.findings() + [
+            f"trajectory.csv misses {r['frames']} frames (seq {r['first']}–{r['last']}, "
+            f"t = {r['t_first']:.2f}–{r['t_last']:.2f} s): lost on a link, and "
+            + ("the simulator did not answer the backfill" if r["oldest_held"] is None else
+               f"older than the simulator's backfill ring (oldest seq {r['oldest_held']})")
+            for r in self.prepared.recorder.backfill_summary()["unrecovered_ranges"]]
 
 
 def end_info(prepared: PreparedRun, outcome: Outcome, wall_start: float,
@@ -254,6 +261,9 @@ def end_info(prepared: PreparedRun, outcome: Outcome, wall_start: float,
     info = prepared.info
     info.update(reason=outcome.reason, t_end=outcome.t_end,
                 frames=prepared.recorder.frames_written)
+    backfill = prepared.recorder.backfill_summary()
+    if backfill["gaps"]:  # issue 13: every gap of the live stream, and what stayed missing
+        info["backfill"] = backfill
     info.setdefault("wall_time", time.monotonic() - wall_start)
     if info["wall_time"] > 0:
         info["speedup"] = outcome.t_end / info["wall_time"]

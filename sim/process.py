@@ -36,6 +36,13 @@ watchdog then stops the robot. A decoded command outside the fleet's bounds
 (:class:`agent.protocol.bounds.FleetBounds`: time/seq disagreement, speeds far above the robot's
 limits) is treated like a malformed one.
 
+Backfill (issue 13, :mod:`sim.frame_ring`): every tick's frame is also kept, as published, in a
+ring of the last ``backfill_seconds`` of frames (bounded in bytes too), and the queryable
+``sim/backfill`` answers a recorder's ``BackfillRequest`` with the frames it missed while a link
+was cut. The handler runs on a zenoh thread and touches only the ring (thread-safe); a request
+that does not decode is counted as malformed like any payload. The ring's counters are in
+``sim_stats`` (``backfill``).
+
 A payload that does not decode (or a command whose key, robot or values do not fit) is counted,
 logged at most once per ``malformed_report_period`` per key, and published as
 ``Event(kind="malformed_message", data={"key", "count"})``; it never stops the process.
@@ -60,12 +67,21 @@ from agent.errors import TlfleetError
 from agent.protocol import keys
 from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame, TimeMode
+from agent.protocol.messages import (
+    BackfillRequest,
+    Clock,
+    Command,
+    Control,
+    Event,
+    MocapFrame,
+    TimeMode,
+)
 from agent.scenario import Scenario, load_scenario
 from bus.signals import install_signal_handlers
 from bus.transport import Channel, Closeable, Transport, TransportConfig, open_transport
 from sim.clock import Pacer, TickClock
 from sim.command_age import CommandAge
+from sim.frame_ring import BACKFILL_BYTES, BACKFILL_SECONDS, FrameRing, ring_size
 from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
 from sim.stats import TimingStats
 from sim.world import WALL, World, WorldConfig
@@ -94,6 +110,8 @@ class SimConfig:
     poll: float = 0.05  # [s] wall: longest wait before the stop flag is checked again
     max_command_age: float | None = None  # [s] sim time; None: 5 control periods per robot
     max_speed: float | None = None  # lockstep: sim time runs at most this × wall time (None: free)
+    backfill_seconds: float = BACKFILL_SECONDS  # [s] sim time of frames kept for the backfill
+    backfill_bytes: int = BACKFILL_BYTES  # payload bytes the backfill ring holds at most
     world: WorldConfig = field(default_factory=WorldConfig)
 
     def __post_init__(self) -> None:
@@ -104,6 +122,11 @@ class SimConfig:
             if not (value >= 0.0 if name == "duration" else value > 0.0):
                 raise SimConfigError(f"{name} = {value!r} s: must be "
                                      f"{'≥ 0' if name == 'duration' else '> 0'}")
+        if not (self.backfill_seconds >= 0.0 and self.backfill_seconds < float("inf")):
+            raise SimConfigError(f"backfill_seconds = {self.backfill_seconds!r} s: must be a "
+                                 f"finite number ≥ 0")
+        if self.backfill_bytes < 1:
+            raise SimConfigError(f"backfill_bytes = {self.backfill_bytes!r}: must be ≥ 1")
         if self.max_speed is not None and not self.max_speed > 0.0:
             raise SimConfigError(f"max_speed = {self.max_speed!r}: must be > 0 (a factor of "
                                  f"wall-clock time)")
@@ -112,11 +135,13 @@ class SimConfig:
     def for_scenario(cls, scenario: Scenario, *, mode: TimeMode = "lockstep",
                      duration: float | None = None, seed: int | None = None,
                      tick_timeout: float = 2.0, max_command_age: float | None = None,
-                     max_speed: float | None = None) -> SimConfig:
+                     max_speed: float | None = None,
+                     backfill_seconds: float = BACKFILL_SECONDS) -> SimConfig:
         """The settings of a run of ``scenario``: duration and seed default to the scenario's."""
         return cls(mode=mode, duration=scenario.duration if duration is None else duration,
                    seed=scenario.sim.seed if seed is None else seed, tick_timeout=tick_timeout,
-                   max_command_age=max_command_age, max_speed=max_speed)
+                   max_command_age=max_command_age, max_speed=max_speed,
+                   backfill_seconds=backfill_seconds)
 
 
 @dataclass(frozen=True)
@@ -132,6 +157,7 @@ class SimProcessConfig:
     transport: TransportConfig = field(default_factory=TransportConfig)
     max_command_age: float | None = None  # [s] sim time (None: 5 control periods)
     max_speed: float | None = None  # lockstep: at most this × wall-clock time (None: free)
+    backfill_seconds: float = BACKFILL_SECONDS  # [s] sim time of frames kept for the backfill
 
 
 @dataclass
@@ -173,6 +199,8 @@ class SimProcess:
         a = scenario.arena
         self.bounds = FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), config.duration,
                                   scenario.sim.mocap_rate, scenario.speed_limits())
+        self.ring = FrameRing(ring_size(config.backfill_seconds, scenario.sim.mocap_rate),
+                              config.backfill_bytes)
         self.lockstep = LockstepCollector(self.world.ids)
         self.latest = LatestCommands(self.world.ids)
         self.alive: set[int] = set()
@@ -189,7 +217,7 @@ class SimProcess:
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
-                      "event": keys.event(self.fleet)}
+                      "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
 
     # ----------------------------------------------------------------- public
 
@@ -208,6 +236,7 @@ class SimProcess:
             handles.append(self.transport.watch_alive(
                 keys.all_alive(self.fleet), lambda k, up: (inbox.put(("alive", k, up, 0.0)),
                                                            wake())))
+            handles.append(self.transport.serve(self._keys["backfill"], self._on_backfill))
             handles.append(self.transport.declare_alive(keys.alive(self.fleet, "sim", 0)))
             logger.info("sim %s: %d robots, %s mode, seed %d, duration %g s", self.fleet,
                         len(self.world.ids), self.config.mode, self.config.seed,
@@ -364,7 +393,7 @@ class SimProcess:
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
         self.timing.frame_published(k, self._now())
-        self._publish_frame(MocapFrame(self.t, k, poses, due))
+        self.ring.append(k, self._publish_frame(MocapFrame(self.t, k, poses, due)))
 
     def _advance(self, k: int, commands: list[Command], due: tuple[int, ...]) -> None:
         """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}.
@@ -423,6 +452,8 @@ class SimProcess:
                 self._on_command(key, payload, arrival)
             elif kind == "control":
                 self._on_control(key, payload)
+            elif kind == "malformed":
+                self._malformed(key, payload)
             else:
                 self._on_alive(key, payload)
             try:
@@ -473,6 +504,17 @@ class SimProcess:
             logger.info("stop requested")
             self.stop_requested = True
 
+    def _on_backfill(self, payload: bytes) -> bytes | None:
+        """The ``sim/backfill`` queryable (on a zenoh thread): the ring's answer to a
+        ``BackfillRequest``; a payload that does not decode gets no reply and is counted (by the
+        loop, which owns the counters)."""
+        try:
+            request = decode(BackfillRequest, payload)
+        except ProtocolError as exc:
+            self._inbox.put(("malformed", self._keys["backfill"], str(exc), 0.0))
+            return None
+        return encode(self.ring.answer(request))
+
     def _on_alive(self, key: str, up: bool) -> None:
         parsed = keys.parse_alive(key)
         if parsed is None or parsed[0] != "agent" or not parsed[1].isdigit():
@@ -490,14 +532,15 @@ class SimProcess:
     def _publish(self, key: str, message: object) -> None:
         self.transport.publish(key, encode(message))
 
-    def _publish_frame(self, frame: MocapFrame) -> None:
+    def _publish_frame(self, frame: MocapFrame) -> bytes:
         """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d`` for each
-        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys)."""
+        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys). Returns the payload."""
         payload = encode(frame)
         self.transport.publish(self._keys["mocap"], payload)
         for divider, key in self._every:
             if frame.seq % divider == 0:
                 self.transport.publish(key, payload)
+        return payload
 
     def _event(self, kind: str, **data: object) -> None:
         self._publish(self._keys["event"], Event(self.t, SOURCE, kind, dict(data)))
@@ -536,6 +579,7 @@ class SimProcess:
             "malformed": sum(self.malformed.values()),
             "malformed_by_key": dict(self.malformed),
             "stale_commands": sum(self.ages.stale.values()),
+            "backfill": self.ring.stats(),
             **self.timing.summary(),
         }
 
@@ -558,7 +602,8 @@ def main(config: SimProcessConfig) -> int:
     sim_config = SimConfig.for_scenario(scenario, mode=config.mode, duration=config.duration,
                                         seed=config.seed, tick_timeout=config.tick_timeout,
                                         max_command_age=config.max_command_age,
-                                        max_speed=config.max_speed)
+                                        max_speed=config.max_speed,
+                                        backfill_seconds=config.backfill_seconds)
     sys.setswitchinterval(SWITCH_INTERVAL)
     stop = threading.Event()
     install_signal_handlers(stop)

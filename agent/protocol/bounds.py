@@ -57,7 +57,13 @@ LIMITS: dict[str, Limits] = {
     "CollabReply": Limits(4096, 16, 1024),
     "Event": Limits(64 * 1024, 1024, 4096, max_depth=8, max_nodes=4096),
     "Control": Limits(256, 16, 32),
+    "BackfillRequest": Limits(256, 16, 32),
+    # a reply's frames are bin strings of at most one MocapFrame's size each (max_str), and a
+    # reply holds at most BACKFILL_REPLY_FRAMES of them within BACKFILL_REPLY_BYTES
+    "BackfillReply": Limits(2 * 1024 * 1024, 4096, 256 * 1024),
 }
+BACKFILL_REPLY_BYTES = 1024 * 1024  # frame bytes a simulator puts in one BackfillReply at most
+BACKFILL_REPLY_FRAMES = 2048  # frames a simulator puts in one BackfillReply at most
 DEFAULT_LIMITS = Limits(64 * 1024, 1024, 1024)
 MAX_PAYLOAD = max(limit.max_bytes for limit in LIMITS.values())
 
@@ -217,9 +223,24 @@ def _control(msg: Any) -> None:
     _time(".t0", msg.t0)
 
 
+def _backfill_request(msg: Any) -> None:
+    _int(".first", msg.first, 0)
+    _int(".last", msg.last, msg.first)
+
+
+def _backfill_reply(msg: Any) -> None:
+    _int(".first", msg.first, 0)
+    _int(".last", msg.last, msg.first)
+    _int(".oldest", msg.oldest, -1)
+    if len(msg.frames) > msg.last - msg.first + 1:
+        raise OutOfBounds(".frames", f"{len(msg.frames)} frames for the {msg.last - msg.first + 1}"
+                                     f" seqs {msg.first}..{msg.last} the reply covers")
+
+
 _CHECKS = {"Clock": _clock, "MocapFrame": _mocap, "Command": _command, "LtlStatus": _ltl_status,
            "StlStatus": _stl_status, "CollabMessage": _collab, "Event": _event,
-           "Control": _control}
+           "Control": _control, "BackfillRequest": _backfill_request,
+           "BackfillReply": _backfill_reply}
 
 
 # --------------------------------------------------------------------------- fleet bounds

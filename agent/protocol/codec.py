@@ -1,7 +1,8 @@
 """The one codec of tlfleet messages: ``encode(msg) -> bytes``, ``decode(T, data) -> T``.
 
 Wire format (msgpack map, string keys): ``{"v": SCHEMA_VERSION, "k": "<type name>", <fields>}``.
-Tuples travel as arrays, nested dataclasses as maps, ``None`` as nil. ``decode`` checks the
+Tuples travel as arrays, nested dataclasses as maps, ``None`` as nil, ``bytes`` as msgpack bin
+(a :class:`~agent.protocol.messages.BackfillReply` carries encoded frames). ``decode`` checks the
 version, the kind and the type of every field against the dataclass annotations and raises
 ``ProtocolError`` naming the message, the field path and what was expected, so a malformed or
 foreign payload is rejected whole and never half-applied.
@@ -38,7 +39,8 @@ _KINDS: dict[str, type] = {
     cls.__name__: cls
     for cls in (messages.Clock, messages.MocapFrame, messages.Command, messages.LtlStatus,
                 messages.StlStatus, messages.CollabMessage, messages.CollabReply,
-                messages.Event, messages.Control)
+                messages.Event, messages.Control, messages.BackfillRequest,
+                messages.BackfillReply)
 }
 
 
@@ -120,7 +122,7 @@ def peek_kind(data: bytes) -> str | None:
 
 #: field values that are never dataclasses: encoded as they are, without asking (issue 17: a
 #: command, a frame or a status is encoded 100 times a second in every process)
-_PLAIN = frozenset({float, int, str, bool, tuple, list, dict, type(None)})
+_PLAIN = frozenset({float, int, str, bool, bytes, tuple, list, dict, type(None)})
 
 
 @functools.cache
@@ -200,6 +202,12 @@ def _str(value: Any) -> str:
     raise _Bad(f"expected a string, got {_show(value)}")
 
 
+def _bytes(value: Any) -> bytes:
+    if type(value) is bytes:
+        return value
+    raise _Bad(f"expected bytes, got {_show(value)}")
+
+
 def _any(value: Any) -> Any:
     return value
 
@@ -212,7 +220,7 @@ def _map(value: Any) -> dict:
 
 @functools.cache
 def _converter(hint: Any) -> Converter:
-    simple = {float: _float, int: _int, bool: _bool, str: _str, object: _any}
+    simple = {float: _float, int: _int, bool: _bool, str: _str, bytes: _bytes, object: _any}
     if hint in simple:
         return simple[hint]
     origin, args = typing.get_origin(hint), typing.get_args(hint)

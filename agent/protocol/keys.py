@@ -65,6 +65,12 @@ def frame_dividers(dividers: Iterable[int]) -> tuple[int, ...]:
     return tuple(sorted({int(d) for d in dividers if int(d) > 1}))
 
 
+def sim_backfill(fleet: str) -> str:
+    """Queryable of the simulator: ``BackfillRequest`` → ``BackfillReply``, the frames a
+    recorder missed during a link cut, from the simulator's ring (issue 13)."""
+    return f"{prefix(fleet)}/sim/backfill"
+
+
 def cmd(fleet: str, robot: int) -> str:
     """Agent → sim: ``Command`` of robot ``robot``."""
     return f"{prefix(fleet)}/robot/{int(robot)}/cmd"

@@ -160,5 +160,34 @@ class Control:
     t0: float = 0.0
 
 
+@dataclass(frozen=True, slots=True)
+class BackfillRequest:
+    """Recorder → simulator (query on ``sim/backfill``, issue 13): publish again, as a reply, the
+    frames with ``first`` ≤ seq ≤ ``last`` that the recorder missed (a link cut longer than the
+    zenoh lease loses what the simulator published meanwhile)."""
+
+    first: int
+    last: int
+
+
+@dataclass(frozen=True, slots=True)
+class BackfillReply:
+    """Simulator → recorder: the answer to a :class:`BackfillRequest` from the simulator's ring
+    of recent frames (``sim.frame_ring``).
+
+    The reply *covers* the seqs ``first``..``last`` (``last`` ≤ the requested one: less when the
+    reply's byte or frame budget ran out, and the recorder asks again from ``last + 1``);
+    ``frames`` holds each frame of that range the ring still has, as the very payload published
+    on ``mocap`` (an encoded :class:`MocapFrame`, decoded and checked like a live one). A seq the
+    reply covers without a frame is gone for good. ``oldest`` is the ring's oldest seq (−1 when
+    empty): why such a seq is gone (evicted, older than the ring's span).
+    """
+
+    first: int
+    last: int
+    oldest: int
+    frames: tuple[bytes, ...] = ()
+
+
 Message = (Clock | MocapFrame | Command | LtlStatus | StlStatus | CollabMessage | CollabReply
-           | Event | Control)
+           | Event | Control | BackfillRequest | BackfillReply)

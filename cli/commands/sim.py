@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cli.arg_types import positive_float
+from cli.arg_types import non_negative_float, positive_float
 from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
@@ -38,6 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="lockstep: let sim time run at most FACTOR × wall-clock time, e.g. 1 "
                              "to watch a run live (default: as fast as the agents answer; the "
                              "trajectory is the same either way)")
+    parser.add_argument("--backfill-seconds", type=non_negative_float, default=None,
+                        metavar="S",
+                        help="sim time of recent frames kept to backfill a recorder that missed "
+                             "them during a link cut [s] (default 10; also bounded to 8 MiB)")
     add_transport_arguments(parser)
 
 
@@ -50,7 +54,12 @@ def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
                             tick_timeout=args.tick_timeout,
                             transport=transport_config(args, "sim"),
                             max_command_age=args.max_command_age,
-                            max_speed=args.max_speed)
+                            max_speed=args.max_speed,
+                            **_backfill(args))
+
+
+def _backfill(args: argparse.Namespace) -> dict:
+    return {} if args.backfill_seconds is None else {"backfill_seconds": args.backfill_seconds}
 
 
 def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
@@ -61,7 +70,7 @@ def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
                                   duration=args.duration, seed=args.seed,
                                   tick_timeout=args.tick_timeout,
                                   max_command_age=args.max_command_age,
-                            max_speed=args.max_speed)
+                                  max_speed=args.max_speed, **_backfill(args))
 
 
 def run(args: argparse.Namespace) -> int:

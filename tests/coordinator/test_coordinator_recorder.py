@@ -43,17 +43,17 @@ def test_trajectory_rows_after_start_only_strictly_increasing(tmp_path):
     rec.start()
     rec.on_mocap(frame(0))  # a late pre-start frame …
     rec.on_mocap(frame(0))  # … and tick 0 (the later one wins)
-    for seq in (1, 2, 4, 3, 5):  # 3 arrives after 4: dropped
+    for seq in (1, 2, 4, 3, 5, 2):  # 3 after 4 fills the gap it left (issue 13); 2 again: stale
         rec.on_mocap(frame(seq))
     rec.close()
     traj = read_trajectory_csv(tmp_path / "trajectory.csv")
     assert traj.robot_ids == (1, 3)
-    np.testing.assert_allclose(traj.t, [0.0, 0.01, 0.02, 0.04, 0.05])
+    np.testing.assert_allclose(traj.t, [0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
     np.testing.assert_allclose(traj.states[3][:, 0], 3 + traj.t)
     np.testing.assert_allclose(traj.states[1][:, 1], -traj.t)
     header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
     assert header == "t,x1,y1,th1,x3,y3,th3"
-    assert rec.frames_written == 5 and rec.frames_skipped == 1
+    assert rec.frames_written == 6 and rec.frames_skipped == 1
 
 
 def test_frame_missing_a_robot_or_non_finite_is_skipped(tmp_path):

@@ -19,7 +19,7 @@ from agent.protocol.messages import Command, Event, LtlStatus, MocapFrame, StlSt
 
 KINDS = [messages.Clock, messages.MocapFrame, messages.Command, messages.LtlStatus,
          messages.StlStatus, messages.CollabMessage, messages.CollabReply, messages.Event,
-         messages.Control]
+         messages.Control, messages.BackfillRequest, messages.BackfillReply]
 
 
 def decode_or_protocol_error(cls, data):
@@ -126,6 +126,34 @@ HOSTILE = [
     (messages.Control, msgpack.packb({"v": True, **CONTROL_OK}), "schema version True"),
     (messages.Control, msgpack.packb({"v": [1], **CONTROL_OK}), "schema version a list"),
     (MocapFrame, msgpack.packb({"v": 1, **MOCAP_OK, "k": nested(900)}), "MocapFrame"),
+    # issue 13: the backfill's request and reply
+    (messages.BackfillRequest, pack(k="BackfillRequest", first=10, last=3),
+     r"BackfillRequest.last: 3 is outside \[10, "),
+    (messages.BackfillRequest, pack(k="BackfillRequest", first=-1, last=3),
+     r"BackfillRequest.first: -1 is outside"),
+    (messages.BackfillRequest, pack(k="BackfillRequest", first=1.0, last=3),
+     r"BackfillRequest.first: expected an integer, got float"),
+    (messages.BackfillRequest, pack(k="BackfillRequest", first=1),
+     r"BackfillRequest.last: missing"),
+    (messages.BackfillRequest, pack(k="BackfillRequest", first=2 ** 60, last=2 ** 60),
+     r"BackfillRequest.first: \d+ is outside"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=0, oldest=-2, frames=[]),
+     r"BackfillReply.oldest: -2 is outside"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=5, last=6, oldest=0,
+                                  frames=[b"a", b"b", b"c"]),
+     r"BackfillReply.frames: 3 frames for the 2 seqs 5..6"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=9, oldest=0,
+                                  frames=["not bytes"]),
+     r"BackfillReply.frames\[0\]: expected bytes, got str"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=9, oldest=0, frames=b"x"),
+     r"BackfillReply.frames: expected an array, got bytes"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=9, oldest=0,
+                                  frames=[b"x" * (LIMITS["BackfillReply"].max_str + 1)]),
+     "not a msgpack payload"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=9000, oldest=0,
+                                  frames=[b""] * 5000), "not a msgpack payload"),
+    (messages.BackfillReply, pack(k="BackfillReply", first=0, last=9, oldest=0,
+                                  frames=[b"x" * 200_000] * 11), "exceeds"),
 ]
 
 
@@ -180,3 +208,14 @@ def test_fleet_bounds_of_frames(frame, problem):
 def test_fleet_bounds_of_commands(command, problem):
     found = BOUNDS.command_problem(command)
     assert (found is None) if problem is None else (problem in found)
+
+
+def test_backfill_messages_round_trip_and_a_reply_carries_frames_as_published():
+    frames = tuple(encode(MocapFrame(k / 100, k, ((1, 0.5 * k, -1.0, 0.25),))) for k in (3, 5))
+    reply = messages.BackfillReply(first=3, last=6, oldest=2, frames=frames)
+    assert decode(messages.BackfillReply, encode(reply)) == reply
+    assert [decode(MocapFrame, f).seq for f in reply.frames] == [3, 5]
+    request = messages.BackfillRequest(first=7, last=7)
+    assert decode(messages.BackfillRequest, encode(request)) == request
+    with pytest.raises(ProtocolError, match="payload is a 'BackfillRequest' message"):
+        decode(messages.BackfillReply, encode(request))

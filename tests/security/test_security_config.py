@@ -236,6 +236,21 @@ def test_sim_and_coordinator(policy):
     assert not allowed(policy, "mallory", "ingress", "put", keys.event(F))
 
 
+def test_only_the_sim_serves_the_backfill_and_only_the_coordinator_asks_for_it(policy):
+    """Issue 13: ``sim/backfill`` (the frames a recorder missed during a link cut)."""
+    key = keys.sim_backfill(F)
+    assert allowed(policy, "sim", "ingress", "declare_queryable", key)
+    assert allowed(policy, "sim", "ingress", "reply", key)
+    assert allowed(policy, "sim", "egress", "query", key)
+    assert allowed(policy, "coordinator", "ingress", "query", key)
+    assert allowed(policy, "coordinator", "egress", "reply", key)
+    for who in ("robot3", "coordinator"):  # nobody else answers in the sim's name
+        assert not allowed(policy, who, "ingress", "declare_queryable", key)
+        assert not allowed(policy, who, "ingress", "reply", key)
+    assert not allowed(policy, "robot3", "ingress", "query", key)
+    assert not allowed(policy, "sim", "ingress", "query", key)
+
+
 def test_a_router_mesh_lets_the_routers_forward_everything_of_the_fleet_only():
     scenario = load_scenario(SCENARIO1)
     mesh = access_control(fleet_grants(scenario, mesh=True))

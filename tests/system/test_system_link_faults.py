@@ -32,6 +32,7 @@ from system_helpers import (
     robot_robot_contacts,
 )
 
+from agent.scenario import load_scenario
 from agent.scenario.faults import parse_fault
 from coordinator.hosts import run_on_hosts
 
@@ -72,7 +73,8 @@ STALE_AFTER = 0.1  # [s] --stale-after of the two-robot host runs: an agent chec
 #                    last message from the sim (0.15 gave 0.153–0.223 s): 0.1 holds 0.2 s
 
 
-def two_robots_on_hosts(tmp_path, spec: str, duration: float, prefix: str):
+def two_robots_on_hosts(tmp_path, spec: str, duration: float, prefix: str,
+                        sim_args: tuple[str, ...] = ()):
     """The two-robot fleet (fast watchdog, ``STALE_AFTER``) in realtime on namespace hosts
     with one fault; the run's namespaces are gone afterwards and it ended degraded (exit 4)."""
     scenario = fast_watchdog(HERE / "two_robots.toml", tmp_path / "two.toml")
@@ -81,7 +83,7 @@ def two_robots_on_hosts(tmp_path, spec: str, duration: float, prefix: str):
                           faults=(parse_fault(spec),), capture=True,
                           supervise_args=["--duration", f"{duration:g}", "--no-rrd",
                                           "--no-figures", "--quiet"],
-                          sim_args=["--duration", f"{duration:g}"],
+                          sim_args=["--duration", f"{duration:g}", *sim_args],
                           agent_args=["--stale-after", str(STALE_AFTER)], prefix=prefix)
     assert prefix not in netns_list()
     assert result.returncode == 4, result.stderr[-3000:]
@@ -224,17 +226,59 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     assert lost["data"]["process"] == "sim" == restored["data"]["process"]
     assert lost["data"]["wall"] - start["data"]["wall"] < 1.0
     assert by_kind(run_dir, "process_died") == []
-    # the run resumes: frames after the restore to the end; no duplicated or reordered frame
+    # the run resumes, and trajectory.csv has every frame once: the frames published while the
+    # sim's session was down (after the lease) were backfilled from its ring (issue 13)
     t, _states = load_trajectory(run_dir)
     assert t[-1] == pytest.approx(10.0)
-    steps = np.diff(t)
-    assert (steps > 0).all()
-    gaps = steps[steps > 0.015]
+    rate = load_scenario(HERE / "two_robots.toml").sim.mocap_rate  # [Hz]
+    seq = np.rint(t * rate).astype(int)
+    np.testing.assert_allclose(t, seq / rate, atol=1e-9)  # every row is a sim tick
+    assert seq[0] == 0 and (np.diff(seq) == 1).all(), f"gaps/duplicates after seq " \
+        f"{seq[:-1][np.diff(seq) != 1].tolist()}"
+    gaps, fills = by_kind(run_dir, "trajectory_gap"), by_kind(run_dir, "backfill")
+    assert gaps, "the cut lost no frame: nothing was backfilled, the test proves nothing"
+    assert [(g["data"]["first"], g["data"]["last"]) for g in gaps] == \
+        [(f["data"]["first"], f["data"]["last"]) for f in fills], (gaps, fills)
+    assert all(f["data"]["unrecovered"] == 0 for f in fills), fills
+    assert sum(f["data"]["backfilled"] + f["data"]["late"] for f in fills) == \
+        sum(g["data"]["frames"] for g in gaps), (gaps, fills)
+    summary = info["backfill"]
+    assert summary["unrecovered"] == 0 and summary["backfilled"] > 0
     print(f"sim cut: agents stale after {[round(e['data']['sim_silence'], 3) for e in stale]} s; "
-          f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; trajectory "
-          f"gaps {[round(float(g), 2) for g in gaps]} s")
+          f"link_lost after {lost['data']['wall'] - start['data']['wall']:.3f} s; live-stream "
+          f"gaps {[g['data']['frames'] for g in gaps]} frames, backfilled "
+          f"{summary['backfilled']} (late {summary['late']}) after "
+          f"{[round(f['data']['waited'], 3) for f in fills]} s wall, {summary['queries']} "
+          f"queries")
     kinds = collections.Counter(e["kind"] for e in events(run_dir))
     assert kinds["resumed"] >= 2  # both agents answered the newest frame after the cut
+
+
+def test_a_simulator_cut_longer_than_its_backfill_ring_names_the_frames_it_lost(tmp_path):
+    """The same cut with the simulator keeping only 0.5 s of frames (``--backfill-seconds``;
+    the default 10 s): the last 0.5 s of the lost stretch is backfilled, the rest is named as
+    an unrecoverable gap in events.jsonl, run.json and the run's verdict — never silently."""
+    need_root_netns()
+    run_dir, _result = two_robots_on_hosts(tmp_path, "cut:sim@3+2", 8.0, "tlft-simring",
+                                           sim_args=("--backfill-seconds", "0.5"))
+    info = json.loads((run_dir / "run.json").read_text())
+    summary = info["backfill"]
+    assert summary["unrecovered"] > 0 and 0 < summary["backfilled"] <= 50  # 0.5 s at 100 Hz
+    t, _states = load_trajectory(run_dir)
+    rate = load_scenario(HERE / "two_robots.toml").sim.mocap_rate  # [Hz]
+    seq = np.rint(t * rate).astype(int)
+    assert (np.diff(seq) >= 1).all()  # still no duplicate, never out of order
+    missing = sorted(set(range(seq[0], seq[-1] + 1)) - set(seq.tolist()))
+    named = [s for r in summary["unrecovered_ranges"] for s in range(r["first"], r["last"] + 1)]
+    assert missing == named  # the rows trajectory.csv lacks are exactly the ones named
+    (fill,) = by_kind(run_dir, "backfill")
+    assert fill["data"]["unrecovered"] == len(missing)
+    assert [[r["first"], r["last"]] for r in summary["unrecovered_ranges"]] == \
+        fill["data"]["unrecovered_ranges"]
+    reasons = " ".join(info["outcome"]["reasons"])
+    assert f"trajectory.csv misses {len(missing)} frames" in reasons
+    print(f"sim cut, 0.5 s ring: {summary['backfilled']} frames backfilled, "
+          f"{summary['unrecovered']} named unrecoverable ({summary['unrecovered_ranges']})")
 
 
 def test_a_simulator_cut_in_lockstep_shorter_than_the_lease_loses_no_frame(tmp_path):
