@@ -218,6 +218,8 @@ class SimProcess:
         self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
                       "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
+        # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
+        self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
 
     # ----------------------------------------------------------------- public
 
@@ -435,32 +437,34 @@ class SimProcess:
 
     def _pump(self, timeout: float) -> None:
         """Handle everything the callbacks queued, waiting up to ``timeout`` [s] for the first."""
-        cmds = self._cmds
+        cmds, inbox = self._cmds, self._inbox
         if cmds is not None:  # lockstep: commands on this thread, then what the callbacks queued
-            item = cmds.recv(timeout if self._inbox.empty() else 0.0)
+            item = cmds.recv(timeout if inbox.empty() else 0.0)
             while item is not None:
                 self._on_command(item[0], item[1], self._now())
                 item = cmds.recv(0.0)
             timeout = 0.0
-        try:
-            item = self._inbox.get(timeout=timeout) if timeout > 0.0 else self._inbox.get_nowait()
-        except queue.Empty:
-            item = None
-        while item is not None:
-            kind, key, payload, arrival = item
-            if kind == "cmd":
-                self._on_command(key, payload, arrival)
-            elif kind == "control":
-                self._on_control(key, payload)
-            elif kind == "malformed":
-                self._malformed(key, payload)
-            else:
-                self._on_alive(key, payload)
+        if timeout > 0.0 or not inbox.empty():  # (issue 17: no raised Empty on every pump)
             try:
-                item = self._inbox.get_nowait()
+                item = inbox.get(timeout=timeout) if timeout > 0.0 else inbox.get_nowait()
             except queue.Empty:
                 item = None
-        self._report_malformed()
+            while item is not None:
+                kind, key, payload, arrival = item
+                if kind == "cmd":
+                    self._on_command(key, payload, arrival)
+                elif kind == "control":
+                    self._on_control(key, payload)
+                elif kind == "malformed":
+                    self._malformed(key, payload)
+                else:
+                    self._on_alive(key, payload)
+                try:
+                    item = inbox.get_nowait()
+                except queue.Empty:
+                    item = None
+        if self.malformed:
+            self._report_malformed()
 
     def _on_command(self, key: str, payload: bytes, arrival: float) -> None:
         try:
@@ -468,7 +472,8 @@ class SimProcess:
         except ProtocolError as exc:
             self._malformed(key, str(exc))
             return
-        if keys.robot_of(key) != command.robot:
+        robot = self._cmd_robot.get(key)
+        if (robot if robot is not None else keys.robot_of(key)) != command.robot:
             self._malformed(key, f"command of robot {command.robot} on another robot's key")
             return
         problem = self.bounds.command_problem(command)

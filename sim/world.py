@@ -56,6 +56,8 @@ _get_velocity, _set_velocity = _cp.cpBodyGetVelocity, _cp.cpBodySetVelocity
 _get_angular_velocity = _cp.cpBodyGetAngularVelocity
 _set_angular_velocity = _cp.cpBodySetAngularVelocity
 _get_angle = _cp.cpBodyGetAngle
+_get_position = _cp.cpBodyGetPosition
+_space_step = _cp.cpSpaceStep
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,10 @@ class SimRobot:
         self._applied = (0.0, 0.0, 0.0)  # w_i inside the body's current velocity
         self.last_command_t: float | None = None  # [s] sim time of the last accepted command
         self.watchdog_tripped = False
+        # the last command clipped and its result: the simulator checks a command when it
+        # arrives and applies the same tuple at the tick (issue 17: one clip per command)
+        self._clipped_for: object = None
+        self._clipped: tuple[float, ...] = ()
 
         self.body = pymunk.Body(config.robot_mass,
                                 pymunk.moment_for_circle(config.robot_mass, 0, robot.radius))
@@ -149,7 +155,17 @@ class SimRobot:
         self.shape.collision_type = ROBOT_TYPE
 
     def clipped(self, u: Sequence[float]) -> tuple[float, ...]:
-        """``u`` clipped to the velocity limits; ``ValueError`` if it is malformed."""
+        """``u`` clipped to the velocity limits; ``ValueError`` if it is malformed.
+
+        The result for the very object ``u`` last clipped is reused (identity, not equality:
+        −0.0 == 0.0, and a list may change in between)."""
+        if u is self._clipped_for and type(u) is tuple:
+            return self._clipped
+        clipped = self._clip(u)
+        self._clipped_for, self._clipped = u, clipped
+        return clipped
+
+    def _clip(self, u: Sequence[float]) -> tuple[float, ...]:
         expected = 3 if self.kind == "omni" else 2
         if len(u) != expected:
             raise ValueError(f"robot {self.id} ({self.kind}) expects {expected} command values, "
@@ -332,8 +348,25 @@ class World:
         self._draw_disturbance()
         n = self.substeps(duration)
         dt = duration / n
-        for _ in range(n):
-            self.space.step(dt)
+        space = self.space
+        space.step(dt)  # pymunk's wrapper: checks new bodies, runs deferred additions/removals
+        # The other sub-steps call Chipmunk's cpSpaceStep as the wrapper does (issue 17: the
+        # wrapper's Python costs ≈ 30 µs per 100 Hz tick); only while the wrapper would have
+        # nothing else to do: no body to check, nothing deferred (the contact callbacks only
+        # record), not the threaded solver.
+        if n > 1 and not (space.threaded or space._bodies_to_check or space._add_later
+                          or space._remove_later or space._post_step_callbacks):
+            cspace = space._space
+            space._locked = True
+            try:
+                for _ in range(n - 1):
+                    _space_step(cspace, dt)
+            finally:
+                space._locked = False
+            space._removed_shapes.clear()
+        else:
+            for _ in range(n - 1):
+                space.step(dt)
         self.time += duration
 
     def _draw_disturbance(self) -> None:
@@ -345,8 +378,8 @@ class World:
         norms[norms == 0.0] = 1.0
         radius = self.disturbance_bound * self.rng.random((n, 1)) ** (1.0 / 3.0)
         w = direction / norms * radius
-        for row, robot in zip(w, self.robots.values(), strict=True):
-            robot.disturbance = (float(row[0]), float(row[1]), float(row[2]))
+        for (wx, wy, ww), robot in zip(w.tolist(), self.robots.values(), strict=True):
+            robot.disturbance = (wx, wy, ww)
 
     # ----------------------------------------------------------------- read-out
 
@@ -354,9 +387,9 @@ class World:
         """True poses ``(id, x [m], y [m], θ [rad] in (−π, π])``, ids ascending."""
         out = []
         for rid, sim_robot in self.robots.items():
-            body = sim_robot.body
-            p = body.position
-            out.append((rid, float(p.x), float(p.y), wrap_angle(body.angle)))
+            cbody = sim_robot._cbody  # Chipmunk's values, as body.position and body.angle give
+            p = _get_position(cbody)
+            out.append((rid, p.x, p.y, wrap_angle(_get_angle(cbody))))
         return tuple(out)
 
     def mocap_poses(self) -> tuple[tuple[int, float, float, float], ...]:
@@ -365,9 +398,9 @@ class World:
         poses = self.poses()
         if self.mocap_noise <= 0.0:
             return poses
-        noise = self.rng.normal(0.0, self.mocap_noise, size=(len(poses), 3))
-        return tuple((rid, x + float(n[0]), y + float(n[1]), wrap_angle(th + float(n[2])))
-                     for (rid, x, y, th), n in zip(poses, noise, strict=True))
+        noise = self.rng.normal(0.0, self.mocap_noise, size=(len(poses), 3)).tolist()
+        return tuple((rid, x + nx, y + ny, wrap_angle(th + nth))
+                     for (rid, x, y, th), (nx, ny, nth) in zip(poses, noise, strict=True))
 
     def velocities(self) -> dict[int, tuple[float, float, float]]:
         """Each robot's world-frame body velocity ``(vx [m/s], vy [m/s], ω [rad/s])``."""

@@ -31,6 +31,7 @@ import msgpack
 from agent.errors import TlfleetError
 from agent.protocol import messages
 from agent.protocol.bounds import DEFAULT_LIMITS, LIMITS, MAX_PAYLOAD, OutOfBounds, check_message
+from agent.protocol.fast_paths import decode_fast, encode_fast
 
 SCHEMA_VERSION = 1
 T = TypeVar("T")
@@ -49,7 +50,12 @@ class ProtocolError(TlfleetError, ValueError):
 
 
 def encode(msg: Any) -> bytes:
-    """Serialise one message dataclass."""
+    """Serialise one message dataclass (the per-tick kinds by :func:`encode_fast`, same bytes)."""
+    fast = encode_fast(msg)
+    return fast if fast is not None else _encode_generic(msg)
+
+
+def _encode_generic(msg: Any) -> bytes:
     kind = type(msg).__name__
     if _KINDS.get(kind) is not type(msg):
         raise TypeError(f"not a protocol message: {type(msg).__name__}")
@@ -59,9 +65,15 @@ def encode(msg: Any) -> bytes:
 
 
 def decode(cls: type[T], data: bytes) -> T:
-    """Parse ``data`` as a message of type ``cls``; ``ProtocolError`` on anything else."""
+    """Parse ``data`` as a message of type ``cls``; ``ProtocolError`` on anything else.
+
+    The per-tick kinds try :func:`~agent.protocol.fast_paths.decode_fast` first: it returns the
+    message only for a payload that passes every check below, so the result is the same."""
     name = getattr(cls, "__name__", "message")
     try:
+        fast = decode_fast(cls, data)
+        if fast is not None:
+            return fast
         return _decode(cls, data)
     except ProtocolError:
         raise
