@@ -25,8 +25,15 @@ from typing import Any
 
 import msgpack
 
-from agent.protocol.bounds import LIMITS, MAX_ANGLE, MAX_COORD, MAX_INT, MAX_ROBOT_ID, MAX_SPEED, \
-    MAX_TIME
+from agent.protocol.bounds import (
+    LIMITS,
+    MAX_ANGLE,
+    MAX_COORD,
+    MAX_INT,
+    MAX_ROBOT_ID,
+    MAX_SPEED,
+    MAX_TIME,
+)
 from agent.protocol.messages import Clock, Command, MocapFrame
 
 SCHEMA_VERSION = 1  # agent.protocol.codec.SCHEMA_VERSION (checked equal by the codec's tests)

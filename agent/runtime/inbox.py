@@ -62,6 +62,16 @@ class Mailbox:
             self.frames_received += 1
             self._cond.notify_all()
 
+    def keep_frame(self, payload: bytes, decoded: object = None) -> None:
+        """Store a frame the loop's own thread read itself (a channel, issue 17): nobody waits
+        for it, so neither the lock nor a notification; only that thread may call this, and it
+        takes frames with :meth:`take`."""
+        if self._frame is not None:
+            self.frames_overwritten += 1
+        self._frame = payload
+        self._decoded = decoded
+        self.frames_received += 1
+
     def put_control(self, payload: bytes) -> None:
         with self._cond:
             self._controls.append(payload)
@@ -89,6 +99,19 @@ class Mailbox:
             decoded, self._decoded = self._decoded, None
             controls, self._controls = tuple(self._controls), []
             return Wakeup(frame, controls, self._stopped, decoded)
+
+    def take(self) -> Wakeup:
+        """``wait(0.0)`` of a loop that stores its frames itself (:meth:`keep_frame`): the frame
+        without the lock, which is taken only when a control or a stop is pending (an unlocked
+        look: one arriving at this instant is taken at the next call; its callback wakes the
+        loop's channel, so that call comes at once)."""
+        frame, self._frame = self._frame, None
+        decoded, self._decoded = self._decoded, None
+        if self._controls or self._stopped:
+            with self._cond:
+                controls, self._controls = tuple(self._controls), []
+                return Wakeup(frame, controls, self._stopped, decoded)
+        return Wakeup(frame, (), False, decoded)
 
     def newer_frame(self, timeout: float) -> tuple[bytes, object] | None:
         """Wait up to ``timeout`` [s] for a frame only (no controls); take it, or None."""

@@ -294,10 +294,11 @@ class AgentLoop:
 
     def run_once(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` [s] for input and handle it; False once stopped."""
-        if self._channel is not None:
+        if self._channel is not None:  # frames read here, kept in the mailbox without its lock
             self._pump_channel(timeout)
-            timeout = 0.0
-        wake = self.mailbox.wait(timeout)
+            wake = self.mailbox.take()
+        else:
+            wake = self.mailbox.wait(timeout)
         for payload in wake.controls:
             self._on_control(payload)
         if wake.stopped:
@@ -315,7 +316,7 @@ class AgentLoop:
         """Read the frame channel on this thread: wait up to ``timeout`` [s] for the first
         sample (a wake-up or the timeout returns None), then take whatever else is queued;
         each frame is checked as the callback would (``_receive_frame``) and the newest valid
-        one waits in the mailbox's slot."""
+        one waits in the mailbox's slot (``Mailbox.keep_frame``: this thread's own hand-over)."""
         channel = self._channel
         item = channel.recv(timeout)
         while item is not None:
@@ -369,7 +370,10 @@ class AgentLoop:
             self.malformed.record(key, f"MocapFrame: implausible: {problem}", self.last_t,
                                   sender="sim", kind="implausible")
             return
-        self.mailbox.put_frame(payload, frame)
+        if self._channel is not None:  # called by _pump_channel on the loop's own thread
+            self.mailbox.keep_frame(payload, frame)
+        else:
+            self.mailbox.put_frame(payload, frame)
 
     def _on_clock(self, key: str, payload: bytes) -> None:
         """Transport callback (heartbeat): note when the sim was last heard from. A malformed

@@ -73,7 +73,7 @@ class StlCore:
         before = state.agent
         after, out = self.agent.step(before, StepInput(t, poses, inputs.inbox,
                                                        inputs.unreachable))
-        messages = tuple(to_wire(m, t) for m in out.messages)
+        messages = tuple(to_wire(m, t) for m in out.messages) if out.messages else ()
         events = self._events(t, before, after, out.log, out.messages)
         unreachable = inputs.unreachable
         if unreachable is not state.unreachable and unreachable != state.unreachable:

@@ -329,7 +329,10 @@ class StlAgent:
     def step(self, state: AgentState, inputs: StepInput) -> tuple[AgentState, StepOutput]:
         """One control step: the phases of the module docstring (stl-funnel.md §12), in order,
         on one scratch :class:`_Tick`; the new state is the old one with the phases' changes."""
-        tick = _Tick(t=inputs.t, poses={j: p.tolist() if hasattr(p, "tolist") else p
+        # tuples (as the runtime decodes them) pass as they are: hasattr fails slowly, once per
+        # robot and tick (issue 17)
+        tick = _Tick(t=inputs.t, poses={j: p if type(p) is tuple else
+                                        p.tolist() if hasattr(p, "tolist") else p
                                         for j, p in inputs.poses.items()})
         self._read_messages(state, inputs, tick)  # 1.
         self._sequence(state, tick)  # 2.

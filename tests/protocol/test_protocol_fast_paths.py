@@ -52,7 +52,7 @@ def near_valid(draw):
     msg = draw(frames | commands)
     body = msgpack.unpackb(codec._encode_generic(msg))
     for _ in range(draw(st.integers(1, 3))):
-        name = draw(st.sampled_from(sorted(body) + ["extra"]))
+        name = draw(st.sampled_from([*sorted(body), "extra"]))
         choice = draw(st.integers(0, 3))
         if choice == 0:
             body.pop(name, None)
