@@ -1,0 +1,76 @@
+"""Benchmark of the per-tick Python of the simulator and the agents, in process (issue 17).
+
+    .venv/bin/python bench/tick_bench.py [--quick] [--out FILE.json]
+
+What every 100 Hz lockstep tick of Scenario 1 runs besides the STL step (``stl_bench``) and
+zenoh (``runtime_bench``): the codec of the three per-tick messages (the frame every agent and
+the recorder decode, the command the sim decodes once per due robot, the frame, command and
+clock encoded) and the simulator's world tick (``World.step`` over one mocap period: 10 physics
+sub-steps with the tracking law of 5 robots, then ``World.mocap_poses``). CPU of this thread
+(``time.thread_time``) beside wall, medians of ``--runs`` runs; warm caches, so a real
+process, woken 100 times a second, pays 3–6× these figures (``docs/performance.md``). No
+targets: the figures compare trees (run this file from each checkout).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from agent.protocol.codec import decode, encode  # noqa: E402
+from agent.protocol.messages import Clock, Command, MocapFrame  # noqa: E402
+from agent.scenario import load_scenario  # noqa: E402
+from bench.common import RESULTS, Figure, load_average, report, time_calls  # noqa: E402
+from sim.world import World  # noqa: E402
+
+SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer calls per run")
+    parser.add_argument("--runs", type=int, default=7, help="runs per figure (≥ 3)")
+    parser.add_argument("--out", type=Path, default=RESULTS / "tick_bench.json")
+    args = parser.parse_args(argv)
+    calls = 2_000 if args.quick else 20_000
+    load_before = load_average()
+    scenario = load_scenario(SCENARIO1)
+    world = World.from_scenario(scenario, np.random.default_rng(0))
+    for robot in world.robots.values():  # moving, so the tracking law does its full work
+        robot.target = (0.3, -0.2, 0.4) if robot.kind == "omni" else (0.3, 0.4)
+    world.step(0.01)
+    frame = MocapFrame(12.34, 1234, world.mocap_poses(), (3, 4, 5))
+    frame30 = MocapFrame(12.34, 1234, tuple((i, 0.01 * i, -0.02 * i, 0.3) for i in range(1, 31)),
+                         tuple(range(1, 31)))
+    command = Command(3, 12.34, 1234, (0.1, -0.2, 0.05))
+    clock = Clock(12.34, 1234, "lockstep")
+    frame_bytes, frame30_bytes, command_bytes = encode(frame), encode(frame30), encode(command)
+    cases = [
+        ("decode_frame_us", "decode a 5-robot MocapFrame", lambda: decode(MocapFrame, frame_bytes),
+         calls),
+        ("decode_frame30_us", "decode a 30-robot MocapFrame",
+         lambda: decode(MocapFrame, frame30_bytes), calls),
+        ("decode_command_us", "decode a Command", lambda: decode(Command, command_bytes), calls),
+        ("encode_frame_us", "encode a 5-robot MocapFrame", lambda: encode(frame), calls),
+        ("encode_command_us", "encode a Command", lambda: encode(command), calls),
+        ("encode_clock_us", "encode a Clock", lambda: encode(clock), calls),
+        ("world_tick_us", "sim world tick: World.step(10 ms) + mocap_poses, 5 robots",
+         lambda: (world.step(0.01), world.mocap_poses()), calls // 20),
+    ]
+    figures = []
+    for key, label, fn, n in cases:
+        timing = time_calls(fn, args.runs, n)
+        figures.append(Figure(key, label, 1e6 * timing.cpu, "µs", wall=1e6 * timing.wall))
+    report("tick_bench", figures, args.out, load_before=load_before, quick=args.quick,
+           extra={"runs": max(3, args.runs), "calls": calls})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
