@@ -1,10 +1,10 @@
 """``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]
-[--lease-ms MS] [--fault SPEC …] [--fault-subnet CIDR]``: write the docker compose file of a scenario's fleet
-(:mod:`coordinator.compose`), secured by default (mutual TLS, the router's access control; keys
-from ``${TLFLEET_KEYS}``). With faults (``--fault`` or the scenario's ``[[faults]]``) the
-coordinator hands them to the host's executor that ``make compose-run`` starts
-(:mod:`coordinator.fault_compose`). An invalid scenario or a fault a compose fleet cannot do
-(a partition, a host) exits 1 before anything is written."""
+[--lease-ms MS] [--fault SPEC …] [--fault-subnet CIDR]``: write the docker compose file of a
+scenario's fleet (:mod:`coordinator.compose`), secured by default (mutual TLS, the router's
+access control; keys from ``${TLFLEET_KEYS}``). With faults (``--fault`` or the scenario's
+``[[faults]]``) the coordinator hands them to the host's executor that ``make compose-run``
+starts (:mod:`coordinator.fault_compose`). An invalid scenario or a fault a compose fleet cannot
+do (a partition, a host) exits 1 before anything is written."""
 
 from __future__ import annotations
 
