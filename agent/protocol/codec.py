@@ -32,8 +32,8 @@ from agent.errors import TlfleetError
 from agent.protocol import messages
 from agent.protocol.bounds import DEFAULT_LIMITS, LIMITS, MAX_PAYLOAD, OutOfBounds, check_message
 from agent.protocol.fast_paths import decode_fast, encode_fast
+from agent.protocol.wire import SCHEMA_VERSION, to_plain
 
-SCHEMA_VERSION = 1
 T = TypeVar("T")
 
 _KINDS: dict[str, type] = {
@@ -61,7 +61,7 @@ def _encode_generic(msg: Any) -> bytes:
         raise TypeError(f"not a protocol message: {type(msg).__name__}")
     body = {"v": SCHEMA_VERSION, "k": kind}
     body.update(_to_wire(msg))
-    return msgpack.packb(body, use_bin_type=True, default=_default)
+    return msgpack.packb(body, use_bin_type=True, default=to_plain)
 
 
 def decode(cls: type[T], data: bytes) -> T:
@@ -149,15 +149,6 @@ def _to_wire(msg: Any) -> dict[str, Any]:
         out[name] = value if type(value) in _PLAIN or not dataclasses.is_dataclass(value) \
             else _to_wire(value)
     return out
-
-
-def _default(value: Any) -> Any:
-    """msgpack fallback: numpy scalars and arrays become Python numbers and lists."""
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if hasattr(value, "item"):
-        return value.item()
-    raise TypeError(f"cannot encode {type(value).__name__}")
 
 
 # --------------------------------------------------------------------------- decoding

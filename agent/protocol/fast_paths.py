@@ -35,8 +35,7 @@ from agent.protocol.bounds import (
     MAX_TIME,
 )
 from agent.protocol.messages import Clock, Command, MocapFrame
-
-SCHEMA_VERSION = 1  # agent.protocol.codec.SCHEMA_VERSION (checked equal by the codec's tests)
+from agent.protocol.wire import SCHEMA_VERSION, to_plain
 
 
 def _unpacked(name: str, data: Any) -> dict | None:
@@ -108,12 +107,6 @@ def decode_fast(cls: type, data: Any) -> Any:
     return decoder(data) if decoder is not None else None
 
 
-def _default(value: Any) -> Any:  # the generic encoder's fallback (numpy values), imported late
-    from agent.protocol.codec import _default as default
-
-    return default(value)
-
-
 def encode_fast(msg: Any) -> bytes | None:
     """The wire bytes of a ``MocapFrame``, ``Command`` or ``Clock`` (the generic encoder's bytes:
     ``{"v", "k", <fields in declaration order>}``); ``None`` for any other message."""
@@ -129,4 +122,4 @@ def encode_fast(msg: Any) -> bytes | None:
                 "mode": msg.mode}
     else:
         return None
-    return msgpack.packb(body, use_bin_type=True, default=_default)
+    return msgpack.packb(body, use_bin_type=True, default=to_plain)

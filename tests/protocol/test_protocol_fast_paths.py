@@ -14,7 +14,6 @@ from hypothesis import strategies as st
 from agent.protocol import codec
 from agent.protocol.bounds import MAX_COORD, MAX_SPEED, MAX_TIME
 from agent.protocol.codec import SCHEMA_VERSION, ProtocolError, decode
-from agent.protocol.fast_paths import SCHEMA_VERSION as FAST_VERSION
 from agent.protocol.fast_paths import decode_fast, encode_fast
 from agent.protocol.messages import Clock, Command, MocapFrame
 
@@ -115,7 +114,3 @@ def test_ints_where_floats_are_allowed_are_left_to_the_generic_decoder():
 def test_the_fast_encoder_writes_the_generic_encoders_bytes(msg):
     assert encode_fast(msg) == codec._encode_generic(msg)
     assert codec.encode(msg) == codec._encode_generic(msg)
-
-
-def test_the_fast_paths_use_the_codecs_schema_version():
-    assert FAST_VERSION == SCHEMA_VERSION
