@@ -7,7 +7,7 @@ Each fault kind is injected ``--runs`` times (≥ 3) into the two-robot system-t
 100 Hz), with the fault tests' knobs: zenoh lease 500 ms on every process, the simulator's
 watchdog 0.15 s and LTL robots at 10 Hz (``tests/system/test_system_link_faults.py`` says why):
 
-* **cut** — ``cut:robot2@3+2`` on one namespace host (``coordinator.hosts.run_on_hosts``; root);
+* **cut** — ``cut:robot2@3+2`` on one namespace host (``coordinator.hosts_run.run_on_hosts``; root);
 * **partition** — ``partition:robot2,sim@3+2``: only robot 2's agent and the simulator lose each
   other; both keep the router (the peer layout of ``coordinator.hosts``; root);
 * **freeze** — ``freeze:robot2@3+2`` (SIGSTOP/SIGCONT), processes on loopback;
@@ -58,7 +58,7 @@ from common import RESULTS, Figure, load_average, report  # noqa: E402
 
 from agent.scenario.faults import parse_fault  # noqa: E402
 from coordinator import rundir  # noqa: E402
-from coordinator.hosts import run_on_hosts  # noqa: E402
+from coordinator.hosts_run import run_on_hosts  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
 

@@ -7,7 +7,7 @@ For each deployment, Scenario 1 is run ``--runs`` times (≥ 3) in lockstep and 
 
 * **local** — ``tlfleet run`` (``coordinator.runner.run_fleet``: router, sim and agents as
   processes on loopback);
-* **hosts3** — ``tlfleet run --hosts 3`` (``coordinator.hosts.run_on_hosts``: three network
+* **hosts3** — ``tlfleet run --hosts 3`` (``coordinator.hosts_run.run_on_hosts``: three network
   namespaces joined by a bridge, one router each, routers connected; root only);
 * **compose** — ``docker/compose-run.sh`` on a compose file written by ``tlfleet compose``
   (one container per process on one compose network; the image must be buildable offline, see
@@ -43,7 +43,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from coordinator.compose import ComposeConfig, write_compose  # noqa: E402
-from coordinator.hosts import run_on_hosts  # noqa: E402
+from coordinator.hosts_run import run_on_hosts  # noqa: E402
 from coordinator.rundir import read_events  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Faults on namespace hosts: link cuts (issue 13 §1; fault-injection notes §5.3, §5.5).
 
-``tlfleet run --fault cut:…`` goes to namespace hosts (:func:`coordinator.hosts.run_on_hosts`),
+``tlfleet run --fault cut:…`` goes to namespace hosts (:func:`coordinator.hosts_run.run_on_hosts`),
 where every process reaches the fleet through a router port of its own. The launcher writes a
 **fault plan** (``logs/fault-plan.json``: the namespaces' prefix, count and subnet, the placement
 and the children's pids) and ``tlfleet supervise`` — on host 0, as root — injects the faults
@@ -13,7 +13,7 @@ with a :class:`HostsActuator` built from it:
   mission's end), the loss of its liveliness token is a ``link_lost`` of the supervisor, not a
   death, and its return a ``link_restored`` (:class:`coordinator.supervisor.Supervisor`);
 * ``partition:A,B`` — only in the peer layout (:func:`coordinator.hosts.place_peers`, which
-  :func:`coordinator.hosts.run_on_hosts` chooses for a run with a partition): an nft bridge
+  :func:`coordinator.hosts_run.run_on_hosts` chooses for a run with a partition): an nft bridge
   rule drops what the bridge forwards between A's and B's hosts, so their direct peer link is
   gone while both keep their links to the router and to every other peer (a router does not
   relay between peers); in the router layout the hosts' routers form a mesh and would route

@@ -151,7 +151,7 @@ def print_outputs(result: RunResult) -> None:
 def run_hosts(args: argparse.Namespace) -> int:
     """``--hosts N``: launch on N namespace hosts, then ``tlfleet supervise`` on host 0 (it
     prints the report and the run directory)."""
-    from coordinator.hosts import run_on_hosts
+    from coordinator.hosts_run import run_on_hosts
 
     extra = ["--quiet"] if args.quiet else []
     for flag, value in (("--duration", args.duration), ("--seed", args.seed),

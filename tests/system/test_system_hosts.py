@@ -17,7 +17,8 @@ from needs import need_root_netns
 from system_helpers import HERE, SCENARIOS, run
 
 from agent.scenario import load_scenario
-from coordinator.hosts import NetnsHosts, place, run_on_hosts, wait_listening
+from coordinator.hosts import NetnsHosts, place, wait_listening
+from coordinator.hosts_run import run_on_hosts
 from coordinator.launcher import Launcher
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system]

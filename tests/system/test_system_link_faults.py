@@ -34,7 +34,7 @@ from system_helpers import (
 
 from agent.scenario import load_scenario
 from agent.scenario.faults import parse_fault
-from coordinator.hosts import run_on_hosts
+from coordinator.hosts_run import run_on_hosts
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system]
 LEASE_MS = 500
