@@ -6,7 +6,8 @@ A process's zenoh session is built in two layers (issue 12 §1):
    — TLS or QUIC endpoints and their certificates, access control, shared memory, timeouts;
 2. on top, tlfleet's own settings from the transport flags (:func:`own_settings`): the session
    mode, multicast scouting (off unless ``--multicast-scouting``; stack-notes.md §0), the lease
-   when ``--lease-ms`` is given, and the endpoints **when the flags give any** — with no
+   when ``--lease-ms`` is given (and, as long, the wait before a link with a blocked send queue
+   is closed), and the endpoints **when the flags give any** — with no
    ``--listen``/``--connect`` flag, the file's endpoints stay.
 
 When zenoh refuses the file, :func:`refusal` names the file and the key: zenoh's own messages
@@ -76,8 +77,16 @@ def own_settings(config: TransportConfig, from_file: frozenset[str] = frozenset(
     settings.append(("scouting/multicast/enabled", config.multicast_scouting))
     if config.lease_ms:
         settings.append(("transport/link/tx/lease", config.lease_ms))
+        # a link whose send queue stays full is closed after the same time as a silent one:
+        # zenoh waits 5 s by default, and a sender with congestion control "block" (a query, a
+        # reply) is stuck that long on a link a partition blackholed (issue 13: a lockstep
+        # helper held the fleet for the whole 6 s partition)
+        settings.append((BLOCK_WAIT_BEFORE_CLOSE, config.lease_ms * 1000))
     settings.extend(config.extra.items())
     return settings
+
+
+BLOCK_WAIT_BEFORE_CLOSE = "transport/link/tx/queue/congestion_control/block/wait_before_close"  # µs
 
 
 # ----------------------------------------------------------------- finding the refused key

@@ -149,10 +149,11 @@ def leased_services(faults: tuple[Fault, ...]) -> frozenset[str] | None:
 
 def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
            generated_by: str, zenoh_ref: str | None = None,
-           leased: frozenset[str] | None = None) -> str:
+           leased: frozenset[str] | None = None, hosts_ref: str | None = None) -> str:
     """The compose file's text for ``scenario`` mounted from ``scenario_ref`` (relative path);
-    ``zenoh_ref``: the clients' zenoh config (relative path) of a file that carries faults;
-    ``leased``: the services that get ``config.lease_ms`` (:func:`leased_services`)."""
+    ``zenoh_ref`` and ``hosts_ref``: the clients' zenoh config and hosts file (relative paths)
+    of a file that carries faults; ``leased``: the services that get ``config.lease_ms``
+    (:func:`leased_services`)."""
     scheme = "tls" if config.secure else "tcp"
     endpoint = f"{scheme}/router:{ROUTER_PORT}"
     volume = f"{scenario_ref}:{SCENARIO_IN}:ro"
@@ -161,7 +162,6 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
     zenoh = [] if zenoh_ref is None else ["--zenoh-config", ZENOH_IN]
     faulty = zenoh_ref is not None
     if faulty:
-        hosts_ref = zenoh_ref.removesuffix(".zenoh.json5") + ".hosts"
         keys_volume.append(f"      - {json.dumps(f'{zenoh_ref}:{ZENOH_IN}:ro')}")
         keys_volume.append(f"      - {json.dumps(f'{hosts_ref}:/etc/hosts:ro')}")
         router_ip = router_address(config.fault_subnet, len(scenario.robots) + 3)
@@ -227,7 +227,7 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         client(f"robot{robot}", ["agent", SCENARIO_IN, "--robot", str(robot),
                                  "--connect", endpoint, *client_flags(f"robot{robot}")])
     faults: list[str] = []
-    if zenoh_ref is not None:
+    if faulty:
         from coordinator.fault_compose import HANDOFF_IN
 
         faults = ["--fault-handoff", HANDOFF_IN]
@@ -272,8 +272,10 @@ def compose_text(config: ComposeConfig) -> str:
         by += f" --fault-subnet {config.fault_subnet}"
     for fault in config.faults:
         by += f" --fault {fault.text or fault.spec}"
-    return render(scenario, ref, config, by,
-                  f"./{zenoh_path(path).name}" if faults else None, leased_services(faults))
+    if not faults:
+        return render(scenario, ref, config, by)
+    return render(scenario, ref, config, by, f"./{zenoh_path(path).name}",
+                  leased_services(faults), f"./{hosts_path(path).name}")
 
 
 def compose_faults(scenario: Scenario, config: ComposeConfig) -> tuple[Fault, ...]:

@@ -61,7 +61,7 @@ class Gap:
     def t_of(self, seq: int) -> float:
         """Sim time of ``seq`` [s], between the frames around the gap (t = seq / mocap rate, so
         the interpolation is exact)."""
-        step = (self.t_after - self.t_before) / (self.last - self.first + 2)
+        step = (self.t_after - self.t_before) / (self.frames + 1)
         return self.t_before + (seq - self.first + 1) * step
 
 
@@ -192,8 +192,9 @@ class FrameMerger:
         for gap in self.gaps:
             if now - gap.opened >= self.wait:
                 gap.given_up = True
-        for gap in self.gaps:
-            if len(self.held) <= self.max_held:
+        while len(self.held) > self.max_held:  # (_release closes gaps: no loop over the list)
+            gap = next((g for g in self.gaps if not g.given_up), None)
+            if gap is None:
                 break
             gap.given_up = True
             self._release()

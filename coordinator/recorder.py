@@ -348,19 +348,19 @@ class RecorderTap:
         for data in reply.frames:
             try:
                 frame = decode(MocapFrame, data)
-                problem = self.bounds.frame_problem(frame) if self.bounds is not None else None
-                if problem is not None:
-                    raise ProtocolError(f"MocapFrame: implausible: {problem}")
+                self._check_frame(frame, gated=False)  # an old frame asked for: no seq gate
             except ProtocolError as exc:
                 self._count("backfill", self._backfill_key, data, exc)
                 continue
             frames.append(frame)
         self.recorder.on_backfill(reply.first, reply.last, reply.oldest, frames)
 
-    def _check_frame(self, frame: MocapFrame) -> None:
+    def _check_frame(self, frame: MocapFrame, gated: bool = True) -> None:
+        """ProtocolError for a frame out of the fleet's bounds or (``gated``: a live frame) whose
+        seq jump the gate holds until confirmed."""
         problem = self.bounds.frame_problem(frame) if self.bounds is not None else None
-        if problem is None and self.gate is not None and self.gate.offer(frame.seq) is \
-                Verdict.HELD:
+        if problem is None and gated and self.gate is not None and \
+                self.gate.offer(frame.seq) is Verdict.HELD:
             problem = f"seq {frame.seq} jumps from {self.gate.last}: held until confirmed"
         if problem is not None:
             raise ProtocolError(f"MocapFrame: implausible: {problem}")

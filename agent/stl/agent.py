@@ -258,7 +258,6 @@ class StlAgent:
                     logger.info("robot %d: requester %d still collaborating, followed again",
                                 i, msg.sender)
                     follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
-                    orphaned = None
             elif isinstance(msg, CollabRelease):
                 if msg.sender == follow:
                     follow, follow_subtask, follow_funnel = None, -1, None
@@ -266,7 +265,7 @@ class StlAgent:
                 elif orphaned is not None and msg.sender == orphaned[0]:
                     orphaned = None  # it does not count on us any more
         if follow is not None and follow != state.follow:
-            orphaned = None  # following someone (a request): nobody is orphaned
+            orphaned = None  # following someone (again, or on a request): nobody is orphaned
         return follow, follow_subtask, follow_funnel, peers, released, orphaned
 
     def _repair(self, task: Task, funnel: Funnel, rho: float, t: float, ce: int, c: int,

@@ -145,6 +145,17 @@ def test_holding_more_than_max_held_frames_gives_the_oldest_gap_up():
     assert m.merger.summary()["unrecovered"] == 1
 
 
+def test_one_poll_gives_up_as_many_gaps_as_the_bound_needs():
+    """Three gaps hold 8 frames: with max_held = 2 one poll gives up every gap it must (giving
+    one up closes it: the poll does not walk the list it shrinks)."""
+    m = Merge(max_held=2)
+    m.live(0, 2, 3, 5, 6, 8, 9, 10)  # 1, 4 and 7 missing
+    m.merger.poll()
+    assert len(m.merger.held) <= 2
+    assert m.written == [0, 2, 3, 5, 6, 8, 9]  # 10, the newest, held back
+    assert m.merger.summary()["unrecovered"] == 3
+
+
 def test_the_end_of_the_run_gives_every_gap_up_and_writes_everything_held():
     m = Merge()
     m.live(0, 3, 4, 9)

@@ -49,6 +49,9 @@ def test_endpoint_flags_replace_the_files_endpoints(tmp_path):
                      connect=("tcp/127.0.0.1:7000",), lease_ms=1500)
     assert c.get_json("connect/endpoints") == '["tcp/127.0.0.1:7000"]'
     assert c.get_json("transport/link/tx/lease") == "1500"
+    # a blocked send queue closes its link as soon as a silent link is (1500 ms, in µs)
+    assert c.get_json("transport/link/tx/queue/congestion_control/block/wait_before_close") \
+        == "1500000"
 
 
 @pytest.mark.parametrize(("text", "key", "reason"), [
