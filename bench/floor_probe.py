@@ -9,9 +9,13 @@ process takes it, spends ``--work-us`` of CPU (like decode + step + encode) and 
 * ``rtt_p50_us`` / ``rtt_p99_us``: sender-side round trip (frame out → answer in), wall clock.
 
 Variants: ``udp`` (a blocking ``recv`` on a bare UDP socket: the floor for a Python process woken
-100 times a second), ``zenoh-default`` (today's agent pattern before issue 17: a Python callback
-thread per subscriber hands the payload to the main thread through a condition variable, zenoh's
-default runtime), ``zenoh-minimal`` (the same with ``bus.transport.MINIMAL_RUNTIME``),
+100 times a second), ``udp-relay`` (the same through a third process that forwards every
+datagram, as the router forwards a realtime fleet's frames and commands: the round trip has the
+fleet's shape, sim → router → agent → router → sim, with nothing but the wake-ups and 30 µs of
+work in it, so its p99 is the floor of the fleet's frame → command latency on this machine),
+``zenoh-default`` (today's agent pattern before issue 17: a Python callback thread per
+subscriber hands the payload to the main thread through a condition variable, zenoh's default
+runtime), ``zenoh-minimal`` (the same with ``bus.transport.MINIMAL_RUNTIME``),
 ``zenoh-direct`` (minimal runtime, ``Callback(indirect=False)``: the callback runs on zenoh's
 thread), ``zenoh-fifo`` (minimal runtime, a ``FifoChannel`` read by the main thread with a
 blocking ``recv``). Zenoh variants run peer to peer on loopback (multicast scouting off).
@@ -38,7 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
 
-VARIANTS = ("udp", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo")
+VARIANTS = ("udp", "udp-relay", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo")
 FRAME = b"f" * 250
 ANSWER = b"c" * 40
 
@@ -63,16 +67,16 @@ def _config(listen: str | None, connect: str | None):
 def receiver(variant: str, port: int, ticks: int, work_us: float) -> dict:
     """Answer ``ticks`` frames; return CPU per tick of this process."""
     done = 0
-    if variant == "udp":
+    if variant in ("udp", "udp-relay"):
         rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         rx.bind(("127.0.0.1", port + 1))
         rx.settimeout(10.0)
         print("ready", flush=True)
         c0 = resource.getrusage(resource.RUSAGE_SELF)
         while done < ticks:
-            rx.recvfrom(2048)
+            _frame, source = rx.recvfrom(2048)
             _busy(work_us)
-            rx.sendto(ANSWER, ("127.0.0.1", port))
+            rx.sendto(ANSWER, source)  # the sender, or the relay that forwarded the frame
             done += 1
     else:
         import zenoh
@@ -131,15 +135,16 @@ def sender(variant: str, port: int, ticks: int, ready) -> list[float]:
     """Send ``ticks`` frames at 100 Hz; the round trips [µs]."""
     rtts: list[float] = []
     period = 0.01
-    if variant == "udp":
+    if variant in ("udp", "udp-relay"):
         tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         tx.bind(("127.0.0.1", port))
         tx.settimeout(0.5)
         ready()
+        to = port + 2 if variant == "udp-relay" else port + 1
         next_t = time.perf_counter()
         for _ in range(ticks):
             sent = time.perf_counter()
-            tx.sendto(FRAME, ("127.0.0.1", port + 1))
+            tx.sendto(FRAME, ("127.0.0.1", to))
             try:
                 tx.recvfrom(2048)
                 rtts.append(1e6 * (time.perf_counter() - sent))
@@ -175,21 +180,49 @@ def sender(variant: str, port: int, ticks: int, ready) -> list[float]:
     return rtts
 
 
+def relay(port: int, ticks: int) -> None:
+    """``udp-relay``: forward the sender's frames (from ``port``) to the receiver (``port + 1``)
+    and the receiver's answers back, on ``port + 2``, until ``ticks`` answers or 3 s of quiet."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", port + 2))
+    sock.settimeout(3.0)
+    sender_at, receiver_at = ("127.0.0.1", port), ("127.0.0.1", port + 1)
+    print("ready", flush=True)
+    answers = 0
+    while answers < ticks:
+        try:
+            data, source = sock.recvfrom(2048)
+        except TimeoutError:
+            return
+        if source == receiver_at:
+            sock.sendto(data, sender_at)
+            answers += 1
+        else:
+            sock.sendto(data, receiver_at)
+
+
 def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
-    """One sender (this process's child) and one receiver process."""
+    """One sender (this process's child) and one receiver process (and the relay between
+    them for ``udp-relay``)."""
     ticks = int(seconds * 100)
     env = dict(os.environ)
     env.pop("ZENOH_RUNTIME", None)
-    if variant not in ("udp", "zenoh-default"):
+    if not variant.startswith("udp") and variant != "zenoh-default":
         env["ZENOH_RUNTIME"] = MINIMAL_RUNTIME
     common = [sys.executable, __file__, "--variant", variant, "--port", str(port),
               "--ticks", str(ticks), "--work-us", str(work_us)]
-    # the receiver binds (UDP) or listens (zenoh) first; the sender starts once it is ready
-    rx = subprocess.Popen([*common, "--role", "receiver"], stdout=subprocess.PIPE, text=True,
-                          env=env)
-    if rx.stdout is None or rx.stdout.readline().strip() != "ready":
-        rx.kill()
-        raise RuntimeError(f"floor probe receiver ({variant}) did not start")
+    # the receiver binds (UDP) or listens (zenoh) first, then the relay; the sender starts once
+    # they are ready
+    started = []
+    for role in ("receiver", "relay") if variant == "udp-relay" else ("receiver",):
+        started.append(subprocess.Popen([*common, "--role", role], stdout=subprocess.PIPE,
+                                        text=True, env=env))
+        if started[-1].stdout is None or started[-1].stdout.readline().strip() != "ready":
+            for p in started:
+                p.kill()
+                p.wait()
+            raise RuntimeError(f"floor probe {role} ({variant}) did not start")
+    rx = started[0]
     tx = subprocess.Popen([*common, "--role", "sender"], stdout=subprocess.PIPE, text=True,
                           env=env)
     nan = float("nan")
@@ -200,7 +233,7 @@ def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
         return {"rx_cpu_us": nan, "ticks": 0, "answered": 0, "rtt_p50_us": nan,
                 "rtt_p99_us": nan, "error": "timed out"}
     finally:
-        for p in (rx, tx):
+        for p in (*started, tx):
             if p.poll() is None:
                 p.kill()
                 p.wait()
@@ -222,7 +255,7 @@ def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
     for variant in variants:
         rows = []
         for _ in range(max(1, runs)):
-            port += 2
+            port += 3  # sender, receiver, relay
             rows.append(run_pair(variant, port, seconds, work_us))
         ok = [r for r in rows if "error" not in r] or rows
         out[variant] = {key: statistics.median(r[key] for r in ok)
@@ -233,7 +266,7 @@ def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--role", choices=("sender", "receiver"))
+    parser.add_argument("--role", choices=("sender", "receiver", "relay"))
     parser.add_argument("--variant", choices=VARIANTS)
     parser.add_argument("--port", type=int, default=0)
     parser.add_argument("--ticks", type=int, default=300)
@@ -243,6 +276,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.role == "receiver":
         print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us)))
+        return 0
+    if args.role == "relay":
+        relay(args.port, args.ticks)
         return 0
     if args.role == "sender":
         rtts = sender(args.variant, args.port, args.ticks, lambda: None)

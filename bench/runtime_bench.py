@@ -27,7 +27,9 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
 * ``floor``: ``bench/floor_probe.py`` in the same benchmark: CPU per tick of an agent-like
   process (receive a frame, 30 µs of work, answer) over a bare UDP socket (the floor for a
   Python process woken 100× a second) and over zenoh as tlfleet configures it, so the gap of
-  the real agent tick to physics is visible;
+  the real agent tick to physics is visible; and the round trip's p99 over bare UDP, directly
+  and through a relay process (the realtime fleet's shape: sim → router → agent → router →
+  sim), the floor of the latency p99 on this machine at this moment;
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
 Besides, for every run, the CPU time of each child process per wall second of the supervised
@@ -304,6 +306,12 @@ def main(argv: list[str] | None = None) -> int:
                TARGETS["latency_p99_ms"]),
         Figure("stl_latency_p99_ms", "  the STL robots alone (worst robot's p99)",
                median(realtime, "stl_latency_p99_ms") if realtime else nan, "ms"),
+        Figure("floor_relay_p99_ms", "  floor: the fleet's round trip over bare UDP, p99",
+               fl("udp-relay", "rtt_p99_us") / 1e3, "ms",
+               note="sender → relay → receiver (30 µs of work) → relay → sender at 100 Hz, "
+                    "no zenoh: the wake-ups of the fleet's path alone (bench/floor_probe.py)"),
+        Figure("floor_udp_p99_ms", "  floor: a direct UDP echo (no relay), p99",
+               fl("udp", "rtt_p99_us") / 1e3, "ms"),
         Figure("missed_pct", "Scenario 1 realtime: missed control deadlines",
                100 * median(realtime, "missed_fraction") if realtime else nan, "%",
                100 * TARGETS["missed_fraction"]),
