@@ -136,7 +136,8 @@ class FakeTransport:
         channel._handle = self.subscribe(key_expr, channel._put)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler) -> Closeable:
+    def serve(self, key: str, handler: QueryHandler, *, droppable: bool = False) -> Closeable:
+        del droppable  # the in-memory network has no send queue to be congested
         entry = (self, key, handler)
         with self.network._lock:
             self.network._queryables.append(entry)
@@ -147,7 +148,8 @@ class FakeTransport:
         return [] if self.closed else self.network._query(key_expr, payload)
 
     def query_async(self, key_expr: str, payload: bytes, timeout: float,
-                    on_done: RepliesCallback) -> None:
+                    on_done: RepliesCallback, *, droppable: bool = False) -> None:
+        del droppable  # no send queue here
         on_done(self.query(key_expr, payload, timeout))  # finished before it returns
 
     def declare_alive(self, key: str) -> Closeable:

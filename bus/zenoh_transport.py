@@ -131,8 +131,11 @@ class ZenohTransport:
         self._entities.append(channel)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler) -> Closeable:
+    def serve(self, key: str, handler: QueryHandler, *, droppable: bool = False) -> Closeable:
+        """Answer queries on ``key`` with ``handler(payload)`` (None: no reply); with
+        ``droppable`` the replies use congestion control DROP (:meth:`query_async`)."""
         closing = self._closing
+        options = _drop_when_congested() if droppable else {}
 
         def on_query(query: Any) -> None:
             if closing.is_set():
@@ -144,7 +147,7 @@ class ZenohTransport:
                 logger.exception("queryable %s failed", key)
                 return
             if reply is not None:
-                query.reply(key, reply)  # own concrete key: no consolidation surprises
+                query.reply(key, reply, **options)  # own concrete key: no consolidation surprises
 
         queryable = self._session.declare_queryable(key, on_query)
         self._entities.append(queryable)
@@ -158,9 +161,17 @@ class ZenohTransport:
         return replies
 
     def query_async(self, key_expr: str, payload: bytes, timeout: float,
-                    on_done: RepliesCallback) -> None:
-        """Send a query and return at once; ``on_done(replies)`` runs on a zenoh network thread
+                    on_done: RepliesCallback, *, droppable: bool = False) -> None:
+        """Send a query and return; ``on_done(replies)`` runs on a zenoh network thread
         when the query is finished (every matching queryable answered, or ``timeout`` [s]).
+
+        A query's congestion control is BLOCK by default: ``session.get`` waits for room in the
+        link's send queue, and a link a partition blackholed can hold it until zenoh closes the
+        link (``wait_before_close``: 5 s by default, the lease with ``--lease-ms``). With
+        ``droppable`` the query uses DROP instead: on a congested link it is dropped after
+        ``wait_before_drop`` (1 ms by default) and finishes, at its timeout, without replies —
+        so the call never holds its caller (issue 13: a lockstep STL agent's collaboration query
+        held its loop, and with it the whole fleet, for a partition's length).
 
         The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
         Python thread per query (stack-notes.md §1.7); ``on_done`` must be quick and must not
@@ -183,7 +194,8 @@ class ZenohTransport:
                 logger.exception("reply callback of a query on %s failed", key_expr)
 
         self._session.get(key_expr, zenoh.handlers.Callback(on_reply, on_drop, indirect=False),
-                          payload=payload, timeout=timeout)
+                          payload=payload, timeout=timeout,
+                          **(_drop_when_congested() if droppable else {}))
 
     def declare_alive(self, key: str) -> Closeable:
         token = self._session.liveliness().declare_token(key)
@@ -297,3 +309,10 @@ class ZenohChannel:
             self._sub.undeclare()
         except Exception:
             logger.debug("undeclaring the channel of %s failed", self._key, exc_info=True)
+
+
+def _drop_when_congested() -> dict[str, Any]:
+    """The options of a query or reply that is dropped, not waited for, on a full send queue."""
+    import zenoh
+
+    return {"congestion_control": zenoh.CongestionControl.DROP}

@@ -67,7 +67,7 @@ class CollabLink:
     def open(self) -> None:
         """Serve the own queryable and watch the peers' liveliness tokens."""
         self._handles.append(self.transport.serve(keys.collab(self.fleet, self.robot),
-                                                  self._on_query))
+                                                  self._on_query, droppable=True))
         self._handles.append(self.transport.watch_alive(keys.all_alive(self.fleet),
                                                         self._on_alive))
 
@@ -163,7 +163,8 @@ class CollabLink:
                 batch.add()
                 self.transport.query_async(
                     keys.collab(self.fleet, msg.receiver), encode(msg), self.timeout,
-                    lambda replies, msg=msg: batch.done(self._finish(msg, replies)))
+                    lambda replies, msg=msg: batch.done(self._finish(msg, replies)),
+                    droppable=True)
             if wait and not batch.wait(self.timeout + _DONE_GRACE):
                 logger.warning("robot %d: %d collaboration queries not finished after %g s",
                                self.robot, batch.pending, self.timeout + _DONE_GRACE)

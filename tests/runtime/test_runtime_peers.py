@@ -21,10 +21,13 @@ class DeferredTransport:
         self.lock = threading.Condition()
         self.issued: list[tuple[int, str]] = []  # (receiver, kind) in issue order
         self.open: dict[int, list] = {}  # receiver -> on_done callbacks not finished yet
+        self.blocking: list[str] = []  # queries sent without droppable (waiting on a full link)
 
-    def query_async(self, key_expr, payload, timeout, on_done):
+    def query_async(self, key_expr, payload, timeout, on_done, *, droppable=False):
         msg = decode(CollabMessage, payload)
         with self.lock:
+            if not droppable:
+                self.blocking.append(key_expr)
             self.issued.append((msg.receiver, msg.kind))
             self.open.setdefault(msg.receiver, []).append(on_done)
             self.lock.notify_all()
@@ -65,6 +68,27 @@ def test_lockstep_sends_in_waves_and_waits_for_every_reply():
     assert not sender.is_alive() and result["failures"] == 1
     assert (link.sent, link.failed) == (3, 1)
     assert link.unreachable == frozenset({5})
+    # never a query that waits for room on a congested link (issue 13): the loop waits for the
+    # replies, bounded by the timeout, and for nothing else
+    assert transport.blocking == []
+
+
+def test_the_collab_queryable_answers_without_waiting_on_a_full_link():
+    """The replies are droppable too: a reply to a peer behind a blackholed link must not hold
+    the transport's callback thread until zenoh closes the link."""
+    served = []
+
+    class ServingTransport(DeferredTransport):
+        def serve(self, key, handler, *, droppable=False):
+            served.append((key, droppable))
+            return type("H", (), {"close": lambda self: None})()
+
+        def watch_alive(self, key_expr, callback):
+            return type("H", (), {"close": lambda self: None})()
+
+    link = CollabLink(ServingTransport(), FLEET, 3, (4, 5), MalformedCounter("agent/3"))
+    link.open()
+    assert served == [(f"tlfleet/{FLEET}/robot/3/collab", True)]
 
 
 def test_realtime_only_issues_the_queries():
