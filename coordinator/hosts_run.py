@@ -6,7 +6,10 @@ supervised there (issue 12 §3, issue 13; the hosts and the placement are
 their namespaces (:class:`coordinator.launcher.Launcher`, logs in ``<run>/logs``), then
 ``tlfleet supervise`` runs on host 0 (:mod:`coordinator.supervise`, the code of ``tlfleet run``)
 and writes the run directory. Everything it started is stopped and every namespace deleted, also
-on error. Needs root (``ip netns``); nft only for process cuts.
+on error and on interruption: when ``stop`` is set (``tlfleet run`` sets it on SIGINT and
+SIGTERM), supervise is interrupted (SIGINT: it ends the run as *interrupted* and writes the run
+directory up to that point) and everything else is stopped after it. Needs root (``ip netns``);
+nft only for process cuts.
 
 Secured by default (issue 14): every link is ``tls/`` with mutual authentication and every
 router enforces the fleet's access-control policy. Without ``keys``, a fresh key directory for
@@ -20,8 +23,11 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
 import subprocess
 import tempfile
+import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +50,41 @@ from coordinator.hosts import (
 from coordinator.launcher import Launcher, tlfleet_command
 from coordinator.rundir import default_run_dir
 
+#: [s] wall an interrupted ``tlfleet supervise`` gets to stop the fleet and write the run
+#: directory (its clean-up steps are bounded: coordinator.cleanup) before it is killed
+SUPERVISE_GRACE = 30.0
+
+
+def supervise_until_done(argv: Sequence[str], capture: bool, stop: threading.Event | None,
+                         grace: float = SUPERVISE_GRACE, poll: float = 0.2
+                         ) -> subprocess.CompletedProcess:
+    """Run ``tlfleet supervise`` (``argv``) to its end. When ``stop`` is set, interrupt it once
+    with SIGINT, as Ctrl-C would (it ends the mission, records the verdict *interrupted* and
+    writes its files), and kill it if it is still running ``grace`` [s] later. It runs in a
+    session of its own, so a terminal's Ctrl-C reaches it only through this (once)."""
+    pipe = subprocess.PIPE if capture else None
+    process = subprocess.Popen(list(argv), stdout=pipe, stderr=pipe, text=True,
+                               start_new_session=True)
+    interrupted_at: float | None = None
+    out = err = None
+    try:
+        while True:
+            try:
+                out, err = process.communicate(timeout=poll)  # retried: no output is lost
+                break
+            except subprocess.TimeoutExpired:
+                pass
+            if stop is not None and stop.is_set() and interrupted_at is None:
+                process.send_signal(signal.SIGINT)
+                interrupted_at = time.monotonic()
+            elif interrupted_at is not None and time.monotonic() - interrupted_at > grace:
+                process.kill()
+    finally:
+        if process.poll() is None:  # an exception here (not a stop): nothing may outlive us
+            process.kill()
+            process.wait()
+    return subprocess.CompletedProcess(list(argv), process.returncode, out, err)
+
 
 @dataclass
 class HostsRun:
@@ -63,7 +104,8 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  router_timeout: float = 15.0, kill_grace: float = 3.0,
                  prefix: str | None = None, keys: Path | None = None,
                  insecure: bool = False, lease_ms: int | None = None,
-                 faults: Sequence[Fault] = ()) -> HostsRun:
+                 faults: Sequence[Fault] = (),
+                 stop: threading.Event | None = None) -> HostsRun:
     """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults`` (issue 13)
     the supervisor on host 0 injects them from a fault plan (:mod:`coordinator.fault_hosts`) and
     every client reconnects fast (``RECONNECT``); ``lease_ms`` goes to every process. A
@@ -186,7 +228,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
             coordinator = [*net.exec_prefix(0), *tlfleet_command(
                 "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
                 "--out", str(run_dir), *secure, *lease, *client, *plan, *supervise_args)]
-            done = subprocess.run(coordinator, capture_output=capture, text=True)
+            done = supervise_until_done(coordinator, capture, stop)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
             if injecting:  # what `restart:` started again, as a child of supervise

@@ -165,10 +165,11 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.duration is None else ["--duration", repr(args.duration)]
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
-    result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
-                          keys=args.secure, insecure=args.insecure,
-                          supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
-                          faults=tuple(args.faults))
+    with stop_on_signals() as stop:  # SIGINT / SIGTERM: interrupted, every host cleaned up
+        result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
+                              keys=args.secure, insecure=args.insecure,
+                              supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
+                              faults=tuple(args.faults), stop=stop)
     return result.returncode
 
 

@@ -8,13 +8,17 @@ to the root namespace).
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 from by_hand import start_by_hand, supervise
 from needs import need_root_netns
-from system_helpers import HERE, SCENARIOS, run
+from system_helpers import HERE, ROOT, SCENARIOS, run
 
 from agent.scenario import load_scenario
 from coordinator.hosts import NetnsHosts, place, wait_listening
@@ -149,3 +153,48 @@ def test_scenario1_across_three_hosts_is_byte_identical_to_tlfleet_run(tmp_path,
     assert {c for n, c in result.exit_codes.items() if not n.startswith("router")} == {0}
     assert (tmp_path / "run" / "trajectory.csv").read_bytes() == \
         (scenario1_run.run_dir / "trajectory.csv").read_bytes()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_an_interrupted_hosts_run_ends_interrupted_and_leaves_nothing(tmp_path, signum):
+    """``kill`` or Ctrl-C of ``tlfleet run --hosts N`` (a run with link faults takes this path
+    too): supervise ends the run as *interrupted* and writes the run directory, every process
+    it started is gone, every namespace deleted and the run's private key directory removed.
+    (Before, SIGTERM killed ``tlfleet run`` at once and left its routers, namespaces and keys.)"""
+    need_root_netns()
+    run_dir = tmp_path / "run"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "run", str(HERE / "two_robots.toml"), "--realtime",
+         "--hosts", "2", "--duration", "120", "--out", str(run_dir), "--quiet", "--no-rrd",
+         "--no-figures"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True)  # the signal reaches tlfleet run alone, as `kill PID` does
+    prefix = f"tlf{process.pid % 100000}-"
+    try:
+        trajectory = run_dir / "trajectory.csv"
+        deadline = time.monotonic() + 90.0
+        while time.monotonic() < deadline and process.poll() is None:
+            if trajectory.is_file() and trajectory.read_text().count("\n") > 200:
+                break  # two seconds of the mission recorded
+            time.sleep(0.2)
+        assert process.poll() is None, process.communicate()[1][-3000:]
+        namespaces = [ns.split()[0] for ns in netns_list().splitlines()
+                      if ns.startswith(prefix)]
+        pids = [int(pid) for ns in namespaces for pid in subprocess.run(
+            ["ip", "netns", "pids", ns], capture_output=True, text=True).stdout.split()]
+        assert len(pids) >= 4  # routers, sim, agents, supervise
+        argv = Path(f"/proc/{pids[0]}/cmdline").read_bytes().split(b"\0")
+        keys = Path(argv[argv.index(b"--secure") + 1].decode())  # the run's own key directory
+        assert keys.is_dir()
+        process.send_signal(signum)
+        _out, err = process.communicate(timeout=90.0)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 130, err[-3000:]
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["outcome"]["label"] == "interrupted" and 2.0 <= info["t_end"] < 120.0
+    assert prefix not in netns_list()
+    left = [pid for pid in pids if os.path.exists(f"/proc/{pid}")]
+    assert left == [], f"processes of the run still running: {left}"
+    assert not keys.exists()
