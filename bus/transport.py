@@ -96,6 +96,20 @@ class Handle:
             undo()
 
 
+#: worker threads of zenoh's receive runtime in every tlfleet process (zenoh's default: 2). zenoh
+#: drops a link it lost on an RX worker, and the socket's close(2) blocks there for as long as
+#: unacknowledged data is left, up to zenoh's SO_LINGER of 10 s (zenoh-link-tcp and -tls). A
+#: link lost to a partition (a blackhole, not a reset) holds its worker until the partition
+#: heals or 10 s pass; with 2 workers, a peer that lost both of its links to a partitioned peer
+#: received nothing from anyone, the simulator's frames included (issue 13: the partner
+#: partition stalled a lockstep fleet for the partition's length; gdb showed rx-0 and rx-1 in
+#: close(2)). With 8, a process keeps receiving while up to 6 of its links are held so; the
+#: extra workers are parked threads when idle.
+RX_WORKERS = 8
+#: the ``ZENOH_RUNTIME`` of every tlfleet process unless its configuration or environment says
+#: otherwise (:attr:`TransportConfig.runtime`)
+DEFAULT_RUNTIME = f"(rx: (worker_threads: {RX_WORKERS}))"
+
 #: zenoh's runtime threads (``ZENOH_RUNTIME``) for a process that moves ~100 small messages a
 #: second: one async worker, and every other runtime (rx, tx, net, acc) handed over to it. A
 #: default session runs 7 OS threads (+1 per callback entity); each received sample then wakes
@@ -103,6 +117,7 @@ class Handle:
 #: tick in every process (router −25…40 %). Opt-in, not the default: under a flood of malformed
 #: payloads (10 000 per key, tests/security) a router with one worker fell behind and closed its
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
+#: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process.
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 
@@ -113,7 +128,8 @@ class TransportConfig:
 
     ``runtime``: the ``ZENOH_RUNTIME`` value set in this process before its (first) session opens
     (zenoh reads it once per process; an existing ``ZENOH_RUNTIME`` in the environment wins);
-    ``None`` (the default) keeps zenoh's thread pools; :data:`MINIMAL_RUNTIME` saves CPU.
+    the default, :data:`DEFAULT_RUNTIME`, is zenoh's thread pools with :data:`RX_WORKERS`
+    receive workers; ``None`` keeps zenoh's own; :data:`MINIMAL_RUNTIME` saves CPU.
     ``direct_callbacks``: subscriber callbacks run on zenoh's network thread
     (``Callback(indirect=False)``) instead of a Python thread per subscriber, saving one thread
     wake-up per sample; they must then be quick and never block.
@@ -125,7 +141,7 @@ class TransportConfig:
     lease_ms: int | None = None  # [ms] link lease: how fast a hung peer is declared gone
     multicast_scouting: bool = False
     extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
-    runtime: str | None = None
+    runtime: str | None = DEFAULT_RUNTIME
     direct_callbacks: bool = False
     zenoh_config: Path | None = None  # a zenohd-style JSON5 file under these settings
     #                                   (bus.zenoh_config)

@@ -79,8 +79,10 @@ def own_settings(config: TransportConfig, from_file: frozenset[str] = frozenset(
         settings.append(("transport/link/tx/lease", config.lease_ms))
         # a link whose send queue stays full is closed after the same time as a silent one:
         # zenoh waits 5 s by default, and a sender with congestion control "block" (a query, a
-        # reply) is stuck that long on a link a partition blackholed (issue 13: a lockstep
-        # helper held the fleet for the whole 6 s partition)
+        # reply) can be held that long on a link a partition blackholed. (This was first taken
+        # for the cause of issue 13's partner-partition stall; that one was zenoh's receive
+        # runtime blocked in close(2), bus.transport.RX_WORKERS. The bound stays: no sender
+        # should wait longer for a dead link than the lease takes to call it dead.)
         settings.append((BLOCK_WAIT_BEFORE_CLOSE, config.lease_ms * 1000))
     settings.extend(config.extra.items())
     return settings

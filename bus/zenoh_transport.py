@@ -170,8 +170,9 @@ class ZenohTransport:
         link (``wait_before_close``: 5 s by default, the lease with ``--lease-ms``). With
         ``droppable`` the query uses DROP instead: on a congested link it is dropped after
         ``wait_before_drop`` (1 ms by default) and finishes, at its timeout, without replies —
-        so the call never holds its caller (issue 13: a lockstep STL agent's collaboration query
-        held its loop, and with it the whole fleet, for a partition's length).
+        so the call never holds its caller: an agent's collaboration queries to a partitioned
+        partner must not hold its control loop (issue 13), and a lockstep loop waits for their
+        replies at most the query timeout.
 
         The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
         Python thread per query (stack-notes.md §1.7); ``on_done`` must be quick and must not
