@@ -84,7 +84,7 @@ class Death:
 class Outcome:
     """How the supervised phase ended."""
 
-    reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_died
+    reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_lost
     t_end: float  # [s] sim time
     deaths: list[Death] = field(default_factory=list)
 
@@ -330,7 +330,7 @@ class Supervisor:
             if "sim" in self.deaths:
                 reason = "sim_died"
             elif "router" in self.deaths:
-                reason = "router_died"
+                reason = "router_lost"
             elif self.sim_done:
                 reason = "sim_done"
             elif self.sim_time >= self.duration:

@@ -153,7 +153,7 @@ def test_a_lost_router_is_reported_as_a_router_loss(fleet):  # noqa: F811
     for peer in peers.values():  # everybody's token goes with it
         peer.kill()
     outcome = sup.supervise()
-    assert outcome.reason == "router_died"
+    assert outcome.reason == "router_lost"
     assert [d.process for d in outcome.deaths] == ["router"]
     assert len(reports) == 1 and reports[0].startswith("router died")
 

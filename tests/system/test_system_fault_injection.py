@@ -142,7 +142,7 @@ def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_
     run_dir = tmp_path / "run"
     result = run(TWO, run_dir, mode="realtime", duration=8.0, rrd=False, report=False,
                  faults=(parse_fault("kill:router@2"),))
-    assert result.outcome.reason == "router_died"
+    assert result.outcome.reason == "router_lost"
     assert result.verdict.label == "failed"
     assert result.exit_codes["router"] == -9
     assert {n: c for n, c in result.exit_codes.items() if n != "router"} == \
