@@ -16,7 +16,12 @@ Reductions applied, all language-preserving:
   transition with fewer targets and better acceptance reads it too — this makes most automata of
   robot missions deterministic and keeps the product small;
 * states with the same outgoing transitions (guard, destination class, acceptance) are merged
-  (GO §4.2, iterated to a bisimulation quotient).
+  (GO §4.2, iterated to a bisimulation quotient);
+* transitions into a conjunction of VWAA states that contains two provably contradictory ones
+  (``G !p`` and ``F p``; ``p`` and ``!p``: syntactic implication, ``agent.ltl.implication``) are
+  dropped: no word satisfies that conjunction, so no accepting run goes there. A dropped
+  transition only dominates transitions whose targets contain its own, dropped too, so dropping
+  them after the domination steps above is the same as before.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from dataclasses import dataclass
 from agent.ltl.alternating import Vwaa, is_acceptance_state
 from agent.ltl.formula import Formula, children
 from agent.ltl.guards import Guard
+from agent.ltl.implication import EmptyConjunctions
 from agent.ltl.truth_table import BddAlgebra, guard_algebra
 
 # A partial product of a TGBA state's transitions, (cube, targets, bad) with bad the bitmask of
@@ -188,7 +194,11 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                     mark_of[q] = len(mark_of)
         return sid
 
-    initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula)))
+    # Conjunctions of VWAA states that no word satisfies (G !p & F p, p & !p, …) are never
+    # entered: their states could not reach an accepting cycle anyway, and on formulas full of
+    # <-> and xor they were most of the construction (e.g. 274 of 329 states).
+    empty = EmptyConjunctions(vwaa.states, index)
+    initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula) if not empty(s)))
     option_cache: dict[int, tuple[list[_Group], bool]] = {}
     # The product after the first k members of a state, keyed by those members (a bitmask):
     # states share prefixes (every state of G(…) starts with the G state), and the product of
@@ -263,6 +273,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
+        groups = [group for group in groups if not empty(group[0])]
         raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits

@@ -1,0 +1,247 @@
+"""Syntactic implication and contradiction between LTL formulas in negation normal form.
+
+``implies(f, g)`` is a sound, incomplete test of ``f ⇒ g`` (every word satisfying ``f``
+satisfies ``g``) by structural rules, after Somenzi & Bloem, "Efficient Büchi automata from LTL
+formulae" (CAV 2000), §4, whose relation ⪯ uses the same kind of rules, and the syntactic
+implication of Spot's formula simplifier. It answers ``False`` when no rule applies, so a
+``True`` is a proof and a ``False`` is no information.
+
+``contradict(f, g)`` proves ``f ∧ g`` unsatisfiable: ``f ⇒ ¬g`` or ``g ⇒ ¬f``, with ``¬`` the
+dual in negation normal form (:func:`negate`). The TGBA construction uses it to drop transitions
+into conjunctions of VWAA states that no word satisfies (``agent.ltl.tgba``).
+
+The rules, each a one-line argument on words (``e`` eventual: ``e ≡ F e``; ``u`` universal:
+``u ≡ G u``; ``agent.ltl.rewrite``):
+
+* ``f ⇒ f``; ``f ⇒ true``; ``false ⇒ g``;
+* ``f ⇒ g1 ∧ g2`` if both hold; ``f1 ∨ f2 ⇒ g`` if both hold; ``f ⇒ g1 ∨ g2`` if ``f ⇒ g1`` or
+  ``f ⇒ g2``; ``f1 ∧ f2 ⇒ g`` if ``f1 ⇒ g`` or ``f2 ⇒ g``;
+* monotonicity: ``X``, ``F``, ``G``, ``U`` and ``R`` are monotone in every argument;
+* ``f ⇒ F g1`` if ``f ⇒ g1``; ``f ⇒ g1 U g2`` if ``f ⇒ g2``; ``f ⇒ g1 R g2`` if
+  ``f ⇒ g1`` and ``f ⇒ g2``, or if ``f ⇒ G g2``;
+* for universal ``f``: ``f ⇒ G g1`` and ``f ⇒ X g1`` if ``f ⇒ g1``;
+* ``G f1 ⇒ g`` and ``f2 R f1 ⇒ g`` if ``f1 ⇒ g``; ``f1 U f2 ⇒ g`` if ``f1 ⇒ g`` and
+  ``f2 ⇒ g``;
+* for eventual ``g``: ``F f1 ⇒ g``, ``X f1 ⇒ g`` and ``f2 U f1 ⇒ g`` if ``f1 ⇒ g``.
+"""
+
+from __future__ import annotations
+
+from agent.ltl.formula import (
+    FALSE,
+    TRUE,
+    And,
+    Atom,
+    Const,
+    Finally,
+    Formula,
+    Globally,
+    Next,
+    Not,
+    Or,
+    Release,
+    Until,
+    children,
+)
+from agent.ltl.rewrite import is_eventual, is_universal
+
+
+def negate(f: Formula) -> Formula:
+    """``¬f`` in negation normal form, by duality (no simplification)."""
+    return Implication({}).negation(f)
+
+
+class Implication:
+    """Memoised :meth:`implies` and :meth:`contradict` over the formulas of one translation.
+
+    Formulas are keyed by identity (hashing a formula walks its whole tree). Every formula
+    asked about is kept alive by the instance (``_roots``, and the negations it builds), so an
+    identity is never reused while the instance lives. ``index`` numbers the atoms."""
+
+    def __init__(self, index: dict[str, int]) -> None:
+        self._index = index
+        self._implies: dict[tuple[int, int], bool] = {}
+        self._negation: dict[int, tuple[Formula, Formula]] = {}
+        self._polarity: dict[int, tuple[Formula, int, int]] = {}
+        self._roots: list[Formula] = []
+        self._eventual: dict[int, bool] = {}
+        self._universal: dict[int, bool] = {}
+
+    def negation(self, f: Formula) -> Formula:
+        """``¬f`` in negation normal form (:func:`negate`), one object per subformula."""
+        entry = self._negation.get(id(f))
+        if entry is None:
+            entry = self._negation[id(f)] = (f, self._negate(f))
+        return entry[1]
+
+    def _negate(self, f: Formula) -> Formula:
+        neg = self.negation
+        match f:
+            case Const(value):
+                return Const(not value)
+            case Atom():
+                return Not(f)
+            case Not(Atom() as a):
+                return a
+            case And(args):
+                return Or(tuple(neg(a) for a in args))
+            case Or(args):
+                return And(tuple(neg(a) for a in args))
+            case Next(a):
+                return Next(neg(a))
+            case Finally(a):
+                return Globally(neg(a))
+            case Globally(a):
+                return Finally(neg(a))
+            case Until(a, b):
+                return Release(neg(a), neg(b))
+            case Release(a, b):
+                return Until(neg(a), neg(b))
+        raise TypeError(f"not a formula in negation normal form: {f}")
+
+    def polarity(self, f: Formula) -> tuple[int, int]:
+        """Bitmasks of the atoms occurring positively and negatively in ``f``; a constant
+        inside counts as every atom in both polarities."""
+        entry = self._polarity.get(id(f))
+        if entry is None:
+            match f:
+                case Atom(name):
+                    pos, neg = 1 << self._index[name], 0
+                case Not(Atom(name)):
+                    pos, neg = 0, 1 << self._index[name]
+                case Const():
+                    pos = neg = (1 << len(self._index)) - 1
+                case _:
+                    pos = neg = 0
+                    for child in children(f):
+                        p, n = self.polarity(child)
+                        pos |= p
+                        neg |= n
+            entry = self._polarity[id(f)] = (f, pos, neg)
+        return entry[1], entry[2]
+
+    def contradict(self, f: Formula, g: Formula) -> bool:
+        """Whether ``f ∧ g`` is provably unsatisfiable.
+
+        Every proof of ``f ⇒ ¬g`` by the rules ends in axioms ``x ⇒ x`` (``x`` a subformula of
+        both ``f`` and ``¬g``, so containing a literal of ``f`` whose complement is in ``g``) or
+        ones with a constant, so pairs without such a clash are not searched."""
+        pf, nf = self.polarity(f)
+        pg, ng = self.polarity(g)
+        if not (pf & ng or nf & pg):
+            return False
+        self._roots.append(f)
+        self._roots.append(g)
+        return self._imp(f, self.negation(g)) or self._imp(g, self.negation(f))
+
+    def _is_eventual(self, f: Formula) -> bool:
+        e = self._eventual.get(id(f))
+        if e is None:
+            e = self._eventual[id(f)] = is_eventual(f)
+        return e
+
+    def _is_universal(self, f: Formula) -> bool:
+        u = self._universal.get(id(f))
+        if u is None:
+            u = self._universal[id(f)] = is_universal(f)
+        return u
+
+    def implies(self, f: Formula, g: Formula) -> bool:
+        """Whether ``f ⇒ g`` follows from the rules of the module docstring."""
+        self._roots.append(f)
+        self._roots.append(g)
+        return self._imp(f, g)
+
+    def _imp(self, f: Formula, g: Formula) -> bool:
+        key = (id(f), id(g))
+        result = self._implies.get(key)
+        if result is None:
+            result = self._implies[key] = self._prove(f, g)
+        return result
+
+    def _prove(self, f: Formula, g: Formula) -> bool:
+        if f is g or g == TRUE or f in (FALSE, g):
+            return True
+        imp = self._imp
+        if isinstance(g, And):
+            return all(imp(f, x) for x in g.args)
+        if isinstance(f, Or):
+            return all(imp(x, g) for x in f.args)
+        if isinstance(g, Or) and any(imp(f, x) for x in g.args):
+            return True
+        if isinstance(f, And) and any(imp(x, g) for x in f.args):
+            return True
+        match g:
+            case Finally(g1):
+                if imp(f, g1) or (isinstance(f, Finally) and imp(f.arg, g1)):
+                    return True
+            case Globally(g1):
+                if isinstance(f, Globally) and imp(f.arg, g1):
+                    return True
+                if self._is_universal(f) and imp(f, g1):
+                    return True
+            case Next(g1):
+                if isinstance(f, Next) and imp(f.arg, g1):
+                    return True
+                if self._is_universal(f) and imp(f, g1):
+                    return True
+            case Until(g1, g2):
+                if imp(f, g2):
+                    return True
+                if isinstance(f, Until) and imp(f.left, g1) and imp(f.right, g2):
+                    return True
+            case Release(g1, g2):
+                if imp(f, g2) and imp(f, g1):
+                    return True
+                if isinstance(f, Release) and imp(f.left, g1) and imp(f.right, g2):
+                    return True
+                if isinstance(f, Globally) and imp(f.arg, g2):
+                    return True
+                if self._is_universal(f) and imp(f, g2):
+                    return True
+        match f:
+            case Globally(f1):
+                return imp(f1, g)
+            case Release(_, f2):
+                return imp(f2, g)
+            case Until(f1, f2):
+                if imp(f1, g) and imp(f2, g):
+                    return True
+                return self._is_eventual(g) and imp(f2, g)
+            case Finally(f1) | Next(f1):
+                return self._is_eventual(g) and imp(f1, g)
+        return False
+
+
+class EmptyConjunctions:
+    """Which conjunctions of VWAA states (bitmasks over ``states``) are provably empty: those
+    containing two states that :meth:`Implication.contradict` proves incompatible. Pairs and
+    sets are memoised; ``states`` may grow while it is used (the VWAA numbers states lazily)."""
+
+    def __init__(self, states: list[Formula], index: dict[str, int]):
+        self._states = states
+        self._implication = Implication(index)
+        self._pairs: dict[tuple[int, int], bool] = {}
+        self._sets: dict[int, bool] = {}
+
+    def __call__(self, targets: int) -> bool:
+        empty = self._sets.get(targets)
+        if empty is None:
+            empty = self._sets[targets] = self._search(targets)
+        return empty
+
+    def _search(self, targets: int) -> bool:
+        members = []
+        while targets:
+            low = targets & -targets
+            members.append(low.bit_length() - 1)
+            targets ^= low
+        states, pairs, contradict = self._states, self._pairs, self._implication.contradict
+        for k, j in enumerate(members):
+            for i in members[:k]:
+                clash = pairs.get((i, j))
+                if clash is None:
+                    clash = pairs[i, j] = contradict(states[i], states[j])
+                if clash:
+                    return True
+        return False
