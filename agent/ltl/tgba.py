@@ -27,7 +27,7 @@ Reductions applied, all language-preserving:
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from agent.ltl.alternating import Vwaa, is_acceptance_state
 from agent.ltl.formula import Formula, children
@@ -42,12 +42,17 @@ _Partial = int
 
 @dataclass(frozen=True)
 class Tgba:
-    """``edges[s]`` lists ``(dst, guard, marks)``; ``marks`` is a bitmask over ``num_marks``."""
+    """``edges[s]`` lists ``(dst, guard, marks)``; ``marks`` is a bitmask over ``num_marks``.
+
+    ``deterministic`` is ``True`` only when the automaton is known to be deterministic (one
+    initial state, pairwise disjoint guards in every state), as :func:`build_tgba` finds out
+    on its truth tables; ``False`` means "not known" (the reductions then check)."""
 
     num_states: int
     initial: tuple[int, ...]
     edges: tuple[tuple[tuple[int, Guard, int], ...], ...]
     num_marks: int
+    deterministic: bool = field(default=False, compare=False)
 
 
 _CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
@@ -179,6 +184,8 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             s ^= low
         return sorted(members, key=names.__getitem__)
 
+    members_of: list[list[int]] = []  # per TGBA state, its VWAA states in printed order
+
     def intern(s: int) -> int:
         sid = state_id.get(s)
         if sid is None:
@@ -186,7 +193,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             state_id[s] = sid
             raw_edges.append([])
             queue.append(s)
-            for q in ordered(s):
+            members = ordered(s)
+            members_of.append(members)
+            for q in members:
                 if is_acceptance_state(vwaa.states[q]) and q not in mark_of:
                     if len(mark_of) == layout.marks:
                         raise RuntimeError("build_tgba: more acceptance states than "
@@ -223,6 +232,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
             options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit, algebra)
         return options
+    deterministic = len(initial) <= 1  # so far: every state's groups pairwise disjoint
     while queue:
         s = queue.popleft()
         sid = state_id[s]
@@ -232,7 +242,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         partials: list[_Partial] = [0]  # the true cube, no target, nothing unfulfilled
         groups: list[_Group] | None = None
         disjoint = False
-        members = ordered(s)
+        members = members_of[sid]
         start, prefix = 0, 0
         masks = [0]
         for q in members:
@@ -270,11 +280,20 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
             groups = _minimal_per_letter(layout.groups_of(partials, algebra))
+            disjoint = deterministic and _disjoint(groups, algebra)
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
-        groups = [group for group in groups if not empty(group[0])]
-        raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
+            disjoint = deterministic and _disjoint(groups, algebra)
+        deterministic = deterministic and disjoint
+        out = raw_edges[sid]
+        for targets, bad, guard, _l in groups:
+            dst = state_id.get(targets)
+            if dst is None:
+                if empty(targets):
+                    continue
+                dst = intern(targets)
+            out.append((dst, guard, bad))
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
     for s, sid in state_id.items():
@@ -286,13 +305,14 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
               for dst, guard, bad in out)
         for src, out in enumerate(raw_edges)
     )
-    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of), deterministic),
+                                 algebra)]
     eager = lazy if len(raw_edges) > EAGER_MAX_STATES else tuple(
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
     if eager != lazy:
-        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of)),
-                                         algebra))
+        variants.append(_merge_bisimilar(
+            Tgba(len(eager), initial, eager, len(mark_of), deterministic), algebra))
     return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)
 
 
@@ -303,7 +323,7 @@ def _with_bdd_guards(tgba: Tgba, algebra) -> Tgba:
     to_bdd = algebra.to_bdd
     edges = tuple(tuple((dst, to_bdd(guard), marks) for dst, guard, marks in out)
                   for out in tgba.edges)
-    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks)
+    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks, tgba.deterministic)
 
 
 # A group of transitions of a TGBA state under construction: (targets, bad, guard, literals),
@@ -428,7 +448,9 @@ def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
             edges[b][key] = edges[b].get(key, algebra.false) | guard
     out = tuple(tuple((dst, guard, marks) for (dst, marks), guard in e.items()) for e in edges)
     initial = tuple(dict.fromkeys(block[i] for i in tgba.initial))
-    return Tgba(num_blocks, initial, out, tgba.num_marks)
+    # A quotient of a deterministic automaton is deterministic: each block keeps the edges of
+    # one member, grouped by destination block.
+    return Tgba(num_blocks, initial, out, tgba.num_marks, tgba.deterministic)
 
 
 def _signature(edges, block, false):

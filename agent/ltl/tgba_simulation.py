@@ -45,7 +45,8 @@ def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]]) -> list[set
 def reduce_tgba(tgba: Tgba) -> Tgba:
     """Quotient by simulation equivalence and little-brother pruning (see module docstring)."""
     n = tgba.num_states
-    if n < 2 or n > MAX_TGBA_SIMULATION_STATES or _is_deterministic(tgba):
+    if (n < 2 or n > MAX_TGBA_SIMULATION_STATES or tgba.deterministic
+            or _is_deterministic(tgba)):
         return tgba
     edges = [_grouped(out) for out in tgba.edges]
     sim = tgba_simulation(n, edges)

@@ -34,18 +34,20 @@ MAX_CLASSES = 256
 def _grouped(edges_of_q) -> dict[int, Bdd]:
     grouped: dict[int, Bdd] = {}
     for dst, guard in edges_of_q:
-        grouped[dst] = grouped.get(dst, FALSE) | guard
+        old = grouped.get(dst)
+        grouped[dst] = guard if old is None else old | guard
     return grouped
 
 
-def powerset(n, initial, edges, max_states: int):
+def powerset(n, initial, edges, max_states: int, deterministic: bool = False):
     """Subset construction of a guarded automaton (empty subset left out: it rejects all).
 
     Returns ``(subsets, det_edges)`` with ``det_edges[i] = [(j, guard), …]`` (disjoint guards),
     or ``None`` beyond ``max_states`` subsets or :data:`MAX_CLASSES` letter classes.
+    ``deterministic``: the automaton is known to be (else checked).
     """
     by_state = [_grouped(edges[q]) for q in range(n)]
-    if len(initial) == 1 and all(_disjoint(out.values()) for out in by_state):
+    if len(initial) == 1 and (deterministic or all(_disjoint(out.values()) for out in by_state)):
         return _singletons(initial[0], by_state, max_states)
     start = frozenset(initial)
     ids = {start: 0}
@@ -176,12 +178,13 @@ def _cycle_through(state: int, members: set[int], det_edges) -> list[int] | None
     return None
 
 
-def minimize_obligation(aut, negation_aut, max_states: int = 64):
+def minimize_obligation(aut, negation_aut, max_states: int = 64, deterministic: bool = False):
     """The minimal weak DBA equivalent to ``aut``, if the check proves it equivalent and it has
     fewer states; else ``None``. ``negation_aut`` is a callable returning a Büchi automaton
-    (same tuple shape and atoms) of the negated formula; it is called only when needed."""
+    (same tuple shape and atoms) of the negated formula; it is called only when needed.
+    ``deterministic``: ``aut`` is known to be deterministic (else checked)."""
     n, initial, accepting, edges = aut
-    built = powerset(n, initial, edges, max_states)
+    built = powerset(n, initial, edges, max_states, deterministic)
     if built is None:
         return None
     subsets, det_edges = built
@@ -287,7 +290,9 @@ def _moore(m, final, det_edges):
         for s in range(m):
             grouped: dict[int, Bdd] = {}
             for dst, guard in det_edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         block = new_block
@@ -299,7 +304,9 @@ def _moore(m, final, det_edges):
         if edges[block[s]] is None:
             grouped = {}
             for dst, guard in det_edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             edges[block[s]] = sorted(grouped.items(), key=lambda e: e[0])
     return count, (block[0],), frozenset(block[s] for s in final), edges
 
