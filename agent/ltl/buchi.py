@@ -312,11 +312,11 @@ def _merge_bisimilar(n, initial, accepting, edges):
                 grouped[b] = guard if old is None else old | guard
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
+        if len(signatures) == n:  # every state apart: nothing left to refine or merge
+            return n, initial, accepting, edges
         if len(signatures) == num_blocks:
             break
         block, num_blocks = new_block, len(signatures)
-    if num_blocks == n:
-        return n, initial, accepting, edges
     merged: list[dict[int, Guard] | None] = [None] * num_blocks
     for s in range(n):
         if merged[block[s]] is None:

@@ -431,11 +431,11 @@ def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
         for s in range(n):
             sig = (block[s], frozenset(_signature(tgba.edges[s], block, algebra.false)))
             new_block.append(signatures.setdefault(sig, len(signatures)))
+        if len(signatures) == n:  # every state apart: nothing left to refine or merge
+            return tgba
         if len(signatures) == num_blocks:
             break
         block, num_blocks = new_block, len(signatures)
-    if num_blocks == n:
-        return tgba
     edges: list[dict[tuple[int, int], Guard]] = [{} for _ in range(num_blocks)]
     done = set()
     for s in range(n):

@@ -296,9 +296,10 @@ def _moore(m, final, det_edges):
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         block = new_block
-        if len(signatures) == count:
-            break
+        stable = len(signatures) == count
         count = len(signatures)
+        if stable or count == m:  # every state apart is stable too
+            break
     edges: list[list[tuple[int, Bdd]] | None] = [None] * count
     for s in range(m):
         if edges[block[s]] is None:
