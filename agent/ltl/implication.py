@@ -121,11 +121,8 @@ class Implication:
         return entry[1], entry[2]
 
     def contradict(self, f: Formula, g: Formula) -> bool:
-        """Whether ``f ∧ g`` is provably unsatisfiable.
-
-        Every proof of ``f ⇒ ¬g`` by the rules ends in axioms ``x ⇒ x`` (``x`` a subformula of
-        both ``f`` and ``¬g``, so containing a literal of ``f`` whose complement is in ``g``) or
-        ones with a constant, so pairs without such a clash are not searched."""
+        """Whether ``f ∧ g`` is provably unsatisfiable (``f ⇒ ¬g`` needs a literal of ``f``
+        whose complement is in ``g``: see :meth:`_prove`)."""
         pf, nf = self.polarity(f)
         pg, ng = self.polarity(g)
         if not (pf & ng or nf & pg):
@@ -162,6 +159,13 @@ class Implication:
     def _prove(self, f: Formula, g: Formula) -> bool:
         if f is g or g == TRUE or f in (FALSE, g):
             return True
+        # Every proof ends in axioms x ⇒ x (x a subformula of both, so a literal of the same
+        # polarity in both) or ones with a constant (counted as every literal): without a
+        # shared literal no rule can succeed.
+        pf, nf = self.polarity(f)
+        pg, ng = self.polarity(g)
+        if not (pf & pg or nf & ng):
+            return False
         imp = self._imp
         if isinstance(g, And):
             return all(imp(f, x) for x in g.args)
@@ -213,35 +217,53 @@ class Implication:
         return False
 
 
-class EmptyConjunctions:
-    """Which conjunctions of VWAA states (bitmasks over ``states``) are provably empty: those
-    containing two states that :meth:`Implication.contradict` proves incompatible. Pairs and
-    sets are memoised; ``states`` may grow while it is used (the VWAA numbers states lazily)."""
+class Conflicts:
+    """The contradictions (:meth:`Implication.contradict`) among the states of a VWAA that have
+    been registered, as bitmasks: ``masks[q]`` has bit ``r`` when ``q ∧ r`` is provably empty.
+
+    A conjunction of states (a bitmask) containing such a pair accepts no word. States are
+    registered as they appear (the VWAA numbers them lazily); each new one is checked against
+    all registered ones, so the masks are always complete for the registered states.
+    ``version`` counts the changes, for callers that cache unions of masks."""
 
     def __init__(self, states: list[Formula], index: dict[str, int]):
         self._states = states
         self._implication = Implication(index)
-        self._pairs: dict[tuple[int, int], bool] = {}
-        self._sets: dict[int, bool] = {}
+        self.masks: dict[int, int] = {}
+        self._registered = 0
+        self.version = 0
 
-    def __call__(self, targets: int) -> bool:
-        empty = self._sets.get(targets)
-        if empty is None:
-            empty = self._sets[targets] = self._search(targets)
-        return empty
+    def register(self, targets: int) -> None:
+        """Register every state of the bitmask ``targets``."""
+        new = targets & ~self._registered
+        states, masks, contradict = self._states, self.masks, self._implication.contradict
+        while new:
+            low = new & -new
+            new ^= low
+            r = low.bit_length() - 1
+            mask = 0
+            known = self._registered
+            while known:
+                bit = known & -known
+                known ^= bit
+                q = bit.bit_length() - 1
+                if contradict(states[r], states[q]):
+                    mask |= bit
+                    masks[q] |= low
+                    self.version += 1
+            masks[r] = mask
+            self._registered |= low
 
-    def _search(self, targets: int) -> bool:
-        members = []
+    def of(self, targets: int) -> int:
+        """The states contradicting some state of ``targets`` (registered ones)."""
+        result = 0
+        masks = self.masks
         while targets:
             low = targets & -targets
-            members.append(low.bit_length() - 1)
             targets ^= low
-        states, pairs, contradict = self._states, self._pairs, self._implication.contradict
-        for k, j in enumerate(members):
-            for i in members[:k]:
-                clash = pairs.get((i, j))
-                if clash is None:
-                    clash = pairs[i, j] = contradict(states[i], states[j])
-                if clash:
-                    return True
-        return False
+            result |= masks[low.bit_length() - 1]
+        return result
+
+    def empty(self, targets: int) -> bool:
+        """Whether the conjunction ``targets`` (registered states) contains a contradiction."""
+        return bool(self.of(targets) & targets)

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from agent.ltl.alternating import Vwaa, is_acceptance_state
 from agent.ltl.formula import Formula, children
 from agent.ltl.guards import Guard
-from agent.ltl.implication import EmptyConjunctions
+from agent.ltl.implication import Conflicts
 from agent.ltl.truth_table import BddAlgebra, guard_algebra
 
 # A partial product of a TGBA state's transitions, (cube, targets, bad) with bad the bitmask of
@@ -84,12 +84,17 @@ class _Layout:
         return (x >> self.atoms & self.atom_mask, x & self.atom_mask, x >> self.targets_shift,
                 x >> self.bad_shift & self.bad_mask)
 
-    def product(self, partials: list[_Partial], delta: list[_Partial]) -> list[_Partial]:
-        """The consistent unions of a partial and a packed transition, undominated ones only."""
+    def product(self, partials: list[_Partial], delta: list[tuple[_Partial, int]]
+                ) -> list[_Partial]:
+        """The consistent unions of a partial and a packed transition, undominated ones only.
+        ``delta`` pairs each packed transition with the targets (shifted into place) that
+        contradict its own: a union with one of them is a conjunction no word satisfies."""
         a, mask = self.atoms, self.atom_mask
         out = []
         for x in partials:
-            for d in delta:
+            for d, clash in delta:
+                if x & clash:  # contradictory targets
+                    continue
                 y = x | d
                 if not (y >> a) & y & mask:  # pos & neg: an inconsistent cube
                     out.append(y)
@@ -205,32 +210,50 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
 
     # Conjunctions of VWAA states that no word satisfies (G !p & F p, p & !p, …) are never
     # entered: their states could not reach an accepting cycle anyway, and on formulas full of
-    # <-> and xor they were most of the construction (e.g. 274 of 329 states).
-    empty = EmptyConjunctions(vwaa.states, index)
-    initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula) if not empty(s)))
+    # <-> and xor they were most of the construction (e.g. 274 of 329 states). Partial
+    # products are dropped as soon as their targets contain a contradiction (about half of
+    # them on those formulas), before the domination steps, which they would not change.
+    conflicts = Conflicts(vwaa.states, index)
+    initial_sets = vwaa.bar(formula)
+    for s in initial_sets:
+        conflicts.register(s)
+    initial = tuple(dict.fromkeys(intern(s) for s in initial_sets if not conflicts.empty(s)))
     option_cache: dict[int, tuple[list[_Group], bool]] = {}
     # The product after the first k members of a state, keyed by those members (a bitmask):
     # states share prefixes (every state of G(…) starts with the G state), and the product of
     # a prefix depends on nothing else.
     prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
 
-    delta_cache: dict[int, list[_Partial]] = {}
+    delta_cache: dict[int, tuple[int, list[tuple[_Partial, int]]]] = {}
 
-    def packed_delta(q: int) -> list[_Partial]:
-        """VWAA state ``q``'s transitions as packed partials."""
-        packed = delta_cache.get(q)
-        if packed is None:
+    def packed_delta(q: int) -> list[tuple[_Partial, int]]:
+        """VWAA state ``q``'s transitions as packed partials, each with the states that
+        contradict its targets (shifted to the targets' place; recomputed when a registered
+        state brought a new contradiction); transitions into a contradiction are left out."""
+        entry = delta_cache.get(q)
+        if entry is None or entry[0] != conflicts.version:
+            transitions = vwaa.state_delta(q)
+            for _cube, targets, _good in transitions:
+                conflicts.register(targets)
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            packed = delta_cache[q] = [layout.pack(pos, neg, targets, 0 if good else bad_bit)
-                                       for (pos, neg), targets, good in vwaa.state_delta(q)]
-        return packed
+            packed = []
+            for (pos, neg), targets, good in transitions:
+                clash = conflicts.of(targets)
+                if not clash & targets:
+                    packed.append((layout.pack(pos, neg, targets, 0 if good else bad_bit),
+                                   clash << layout.targets_shift))
+            entry = delta_cache[q] = (conflicts.version, packed)
+        return entry[1]
 
     def options_of(q: int) -> tuple[list[_Group], bool]:
         """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
         options = option_cache.get(q)
         if options is None:
+            transitions = vwaa.state_delta(q)
+            for _cube, targets, _good in transitions:
+                conflicts.register(targets)
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit, algebra)
+            options = option_cache[q] = _state_options(transitions, bad_bit, algebra)
         return options
     deterministic = len(initial) <= 1  # so far: every state's groups pairwise disjoint
     while queue:
@@ -290,7 +313,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         for targets, bad, guard, _l in groups:
             dst = state_id.get(targets)
             if dst is None:
-                if empty(targets):
+                if conflicts.empty(targets):
                     continue
                 dst = intern(targets)
             out.append((dst, guard, bad))

@@ -34,7 +34,7 @@ from agent.ltl.formula import (
     children,
 )
 from agent.ltl.graphs import reachable, strongly_connected_components
-from agent.ltl.implication import EmptyConjunctions, Implication, negate
+from agent.ltl.implication import Conflicts, Implication, negate
 from agent.ltl.lasso import holds
 from agent.ltl.parser import parse
 from agent.ltl.rewrite import normalize
@@ -151,12 +151,19 @@ def test_the_implications_the_translation_relies_on_are_proven():
         assert not imp.contradict(_nnf(f), _nnf(g)), f"{f} ∧ {g} is satisfiable"
 
 
-def test_empty_conjunctions_of_states():
+def test_conflicts_between_registered_states():
     states = [_nnf(x) for x in ("G !a", "F a", "F b", "b", "!b")]
-    empty = EmptyConjunctions(states, INDEX)
-    assert empty(0b00011) and empty(0b11000) and empty(0b11111)
-    assert not empty(0b00101) and not empty(0b01110) and not empty(0)
-    assert empty(0b11010)  # memoised pairs, another set
+    conflicts = Conflicts(states, INDEX)
+    conflicts.register(0b00111)
+    assert conflicts.masks == {0: 0b010, 1: 0b001, 2: 0}
+    version = conflicts.version
+    conflicts.register(0b11000)  # b, !b: a new contradiction, and both masks complete
+    assert conflicts.version > version
+    assert conflicts.masks[3] == 0b10000 and conflicts.masks[4] == 0b01000
+    assert conflicts.empty(0b00011) and conflicts.empty(0b11000) and conflicts.empty(0b11111)
+    assert not conflicts.empty(0b00101) and not conflicts.empty(0b01110)
+    assert not conflicts.empty(0)
+    assert conflicts.of(0b01001) == 0b10010
 
 
 # The random-formula benchmark's #60 (bench/ltl_bench.py): its TGBA had 329 states, of which
@@ -192,12 +199,20 @@ def _build(f, prune: bool):
     index = {a: i for i, a in enumerate(_atoms_in_order(f))}
     if prune:
         return tgba.build_tgba(normalize(f), index)
-    original = tgba.EmptyConjunctions
-    tgba.EmptyConjunctions = lambda states, index: (lambda targets: False)
+    original = tgba.Conflicts.register
+    tgba.Conflicts.register = _register_without_contradictions
     try:
         return tgba.build_tgba(normalize(f), index)
     finally:
-        tgba.EmptyConjunctions = original
+        tgba.Conflicts.register = original
+
+
+def _register_without_contradictions(self, targets):
+    """``Conflicts.register`` that finds no contradiction: the construction before pruning."""
+    while targets:
+        low = targets & -targets
+        targets ^= low
+        self.masks.setdefault(low.bit_length() - 1, 0)
 
 
 def test_contradictory_conjunctions_are_not_entered():
