@@ -57,7 +57,11 @@ class Tgba:
 
 _CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
 EAGER_MAX_STATES = 64
-"""Largest TGBA (states) also returned with the eager marking (see :func:`build_tgba`)."""
+EAGER_MAX_EDGES = 256
+"""Largest TGBA (states, edges) also returned with the eager marking (see :func:`build_tgba`).
+On the benchmark's random formulas and Spot's table the eager marking gave the smaller
+automaton only on TGBAs of at most 140 edges; above, it doubles the work after (random #50:
+1 148 edges, an eager automaton of 112 states against 73)."""
 
 
 class _Layout:
@@ -166,8 +170,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     steps where φ_j was not pending). Which one degeneralises into fewer states depends on the
     formula (``G(a -> F b)`` prefers lazy), so the caller may try both. When no edge spawns an
     acceptance state the variants coincide and only one is returned; beyond
-    :data:`EAGER_MAX_STATES` states only the lazy one is (on the benchmark's random formulas
-    the eager marking never gave the smaller automaton there, and it doubles the work after).
+    :data:`EAGER_MAX_STATES` states or :data:`EAGER_MAX_EDGES` edges only the lazy one is.
     """
     vwaa = Vwaa(index)
     layout = _Layout(len(index), _acceptance_bound(formula))
@@ -330,7 +333,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     )
     variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of), deterministic),
                                  algebra)]
-    eager = lazy if len(raw_edges) > EAGER_MAX_STATES else tuple(
+    too_large = (len(raw_edges) > EAGER_MAX_STATES
+                 or sum(len(out) for out in raw_edges) > EAGER_MAX_EDGES)
+    eager = lazy if too_large else tuple(
         tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
     )
     if eager != lazy:
