@@ -326,19 +326,23 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         for q, mark in mark_of.items():
             if s >> q & 1:
                 pending[sid] |= 1 << mark
-    lazy = tuple(
-        tuple((dst, guard, all_marks & ~bad & ~(pending[dst] & ~pending[src]))
-              for dst, guard, bad in out)
-        for src, out in enumerate(raw_edges)
-    )
+    spawned = 0  # marks some good edge spawns afresh: where the two markings differ
+    lazy_edges = []
+    for src, out in enumerate(raw_edges):
+        row = []
+        for dst, guard, bad in out:
+            fresh = pending[dst] & ~pending[src] & ~bad
+            spawned |= fresh
+            row.append((dst, guard, all_marks & ~bad & ~fresh))
+        lazy_edges.append(tuple(row))
+    lazy = tuple(lazy_edges)
     variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of), deterministic),
                                  algebra)]
     too_large = (len(raw_edges) > EAGER_MAX_STATES
                  or sum(len(out) for out in raw_edges) > EAGER_MAX_EDGES)
-    eager = lazy if too_large else tuple(
-        tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
-    )
-    if eager != lazy:
+    if spawned and not too_large:
+        eager = tuple(tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out)
+                      for out in raw_edges)
         variants.append(_merge_bisimilar(
             Tgba(len(eager), initial, eager, len(mark_of), deterministic), algebra))
     return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)

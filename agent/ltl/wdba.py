@@ -184,6 +184,15 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64, deterministic: 
     (same tuple shape and atoms) of the negated formula; it is called only when needed.
     ``deterministic``: ``aut`` is known to be deterministic (else checked)."""
     n, initial, accepting, edges = aut
+    if deterministic and len(initial) == 1:
+        # Its subset construction is itself (renumbered) when every state is reachable, and
+        # the colouring does not depend on the numbering: when it agrees with the acceptance,
+        # Moore's quotient is the bisimulation quotient ``aut`` already is. Decided here
+        # without building the subset construction.
+        succ = [[d for d, _g in out] for out in edges]
+        if len(reachable(initial, succ)) == n and _loding_final(
+                n, succ, lambda members: any(s in accepting for s in members)) == accepting:
+            return None
     built = powerset(n, initial, edges, max_states, deterministic)
     if built is None:
         return None
@@ -191,31 +200,15 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64, deterministic: 
     m = len(subsets)
     deterministic = all(len(subset) == 1 for subset in subsets)
     succ = [[d for d, _g in out] for out in det_edges]
-    comp, components = strongly_connected_components(m, succ)
-    cyclic = nontrivial(comp, components, succ)
-    # Löding's colouring, sinks first (Tarjan's order): even = accepting.
-    k = 2 * len(components) + 2
-    colour = [0] * len(components)
-    for c, members in enumerate(components):
-        lowest = k
-        for s in members:
-            for d in succ[s]:
-                if comp[d] != c and colour[comp[d]] < lowest:
-                    lowest = colour[comp[d]]
-        if not cyclic[c]:
-            colour[c] = lowest if lowest < k else k - 1
-            continue
+
+    def cycle_accepts(members: list[int]) -> bool:
         if deterministic:  # D is A: the SCC's cycles accept iff it holds an accepting state
-            accepts = any(next(iter(subsets[s])) in accepting for s in members)
-        else:
-            letters = _cycle_through(members[0], set(members), det_edges)
-            accepts = letters is not None and _accepts_cycle(
-                subsets[members[0]], letters, accepting, edges)
-        if accepts:
-            colour[c] = lowest & ~1
-        else:
-            colour[c] = (lowest - 1) | 1
-    final = frozenset(s for s in range(m) if colour[comp[s]] % 2 == 0)
+            return any(next(iter(subsets[s])) in accepting for s in members)
+        letters = _cycle_through(members[0], set(members), det_edges)
+        return letters is not None and _accepts_cycle(
+            subsets[members[0]], letters, accepting, edges)
+
+    final = _loding_final(m, succ, cycle_accepts)
     if deterministic and m == n and all((s in final) == (next(iter(subsets[s])) in accepting)
                                         for s in range(m)):
         return None  # Moore's quotient would be the bisimulation quotient ``aut`` already is
@@ -227,6 +220,30 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64, deterministic: 
     if not _equivalent(aut, quotient, negation_aut):
         return None
     return quotient
+
+
+def _loding_final(m: int, succ, cycle_accepts) -> frozenset[int]:
+    """Löding's colouring of a deterministic automaton's SCCs, sinks first (Tarjan's order):
+    a cyclic SCC takes the largest colour ≤ its successors' least, even iff its cycles
+    accept (``cycle_accepts(members)``); a transient one its successors' least. Returns the
+    states of even colour (accepting in the minimal weak automaton)."""
+    comp, components = strongly_connected_components(m, succ)
+    cyclic = nontrivial(comp, components, succ)
+    k = 2 * len(components) + 2
+    colour = [0] * len(components)
+    for c, members in enumerate(components):
+        lowest = k
+        for s in members:
+            for d in succ[s]:
+                if comp[d] != c and colour[comp[d]] < lowest:
+                    lowest = colour[comp[d]]
+        if not cyclic[c]:
+            colour[c] = lowest if lowest < k else k - 1
+        elif cycle_accepts(members):
+            colour[c] = lowest & ~1
+        else:
+            colour[c] = (lowest - 1) | 1
+    return frozenset(s for s in range(m) if colour[comp[s]] % 2 == 0)
 
 
 def _differ_on_a_constant_word(a, b, max_letters: int = 16) -> bool:
