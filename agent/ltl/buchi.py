@@ -178,7 +178,7 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         raise TooManyPropositions(len(atoms))
     index = {a: i for i, a in enumerate(atoms)}
     text = to_string(tree)
-    variants = [reduce_tgba(tgba) for tgba in build_tgba(normalize(tree), index)]
+    variants = [reduce_tgba(tgba, len(atoms)) for tgba in build_tgba(normalize(tree), index)]
     for tgba in list(variants):
         # Several initial states (a disjunction at the top): merge the choice into one state.
         if len(tgba.initial) > 1 and tgba.num_states <= 32:

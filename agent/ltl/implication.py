@@ -28,8 +28,6 @@ The rules, each a one-line argument on words (``e`` eventual: ``e ≡ F e``; ``u
 from __future__ import annotations
 
 from agent.ltl.formula import (
-    FALSE,
-    TRUE,
     And,
     Atom,
     Const,
@@ -54,25 +52,58 @@ def negate(f: Formula) -> Formula:
 class Implication:
     """Memoised :meth:`implies` and :meth:`contradict` over the formulas of one translation.
 
-    Formulas are keyed by identity (hashing a formula walks its whole tree). Every formula
-    asked about is kept alive by the instance (``_roots``, and the negations it builds), so an
-    identity is never reused while the instance lives. ``index`` numbers the atoms."""
+    Formulas are first made canonical (hash-consed bottom-up: structurally equal formulas
+    become one object, whose children are canonical too), so that equality is identity and
+    every memo is keyed by identity (hashing or comparing a formula walks its whole tree).
+    The instance keeps every formula it was asked about alive, so an identity is never reused
+    while it lives. ``index`` numbers the atoms."""
 
     def __init__(self, index: dict[str, int]) -> None:
         self._index = index
+        self._canonical: dict[tuple, Formula] = {}  # (kind, name or children's ids) -> node
+        self._canonical_of: dict[int, tuple[Formula, Formula]] = {}  # id -> (formula, node)
         self._implies: dict[tuple[int, int], bool] = {}
-        self._negation: dict[int, tuple[Formula, Formula]] = {}
-        self._polarity: dict[int, tuple[Formula, int, int]] = {}
-        self._roots: list[Formula] = []
+        self._negation: dict[int, Formula] = {}
+        self._polarity: dict[int, tuple[int, int]] = {}
         self._eventual: dict[int, bool] = {}
         self._universal: dict[int, bool] = {}
 
+    def canonical(self, f: Formula) -> Formula:
+        """The one object of this instance structurally equal to the NNF formula ``f``."""
+        entry = self._canonical_of.get(id(f))
+        if entry is not None:
+            return entry[1]
+        canon = self.canonical
+        match f:
+            case Atom(name):
+                key, make = ("atom", name), lambda: f
+            case Const(value):
+                key, make = ("const", value), lambda: f
+            case And(args) | Or(args):
+                parts = tuple(canon(a) for a in args)
+                key, make = (type(f), *map(id, parts)), lambda: type(f)(parts)
+            case Until(a, b) | Release(a, b):
+                left, right = canon(a), canon(b)
+                key, make = (type(f), id(left), id(right)), lambda: type(f)(left, right)
+            case Not(a) | Next(a) | Finally(a) | Globally(a):
+                part = canon(a)
+                key, make = (type(f), id(part)), lambda: type(f)(part)
+            case _:
+                raise TypeError(f"not a formula in negation normal form: {f}")
+        node = self._canonical.get(key)
+        if node is None:
+            node = self._canonical[key] = make()
+            self._canonical_of[id(node)] = (node, node)
+        self._canonical_of[id(f)] = (f, node)
+        return node
+
     def negation(self, f: Formula) -> Formula:
-        """``¬f`` in negation normal form (:func:`negate`), one object per subformula."""
-        entry = self._negation.get(id(f))
-        if entry is None:
-            entry = self._negation[id(f)] = (f, self._negate(f))
-        return entry[1]
+        """``¬f`` in negation normal form (:func:`negate`), canonical."""
+        f = self.canonical(f)
+        n = self._negation.get(id(f))
+        if n is None:
+            n = self._negation[id(f)] = self.canonical(self._negate(f))
+        return n
 
     def _negate(self, f: Formula) -> Formula:
         neg = self.negation
@@ -100,35 +131,35 @@ class Implication:
         raise TypeError(f"not a formula in negation normal form: {f}")
 
     def polarity(self, f: Formula) -> tuple[int, int]:
-        """Bitmasks of the atoms occurring positively and negatively in ``f``; a constant
-        inside counts as every atom in both polarities."""
+        """Bitmasks of the atoms occurring positively and negatively in ``f`` (canonical); a
+        constant inside counts as every atom in both polarities."""
         entry = self._polarity.get(id(f))
         if entry is None:
             match f:
                 case Atom(name):
-                    pos, neg = 1 << self._index[name], 0
+                    entry = (1 << self._index[name], 0)
                 case Not(Atom(name)):
-                    pos, neg = 0, 1 << self._index[name]
+                    entry = (0, 1 << self._index[name])
                 case Const():
-                    pos = neg = (1 << len(self._index)) - 1
+                    entry = ((1 << len(self._index)) - 1, (1 << len(self._index)) - 1)
                 case _:
                     pos = neg = 0
                     for child in children(f):
                         p, n = self.polarity(child)
                         pos |= p
                         neg |= n
-            entry = self._polarity[id(f)] = (f, pos, neg)
-        return entry[1], entry[2]
+                    entry = (pos, neg)
+            self._polarity[id(f)] = entry
+        return entry
 
     def contradict(self, f: Formula, g: Formula) -> bool:
         """Whether ``f ∧ g`` is provably unsatisfiable (``f ⇒ ¬g`` needs a literal of ``f``
         whose complement is in ``g``: see :meth:`_prove`)."""
+        f, g = self.canonical(f), self.canonical(g)
         pf, nf = self.polarity(f)
         pg, ng = self.polarity(g)
         if not (pf & ng or nf & pg):
             return False
-        self._roots.append(f)
-        self._roots.append(g)
         return self._imp(f, self.negation(g)) or self._imp(g, self.negation(f))
 
     def _is_eventual(self, f: Formula) -> bool:
@@ -145,9 +176,7 @@ class Implication:
 
     def implies(self, f: Formula, g: Formula) -> bool:
         """Whether ``f ⇒ g`` follows from the rules of the module docstring."""
-        self._roots.append(f)
-        self._roots.append(g)
-        return self._imp(f, g)
+        return self._imp(self.canonical(f), self.canonical(g))
 
     def _imp(self, f: Formula, g: Formula) -> bool:
         key = (id(f), id(g))
@@ -157,7 +186,8 @@ class Implication:
         return result
 
     def _prove(self, f: Formula, g: Formula) -> bool:
-        if f is g or g == TRUE or f in (FALSE, g):
+        """``f ⇒ g`` by the rules, for canonical ``f`` and ``g`` (equal iff identical)."""
+        if f is g or (isinstance(g, Const) and g.value) or (isinstance(f, Const) and not f.value):
             return True
         # Every proof ends in axioms x ⇒ x (x a subformula of both, so a literal of the same
         # polarity in both) or ones with a constant (counted as every literal): without a

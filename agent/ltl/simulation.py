@@ -86,8 +86,8 @@ def direct_simulation(n, accepting, edges, tables: bool = False) -> list[set[int
     move into a state simulating it, accepting too). Guards are BDDs, or truth tables (ints,
     ``agent.ltl.truth_table``) when ``tables``."""
     if tables:
-        reads = [_union_of_tables(g for _d, g in out) for out in edges]
-        into = [_union_of_tables(g for d, g in out if d in accepting) for out in edges]
+        reads = [union_of_tables(g for _d, g in out) for out in edges]
+        into = [union_of_tables(g for d, g in out if d in accepting) for out in edges]
         sim = [{q for q in range(n)
                 if (q in accepting or p not in accepting) and not reads[p] & ~reads[q]
                 and not into[p] & ~into[q]}
@@ -104,7 +104,7 @@ def direct_simulation(n, accepting, edges, tables: bool = False) -> list[set[int
     return refine_simulation(n, sim, [[(d, 0, g) for d, g in out] for out in edges], tables)
 
 
-def _union_of_tables(tables) -> int:
+def union_of_tables(tables) -> int:
     union = 0
     for t in tables:
         union |= t
@@ -132,7 +132,7 @@ def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> li
         if hit is not None and hit[0] == version[d]:
             return hit[1]
         members = sim[d]
-        union = _union_of_tables if tables else disjoin
+        union = union_of_tables if tables else disjoin
         result = union(g for d2, m2, g in edges[q] if d2 in members and not marks & ~m2)
         cache[key] = (version[d], result)
         return result
