@@ -322,7 +322,11 @@ def print_issue16(result: dict) -> None:
 def bench_agent_plans(runs: int) -> list[dict]:
     """Algorithm 1 on the path the LTL agent uses, for every scenario LTL robot: CPU and wall ms
     with the map weights cached once per map (``LtlCore`` built untimed, as at agent start-up),
-    and cold (a fresh ``path_length_function`` inside the timing)."""
+    and cold (a fresh ``path_length_function`` inside the timing).
+
+    ``core.plan()`` plans with the automaton the agent translated when it was built, so its
+    figure leaves step 1 out; ``full_cpu_ms`` is the whole of Algorithm 1 as at agent start-up
+    (the parsed formula translated, then product and search with the cached map weights)."""
     rows = []
     for i in (1, 2, 3):
         scenario = load_scenario(ROOT / "scenarios" / f"scenario{i}.toml")
@@ -336,6 +340,8 @@ def bench_agent_plans(runs: int) -> list[dict]:
                 s, r, distance=path_length_function(s)), runs)
             p = plans[-1]
             translation = time_calls(lambda text=robot.ltl: translate(text), runs)
+            full = time_calls(lambda s=scenario, r=robot.id, d=core.agent.distance: plan_robot(
+                s, r, distance=d), runs)
             ts = from_scenario(scenario, robot.id, core.agent.distance)
             again = time_calls(lambda core=core, ts=ts, s=scenario: replan(
                 core.buchi, ts, core.agent.initial_region, core.buchi.initial,
@@ -346,6 +352,7 @@ def bench_agent_plans(runs: int) -> list[dict]:
                 "cpu_ms": 1e3 * warm.cpu, "wall_ms": 1e3 * warm.wall,
                 "cold_cpu_ms": 1e3 * cold.cpu, "cold_wall_ms": 1e3 * cold.wall,
                 "translate_cpu_ms": 1e3 * translation.cpu,
+                "full_cpu_ms": 1e3 * full.cpu, "full_wall_ms": 1e3 * full.wall,
                 "replan_cpu_ms": 1e3 * again.cpu, "replan_wall_ms": 1e3 * again.wall,
                 "translate_ms": 1e3 * p.timings.translate, "product_ms": 1e3 * p.timings.product,
                 "search_ms": 1e3 * p.timings.search,
@@ -381,7 +388,8 @@ def print_tables(result: dict) -> None:
               f"CPU {row['cpu_ms']:>7.3f} ms  wall {row['wall_ms']:>7.3f} ms  "
               f"(translate {row['translate_ms']:.2f}, product {row['product_ms']:.2f}, "
               f"search {row['search_ms']:.2f} ms)  translate alone: CPU "
-              f"{row['translate_cpu_ms']:.2f} ms  replan: CPU {row['replan_cpu_ms']:.2f} ms  "
+              f"{row['translate_cpu_ms']:.2f} ms  with translation: CPU "
+              f"{row['full_cpu_ms']:.2f} ms  replan: CPU {row['replan_cpu_ms']:.2f} ms  "
               f"cold incl. map: CPU {row['cold_cpu_ms']:.2f} ms")
     print("\n== scaling grid: end-to-end planning (target F r1&…&F r5 @ 40 regions <= 100 ms)")
     print(f"{'regions':>7}  {'formula':<38} {'Büchi':>5} {'product':>13} {'ms':>9} "
@@ -429,12 +437,17 @@ def main(argv: list[str] | None = None) -> int:
     print_tables(result)
     print_issue16(result)
     worst = max(agent_plans, key=lambda row: row["cpu_ms"])
+    worst_full = max(agent_plans, key=lambda row: row["full_cpu_ms"])
     figures = [
         Figure("algorithm1_ms", f"Algorithm 1, agent path, worst robot ({worst['scenario']} "
-               f"robot {worst['robot']})", worst["cpu_ms"], "ms", ALGORITHM1_TARGET_MS,
-               wall=worst["wall_ms"],
-               note=f"of which translating the formula (step 1) {worst['translate_cpu_ms']:.2f} "
+               f"robot {worst['robot']}), automaton kept", worst["cpu_ms"], "ms",
+               ALGORITHM1_TARGET_MS, wall=worst["wall_ms"],
+               note=f"translating the formula alone (text): {worst['translate_cpu_ms']:.2f} "
                     "ms CPU"),
+        Figure("algorithm1_full_ms", f"  the same with step 1, the translation ("
+               f"{worst_full['scenario']} robot {worst_full['robot']})",
+               worst_full["full_cpu_ms"], "ms", ALGORITHM1_TARGET_MS,
+               wall=worst_full["full_wall_ms"]),
         Figure("replan_ms", "  steps 2-4 only (the agent's replan: automaton kept)",
                worst["replan_cpu_ms"], "ms", wall=worst["replan_wall_ms"]),
         Figure("algorithm1_cold_ms", "the same, map weights computed inside the timing",

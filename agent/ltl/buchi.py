@@ -32,7 +32,7 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-from agent.ltl.bdd import FALSE, TRUE, disjoin
+from agent.ltl.bdd import TRUE, disjoin
 from agent.ltl.branching import postpone_branching
 from agent.ltl.degeneralize import degeneralize, mark_order_matters
 from agent.ltl.fair_simulation import remove_fair_little_brothers
@@ -178,7 +178,7 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         raise TooManyPropositions(len(atoms))
     index = {a: i for i, a in enumerate(atoms)}
     text = to_string(tree)
-    variants = [reduce_tgba(tgba) for tgba in build_tgba(normalize(tree), index)]
+    variants = [reduce_tgba(tgba, len(atoms)) for tgba in build_tgba(normalize(tree), index)]
     for tgba in list(variants):
         # Several initial states (a disjunction at the top): merge the choice into one state.
         if len(tgba.initial) > 1 and tgba.num_states <= 32:
@@ -187,6 +187,8 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
                 variants.append(merged)
     cheap = [_cheap_reduce(_remove_useless(*degeneralize(tgba))) for tgba in variants]
     best = min(cheap, key=lambda aut: (aut[0], sum(len(out) for out in aut[3])))
+    # Degeneralisation and the cheap reductions keep a deterministic TGBA deterministic.
+    deterministic = variants[cheap.index(best)].deterministic
     # The other order of the marks (Spot's degen-order); kept only when it saves states.
     for tgba in variants:
         if (1 < tgba.num_marks <= REVERSED_DEGEN_MAX_MARKS
@@ -196,17 +198,17 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
             other = _cheap_reduce(_remove_useless(*degeneralize(tgba, reverse=True)))
             cheap.append(other)
             if other[0] < best[0]:
-                best = other
-    full = _reduce(best, len(atoms))
+                best, deterministic = other, tgba.deterministic
+    full = _reduce(best, len(atoms), deterministic)
     if len(full[1]) > 1:  # one initial state, when that costs no state
         single = _reduce(_cheap_reduce(_remove_useless(*single_initial(*full))), len(atoms))
         if single[0] <= full[0]:
-            full = single
+            full, deterministic = single, False
     lighter = remove_fair_little_brothers(full)  # states that fair simulation proves useless
     if lighter is not None:
         lighter = _reduce(_cheap_reduce(_remove_useless(*lighter)), len(atoms))
         if lighter[0] < full[0]:
-            full = lighter
+            full, deterministic = lighter, False
     negated: list = []  # the negation's automaton, built at most once (weak DBA, validity)
 
     def negation():
@@ -216,7 +218,8 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
         return negated[0]
 
     if 2 < full[0] <= WDBA_MAX_INPUT:  # obligation formulas: the minimal weak DBA, if smaller
-        wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES)
+        wdba = minimize_obligation(full, negation, max_states=WDBA_MAX_STATES,
+                                   deterministic=deterministic)
         if wdba is not None:
             full = _merge_transient(*_remove_useless(*wdba))
     result = [_renumbered(text, atoms, *aut[1:])
@@ -245,12 +248,13 @@ def _cheap_reduce(aut):
     return _merge_transient(*_merge_bisimilar(*saturate_acceptance(*aut)))
 
 
-def _reduce(aut, atoms: int | None = None):
+def _reduce(aut, atoms: int | None = None, deterministic: bool = False):
     """Direct-simulation rounds, then transient-state merging (after :func:`_cheap_reduce`).
 
     A deterministic automaton is returned as it is: simulation has nothing to prune there, and
-    :func:`_cheap_reduce` already removed what the other two steps would."""
-    if is_deterministic(aut[1], aut[3]):
+    :func:`_cheap_reduce` already removed what the other two steps would. ``deterministic``:
+    known to be (else checked)."""
+    if deterministic or is_deterministic(aut[1], aut[3]):
         return aut
     for _round in range(3):
         before = (aut[0], sum(len(out) for out in aut[3]))
@@ -303,20 +307,24 @@ def _merge_bisimilar(n, initial, accepting, edges):
         for s in range(n):
             grouped: dict[int, Guard] = {}
             for dst, guard in edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
+        if len(signatures) == n:  # every state apart: nothing left to refine or merge
+            return n, initial, accepting, edges
         if len(signatures) == num_blocks:
             break
         block, num_blocks = new_block, len(signatures)
-    if num_blocks == n:
-        return n, initial, accepting, edges
     merged: list[dict[int, Guard] | None] = [None] * num_blocks
     for s in range(n):
         if merged[block[s]] is None:
             grouped = {}
             for dst, guard in edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             merged[block[s]] = grouped
     new_edges = [list(grouped.items()) for grouped in merged]
     return (
@@ -366,7 +374,8 @@ def _merge_transient(n, initial, accepting, edges):
             grouped: dict[int, Guard] = {}
             for dst, guard in edges[s]:
                 d = find(dst)
-                grouped[d] = grouped.get(d, FALSE) | guard
+                old = grouped.get(d)
+                grouped[d] = guard if old is None else old | guard
             new_edges.append(sorted(grouped.items()))
         edges = new_edges
         initial = tuple(dict.fromkeys(find(s) for s in initial))

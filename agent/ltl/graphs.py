@@ -74,7 +74,7 @@ def nontrivial(comp: Sequence[int], components: Sequence[Sequence[int]],
             result.append(True)
         else:
             v = members[0]
-            result.append(any(w == v for w in succ[v]))
+            result.append(v in succ[v])
     return result
 
 

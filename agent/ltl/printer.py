@@ -10,6 +10,7 @@ are printed between double quotes.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import lru_cache
 from types import MappingProxyType
 
 from agent.ltl.formula import (
@@ -65,8 +66,10 @@ def _level(f: Formula) -> int:
     raise TypeError(f"not an LTL formula: {f!r}")
 
 
+@lru_cache(maxsize=4096)
 def atom_text(name: str) -> str:
-    """``name`` bare when Spot reads it back as that atom, else double-quoted."""
+    """``name`` bare when Spot reads it back as that atom, else double-quoted (memoised: the
+    translator prints its automaton states' formulas to order them, atoms over and over)."""
     if is_bare_atom(name):
         return name
     return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -70,8 +70,11 @@ def explore(
         if nexts is None:
             nexts = buchi.successors_by_valuation(q, valuations[region])
             step_cache[key] = nexts
-        succ[k] = tuple(
-            (intern(r2, q2), w) for q2 in nexts for r2, w in ts.edges[region]
-        )
+        out = []
+        for q2 in nexts:
+            for r2, w in ts.edges[region]:
+                j = ids.get(r2 * num_q + q2)  # (intern's lookup inlined: one call fewer)
+                out.append((intern(r2, q2) if j is None else j, w))
+        succ[k] = tuple(out)
     accepting = tuple(q in buchi.accepting for _r, q in pairs)
     return ProductGraph(tuple(pairs), tuple(succ), start, accepting)

@@ -80,25 +80,31 @@ def saturate_acceptance(n, initial, accepting, edges):
 def direct_simulation(n, accepting, edges, tables: bool = False) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q`` (``q`` direct-simulates ``p``).
 
-    Greatest fixpoint (:func:`refine_simulation`) from "``q`` accepting if ``p`` is, and ``q``
-    reads every letter ``p`` reads". Guards are BDDs, or truth tables (ints,
+    Greatest fixpoint (:func:`refine_simulation`) from "``q`` accepting if ``p`` is, ``q``
+    reads every letter ``p`` reads, and moves to an accepting state on every letter on which
+    ``p`` does" (each necessary: a move of ``p`` into an accepting state is answered by a
+    move into a state simulating it, accepting too). Guards are BDDs, or truth tables (ints,
     ``agent.ltl.truth_table``) when ``tables``."""
     if tables:
-        reads = [_union_of_tables(g for _d, g in out) for out in edges]
+        reads = [union_of_tables(g for _d, g in out) for out in edges]
+        into = [union_of_tables(g for d, g in out if d in accepting) for out in edges]
         sim = [{q for q in range(n)
-                if (q in accepting or p not in accepting) and not reads[p] & ~reads[q]}
+                if (q in accepting or p not in accepting) and not reads[p] & ~reads[q]
+                and not into[p] & ~into[q]}
                for p in range(n)]
     else:
         reads = [disjoin(g for _d, g in out) for out in edges]
+        into = [disjoin(g for d, g in out if d in accepting) for out in edges]
         sim = [
             {q for q in range(n)
-             if (q in accepting or p not in accepting) and (q == p or reads[p].implies(reads[q]))}
+             if (q in accepting or p not in accepting)
+             and (q == p or (reads[p].implies(reads[q]) and into[p].implies(into[q])))}
             for p in range(n)
         ]
     return refine_simulation(n, sim, [[(d, 0, g) for d, g in out] for out in edges], tables)
 
 
-def _union_of_tables(tables) -> int:
+def union_of_tables(tables) -> int:
     union = 0
     for t in tables:
         union |= t
@@ -126,7 +132,7 @@ def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> li
         if hit is not None and hit[0] == version[d]:
             return hit[1]
         members = sim[d]
-        union = _union_of_tables if tables else disjoin
+        union = union_of_tables if tables else disjoin
         result = union(g for d2, m2, g in edges[q] if d2 in members and not marks & ~m2)
         cache[key] = (version[d], result)
         return result
@@ -201,8 +207,9 @@ def reduce_by_simulation(n, initial, accepting, edges, atoms: int | None = None)
         # Little brothers: letters to d are dropped when a strictly larger brother reads them.
         pruned = []
         for d, guard in grouped.items():
-            for d2, g2 in grouped.items():
-                if d2 != d and d2 in sim[d] and d not in sim[d2]:
+            for d2 in sim[d]:  # (few simulators: cheaper than every pair of edges)
+                g2 = grouped.get(d2)
+                if g2 is not None and d2 != d and d not in sim[d2]:
                     guard = guard & ~g2
                     if not guard:
                         break

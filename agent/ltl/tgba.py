@@ -16,17 +16,23 @@ Reductions applied, all language-preserving:
   transition with fewer targets and better acceptance reads it too — this makes most automata of
   robot missions deterministic and keeps the product small;
 * states with the same outgoing transitions (guard, destination class, acceptance) are merged
-  (GO §4.2, iterated to a bisimulation quotient).
+  (GO §4.2, iterated to a bisimulation quotient);
+* transitions into a conjunction of VWAA states that contains two provably contradictory ones
+  (``G !p`` and ``F p``; ``p`` and ``!p``: syntactic implication, ``agent.ltl.implication``) are
+  dropped: no word satisfies that conjunction, so no accepting run goes there. A dropped
+  transition only dominates transitions whose targets contain its own, dropped too, so dropping
+  them after the domination steps above is the same as before.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from agent.ltl.alternating import Vwaa, is_acceptance_state
 from agent.ltl.formula import Formula, children
 from agent.ltl.guards import Guard
+from agent.ltl.implication import Conflicts
 from agent.ltl.truth_table import BddAlgebra, guard_algebra
 
 # A partial product of a TGBA state's transitions, (cube, targets, bad) with bad the bitmask of
@@ -36,17 +42,26 @@ _Partial = int
 
 @dataclass(frozen=True)
 class Tgba:
-    """``edges[s]`` lists ``(dst, guard, marks)``; ``marks`` is a bitmask over ``num_marks``."""
+    """``edges[s]`` lists ``(dst, guard, marks)``; ``marks`` is a bitmask over ``num_marks``.
+
+    ``deterministic`` is ``True`` only when the automaton is known to be deterministic (one
+    initial state, pairwise disjoint guards in every state), as :func:`build_tgba` finds out
+    on its truth tables; ``False`` means "not known" (the reductions then check)."""
 
     num_states: int
     initial: tuple[int, ...]
     edges: tuple[tuple[tuple[int, Guard, int], ...], ...]
     num_marks: int
+    deterministic: bool = field(default=False, compare=False)
 
 
 _CUBE_LIMIT = 64  # partial products handled cube by cube before switching to BDD groups
 EAGER_MAX_STATES = 64
-"""Largest TGBA (states) also returned with the eager marking (see :func:`build_tgba`)."""
+EAGER_MAX_EDGES = 256
+"""Largest TGBA (states, edges) also returned with the eager marking (see :func:`build_tgba`).
+On the benchmark's random formulas and Spot's table the eager marking gave the smaller
+automaton only on TGBAs of at most 140 edges; above, it doubles the work after (random #50:
+1 148 edges, an eager automaton of 112 states against 73)."""
 
 
 class _Layout:
@@ -73,12 +88,17 @@ class _Layout:
         return (x >> self.atoms & self.atom_mask, x & self.atom_mask, x >> self.targets_shift,
                 x >> self.bad_shift & self.bad_mask)
 
-    def product(self, partials: list[_Partial], delta: list[_Partial]) -> list[_Partial]:
-        """The consistent unions of a partial and a packed transition, undominated ones only."""
+    def product(self, partials: list[_Partial], delta: list[tuple[_Partial, int]]
+                ) -> list[_Partial]:
+        """The consistent unions of a partial and a packed transition, undominated ones only.
+        ``delta`` pairs each packed transition with the targets (shifted into place) that
+        contradict its own: a union with one of them is a conjunction no word satisfies."""
         a, mask = self.atoms, self.atom_mask
         out = []
         for x in partials:
-            for d in delta:
+            for d, clash in delta:
+                if x & clash:  # contradictory targets
+                    continue
                 y = x | d
                 if not (y >> a) & y & mask:  # pos & neg: an inconsistent cube
                     out.append(y)
@@ -150,8 +170,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     steps where φ_j was not pending). Which one degeneralises into fewer states depends on the
     formula (``G(a -> F b)`` prefers lazy), so the caller may try both. When no edge spawns an
     acceptance state the variants coincide and only one is returned; beyond
-    :data:`EAGER_MAX_STATES` states only the lazy one is (on the benchmark's random formulas
-    the eager marking never gave the smaller automaton there, and it doubles the work after).
+    :data:`EAGER_MAX_STATES` states or :data:`EAGER_MAX_EDGES` edges only the lazy one is.
     """
     vwaa = Vwaa(index)
     layout = _Layout(len(index), _acceptance_bound(formula))
@@ -173,6 +192,8 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             s ^= low
         return sorted(members, key=names.__getitem__)
 
+    members_of: list[list[int]] = []  # per TGBA state, its VWAA states in printed order
+
     def intern(s: int) -> int:
         sid = state_id.get(s)
         if sid is None:
@@ -180,7 +201,9 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             state_id[s] = sid
             raw_edges.append([])
             queue.append(s)
-            for q in ordered(s):
+            members = ordered(s)
+            members_of.append(members)
+            for q in members:
                 if is_acceptance_state(vwaa.states[q]) and q not in mark_of:
                     if len(mark_of) == layout.marks:
                         raise RuntimeError("build_tgba: more acceptance states than "
@@ -188,31 +211,54 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                     mark_of[q] = len(mark_of)
         return sid
 
-    initial = tuple(dict.fromkeys(intern(s) for s in vwaa.bar(formula)))
+    # Conjunctions of VWAA states that no word satisfies (G !p & F p, p & !p, …) are never
+    # entered: their states could not reach an accepting cycle anyway, and on formulas full of
+    # <-> and xor they were most of the construction (e.g. 274 of 329 states). Partial
+    # products are dropped as soon as their targets contain a contradiction (about half of
+    # them on those formulas), before the domination steps, which they would not change.
+    conflicts = Conflicts(vwaa.states, index)
+    initial_sets = vwaa.bar(formula)
+    for s in initial_sets:
+        conflicts.register(s)
+    initial = tuple(dict.fromkeys(intern(s) for s in initial_sets if not conflicts.empty(s)))
     option_cache: dict[int, tuple[list[_Group], bool]] = {}
     # The product after the first k members of a state, keyed by those members (a bitmask):
     # states share prefixes (every state of G(…) starts with the G state), and the product of
     # a prefix depends on nothing else.
     prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
 
-    delta_cache: dict[int, list[_Partial]] = {}
+    delta_cache: dict[int, tuple[int, list[tuple[_Partial, int]]]] = {}
 
-    def packed_delta(q: int) -> list[_Partial]:
-        """VWAA state ``q``'s transitions as packed partials."""
-        packed = delta_cache.get(q)
-        if packed is None:
+    def packed_delta(q: int) -> list[tuple[_Partial, int]]:
+        """VWAA state ``q``'s transitions as packed partials, each with the states that
+        contradict its targets (shifted to the targets' place; recomputed when a registered
+        state brought a new contradiction); transitions into a contradiction are left out."""
+        entry = delta_cache.get(q)
+        if entry is None or entry[0] != conflicts.version:
+            transitions = vwaa.state_delta(q)
+            for _cube, targets, _good in transitions:
+                conflicts.register(targets)
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            packed = delta_cache[q] = [layout.pack(pos, neg, targets, 0 if good else bad_bit)
-                                       for (pos, neg), targets, good in vwaa.state_delta(q)]
-        return packed
+            packed = []
+            for (pos, neg), targets, good in transitions:
+                clash = conflicts.of(targets)
+                if not clash & targets:
+                    packed.append((layout.pack(pos, neg, targets, 0 if good else bad_bit),
+                                   clash << layout.targets_shift))
+            entry = delta_cache[q] = (conflicts.version, packed)
+        return entry[1]
 
     def options_of(q: int) -> tuple[list[_Group], bool]:
         """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
         options = option_cache.get(q)
         if options is None:
+            transitions = vwaa.state_delta(q)
+            for _cube, targets, _good in transitions:
+                conflicts.register(targets)
             bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            options = option_cache[q] = _state_options(vwaa.state_delta(q), bad_bit, algebra)
+            options = option_cache[q] = _state_options(transitions, bad_bit, algebra)
         return options
+    deterministic = len(initial) <= 1  # so far: every state's groups pairwise disjoint
     while queue:
         s = queue.popleft()
         sid = state_id[s]
@@ -222,7 +268,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
         partials: list[_Partial] = [0]  # the true cube, no target, nothing unfulfilled
         groups: list[_Group] | None = None
         disjoint = False
-        members = ordered(s)
+        members = members_of[sid]
         start, prefix = 0, 0
         masks = [0]
         for q in members:
@@ -260,28 +306,45 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
             groups = _minimal_per_letter(layout.groups_of(partials, algebra))
+            disjoint = deterministic and _disjoint(groups, algebra)
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
-        raw_edges[sid] = [(intern(targets), guard, bad) for targets, bad, guard, _l in groups]
+            disjoint = deterministic and _disjoint(groups, algebra)
+        deterministic = deterministic and disjoint
+        out = raw_edges[sid]
+        for targets, bad, guard, _l in groups:
+            dst = state_id.get(targets)
+            if dst is None:
+                if conflicts.empty(targets):
+                    continue
+                dst = intern(targets)
+            out.append((dst, guard, bad))
     all_marks = (1 << len(mark_of)) - 1
     pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
     for s, sid in state_id.items():
         for q, mark in mark_of.items():
             if s >> q & 1:
                 pending[sid] |= 1 << mark
-    lazy = tuple(
-        tuple((dst, guard, all_marks & ~bad & ~(pending[dst] & ~pending[src]))
-              for dst, guard, bad in out)
-        for src, out in enumerate(raw_edges)
-    )
-    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of)), algebra)]
-    eager = lazy if len(raw_edges) > EAGER_MAX_STATES else tuple(
-        tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out) for out in raw_edges
-    )
-    if eager != lazy:
-        variants.append(_merge_bisimilar(Tgba(len(eager), initial, eager, len(mark_of)),
-                                         algebra))
+    spawned = 0  # marks some good edge spawns afresh: where the two markings differ
+    lazy_edges = []
+    for src, out in enumerate(raw_edges):
+        row = []
+        for dst, guard, bad in out:
+            fresh = pending[dst] & ~pending[src] & ~bad
+            spawned |= fresh
+            row.append((dst, guard, all_marks & ~bad & ~fresh))
+        lazy_edges.append(tuple(row))
+    lazy = tuple(lazy_edges)
+    variants = [_merge_bisimilar(Tgba(len(lazy), initial, lazy, len(mark_of), deterministic),
+                                 algebra)]
+    too_large = (len(raw_edges) > EAGER_MAX_STATES
+                 or sum(len(out) for out in raw_edges) > EAGER_MAX_EDGES)
+    if spawned and not too_large:
+        eager = tuple(tuple((dst, guard, all_marks & ~bad) for dst, guard, bad in out)
+                      for out in raw_edges)
+        variants.append(_merge_bisimilar(
+            Tgba(len(eager), initial, eager, len(mark_of), deterministic), algebra))
     return tuple(_with_bdd_guards(tgba, algebra) for tgba in variants)
 
 
@@ -292,7 +355,7 @@ def _with_bdd_guards(tgba: Tgba, algebra) -> Tgba:
     to_bdd = algebra.to_bdd
     edges = tuple(tuple((dst, to_bdd(guard), marks) for dst, guard, marks in out)
                   for out in tgba.edges)
-    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks)
+    return Tgba(tgba.num_states, tgba.initial, edges, tgba.num_marks, tgba.deterministic)
 
 
 # A group of transitions of a TGBA state under construction: (targets, bad, guard, literals),
@@ -400,11 +463,11 @@ def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
         for s in range(n):
             sig = (block[s], frozenset(_signature(tgba.edges[s], block, algebra.false)))
             new_block.append(signatures.setdefault(sig, len(signatures)))
+        if len(signatures) == n:  # every state apart: nothing left to refine or merge
+            return tgba
         if len(signatures) == num_blocks:
             break
         block, num_blocks = new_block, len(signatures)
-    if num_blocks == n:
-        return tgba
     edges: list[dict[tuple[int, int], Guard]] = [{} for _ in range(num_blocks)]
     done = set()
     for s in range(n):
@@ -417,7 +480,9 @@ def _merge_bisimilar(tgba: Tgba, algebra) -> Tgba:
             edges[b][key] = edges[b].get(key, algebra.false) | guard
     out = tuple(tuple((dst, guard, marks) for (dst, marks), guard in e.items()) for e in edges)
     initial = tuple(dict.fromkeys(block[i] for i in tgba.initial))
-    return Tgba(num_blocks, initial, out, tgba.num_marks)
+    # A quotient of a deterministic automaton is deterministic: each block keeps the edges of
+    # one member, grouped by destination block.
+    return Tgba(num_blocks, initial, out, tgba.num_marks, tgba.deterministic)
 
 
 def _signature(edges, block, false):

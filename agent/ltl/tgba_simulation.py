@@ -11,14 +11,16 @@ ATVA 2013): ``p ≼ q`` when every edge ``p –σ,M→ p'`` is matched by an edg
   mark for mark, by one through ``q``.
 
 Both preserve the language; the property tests compare automata by exact lasso evaluation.
-Computed as a greatest fixpoint with guards as BDDs, a letter set at a time.
+Computed as a greatest fixpoint a letter set at a time, with guards as BDDs or, over few atoms,
+as truth tables (the same relation).
 """
 
 from __future__ import annotations
 
 from agent.ltl.bdd import FALSE, Bdd, disjoin
-from agent.ltl.simulation import refine_simulation
+from agent.ltl.simulation import refine_simulation, union_of_tables
 from agent.ltl.tgba import Tgba
+from agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
 
 MAX_TGBA_SIMULATION_STATES = 32
 """Larger TGBA skip the (quadratic) simulation."""
@@ -32,23 +34,53 @@ def _grouped(out) -> dict[tuple[int, int], Bdd]:
     return grouped
 
 
-def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]]) -> list[set[int]]:
+def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]], num_marks: int = 0,
+                    tables: bool = False) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q``; ``edges[p]`` maps ``(dst, marks)`` to a
-    guard. Greatest fixpoint (``agent.ltl.simulation.refine_simulation``) from "``q`` reads
-    every letter ``p`` reads"."""
-    reads = [disjoin(out.values()) for out in edges]
-    sim = [{q for q in range(n) if q == p or reads[p].implies(reads[q])} for p in range(n)]
+    guard (BDDs, or truth tables when ``tables``). Greatest fixpoint
+    (``agent.ltl.simulation.refine_simulation``) from "``q`` reads every letter ``p`` reads,
+    and for each mark ``j``, every letter on which ``p`` takes an edge marked ``j``" (both
+    necessary: an edge of ``p`` is answered on the same letter with at least its marks)."""
+    if tables:
+        # The letters read, then those read with mark j for each j, side by side in one int
+        # (each table below 2**width): the condition is one inclusion test.
+        width = max((g.bit_length() for out in edges for g in out.values()), default=0)
+        key = []
+        for out in edges:
+            k = union_of_tables(out.values())
+            for j in range(num_marks):
+                k |= union_of_tables(g for (_d, m), g in out.items() if m >> j & 1) << (
+                    (j + 1) * width)
+            key.append(k)
+        sim = [{q for q in range(n) if not key[p] & ~key[q]} for p in range(n)]
+    else:
+        reads = [disjoin(out.values()) for out in edges]
+        marked = [[disjoin(g for (_d, m), g in out.items() if m >> j & 1)
+                   for j in range(num_marks)] for out in edges]
+        sim = [{q for q in range(n)
+                if q == p or (reads[p].implies(reads[q])
+                              and all(a.implies(b)
+                                      for a, b in zip(marked[p], marked[q], strict=True)))}
+               for p in range(n)]
     return refine_simulation(n, sim, [[(d, m, g) for (d, m), g in out.items()]
-                                      for out in edges])
+                                      for out in edges], tables)
 
 
-def reduce_tgba(tgba: Tgba) -> Tgba:
-    """Quotient by simulation equivalence and little-brother pruning (see module docstring)."""
+def reduce_tgba(tgba: Tgba, atoms: int | None = None) -> Tgba:
+    """Quotient by simulation equivalence and little-brother pruning (see module docstring).
+
+    With ``atoms`` (the number of atoms the guards range over) the simulation runs on truth
+    tables when there are few (``agent.ltl.truth_table``); the result is the same."""
     n = tgba.num_states
-    if n < 2 or n > MAX_TGBA_SIMULATION_STATES or _is_deterministic(tgba):
+    if (n < 2 or n > MAX_TGBA_SIMULATION_STATES or tgba.deterministic
+            or _is_deterministic(tgba)):
         return tgba
+    algebra = guard_algebra(atoms) if atoms is not None else BddAlgebra()
+    tables = isinstance(algebra, TableAlgebra)
     edges = [_grouped(out) for out in tgba.edges]
-    sim = tgba_simulation(n, edges)
+    if tables:
+        edges = [{key: algebra.from_bdd(g) for key, g in out.items()} for out in edges]
+    sim = tgba_simulation(n, edges, tgba.num_marks, tables)
     rep = list(range(n))
     for p in range(n):
         for q in sim[p]:
@@ -63,18 +95,26 @@ def reduce_tgba(tgba: Tgba) -> Tgba:
         grouped: dict[tuple[int, int], Bdd] = {}
         for (dst, marks), guard in edges[r].items():
             key = (rep[dst], marks)
-            grouped[key] = grouped.get(key, FALSE) | guard
+            old = grouped.get(key)
+            grouped[key] = guard if old is None else old | guard
+        by_dst: dict[int, list[tuple[int, Bdd]]] = {}
+        for (d, m), guard in grouped.items():
+            by_dst.setdefault(d, []).append((m, guard))
         pruned = []
         for (d, m), guard in grouped.items():
-            for (d2, m2), g2 in grouped.items():
-                if (d2, m2) != (d, m) and not m & ~m2 and d2 in sim[d] and (
-                        d not in sim[d2] or d2 == d):
-                    # d2 == d: same destination with more marks dominates.
-                    guard = guard - g2
-                    if guard is FALSE:
-                        break
-            if guard is not FALSE:
-                pruned.append((new_id[d], guard, m))
+            for d2 in sim[d]:  # (few simulators: cheaper than every pair of edges)
+                if d2 != d and d in sim[d2]:
+                    continue
+                for m2, g2 in by_dst.get(d2, ()):
+                    if (d2 != d or m2 != m) and not m & ~m2:
+                        # d2 == d: same destination with more marks dominates.
+                        guard = guard & ~g2
+                        if not guard:
+                            break
+                if not guard:
+                    break
+            if guard:
+                pruned.append((new_id[d], algebra.to_bdd(guard), m))
         new_edges.append(tuple(pruned))
     initial = tuple(dict.fromkeys(new_id[rep[q]] for q in tgba.initial))
     return Tgba(len(reps), initial, tuple(new_edges), tgba.num_marks)

@@ -52,6 +52,7 @@ class TableAlgebra:
             self._atom.append(pattern)
         self._cubes: dict[tuple[int, int], int] = {}
         self._bdds: dict[tuple[int, int], Bdd] = {}
+        self._whole: dict[int, Bdd] = {}  # to_bdd's answers, one lookup per guard
         self._tables: dict[Bdd, int] = {}
 
     def cube(self, pos: int, neg: int) -> int:
@@ -86,9 +87,13 @@ class TableAlgebra:
 
     def to_bdd(self, table: int) -> Bdd:
         """The canonical BDD of the same set of letters."""
-        if len(self._bdds) > _CONVERSION_LIMIT:
-            self._bdds.clear()
-        return self._convert(table, self.n)
+        node = self._whole.get(table)
+        if node is None:
+            if len(self._bdds) > _CONVERSION_LIMIT:
+                self._bdds.clear()
+                self._whole.clear()
+            node = self._whole[table] = self._convert(table, self.n)
+        return node
 
     def _convert(self, table: int, k: int) -> Bdd:
         # ``table`` over the last k atoms (2^k bits): atoms n-k .. n-1.

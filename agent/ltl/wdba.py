@@ -34,18 +34,20 @@ MAX_CLASSES = 256
 def _grouped(edges_of_q) -> dict[int, Bdd]:
     grouped: dict[int, Bdd] = {}
     for dst, guard in edges_of_q:
-        grouped[dst] = grouped.get(dst, FALSE) | guard
+        old = grouped.get(dst)
+        grouped[dst] = guard if old is None else old | guard
     return grouped
 
 
-def powerset(n, initial, edges, max_states: int):
+def powerset(n, initial, edges, max_states: int, deterministic: bool = False):
     """Subset construction of a guarded automaton (empty subset left out: it rejects all).
 
     Returns ``(subsets, det_edges)`` with ``det_edges[i] = [(j, guard), …]`` (disjoint guards),
     or ``None`` beyond ``max_states`` subsets or :data:`MAX_CLASSES` letter classes.
+    ``deterministic``: the automaton is known to be (else checked).
     """
     by_state = [_grouped(edges[q]) for q in range(n)]
-    if len(initial) == 1 and all(_disjoint(out.values()) for out in by_state):
+    if len(initial) == 1 and (deterministic or all(_disjoint(out.values()) for out in by_state)):
         return _singletons(initial[0], by_state, max_states)
     start = frozenset(initial)
     ids = {start: 0}
@@ -176,43 +178,37 @@ def _cycle_through(state: int, members: set[int], det_edges) -> list[int] | None
     return None
 
 
-def minimize_obligation(aut, negation_aut, max_states: int = 64):
+def minimize_obligation(aut, negation_aut, max_states: int = 64, deterministic: bool = False):
     """The minimal weak DBA equivalent to ``aut``, if the check proves it equivalent and it has
     fewer states; else ``None``. ``negation_aut`` is a callable returning a Büchi automaton
-    (same tuple shape and atoms) of the negated formula; it is called only when needed."""
+    (same tuple shape and atoms) of the negated formula; it is called only when needed.
+    ``deterministic``: ``aut`` is known to be deterministic (else checked)."""
     n, initial, accepting, edges = aut
-    built = powerset(n, initial, edges, max_states)
+    if deterministic and len(initial) == 1:
+        # Its subset construction is itself (renumbered) when every state is reachable, and
+        # the colouring does not depend on the numbering: when it agrees with the acceptance,
+        # Moore's quotient is the bisimulation quotient ``aut`` already is. Decided here
+        # without building the subset construction.
+        succ = [[d for d, _g in out] for out in edges]
+        if len(reachable(initial, succ)) == n and _loding_final(
+                n, succ, lambda members: any(s in accepting for s in members)) == accepting:
+            return None
+    built = powerset(n, initial, edges, max_states, deterministic)
     if built is None:
         return None
     subsets, det_edges = built
     m = len(subsets)
     deterministic = all(len(subset) == 1 for subset in subsets)
     succ = [[d for d, _g in out] for out in det_edges]
-    comp, components = strongly_connected_components(m, succ)
-    cyclic = nontrivial(comp, components, succ)
-    # Löding's colouring, sinks first (Tarjan's order): even = accepting.
-    k = 2 * len(components) + 2
-    colour = [0] * len(components)
-    for c, members in enumerate(components):
-        lowest = k
-        for s in members:
-            for d in succ[s]:
-                if comp[d] != c and colour[comp[d]] < lowest:
-                    lowest = colour[comp[d]]
-        if not cyclic[c]:
-            colour[c] = lowest if lowest < k else k - 1
-            continue
+
+    def cycle_accepts(members: list[int]) -> bool:
         if deterministic:  # D is A: the SCC's cycles accept iff it holds an accepting state
-            accepts = any(next(iter(subsets[s])) in accepting for s in members)
-        else:
-            letters = _cycle_through(members[0], set(members), det_edges)
-            accepts = letters is not None and _accepts_cycle(
-                subsets[members[0]], letters, accepting, edges)
-        if accepts:
-            colour[c] = lowest & ~1
-        else:
-            colour[c] = (lowest - 1) | 1
-    final = frozenset(s for s in range(m) if colour[comp[s]] % 2 == 0)
+            return any(next(iter(subsets[s])) in accepting for s in members)
+        letters = _cycle_through(members[0], set(members), det_edges)
+        return letters is not None and _accepts_cycle(
+            subsets[members[0]], letters, accepting, edges)
+
+    final = _loding_final(m, succ, cycle_accepts)
     if deterministic and m == n and all((s in final) == (next(iter(subsets[s])) in accepting)
                                         for s in range(m)):
         return None  # Moore's quotient would be the bisimulation quotient ``aut`` already is
@@ -224,6 +220,30 @@ def minimize_obligation(aut, negation_aut, max_states: int = 64):
     if not _equivalent(aut, quotient, negation_aut):
         return None
     return quotient
+
+
+def _loding_final(m: int, succ, cycle_accepts) -> frozenset[int]:
+    """Löding's colouring of a deterministic automaton's SCCs, sinks first (Tarjan's order):
+    a cyclic SCC takes the largest colour ≤ its successors' least, even iff its cycles
+    accept (``cycle_accepts(members)``); a transient one its successors' least. Returns the
+    states of even colour (accepting in the minimal weak automaton)."""
+    comp, components = strongly_connected_components(m, succ)
+    cyclic = nontrivial(comp, components, succ)
+    k = 2 * len(components) + 2
+    colour = [0] * len(components)
+    for c, members in enumerate(components):
+        lowest = k
+        for s in members:
+            for d in succ[s]:
+                if comp[d] != c and colour[comp[d]] < lowest:
+                    lowest = colour[comp[d]]
+        if not cyclic[c]:
+            colour[c] = lowest if lowest < k else k - 1
+        elif cycle_accepts(members):
+            colour[c] = lowest & ~1
+        else:
+            colour[c] = (lowest - 1) | 1
+    return frozenset(s for s in range(m) if colour[comp[s]] % 2 == 0)
 
 
 def _differ_on_a_constant_word(a, b, max_letters: int = 16) -> bool:
@@ -287,19 +307,24 @@ def _moore(m, final, det_edges):
         for s in range(m):
             grouped: dict[int, Bdd] = {}
             for dst, guard in det_edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             sig = (block[s], frozenset(grouped.items()))
             new_block.append(signatures.setdefault(sig, len(signatures)))
         block = new_block
-        if len(signatures) == count:
-            break
+        stable = len(signatures) == count
         count = len(signatures)
+        if stable or count == m:  # every state apart is stable too
+            break
     edges: list[list[tuple[int, Bdd]] | None] = [None] * count
     for s in range(m):
         if edges[block[s]] is None:
             grouped = {}
             for dst, guard in det_edges[s]:
-                grouped[block[dst]] = grouped.get(block[dst], FALSE) | guard
+                b = block[dst]
+                old = grouped.get(b)
+                grouped[b] = guard if old is None else old | guard
             edges[block[s]] = sorted(grouped.items(), key=lambda e: e[0])
     return count, (block[0],), frozenset(block[s] for s in final), edges
 

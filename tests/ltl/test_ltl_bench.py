@@ -23,3 +23,6 @@ def test_quick_benchmark_writes_json(repo_root, tmp_path):
     assert {row["regions"] for row in data["grid"]} == {10}
     for row in data["grid"] + data["scenario_plans"]:
         assert row["plan_ms"] > 0 and row["buchi_states"] >= 2
+    # Algorithm 1 with the agent's kept automaton, and with the translation (step 1) included.
+    assert {"algorithm1_ms", "algorithm1_full_ms"} <= set(data["results"])
+    assert all(row["full_cpu_ms"] > 0 for row in data["agent_plans"])
