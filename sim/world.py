@@ -107,6 +107,14 @@ def _limit(value: float, bound: float) -> float:
     return min(bound, max(-bound, value))
 
 
+def _idle(space: pymunk.Space) -> bool:
+    """True when pymunk's ``Space.step`` would only call ``cpSpaceStep``: no body added since
+    the last step (the wrapper checks their mass), no deferred addition, removal or post-step
+    callback, not the threaded solver."""
+    return not (space._bodies_to_check or space._add_later or space._remove_later
+                or space._post_step_callbacks or space.threaded)
+
+
 class SimRobot:
     """One robot's body, shape and low-level velocity tracking (see the module docstring).
 
@@ -391,23 +399,24 @@ class World:
         n = self.substeps(duration)
         dt = duration / n
         space = self.space
-        space.step(dt)  # pymunk's wrapper: checks new bodies, runs deferred additions/removals
-        # The other sub-steps call Chipmunk's cpSpaceStep as the wrapper does (issue 17: the
-        # wrapper's Python costs ≈ 30 µs per 100 Hz tick); only while the wrapper would have
-        # nothing else to do: no body to check, nothing deferred (the contact callbacks only
-        # record), not the threaded solver.
-        if n > 1 and not (space.threaded or space._bodies_to_check or space._add_later
-                          or space._remove_later or space._post_step_callbacks):
+        # Chipmunk's cpSpaceStep, called as pymunk's wrapper calls it (issue 17: the wrapper's
+        # Python costs ≈ 3 µs per sub-step), while the wrapper would have nothing else to do: no
+        # new body to check, nothing deferred (the contact callbacks only record), not the
+        # threaded solver. Otherwise the wrapper runs the first sub-step and does what waits.
+        if not _idle(space):
+            space.step(dt)
+            n -= 1
+        if _idle(space):
             cspace = space._space
             space._locked = True
             try:
-                for _ in range(n - 1):
+                for _ in range(n):
                     _space_step(cspace, dt)
             finally:
                 space._locked = False
             space._removed_shapes.clear()
         else:
-            for _ in range(n - 1):
+            for _ in range(n):
                 space.step(dt)
         self.time += duration
 
