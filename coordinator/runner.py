@@ -129,9 +129,12 @@ def peer_links(config: RunConfig) -> bool:
     listens on a free loopback port, connects to the router and learns the others' locators
     from it (zenoh's gossip), so frames and commands go sim ↔ agent directly instead of through
     the router (one hop and two wake-ups less per sample); the coordinator stays a client of the
-    router, which also carries liveliness, control, status and events. A secured run keeps
-    every link on the router, where the access-control policy is enforced
-    (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
+    router, which also carries liveliness, control, status and events. Peers also run zenoh's
+    minimal runtime (``--zenoh-runtime minimal``, :data:`bus.transport.MINIMAL_RUNTIME`: one
+    worker thread that receives and sends too; less CPU per sample in every peer, issue 17);
+    the router keeps zenoh's pools. A secured run keeps every link on the router, where the
+    access-control policy is enforced (:mod:`coordinator.acl`); a user's zenoh file keeps the
+    topology it describes."""
     return (config.direct_links and config.mode == "lockstep" and config.secure is None
             and config.zenoh_config is None)
 
@@ -143,8 +146,8 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
     lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
     lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
-    lease += ("--mode", "peer", "--listen", PEER_LISTEN) if role != "router" and peer_links(
-        config) else ()
+    lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
+        if role != "router" and peer_links(config) else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)
