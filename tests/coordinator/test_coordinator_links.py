@@ -1,6 +1,6 @@
 """Which links a run's processes use (issue 17, architecture.md §1): in an unsecured lockstep
-run the simulator and the agents are zenoh peers linked to each other, everything else goes
-through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
+run the simulator, the agents and the coordinator are zenoh peers linked to each other, everything
+else goes through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
 
 from __future__ import annotations
 
@@ -93,3 +93,14 @@ def test_the_zenoh_runtime_flag_sets_the_transport_runtime():
     assert transport_config(parser.parse_args([])).runtime is None  # zenoh's own pools
     minimal = parser.parse_args(["--zenoh-runtime", "minimal"])
     assert transport_config(minimal).runtime == MINIMAL_RUNTIME
+
+
+def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
+    import coordinator.runner as runner
+
+    opened = []
+    monkeypatch.setattr(runner, "open_client", lambda config, *_a, **_k: opened.append(config))
+    for mode in ("lockstep", "realtime"):
+        runner._open_client(ENDPOINT, None, RunConfig(SCENARIO, mode=mode))
+    assert [(c.mode, c.listen, c.connect) for c in opened] == [
+        ("peer", (PEER_LISTEN,), (ENDPOINT,)), ("client", (), (ENDPOINT,))]
