@@ -1,6 +1,6 @@
 """The transport flags every process shares (style.md §6): ``--mode``, ``--connect``, ``--listen``,
-``--lease-ms``, ``--multicast-scouting``, ``--zenoh-config``, ``--secure``, turned into a
-:class:`bus.TransportConfig`.
+``--lease-ms``, ``--multicast-scouting``, ``--zenoh-runtime``, ``--zenoh-config``, ``--secure``,
+turned into a :class:`bus.TransportConfig`.
 
 ``--secure DIR`` (a key directory of ``tlfleet keys``) puts every endpoint on ``tls/`` with mutual
 authentication as the process's identity, and gives a router the directory's access-control
@@ -12,7 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bus.transport import TransportConfig
+from bus.transport import MINIMAL_RUNTIME, TransportConfig
+
+#: ``--zenoh-runtime`` values: zenoh's own thread pools, or :data:`bus.transport.MINIMAL_RUNTIME`
+RUNTIMES = {"default": None, "minimal": MINIMAL_RUNTIME}
 
 
 def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
@@ -27,6 +30,10 @@ def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str =
                        help="link lease in ms (zenoh default 10000)")
     group.add_argument("--multicast-scouting", action="store_true",
                        help="join zenoh multicast scouting (off by default)")
+    group.add_argument("--zenoh-runtime", choices=tuple(RUNTIMES), default="default",
+                       help="zenoh's threads: its default pools, or 'minimal' (one worker that "
+                            "also receives and sends: less CPU per message); a ZENOH_RUNTIME "
+                            "environment value wins")
     group.add_argument("--secure", type=Path, default=None, metavar="DIR",
                        help="mutual TLS with the keys of DIR (`tlfleet keys`): endpoints become "
                             "tls/…; a router also enforces DIR/acl.json")
@@ -45,6 +52,7 @@ def transport_config(args: argparse.Namespace, identity: str | None = None) -> T
     config = TransportConfig(mode=args.mode, connect=tuple(args.connect),
                              listen=tuple(args.listen), lease_ms=args.lease_ms,
                              multicast_scouting=args.multicast_scouting,
+                             runtime=RUNTIMES[getattr(args, "zenoh_runtime", "default")],
                              zenoh_config=getattr(args, "zenoh_config", None))
     secure = getattr(args, "secure", None)
     if secure is None:

@@ -9,7 +9,8 @@ launcher around :mod:`coordinator.supervise`, the code ``tlfleet supervise`` run
    ``secure`` (a key directory of ``tlfleet keys``) the keys are checked first, every link is
    ``tls/`` with mutual authentication, every child gets ``--secure`` and ``run.json`` records
    ``secure`` and the certificates' fingerprints (:mod:`bus.security`);
-3. start the router, wait until it listens, open the coordinator's own client session, declare
+3. start the router, wait until it listens, open the coordinator's own session (a client of the
+   router; a peer in a lockstep run over peer links, :func:`peer_links`), declare
    ``alive/coordinator/0`` and subscribe the recorder;
 4. start the simulator, then one agent per robot (each its own process group,
    :mod:`coordinator.launcher`);
@@ -123,13 +124,16 @@ PEER_LISTEN = f"tcp/{HOST}:0"
 
 
 def peer_links(config: RunConfig) -> bool:
-    """Whether the sim and the agents of this run are zenoh **peers** (architecture.md §1,
-    issue 17): in lockstep, without ``--secure`` and without ``--zenoh-config`` (``run_fleet``
-    also turns them off for a run with faults). Each then
+    """Whether the sim, the agents and the coordinator of this run are zenoh **peers**
+    (architecture.md §1, issue 17): in lockstep, without ``--secure`` and without
+    ``--zenoh-config`` (``run_fleet`` also turns them off for a run with faults). Each then
     listens on a free loopback port, connects to the router and learns the others' locators
     from it (zenoh's gossip), so frames and commands go sim ↔ agent directly instead of through
-    the router (one hop and two wake-ups less per sample); the coordinator stays a client of the
-    router, which also carries liveliness, control, status and events. A secured run keeps
+    the router (one hop and two wake-ups less per sample), and so do the frames, statuses and
+    events the coordinator records and its control (:func:`_open_client`). The sim and the
+    agents also run zenoh's minimal runtime (``--zenoh-runtime minimal``,
+    :data:`bus.transport.MINIMAL_RUNTIME`: one worker thread that receives and sends too; less
+    CPU per sample); the router and the coordinator keep zenoh's pools. A secured run keeps
     every link on the router, where the access-control policy is enforced
     (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
     return (config.direct_links and config.mode == "lockstep" and config.secure is None
@@ -143,8 +147,8 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
     lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
     lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
-    lease += ("--mode", "peer", "--listen", PEER_LISTEN) if role != "router" and peer_links(
-        config) else ()
+    lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
+        if role != "router" and peer_links(config) else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)
@@ -162,9 +166,14 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
 
 def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
     """The coordinator's session to the router it started; :class:`LaunchError` with the
-    router's log when the router dies or does not answer within ``router_timeout``."""
+    router's log when the router dies or does not answer within ``router_timeout``. In a
+    peer-link run (:func:`peer_links`) it is a peer too, listening on a free loopback port: the
+    frames, statuses and events it records come straight from the sim and the agents instead of
+    through the router (issue 17: the router no longer forwards 100 frames per sim second)."""
     client = client_config((endpoint,), secure=config.secure, lease_ms=config.lease_ms,
                            zenoh_config=config.zenoh_config)
+    if peer_links(config):
+        client = replace(client, mode="peer", listen=(PEER_LISTEN,))
     try:
         return open_client(client, config.router_timeout,
                            given_up=lambda: router.returncode is not None)

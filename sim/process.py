@@ -10,8 +10,8 @@ Protocol (architecture.md §3 and the issue-5 contract):
 
 * before ``Control(start)``: the initial ``MocapFrame(t=0, seq=0, due=())`` every
   ``preview_period`` wall seconds, so agents can initialise;
-* tick k after start, t_k = k / mocap_rate: ``Clock(t_k, k, mode)`` then
-  ``MocapFrame(t_k, k, poses, due)``;
+* tick k after start, t_k = k / mocap_rate: ``MocapFrame(t_k, k, poses, due)`` then
+  ``Clock(t_k, k, mode)`` (the frame first: the lockstep fleet waits for it, issue 17);
   - **lockstep**: before tick 0 the loop waits (at most ``tick_timeout``) until it has seen
     every robot's agent alive; ``due`` = the live agents' robots due at k
     (:func:`sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall
@@ -20,7 +20,8 @@ Protocol (architecture.md §3 and the issue-5 contract):
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
     (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
     from tick 1 (tick 0 looks like the preview frame, which agents do not answer);
-* after every step: ``contact`` and ``watchdog_stop`` events;
+* after every step: ``watchdog_stop`` and ``contact`` events, stamped t_k and t_{k+1}; they are
+  published after the next frame (:meth:`SimProcess._report_step`);
 * at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_stats")`` (counters,
   frame → command latency, missed control deadlines: :meth:`SimProcess.summary`), then
   ``Event(kind="sim_done")``, exit 0. ``Control(stop)``, SIGINT or SIGTERM end the loop earlier
@@ -220,6 +221,8 @@ class SimProcess:
                       "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
         # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
+        # the last step's tick, due robots and watchdog stops, reported after the next frame
+        self._unreported: tuple[int, tuple[int, ...], list[int]] | None = None
 
     # ----------------------------------------------------------------- public
 
@@ -250,6 +253,7 @@ class SimProcess:
                 else:
                     self._run_realtime()
                 self.stats.wall_time = self._now() - started
+                self._report_step()  # a stop between a step and the next frame
             self._report_malformed(force=True)
             if self.started:
                 self._event("sim_stats", **self.summary())
@@ -391,19 +395,28 @@ class SimProcess:
     # ----------------------------------------------------------------- one tick
 
     def _publish_tick(self, k: int, due: tuple[int, ...]) -> None:
+        """Tick k's output, the frame first (issue 17, architecture.md §3): in lockstep the whole
+        fleet waits for it, so between the last due command and the frame the loop does only
+        what the frame needs (:meth:`_advance`, the poses, the encoding, the puts). The clock,
+        the frame's entry in the backfill ring and the report of the step that led here
+        (:meth:`_report_step`) follow while the agents compute. The latency clock starts just
+        before the frame's first put."""
         self.t = self.clock.time(k)
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
+        payload, published = self._publish_frame(MocapFrame(self.t, k, poses, due))
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
-        self.timing.frame_published(k, self._now())
-        self.ring.append(k, self._publish_frame(MocapFrame(self.t, k, poses, due)))
+        self.timing.frame_published(k, published)
+        self.ring.append(k, payload)
+        self._report_step()
 
     def _advance(self, k: int, commands: list[Command], due: tuple[int, ...]) -> None:
         """Apply tick k's commands, run the watchdog, step the physics to t_{k+1}.
 
-        ``due``: the live robots that owed a command for tick k (deadline bookkeeping).
+        ``due``: the live robots that owed a command for tick k. Their deadline bookkeeping and
+        the watchdog's and the contacts' events wait for :meth:`_report_step`, after the next
+        frame (issue 17: off the lockstep round trip).
         """
         t = self.clock.time(k)
-        self.timing.close_tick(k, due)
         if self.config.mode == "realtime":
             commands, started = self.ages.fresh(commands, t)
             for command in started:
@@ -413,21 +426,33 @@ class SimProcess:
                             age=t - command.t)
         for command in commands:
             self.world.set_command(command.robot, command.u, t)
-        for robot in self.world.check_watchdog(t):
-            self.stats.watchdog_stops += 1
-            logger.warning("watchdog: robot %d has had no command for %g s, stopped", robot,
-                           self.world.watchdog)
-            self._event("watchdog_stop", robot=robot,
-                        last_command_t=self.world.robots[robot].last_command_t)
+        stopped = self.world.check_watchdog(t)
         self.world.step(self.clock.period)
         self.stats.ticks = k + 1
         self.t = self.clock.time(k + 1)
+        self._unreported = (k, due, stopped)
+
+    def _report_step(self) -> None:
+        """Report the step :meth:`_advance` made last, once: tick k's missed deadlines
+        (``sim.stats``), the robots the watchdog stopped at t_k and the contacts of the step
+        to t_{k+1}, as events stamped with those times, in that order."""
+        if self._unreported is None:
+            return
+        k, due, stopped = self._unreported
+        self._unreported = None
+        self.timing.close_tick(k, due)
+        for robot in stopped:
+            self.stats.watchdog_stops += 1
+            logger.warning("watchdog: robot %d has had no command for %g s, stopped", robot,
+                           self.world.watchdog)
+            self._event_at(self.clock.time(k), "watchdog_stop", robot=robot,
+                           last_command_t=self.world.robots[robot].last_command_t)
         for contact in self.world.drain_contacts():
             self.stats.contacts += 1
             data: dict[str, object] = {"a": contact.a, "b": contact.b}
             if contact.b == WALL:
                 data["what"] = contact.what
-            self._event("contact", **data)
+            self._event_at(self.clock.time(k + 1), "contact", **data)
 
     def _finish(self) -> None:
         logger.info("sim time reached %g s", self.t)
@@ -537,18 +562,23 @@ class SimProcess:
     def _publish(self, key: str, message: object) -> None:
         self.transport.publish(key, encode(message))
 
-    def _publish_frame(self, frame: MocapFrame) -> bytes:
+    def _publish_frame(self, frame: MocapFrame) -> tuple[bytes, float]:
         """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d`` for each
-        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys). Returns the payload."""
+        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys). Returns the payload
+        and the wall time [s] just before the first put."""
         payload = encode(frame)
+        published = self._now()
         self.transport.publish(self._keys["mocap"], payload)
         for divider, key in self._every:
             if frame.seq % divider == 0:
                 self.transport.publish(key, payload)
-        return payload
+        return payload, published
 
     def _event(self, kind: str, **data: object) -> None:
-        self._publish(self._keys["event"], Event(self.t, SOURCE, kind, dict(data)))
+        self._event_at(self.t, kind, **data)
+
+    def _event_at(self, t: float, kind: str, **data: object) -> None:
+        self._publish(self._keys["event"], Event(t, SOURCE, kind, dict(data)))
 
     def _malformed(self, key: str, reason: str) -> None:
         self.malformed[key] += 1

@@ -22,11 +22,13 @@ whose velocity is set in the body's velocity update function — i.e. before pym
 solver, never by writing ``body.velocity`` before ``space.step`` — and the tracking starts from
 the velocity the solver left, so a robot pushed back by a wall or a robot re-accelerates within
 its limits. The update function is the one place where speed matters (robots × physics rate
-calls per second: 30 000/s for 30 robots at 1 kHz), so it is installed as a C callback of
+laws per second: 30 000/s for 30 robots at 1 kHz), so it is installed as a C callback of
 Chipmunk's ``cpBodySetVelocityUpdateFunc`` through pymunk's own cffi module and reads and writes
 the body with Chipmunk's getters and setters: what ``body.velocity_func`` and the ``Body``
 properties do, without a ``Vec2d`` per read and a Python ``__setattr__`` per write (half the
-physics time); the trajectories are bit-identical.
+physics time); and one such callback per physics step runs the law of every robot
+(:meth:`World._install_tracking`, issue 17), instead of one per robot. The trajectories are
+bit-identical.
 
 Contacts (robot–robot, robot–wall/obstacle) are recorded on each contact *begin* and drained with
 :meth:`World.drain_contacts`. The command watchdog (architecture.md §1, contract) stops a robot
@@ -51,13 +53,14 @@ from agent.scenario.model import DiscObstacle, RectObstacle, Robot, Scenario
 ROBOT_TYPE = 1  # pymunk collision types
 WALL_TYPE = 2
 WALL = "wall"  # the "robot id" of a wall or obstacle in contact records
-# Chipmunk's accessors, looked up once (SimRobot._track runs 5 000 times per sim second)
+# Chipmunk's accessors, looked up once (the tracking law runs 5 000 times per sim second)
 _get_velocity, _set_velocity = _cp.cpBodyGetVelocity, _cp.cpBodySetVelocity
 _get_angular_velocity = _cp.cpBodyGetAngularVelocity
 _set_angular_velocity = _cp.cpBodySetAngularVelocity
 _get_angle = _cp.cpBodyGetAngle
 _get_position = _cp.cpBodyGetPosition
 _space_step = _cp.cpSpaceStep
+_hypot, _cos, _sin = math.hypot, math.cos, math.sin
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,14 @@ def _limit(value: float, bound: float) -> float:
     return min(bound, max(-bound, value))
 
 
+def _idle(space: pymunk.Space) -> bool:
+    """True when pymunk's ``Space.step`` would only call ``cpSpaceStep``: no body added since
+    the last step (the wrapper checks their mass), no deferred addition, removal or post-step
+    callback, not the threaded solver."""
+    return not (space._bodies_to_check or space._add_later or space._remove_later
+                or space._post_step_callbacks or space.threaded)
+
+
 class SimRobot:
     """One robot's body, shape and low-level velocity tracking (see the module docstring).
 
@@ -145,10 +156,6 @@ class SimRobot:
         self._omni = robot.kind == "omni"
         self._dt = math.nan  # [s] the physics step the cached constants below belong to
         self._gain = self._dv_max = self._dw_max = math.nan
-        # kept referenced: Chipmunk holds only the raw function pointer
-        self._velocity_update = _ffi.callback("void(cpBody *, cpVect, cpFloat, cpFloat)",
-                                              self._track)
-        _cp.cpBodySetVelocityUpdateFunc(self._cbody, self._velocity_update)
         self.shape = pymunk.Circle(self.body, robot.radius)
         self.shape.friction = 0.0
         self.shape.elasticity = 0.0
@@ -180,13 +187,14 @@ class SimRobot:
     def stop(self) -> None:
         self.target = (0.0, 0.0, 0.0) if self.kind == "omni" else (0.0, 0.0)
 
-    def _track(self, _body: object, _gravity: object, _damping: float, dt: float) -> None:
-        """Chipmunk's velocity update of this body: one step of the tracking law (runs before
-        the contact solver).
+    def track(self, dt: float) -> None:
+        """One physics step ``dt`` [s] of the tracking law on this body's velocity: called by
+        :meth:`World._track_all` from Chipmunk's velocity update (after the positions are
+        integrated, before the contact solver).
 
-        Called for every body at every physics step (5 robots at 1 kHz: 5 000 Python calls per
-        sim second), so the per-step constants are cached per ``dt`` and the omni and unicycle
-        laws are separate straight-line paths; the floating-point operations and their order are
+        Runs for every robot at every physics step (5 robots at 1 kHz: 5 000 calls per sim
+        second), so the per-step constants are cached per ``dt`` and the omni and unicycle laws
+        are separate straight-line paths; the floating-point operations and their order are
         those of the plain law (tests/sim: byte-identical trajectories).
         """
         if dt != self._dt:
@@ -199,20 +207,28 @@ class SimRobot:
         vel = _get_velocity(cbody)
         vx, vy = vel.x - old_wx, vel.y - old_wy  # tracked linear velocity the solver left [m/s]
         omega = _get_angular_velocity(cbody) - old_ww  # [rad/s]
+        # min(b, max(-b, x)) written as comparisons (no builtin calls): the same value for every
+        # x, ties included (max and min return their first argument on a tie)
         if self._omni:
             ux, uy, uw = self.target
-            dvx, dvy = _limit_norm((ux - vx) * gain, (uy - vy) * gain, self._dv_max)
+            dvx, dvy = (ux - vx) * gain, (uy - vy) * gain
+            if _hypot(dvx, dvy) > self._dv_max:  # _limit_norm's own test, its fast path inline
+                dvx, dvy = _limit_norm(dvx, dvy, self._dv_max)
             vx, vy = vx + dvx, vy + dvy
         else:
             u_lin, uw = self.target
             angle = _get_angle(cbody)
-            c, s = math.cos(angle), math.sin(angle)
+            c, s = _cos(angle), _sin(angle)
             v = vx * c + vy * s  # forward speed; the lateral part is dropped (no slip)
             dv_max = self._dv_max
-            v += min(dv_max, max(-dv_max, (u_lin - v) * gain))
+            dv = (u_lin - v) * gain
+            dv = dv if dv > -dv_max else -dv_max
+            v += dv if dv < dv_max else dv_max
             vx, vy = v * c, v * s
         dw_max = self._dw_max
-        omega += min(dw_max, max(-dw_max, (uw - omega) * gain))
+        dw = (uw - omega) * gain
+        dw = dw if dw > -dw_max else -dw_max
+        omega += dw if dw < dw_max else dw_max
         wx, wy, ww = self._applied = self.disturbance
         _set_velocity(cbody, (vx + wx, vy + wy))
         _set_angular_velocity(cbody, omega + ww)
@@ -247,6 +263,7 @@ class World:
             self.space.add(sim_robot.body, sim_robot.shape)
             self.robots[robot.id] = sim_robot
         self.ids = tuple(self.robots)  # ascending
+        self._install_tracking()
         self._robot_of_shape = {r.shape: r.id for r in self.robots.values()}
         self.space.on_collision(ROBOT_TYPE, ROBOT_TYPE, begin=self._on_robot_robot)
         self.space.on_collision(ROBOT_TYPE, WALL_TYPE, begin=self._on_robot_wall)
@@ -281,6 +298,39 @@ class World:
                 self._add_static(pymunk.Poly(static, box), name)
             elif isinstance(obstacle, DiscObstacle):
                 self._add_static(pymunk.Circle(static, obstacle.radius, obstacle.center), name)
+
+    def _install_tracking(self) -> None:
+        """One Chipmunk velocity callback per physics step runs every robot's tracking law
+        (issue 17: a Python callback costs about as much as the law itself; 5 robots at 1 kHz
+        made 5 000 of them per sim second).
+
+        Chipmunk's step integrates every body's position, finds the contacts, then calls each
+        body's velocity update in turn before the solver. The callback sits on the first robot's
+        body; when it runs, every robot's velocity is still what the solver left and every angle
+        is already integrated, exactly as each robot's own callback saw them, and each robot's
+        law reads only its own body. The other bodies keep Chipmunk's ``cpBodyUpdateVelocity``,
+        v ← v·damping + (g + f/m)·dt, ω ← ω·damping + τ/I·dt, which with no gravity, a damping
+        of 1 and no forces or torques (nothing here applies any) leaves v and ω as set: x·1.0 and
+        x + 0.0 are x for every double but −0.0, and no tracked velocity is −0.0 (it ends with a
+        sum whose disturbance term is +0.0 or non-zero). So the trajectories are bit-identical
+        to one callback per body (tests/sim).
+        """
+        space = self.space
+        if space.damping != 1.0 or tuple(space.gravity) != (0.0, 0.0):
+            raise ValueError("World: the batched tracking law needs damping 1 and no gravity "
+                             "(the other bodies' default velocity update must change nothing)")
+        self._tracked = tuple(self.robots.values())
+        if not self._tracked:
+            return
+        # kept referenced: Chipmunk holds only the raw function pointer
+        self._velocity_update = _ffi.callback("void(cpBody *, cpVect, cpFloat, cpFloat)",
+                                              self._track_all)
+        _cp.cpBodySetVelocityUpdateFunc(self._tracked[0]._cbody, self._velocity_update)
+
+    def _track_all(self, _body: object, _gravity: object, _damping: float, dt: float) -> None:
+        """Chipmunk's velocity update of the first robot's body: every robot's tracking law."""
+        for robot in self._tracked:
+            robot.track(dt)
 
     # ----------------------------------------------------------------- contacts
 
@@ -349,23 +399,24 @@ class World:
         n = self.substeps(duration)
         dt = duration / n
         space = self.space
-        space.step(dt)  # pymunk's wrapper: checks new bodies, runs deferred additions/removals
-        # The other sub-steps call Chipmunk's cpSpaceStep as the wrapper does (issue 17: the
-        # wrapper's Python costs ≈ 30 µs per 100 Hz tick); only while the wrapper would have
-        # nothing else to do: no body to check, nothing deferred (the contact callbacks only
-        # record), not the threaded solver.
-        if n > 1 and not (space.threaded or space._bodies_to_check or space._add_later
-                          or space._remove_later or space._post_step_callbacks):
+        # Chipmunk's cpSpaceStep, called as pymunk's wrapper calls it (issue 17: the wrapper's
+        # Python costs ≈ 3 µs per sub-step), while the wrapper would have nothing else to do: no
+        # new body to check, nothing deferred (the contact callbacks only record), not the
+        # threaded solver. Otherwise the wrapper runs the first sub-step and does what waits.
+        if not _idle(space):
+            space.step(dt)
+            n -= 1
+        if _idle(space):
             cspace = space._space
             space._locked = True
             try:
-                for _ in range(n - 1):
+                for _ in range(n):
                     _space_step(cspace, dt)
             finally:
                 space._locked = False
             space._removed_shapes.clear()
         else:
-            for _ in range(n - 1):
+            for _ in range(n):
                 space.step(dt)
         self.time += duration
 

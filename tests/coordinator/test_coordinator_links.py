@@ -1,6 +1,6 @@
 """Which links a run's processes use (issue 17, architecture.md §1): in an unsecured lockstep
-run the simulator and the agents are zenoh peers linked to each other, everything else goes
-through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
+run the simulator, the agents and the coordinator are zenoh peers linked to each other, everything
+else goes through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from coordinator.runner import PEER_LISTEN, RunConfig, default_child_argv, peer_
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "scenario1.toml"
 ENDPOINT = "tcp/127.0.0.1:7447"
-PEER_FLAGS = ["--mode", "peer", "--listen", PEER_LISTEN]
+PEER_FLAGS = ["--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal"]
 
 
 def argv_of(config: RunConfig) -> dict[str, list[str]]:
@@ -33,6 +33,7 @@ def test_an_unsecured_lockstep_run_links_sim_and_agents_as_peers():
     argv = argv_of(config)
     assert has_peer_flags(argv["sim"]) and has_peer_flags(argv["agent-3"])
     assert not has_peer_flags(argv["router"]) and "peer" not in argv["router"]
+    assert "--zenoh-runtime" not in argv["router"]  # zenoh's pools: it fans out to many clients
     # still connected to the router: liveliness, control, status and events go through it
     for name in ("sim", "agent-3"):
         assert argv[name][argv[name].index("--connect") + 1] == ENDPOINT
@@ -48,7 +49,8 @@ def test_an_unsecured_lockstep_run_links_sim_and_agents_as_peers():
 def test_every_other_run_goes_through_the_router(change):
     config = RunConfig(SCENARIO, **{"mode": "lockstep", **change})
     assert not peer_links(config)
-    assert not any(has_peer_flags(argv) or "peer" in argv for argv in argv_of(config).values())
+    assert not any(has_peer_flags(argv) or "peer" in argv or "--zenoh-runtime" in argv
+                   for argv in argv_of(config).values())
 
 
 def test_a_run_with_faults_goes_through_the_router(tmp_path):
@@ -78,3 +80,27 @@ def test_the_cli_flag_via_router_turns_peer_links_off():
     run_command.add_arguments(parser)
     assert parser.parse_args([str(SCENARIO)]).direct_links is True
     assert parser.parse_args([str(SCENARIO), "--via-router"]).direct_links is False
+
+
+def test_the_zenoh_runtime_flag_sets_the_transport_runtime():
+    import argparse
+
+    from bus.transport import MINIMAL_RUNTIME
+    from cli.transport_flags import add_transport_arguments, transport_config
+
+    parser = argparse.ArgumentParser()
+    add_transport_arguments(parser)
+    assert transport_config(parser.parse_args([])).runtime is None  # zenoh's own pools
+    minimal = parser.parse_args(["--zenoh-runtime", "minimal"])
+    assert transport_config(minimal).runtime == MINIMAL_RUNTIME
+
+
+def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
+    import coordinator.runner as runner
+
+    opened = []
+    monkeypatch.setattr(runner, "open_client", lambda config, *_a, **_k: opened.append(config))
+    for mode in ("lockstep", "realtime"):
+        runner._open_client(ENDPOINT, None, RunConfig(SCENARIO, mode=mode))
+    assert [(c.mode, c.listen, c.connect) for c in opened] == [
+        ("peer", (PEER_LISTEN,), (ENDPOINT,)), ("client", (), (ENDPOINT,))]
