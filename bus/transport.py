@@ -12,7 +12,7 @@ sender's call (fake); they must be quick: store and return, decode in the proces
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -110,6 +110,27 @@ RX_WORKERS = 8
 #: otherwise (:attr:`TransportConfig.runtime`)
 DEFAULT_RUNTIME = f"(rx: (worker_threads: {RX_WORKERS}))"
 
+#: the ``ZENOH_RUNTIME`` value this process put into its own environment for its session
+#: (``ZenohTransport.apply_runtime``); None when it set none
+_runtime_set_here: list[str | None] = [None]
+
+
+def note_runtime_set_here(value: str) -> None:
+    """Record that this process set ``ZENOH_RUNTIME = value`` for its own session."""
+    _runtime_set_here[0] = value
+
+
+def child_environment(env: Mapping[str, str]) -> dict[str, str]:
+    """``env`` for a child process, without the ``ZENOH_RUNTIME`` this process set for its own
+    session: zenoh reads the variable once per process and an environment value wins over a
+    process's own choice, so a coordinator's would otherwise decide every child's runtime (the
+    lockstep peers' ``--zenoh-runtime minimal``). A value the user set is passed on."""
+    out = dict(env)
+    if _runtime_set_here[0] is not None and out.get("ZENOH_RUNTIME") == _runtime_set_here[0]:
+        del out["ZENOH_RUNTIME"]
+    return out
+
+
 #: zenoh's runtime threads (``ZENOH_RUNTIME``) for a process that moves ~100 small messages a
 #: second: one async worker, and every other runtime (rx, tx, net, acc) handed over to it. A
 #: default session runs 7 OS threads (+1 per callback entity); each received sample then wakes
@@ -117,7 +138,9 @@ DEFAULT_RUNTIME = f"(rx: (worker_threads: {RX_WORKERS}))"
 #: tick in every process (router −25…40 %). Opt-in, not the default: under a flood of malformed
 #: payloads (10 000 per key, tests/security) a router with one worker fell behind and closed its
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
-#: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process.
+#: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process,
+#: so tlfleet uses it only for the sim and agents of a lockstep run over loopback peer links
+#: (coordinator.runner.peer_links), which no fault or partition reaches.
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 

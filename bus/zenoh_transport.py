@@ -24,6 +24,7 @@ from bus.transport import (
     RepliesCallback,
     SampleCallback,
     TransportConfig,
+    note_runtime_set_here,
 )
 
 logger = logging.getLogger(__name__)
@@ -86,6 +87,7 @@ class ZenohTransport:
         (zenoh reads it when the process's first session opens)."""
         if config.runtime is not None and "ZENOH_RUNTIME" not in os.environ:
             os.environ["ZENOH_RUNTIME"] = config.runtime
+            note_runtime_set_here(config.runtime)  # not for the children (child_environment)
 
     @classmethod
     def open(cls, config: TransportConfig) -> ZenohTransport:

@@ -12,10 +12,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bus.transport import MINIMAL_RUNTIME, TransportConfig
+from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME, TransportConfig
 
-#: ``--zenoh-runtime`` values: zenoh's own thread pools, or :data:`bus.transport.MINIMAL_RUNTIME`
-RUNTIMES = {"default": None, "minimal": MINIMAL_RUNTIME}
+#: ``--zenoh-runtime`` values: zenoh's thread pools with :data:`bus.transport.RX_WORKERS`
+#: receive workers, or :data:`bus.transport.MINIMAL_RUNTIME`
+RUNTIMES = {"default": DEFAULT_RUNTIME, "minimal": MINIMAL_RUNTIME}
 
 
 def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
@@ -31,9 +32,10 @@ def add_transport_arguments(parser: argparse.ArgumentParser, default_mode: str =
     group.add_argument("--multicast-scouting", action="store_true",
                        help="join zenoh multicast scouting (off by default)")
     group.add_argument("--zenoh-runtime", choices=tuple(RUNTIMES), default="default",
-                       help="zenoh's threads: its default pools, or 'minimal' (one worker that "
-                            "also receives and sends: less CPU per message); a ZENOH_RUNTIME "
-                            "environment value wins")
+                       help="zenoh's threads: its pools with 8 receive workers (default), or "
+                            "'minimal' (one worker that also receives and sends: less CPU per "
+                            "message, but a link lost to a partition stops it receiving); a "
+                            "ZENOH_RUNTIME environment value wins")
     group.add_argument("--secure", type=Path, default=None, metavar="DIR",
                        help="mutual TLS with the keys of DIR (`tlfleet keys`): endpoints become "
                             "tls/…; a router also enforces DIR/acl.json")

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import IO
 
 from agent.errors import TlfleetError
+from bus.transport import child_environment
 
 logger = logging.getLogger(__name__)
 
@@ -161,7 +162,7 @@ class Launcher:
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f"{name}.log"
         log = open(log_path, "ab", buffering=0)  # noqa: SIM115 - closed in Child.close_log
-        env = dict(os.environ if self._env is None else self._env)
+        env = child_environment(os.environ if self._env is None else self._env)
         env.setdefault("PYTHONUNBUFFERED", "1")
         try:
             process = subprocess.Popen(list(argv), stdin=subprocess.DEVNULL, stdout=log,

@@ -85,12 +85,13 @@ def test_the_cli_flag_via_router_turns_peer_links_off():
 def test_the_zenoh_runtime_flag_sets_the_transport_runtime():
     import argparse
 
-    from bus.transport import MINIMAL_RUNTIME
+    from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME
     from cli.transport_flags import add_transport_arguments, transport_config
 
     parser = argparse.ArgumentParser()
     add_transport_arguments(parser)
-    assert transport_config(parser.parse_args([])).runtime is None  # zenoh's own pools
+    # zenoh's pools with RX_WORKERS receive workers
+    assert transport_config(parser.parse_args([])).runtime == DEFAULT_RUNTIME
     minimal = parser.parse_args(["--zenoh-runtime", "minimal"])
     assert transport_config(minimal).runtime == MINIMAL_RUNTIME
 
