@@ -136,8 +136,7 @@ class FakeTransport:
         channel._handle = self.subscribe(key_expr, channel._put)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler, *, droppable: bool = False) -> Closeable:
-        del droppable  # the in-memory network has no send queue to be congested
+    def serve(self, key: str, handler: QueryHandler) -> Closeable:
         entry = (self, key, handler)
         with self.network._lock:
             self.network._queryables.append(entry)

@@ -64,16 +64,15 @@ class Transport(Protocol):
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Closeable: ...
 
-    # ``droppable`` (queries and their replies): on a link whose send queue is full, drop the
-    # message after at most a millisecond instead of waiting for room (zenoh's congestion
-    # control DROP). A query or reply that must not hold its caller (an agent's control loop,
-    # issue 13) is droppable: a dropped query is a query without replies, which its sender
-    # already handles; the default waits, up to the link's close (bus.zenoh_config).
-    def serve(self, key: str, handler: QueryHandler, *, droppable: bool = False
-              ) -> Closeable: ...
+    def serve(self, key: str, handler: QueryHandler) -> Closeable: ...
 
     def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]: ...
 
+    # ``droppable``: on a link whose send queue is full, drop the query after at most a
+    # millisecond instead of waiting for room (zenoh's congestion control DROP; its replies
+    # follow the query's). A query that must not hold its caller (an agent's control loop,
+    # issue 13) is droppable: a dropped query is a query without replies, which its sender
+    # already handles; the default waits, up to the link's close (bus.zenoh_config).
     def query_async(self, key_expr: str, payload: bytes, timeout: float,
                     on_done: RepliesCallback, *, droppable: bool = False) -> None: ...
 

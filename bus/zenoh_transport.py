@@ -133,11 +133,10 @@ class ZenohTransport:
         self._entities.append(channel)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler, *, droppable: bool = False) -> Closeable:
-        """Answer queries on ``key`` with ``handler(payload)`` (None: no reply); with
-        ``droppable`` the replies use congestion control DROP (:meth:`query_async`)."""
+    def serve(self, key: str, handler: QueryHandler) -> Closeable:
+        """Answer queries on ``key`` with ``handler(payload)`` (None: no reply); a reply has
+        its query's congestion control (zenoh 1.10 ignores one given to ``reply``)."""
         closing = self._closing
-        options = _drop_when_congested() if droppable else {}
 
         def on_query(query: Any) -> None:
             if closing.is_set():
@@ -149,7 +148,7 @@ class ZenohTransport:
                 logger.exception("queryable %s failed", key)
                 return
             if reply is not None:
-                query.reply(key, reply, **options)  # own concrete key: no consolidation surprises
+                query.reply(key, reply)  # own concrete key: no consolidation surprises
 
         queryable = self._session.declare_queryable(key, on_query)
         self._entities.append(queryable)

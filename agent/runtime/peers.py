@@ -67,7 +67,7 @@ class CollabLink:
     def open(self) -> None:
         """Serve the own queryable and watch the peers' liveliness tokens."""
         self._handles.append(self.transport.serve(keys.collab(self.fleet, self.robot),
-                                                  self._on_query, droppable=True))
+                                                  self._on_query))
         self._handles.append(self.transport.watch_alive(keys.all_alive(self.fleet),
                                                         self._on_alive))
 

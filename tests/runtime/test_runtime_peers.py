@@ -71,35 +71,3 @@ def test_lockstep_sends_in_waves_and_waits_for_every_reply():
     # never a query that waits for room on a congested link (issue 13): the loop waits for the
     # replies, bounded by the timeout, and for nothing else
     assert transport.blocking == []
-
-
-def test_the_collab_queryable_answers_without_waiting_on_a_full_link():
-    """The replies are droppable too: a reply to a peer behind a blackholed link must not hold
-    the transport's callback thread until zenoh closes the link."""
-    served = []
-
-    class ServingTransport(DeferredTransport):
-        def serve(self, key, handler, *, droppable=False):
-            served.append((key, droppable))
-            return type("H", (), {"close": lambda self: None})()
-
-        def watch_alive(self, key_expr, callback):
-            return type("H", (), {"close": lambda self: None})()
-
-    link = CollabLink(ServingTransport(), FLEET, 3, (4, 5), MalformedCounter("agent/3"))
-    link.open()
-    assert served == [(f"tlfleet/{FLEET}/robot/3/collab", True)]
-
-
-def test_realtime_only_issues_the_queries():
-    transport = DeferredTransport()
-    link = CollabLink(transport, FLEET, 3, (4, 5), MalformedCounter("agent/3"))
-    failures = link.send_all((message("status", 4), message("status", 5), message("status", 4)),
-                             wait=False)
-    assert failures == 0  # nothing known yet
-    assert transport.issued == [(4, "status"), (5, "status"), (4, "status")]
-    transport.answer(5, replies=(CollabReply(False, "busy"),))
-    assert link.failed == 1 and link.unreachable == frozenset({5})
-    # a message to a peer known to be unreachable is not sent at all
-    assert link.send_all((message("status", 5),), wait=False) == 1
-    assert len(transport.issued) == 3 and link.failed == 2
