@@ -111,12 +111,13 @@ DEFAULT_RUNTIME = f"(rx: (worker_threads: {RX_WORKERS}))"
 
 #: the ``ZENOH_RUNTIME`` value this process put into its own environment for its session
 #: (``ZenohTransport.apply_runtime``); None when it set none
-_runtime_set_here: list[str | None] = [None]
+_runtime_set_here: str | None = None
 
 
 def note_runtime_set_here(value: str) -> None:
     """Record that this process set ``ZENOH_RUNTIME = value`` for its own session."""
-    _runtime_set_here[0] = value
+    global _runtime_set_here
+    _runtime_set_here = value
 
 
 def child_environment(env: Mapping[str, str]) -> dict[str, str]:
@@ -125,7 +126,7 @@ def child_environment(env: Mapping[str, str]) -> dict[str, str]:
     process's own choice, so a coordinator's would otherwise decide every child's runtime (the
     lockstep peers' ``--zenoh-runtime minimal``). A value the user set is passed on."""
     out = dict(env)
-    if _runtime_set_here[0] is not None and out.get("ZENOH_RUNTIME") == _runtime_set_here[0]:
+    if _runtime_set_here is not None and out.get("ZENOH_RUNTIME") == _runtime_set_here:
         del out["ZENOH_RUNTIME"]
     return out
 

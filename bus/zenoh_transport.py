@@ -197,7 +197,8 @@ class ZenohTransport:
 
         self._session.get(key_expr, zenoh.handlers.Callback(on_reply, on_drop, indirect=False),
                           payload=payload, timeout=timeout,
-                          **(_drop_when_congested() if droppable else {}))
+                          **({"congestion_control": zenoh.CongestionControl.DROP}
+                             if droppable else {}))
 
     def declare_alive(self, key: str) -> Closeable:
         token = self._session.liveliness().declare_token(key)
@@ -311,10 +312,3 @@ class ZenohChannel:
             self._sub.undeclare()
         except Exception:
             logger.debug("undeclaring the channel of %s failed", self._key, exc_info=True)
-
-
-def _drop_when_congested() -> dict[str, Any]:
-    """The options of a query or reply that is dropped, not waited for, on a full send queue."""
-    import zenoh
-
-    return {"congestion_control": zenoh.CongestionControl.DROP}

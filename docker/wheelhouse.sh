@@ -14,7 +14,10 @@ mkdir -p "$WH"
 quiet() { grep -v "^WARNING: Location .* is ignored" >&2 || true; }
 "$PY" -m pip freeze --exclude-editable --disable-pip-version-check | grep -v '^tlfleet' > "$WH/constraints.txt"
 rm -f "$WH"/tlfleet-*.whl
+# setuptools leaves build/ (a second copy of the sources) in the clone: removed unless it was there
+had_build=$([[ -e $ROOT/build ]] && echo 1 || true)
 "$PY" -m pip wheel --quiet --disable-pip-version-check --no-deps -w "$WH" "$ROOT" 2> >(quiet)
+[[ -n $had_build ]] || rm -rf "$ROOT/build"
 PLATFORMS=()
 for p in manylinux_2_28 manylinux_2_27 manylinux_2_17 manylinux2014 manylinux_2_12 manylinux2010 manylinux1; do
   PLATFORMS+=(--platform "${p}_x86_64")

@@ -71,6 +71,15 @@ def lasso_words(atoms: tuple[str, ...] = ATOMS):
     )
 
 
+def random_lasso(rng, atoms) -> tuple[list[frozenset[str]], list[frozenset[str]]]:
+    """A random lasso word over ``atoms``: a prefix of 0–3 letters and a loop of 1–4, each atom
+    in a letter with probability 1/2 (``rng``: a ``random.Random``, drawn in that order)."""
+    prefix = [frozenset(a for a in atoms if rng.random() < 0.5) for _ in range(rng.randrange(4))]
+    loop = [frozenset(a for a in atoms if rng.random() < 0.5)
+            for _ in range(1 + rng.randrange(4))]
+    return prefix, loop
+
+
 def guard_holds(guard, v: int) -> bool:
     """Evaluate a BDD guard on the letter with bitmask ``v`` by walking its nodes (the guard's
     public ``var``/``low``/``high`` fields; independent of the library's evaluation)."""

@@ -15,7 +15,7 @@ import random
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from ltl_helpers import automaton_accepts, formulas, lasso_words
+from ltl_helpers import automaton_accepts, formulas, lasso_words, random_lasso
 
 from agent.ltl import tgba
 from agent.ltl.buchi import _atoms_in_order, translate
@@ -224,10 +224,7 @@ def test_contradictory_conjunctions_are_not_entered():
     atoms = [f"p{i}" for i in range(6)]
     b = translate(f)
     for _ in range(200):
-        prefix = [frozenset(a for a in atoms if rng.random() < 0.5)
-                  for _ in range(rng.randrange(4))]
-        loop = [frozenset(a for a in atoms if rng.random() < 0.5)
-                for _ in range(1 + rng.randrange(4))]
+        prefix, loop = random_lasso(rng, atoms)
         assert automaton_accepts(b, prefix, loop) == holds(f, prefix, loop)
 
 

@@ -13,7 +13,7 @@ import random
 
 import pytest
 from hypothesis import given, settings
-from ltl_helpers import automaton_accepts, formulas, guard_holds
+from ltl_helpers import automaton_accepts, formulas, guard_holds, random_lasso
 
 from agent.ltl import bdd, simulation, tgba
 from agent.ltl.buchi import _atoms_in_order, _cheap_reduce, _remove_useless, translate
@@ -111,10 +111,7 @@ def test_random_equivalence_heavy_formulas_against_lasso_semantics():
         f = parse(text)
         b = translate(f)
         for _ in range(60):
-            prefix = [frozenset(a for a in atoms if rng.random() < 0.5)
-                      for _ in range(rng.randrange(4))]
-            loop = [frozenset(a for a in atoms if rng.random() < 0.5)
-                    for _ in range(1 + rng.randrange(4))]
+            prefix, loop = random_lasso(rng, atoms)
             if automaton_accepts(b, prefix, loop) != holds(f, prefix, loop):
                 mismatches.append((text, prefix, loop))
     assert mismatches == []

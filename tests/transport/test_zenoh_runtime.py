@@ -60,27 +60,23 @@ def test_a_tlfleet_session_runs_rx_workers_and_the_environment_still_wins():
     assert mine["rx"] < RX_WORKERS
 
 
-def test_children_do_not_inherit_the_runtime_a_process_set_for_itself(monkeypatch):
+def test_children_do_not_inherit_the_runtime_a_process_set_for_itself(monkeypatch, tmp_path):
     """zenoh reads ZENOH_RUNTIME once per process and an environment value wins: the runtime a
     coordinator set for its own session must not decide its children's (each picks its own
     from its flags, e.g. the lockstep peers' --zenoh-runtime minimal); a user's value stays."""
     from bus import transport
     from coordinator.launcher import Launcher
 
-    monkeypatch.setattr(transport, "_runtime_set_here", [None])
+    monkeypatch.setattr(transport, "_runtime_set_here", None)
     assert transport.child_environment({"ZENOH_RUNTIME": "(mine)", "A": "1"}) == \
         {"ZENOH_RUNTIME": "(mine)", "A": "1"}  # the user's: passed on
     transport.note_runtime_set_here(DEFAULT_RUNTIME)
     assert transport.child_environment({"ZENOH_RUNTIME": DEFAULT_RUNTIME, "A": "1"}) == {"A": "1"}
     assert transport.child_environment({"ZENOH_RUNTIME": "(mine)"}) == {"ZENOH_RUNTIME": "(mine)"}
     monkeypatch.setenv("ZENOH_RUNTIME", DEFAULT_RUNTIME)
-    import tempfile
-    from pathlib import Path
-
-    with tempfile.TemporaryDirectory() as tmp:
-        launcher = Launcher(Path(tmp))
-        child = launcher.start("env", [sys.executable, "-c",
-                                       "import os; print(os.environ.get('ZENOH_RUNTIME'))"])
-        child.process.wait(30)
-        launcher.stop_all(1.0)
-        assert (Path(tmp) / "env.log").read_text().strip() == "None"
+    launcher = Launcher(tmp_path)
+    child = launcher.start("env", [sys.executable, "-c",
+                                   "import os; print(os.environ.get('ZENOH_RUNTIME'))"])
+    child.process.wait(30)
+    launcher.stop_all(1.0)
+    assert (tmp_path / "env.log").read_text().strip() == "None"
