@@ -249,6 +249,14 @@ class LtlAgent:
                              tuple(sorted(buchi)), progress.visits, progress.rounds, progress.mode)
         return state, LtlStepOutput((ex_out.v, ex_out.omega), report, tuple(notices))
 
+    def after_command(self, state: LtlState) -> LtlState:
+        """The work a step deferred until its command is sent: the executor's periodic global
+        re-plan (``Executor.refresh``, issue 17). Pure; skipping it changes nothing but when the
+        work runs (the next step runs it first)."""
+        if state.executor.pending is None:
+            return state
+        return replace(state, executor=self.executor.refresh(state.executor))
+
     def _track(self, states: frozenset[int], ex_state: ExecutorState, first: int
                ) -> frozenset[int]:
         """Read the label of every region left between plan positions ``first`` and the

@@ -12,7 +12,15 @@ name equal to the previous one means "stay". Each step (5 Hz):
 2. **Global path** (``grid_planner.plan_path``) from the pose to the target centre, on the
    static grid with the other robots within ``local_range`` stamped in as inflated discs — the
    paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
-   Robots ahead are stamped a second time shifted to our left, so paths keep right.
+   Robots ahead are stamped a second time shifted to our left, so paths keep right. The
+   periodic re-plans (and the re-plan around blocking robots of step 4) are *deferred*
+   (``deferred_replan``, issue 17): the step that finds one due keeps following the current
+   path and records a :class:`PathRequest` (its pose and stamped robots); the runtime runs it
+   with :meth:`Executor.refresh` after the command is on its way, and the path is followed from
+   the next step on — move_base's global planner, which runs beside the controller at 1 Hz, has
+   the same one-period lag. A step that finds a request still pending runs it first, so the
+   trajectory is the same whether or not the caller refreshes between steps. A new target (a
+   region reached, a new plan) has no path to follow yet and is planned at once.
 3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
    velocity estimated from two consecutive pose frames.
 4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
@@ -88,6 +96,7 @@ class ExecutorConfig:
     back_off_time: float = 1.5  # [s] recovery: drive backwards
     back_off_speed: float = 0.1  # [m/s]
     blocked_edge_penalty: float = 10.0  # [m] added to a blocked edge's weight on replanning
+    deferred_replan: bool = True  # periodic / blocked re-plans run after the command (step 2)
 
     def __post_init__(self) -> None:
         for name in ("robot_radius", "resolution", "replan_period", "stuck_timeout"):
@@ -122,6 +131,22 @@ class ExecutorOutputs:
 
 
 @dataclass(frozen=True, eq=False)
+class PathRequest:
+    """A global re-plan decided at sim time ``t`` [s] and run later (:meth:`Executor.refresh`):
+    from ``start`` (2,) [m] to the centre ``goal`` (2,) [m] of region ``target``, with the other
+    robots stamped as discs ``centers`` (J, 2) [m], ``radii`` (J,) [m]; ``blocked``: stamped at
+    full size (step 4)."""
+
+    t: float
+    target: str
+    start: np.ndarray
+    goal: np.ndarray
+    centers: np.ndarray
+    radii: np.ndarray
+    blocked: bool
+
+
+@dataclass(frozen=True, eq=False)
 class ExecutorState:
     """Everything the executor remembers between ticks (immutable; ``step`` returns a new one)."""
 
@@ -146,6 +171,8 @@ class ExecutorState:
     cycle_start: float | None = None  # [s] when the current suffix pass began
     prev_others: np.ndarray | None = None  # (K, 4) previous frame's other robots
     prev_time: float | None = None  # [s]
+    pending: PathRequest | None = None  # a deferred global re-plan, not run yet
+    no_path_note: NoPathFound | None = None  # a deferred re-plan's failure, reported next step
 
     @property
     def cycles(self) -> int:
@@ -259,7 +286,11 @@ class Executor:
         t = float(inputs.t)
         pose = np.asarray(inputs.pose, dtype=float)[:3]
         events: list[NavEvent] = []
-        s = replace(state, control_cycles=state.control_cycles + 1)
+        s = self.refresh(state)  # a re-plan the caller did not run after the last command
+        if s.no_path_note is not None:
+            events.append(s.no_path_note)
+            s = replace(s, no_path_note=None)
+        s = replace(s, control_cycles=s.control_cycles + 1)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
         others = self._local_obstacles(s, inputs, pose, t)
@@ -473,20 +504,20 @@ class Executor:
             return replace(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
         blocked = t - s.progress_time >= cfg.blocked_after and len(others) > 0
-        if (s.path is None or s.path_target != target or t - s.path_time >= cfg.replan_period
+        following = s.path is not None and s.path_target == target
+        if (not following or t - s.path_time >= cfg.replan_period
                 or (blocked and not s.blocked_plan)):
-            grid = self.grid
-            if len(others):
-                grid = grid.with_discs(*self._stamps(pose, others, full=blocked))
-            try:
-                path = plan_path(grid, pose[:2], goal).waypoints
-                s = replace(s, path=path, path_target=target, path_time=t, no_path_to=None,
-                            blocked_plan=blocked)
-            except NoPathError as error:
-                if s.no_path_to != target:  # report once, keep trying every replan period
-                    events.append(NoPathFound(t, target, error.reason))
-                    log.info("no path to %s: %s", target, error.reason)
-                s = replace(s, path_time=t, no_path_to=target)
+            centers, radii = (self._stamps(pose, others, full=blocked) if len(others)
+                              else (np.zeros((0, 2)), np.zeros(0)))
+            request = PathRequest(t, target, pose[:2].copy(), np.asarray(goal, dtype=float),
+                                  centers, radii, blocked)
+            if following and cfg.deferred_replan:  # run after the command (module docstring)
+                s = replace(s, pending=request, path_time=t)
+            else:
+                s = self._run_request(s, request)
+                if s.no_path_note is not None:
+                    events.append(s.no_path_note)
+                    s = replace(s, no_path_note=None)
         if s.path is None or s.path_target != target:
             command = self._ramp(s.command, (0.0, 0.0))
             remaining = math.inf
@@ -506,6 +537,36 @@ class Executor:
             s = replace(s, mode=ROTATE, mode_since=t, stuck_count=s.stuck_count + 1)
             command = self._ramp(s.command, (0.0, 0.0))
         return s, command
+
+    def refresh(self, state: ExecutorState) -> ExecutorState:
+        """Run the global re-plan the last step deferred (``state.pending``; the module
+        docstring, step 2), if any; pure. The runtime calls it after publishing the command; a
+        failure is reported as ``NoPathFound`` by the next step."""
+        request = state.pending
+        if request is None:
+            return state
+        state = replace(state, pending=None)
+        if state.path_target != request.target:  # a new plan or target since: nothing to refresh
+            return state
+        return self._run_request(state, request)
+
+    def _run_request(self, s: ExecutorState, request: PathRequest) -> ExecutorState:
+        """Plan ``request`` on the static grid with its robots stamped; on success the path
+        replaces the current one, else the current one is kept and the failure is noted once
+        per target (``no_path_note``) and retried every ``replan_period``."""
+        grid = self.grid
+        if len(request.centers):
+            grid = grid.with_discs(request.centers, request.radii)
+        try:
+            path = plan_path(grid, request.start, request.goal).waypoints
+        except NoPathError as error:
+            note = None
+            if s.no_path_to != request.target:  # report once, keep trying every replan period
+                note = NoPathFound(request.t, request.target, error.reason)
+                log.info("no path to %s: %s", request.target, error.reason)
+            return replace(s, path_time=request.t, no_path_to=request.target, no_path_note=note)
+        return replace(s, path=path, path_target=request.target, path_time=request.t,
+                       no_path_to=None, blocked_plan=request.blocked)
 
     def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False
                 ) -> tuple[np.ndarray, np.ndarray]:

@@ -193,13 +193,17 @@ class ExecutorController:
 
     Holds the executor state between ticks and records every output; ``ids[i]`` is the robot id
     of harness index ``i`` (used to build the ``(id, x, y, θ)`` pose frame of the others).
-    Setting ``pending_plan`` hands a new plan to the executor on the next tick.
+    Setting ``pending_plan`` hands a new plan to the executor on the next tick. ``refresh``:
+    run the step's deferred global re-plan right after it, as the agent runtime does once the
+    command is sent (``Executor.refresh``; without it the next step runs it, same result).
     """
 
-    def __init__(self, executor: Executor, state: ExecutorState, ids: Sequence[int]):
+    def __init__(self, executor: Executor, state: ExecutorState, ids: Sequence[int], *,
+                 refresh: bool = False):
         self.executor = executor
         self.state = state
         self.ids = tuple(ids)
+        self.refresh = refresh
         self.outputs: list[ExecutorOutputs] = []
         self.events: list[NavEvent] = []
         self.pending_plan: tuple[tuple[str, ...], tuple[str, ...]] | None = None
@@ -213,6 +217,8 @@ class ExecutorController:
         )
         self.pending_plan = None
         self.state, out = self.executor.step(self.state, inputs)
+        if self.refresh:
+            self.state = self.executor.refresh(self.state)
         self.outputs.append(out)
         self.events.extend(out.events)
         return out.v, out.omega

@@ -12,7 +12,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   (realtime), when a new control period of ``divider`` mocap ticks has begun since the last
   frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
   the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
-* per due frame: one ``step``; in lockstep the step's collaboration messages are sent by query
+* per due frame: one ``step``, and after the command, status and events are published, the
+  core's optional ``after_command(state) -> state`` (work the step deferred so as not to delay
+  the command: the LTL executor's periodic global re-plan, issue 17); in lockstep the step's collaboration messages are sent by query
   (all in flight together) and their replies awaited **before**
   ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published (so they are in their receivers'
   inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
@@ -153,6 +155,8 @@ class Core(Protocol):
 
     def step(self, state: Any, inputs: TickInput) -> tuple[Any, TickOutput]: ...
 
+    # optional: ``after_command(state) -> state``, run once the step's command is published
+
 
 @dataclass
 class LoopStats:
@@ -171,6 +175,7 @@ class LoopStats:
     resumes: int = 0  # frames that came after a freeze / partition
     backlog_dropped: int = 0  # frames of the backlog skipped on resumption
     old_frames: int = 0  # frames older than the last one handled, ignored
+    after_time: float = 0.0  # [s] wall, total time inside core.after_command
 
 
 class AgentLoop:
@@ -195,6 +200,7 @@ class AgentLoop:
         self.clock = clock
         self.mailbox = Mailbox()
         self.stats = LoopStats()
+        self._after_command = getattr(core, "after_command", None)
         self.started = False
         self.stopped = False
         self._handles: list[Closeable] = []
@@ -268,6 +274,7 @@ class AgentLoop:
         out: dict[str, object] = {
             "frames": st.frames, "steps": st.steps, "commands": st.commands,
             "mean_step_ms": 1e3 * st.step_time / st.steps if st.steps else 0.0,
+            "mean_after_command_ms": 1e3 * st.after_time / st.steps if st.steps else 0.0,
             "max_step_ms": 1e3 * st.max_step_time, "stale_episodes": st.stale_episodes,
             "stale_commands": st.stale_commands, "frames_overwritten":
             self.mailbox.frames_overwritten, "malformed": self.malformed.total,
@@ -496,6 +503,10 @@ class AgentLoop:
             self.transport.publish(self._keys["status"], encode(out.status))
         for event in out.events:
             self.publish_event(event)
+        if self._after_command is not None:
+            began = time.perf_counter()
+            self.state = self._after_command(self.state)
+            self.stats.after_time += time.perf_counter() - began
 
     def _send(self, messages: tuple[CollabMessage, ...], *, wait: bool) -> None:
         if not messages:

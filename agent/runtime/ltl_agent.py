@@ -71,6 +71,10 @@ class LtlCore:
                            p.visits, p.rounds, p.mode)
         return state, TickOutput(out.u, status, tuple(self._event(n) for n in out.notices))
 
+    def after_command(self, state: LtlState) -> LtlState:
+        """Deferred work of the last step, run by the loop once the command is published."""
+        return self.agent.after_command(state)
+
     def _replan(self, state: LtlState, request: ReplanRequest, t: float
                 ) -> tuple[LtlState, Event]:
         state, notice = self.agent.replan(state, request, t)

@@ -36,6 +36,9 @@ def test_after_blocked_after_without_progress_the_path_avoids_robots_at_full_siz
     full = 0.2 + CONFIG.other_robot_margin + GRID.inflation - GRID.resolution
     assert float(distance_to_polyline(blocker[:, 1:3], path[1:])[0]) >= full
     assert float(distance_to_polyline(blocker[:, 1:3], normal[1:])[0]) < full
-    # with progress (the blocker gone) the executor plans normally again
+    # with progress (the blocker gone) the executor plans normally again: the step defers the
+    # periodic re-plan (it still follows the blocked path), refresh (after the command) runs it
     state, out = executor.step(state, ExecutorInputs(7.2, (0.5, 0.0, 0.0), np.zeros((0, 4))))
-    assert not state.blocked_plan
+    assert state.pending is not None and not state.pending.blocked and state.blocked_plan
+    state = executor.refresh(state)
+    assert state.pending is None and not state.blocked_plan

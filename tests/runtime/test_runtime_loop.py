@@ -325,3 +325,37 @@ def test_a_failing_core_is_a_fault_event_and_exit_code_1():
     (fault,) = [e for e in sim.events if e.kind == "fault"]
     assert fault.source == "agent/1" and fault.data["error"] == "RuntimeError: boom"
     assert network.alive_keys() == []
+
+
+class DeferringCore(RecordingCore):
+    """Records, in ``after``, how many commands the sim held when ``after_command`` ran."""
+
+    def __init__(self, sim):
+        super().__init__()
+        self.sim = sim
+        self.after: list[tuple[int, int]] = []  # (state, commands at the sim)
+
+    def after_command(self, state):
+        self.after.append((state, len(self.sim.commands)))
+        return state + 100
+
+
+@pytest.mark.parametrize("lockstep", [True, False])
+def test_after_command_runs_once_per_step_after_the_command_is_published(lockstep):
+    """Issue 17: the work a step defers (the LTL global re-plan) runs after its command."""
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    clock = FakeClock()
+    core = DeferringCore(sim)
+    loop = AgentLoop(network.transport("agent1"), LoopConfig(FLEET, 1), core, 0,
+                     malformed=MalformedCounter("agent/1", clock=clock), clock=clock)
+    loop.open()
+    loop.ready()
+    sim.control("start")
+    for seq in (1, 2, 3):
+        sim.frame(0.01 * seq, seq, POSES, due=[1] if lockstep else [])
+        loop.run_once(0.0)
+    # the state after_command returns is the one the next step gets: 0 → 1 → 101 → 102 → ...
+    assert core.after == [(1, 1), (102, 2), (203, 3)]
+    assert loop.state == 303 and [c.seq for c in sim.commands] == [1, 2, 3]
+    assert loop.summary()["mean_after_command_ms"] >= 0.0

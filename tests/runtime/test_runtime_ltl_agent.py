@@ -92,6 +92,10 @@ def test_ltl_agents_plan_drive_visit_and_report(scenario1):
             r: sum(e.data["region"] == r for e in visits) for r in regions}
         assert last.buchi_states  # the visited regions never violated the task
         assert last.mode == "navigate" and last.target in regions
+        # issue 17: the periodic global re-plans ran after the commands (LtlCore.after_command),
+        # none is left for the next step
+        assert loops[j].state.executor.pending is None
+        assert loops[j].summary()["mean_after_command_ms"] > 0.0
     # the Büchi tracking went through an accepting state on the way
     core = loops[1].core
     assert any(set(s.buchi_states) & core.buchi.accepting
