@@ -8,9 +8,9 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
 ``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event``;
                token ``alive/agent/i``; serve ``robot/i/collab`` (STL robots);
                query ``robot/j/collab`` for every robot j it is coupled with (below);
-               subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d`` instead), ``clock``,
+               subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead), ``clock``,
                ``control``; watch ``alive/**``
-``sim``        publish ``mocap``, ``mocap_every/d`` (each divider d ≥ 2 of the fleet),
+``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
                ``clock``, ``event``; subscribe ``robot/*/cmd``,
                ``control``; serve ``sim/backfill`` (issue 13); token ``alive/sim/0``;
                watch ``alive/**``
@@ -64,8 +64,10 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     everyone_alive = (keys.all_alive(fleet),)
     everything = (f"{keys.prefix(fleet)}/**",)
     coupled = coupled_robots(scenario)
-    dividers = {r.id: scenario.control_divider(r.id) for r in scenario.robots}
-    every = tuple(keys.mocap_every(fleet, d) for d in keys.frame_dividers(dividers.values()))
+    schedule = {r.id: (scenario.control_divider(r.id), scenario.control_phase(r.id))
+                for r in scenario.robots}
+    every = tuple(keys.mocap_every(fleet, d, p)
+                  for d, p in keys.frame_schedules(schedule.values()))
     grants = [Grant("router", publish=everything, discover=everything, subscribe=everything,
                     serve=everything, query=everything, token=everything, watch=everything)
               ] if mesh else []
@@ -81,7 +83,8 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     ]
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         i = robot.id
-        frames = keys.mocap(fleet) if dividers[i] == 1 else keys.mocap_every(fleet, dividers[i])
+        d, p = schedule[i]
+        frames = keys.mocap(fleet) if d == 1 else keys.mocap_every(fleet, d, p)
         grants.append(Grant(
             identity("agent", i),
             publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet)),

@@ -1,8 +1,9 @@
 """The tick logic of the simulator, free of sockets and threads (architecture.md §3, contract).
 
-* **Due robots.** Robot r with control rate f_r is due at tick k when k mod d_r = 0, with the
-  divider d_r = round(mocap_rate / f_r) (STL at 100 Hz: every tick; LTL at 5 Hz: every 20th),
-  and only while its agent is alive (liveliness ``alive/agent/<r>``).
+* **Due robots.** Robot r with control rate f_r is due at tick k when (k − φ_r) mod d_r = 0,
+  with the divider d_r = round(mocap_rate / f_r) (STL at 100 Hz: every tick; LTL at 5 Hz: every
+  20th) and the phase φ_r ∈ [0, d_r) (``Scenario.control_phase``: 0, or the LTL robots spread
+  over the period), and only while its agent is alive (liveliness ``alive/agent/<r>``).
 * **Lockstep collection** (:class:`LockstepCollector`). After publishing frame k the sim
   accepts exactly one ``Command(robot=r, seq=k)`` from each due robot r. Commands with another
   seq, from robots not due, for unknown robots or repeated are ignored and counted. The tick may
@@ -34,10 +35,19 @@ def control_dividers(scenario: Scenario) -> dict[int, int]:
     return {robot.id: scenario.control_divider(robot.id) for robot in scenario.robots}
 
 
-def due_robots(tick: int, dividers: Mapping[int, int], alive: Iterable[int]) -> tuple[int, ...]:
-    """The robots due at ``tick``: alive, and ``tick % divider == 0``; ids ascending."""
+def control_phases(scenario: Scenario) -> dict[int, int]:
+    """Robot id → φ_r ∈ [0, d_r), the tick of its control period at which it is due."""
+    return {robot.id: scenario.control_phase(robot.id) for robot in scenario.robots}
+
+
+def due_robots(tick: int, dividers: Mapping[int, int], alive: Iterable[int],
+               phases: Mapping[int, int] | None = None) -> tuple[int, ...]:
+    """The robots due at ``tick``: alive, and ``tick % divider == phase`` (phase 0 when
+    ``phases`` does not list the robot); ids ascending."""
     alive = set(alive)
-    return tuple(sorted(r for r, d in dividers.items() if r in alive and tick % d == 0))
+    phases = phases or {}
+    return tuple(sorted(r for r, d in dividers.items()
+                        if r in alive and tick % d == phases.get(r, 0)))
 
 
 class Offer(enum.Enum):

@@ -4,7 +4,8 @@ One loop on the main thread owns the :class:`~sim.world.World` and every piece o
 transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
 callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
 channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
-``mocap`` and on ``mocap_every/<d>`` for the fleet's dividers d ≥ 2 that divide its seq.
+``mocap`` and on ``mocap_every/<d>/<φ>`` for the fleet's control schedules (d ≥ 2, φ) with
+``seq % d == φ``.
 
 Protocol (architecture.md §3 and the issue-5 contract):
 
@@ -83,7 +84,14 @@ from bus.transport import Channel, Closeable, Transport, TransportConfig, open_t
 from sim.clock import Pacer, TickClock
 from sim.command_age import CommandAge
 from sim.frame_ring import BACKFILL_BYTES, BACKFILL_SECONDS, FrameRing, ring_size
-from sim.lockstep import LatestCommands, LockstepCollector, Offer, control_dividers, due_robots
+from sim.lockstep import (
+    LatestCommands,
+    LockstepCollector,
+    Offer,
+    control_dividers,
+    control_phases,
+    due_robots,
+)
 from sim.stats import TimingStats
 from sim.world import WALL, World, WorldConfig
 
@@ -193,8 +201,9 @@ class SimProcess:
                                          config.world)
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
-        self._every = tuple((d, keys.mocap_every(scenario.fleet, d))
-                            for d in keys.frame_dividers(self.dividers.values()))
+        self.phases = control_phases(scenario)
+        schedules = keys.frame_schedules((d, self.phases[r]) for r, d in self.dividers.items())
+        self._every = tuple((d, p, keys.mocap_every(scenario.fleet, d, p)) for d, p in schedules)
         self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
                                max_age=config.max_command_age)
         a = scenario.arena
@@ -324,7 +333,7 @@ class SimProcess:
                     self._pump(0.0)
                     self.stop_event.wait(min(left, self.config.poll))
                 pacer.advance()
-            due = () if k >= last else due_robots(k, self.dividers, self.alive)
+            due = () if k >= last else due_robots(k, self.dividers, self.alive, self.phases)
             self._publish_tick(k, due)
             if k >= last:
                 self._finish()
@@ -387,7 +396,7 @@ class SimProcess:
             # Tick 0 owes no command: its frame (t = 0, seq = 0, due = ()) cannot be told from
             # the preview frame, which agents never answer (agent.runtime.loop), so counting it
             # would charge every robot one missed deadline per run.
-            due = due_robots(k, self.dividers, self.alive) if k > 0 else ()
+            due = due_robots(k, self.dividers, self.alive, self.phases) if k > 0 else ()
             self._advance(k, self.latest.take(), due)
             k += 1
         self.stats.overruns = pacer.overruns
@@ -563,14 +572,14 @@ class SimProcess:
         self.transport.publish(key, encode(message))
 
     def _publish_frame(self, frame: MocapFrame) -> tuple[bytes, float]:
-        """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d`` for each
-        divider d ≥ 2 of the fleet that divides its seq (keys.frame_keys). Returns the payload
-        and the wall time [s] just before the first put."""
+        """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d/φ`` for each
+        control schedule (d ≥ 2, φ) of the fleet with ``seq % d == φ`` (keys.frame_keys).
+        Returns the payload and the wall time [s] just before the first put."""
         payload = encode(frame)
         published = self._now()
         self.transport.publish(self._keys["mocap"], payload)
-        for divider, key in self._every:
-            if frame.seq % divider == 0:
+        for divider, phase, key in self._every:
+            if frame.seq % divider == phase:
                 self.transport.publish(key, payload)
         return payload, published
 

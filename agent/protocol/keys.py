@@ -34,35 +34,38 @@ def mocap(fleet: str) -> str:
     return f"{prefix(fleet)}/mocap"
 
 
-def mocap_every(fleet: str, divider: int) -> str:
-    """Sim → the agents of robots with control divider ``divider`` = d ≥ 2: the same
-    ``MocapFrame`` as ``mocap``, but only the frames with ``seq % d == 0`` (architecture.md §2–§3).
+def mocap_every(fleet: str, divider: int, phase: int = 0) -> str:
+    """Sim → the agents of robots with control divider ``divider`` = d ≥ 2 and phase
+    ``phase`` = φ ∈ [0, d): the same ``MocapFrame`` as ``mocap``, but only the frames with
+    ``seq % d == φ`` (architecture.md §2–§3; ``Scenario.control_phase``).
 
-    A robot with divider d can only be due at those ticks, so its agent subscribes here instead
-    of ``mocap`` and is not woken for the other d − 1 frames of each control period (an LTL
-    agent at 5 Hz with 100 Hz mocap: 95 % of the frames). The recorder and the viewer keep
-    reading ``mocap``.
+    A robot with divider d and phase φ can only be due at those ticks, so its agent subscribes
+    here instead of ``mocap`` and is not woken for the other d − 1 frames of each control period
+    (an LTL agent at 5 Hz with 100 Hz mocap: 95 % of the frames). The recorder and the viewer
+    keep reading ``mocap``.
     """
-    d = int(divider)
+    d, p = int(divider), int(phase)
     if d < 2:
         raise ValueError(f"mocap_every: divider must be ≥ 2 (divider 1 reads mocap), got {d}")
-    return f"{prefix(fleet)}/mocap_every/{d}"
+    if not 0 <= p < d:
+        raise ValueError(f"mocap_every: phase must be in [0, {d}), got {p}")
+    return f"{prefix(fleet)}/mocap_every/{d}/{p}"
 
 
-def all_mocap_every(fleet: str) -> str:
-    return f"{prefix(fleet)}/mocap_every/*"
+Schedule = tuple[int, int]  # (divider d ≥ 1, phase φ ∈ [0, d)) of a robot's control ticks
 
 
-def frame_keys(fleet: str, seq: int, dividers: tuple[int, ...]) -> tuple[str, ...]:
-    """Every key the frame ``seq`` is published on: ``mocap``, then ``mocap_every/d`` for each
-    divider d ≥ 2 in ``dividers`` (ascending, distinct) with ``seq % d == 0``."""
-    return (mocap(fleet), *(mocap_every(fleet, d) for d in dividers if d > 1 and seq % d == 0))
+def frame_keys(fleet: str, seq: int, schedules: tuple[Schedule, ...]) -> tuple[str, ...]:
+    """Every key the frame ``seq`` is published on: ``mocap``, then ``mocap_every/d/φ`` for each
+    schedule (d ≥ 2, φ) in ``schedules`` (sorted, distinct) with ``seq % d == φ``."""
+    return (mocap(fleet), *(mocap_every(fleet, d, p) for d, p in schedules
+                            if d > 1 and seq % d == p))
 
 
-def frame_dividers(dividers: Iterable[int]) -> tuple[int, ...]:
-    """The distinct control dividers ≥ 2 of a fleet (an iterable of ints), ascending: the
+def frame_schedules(schedules: Iterable[Schedule]) -> tuple[Schedule, ...]:
+    """The distinct control schedules (d, φ) with d ≥ 2 of a fleet, sorted: the
     ``mocap_every`` keys its simulator publishes."""
-    return tuple(sorted({int(d) for d in dividers if int(d) > 1}))
+    return tuple(sorted({(int(d), int(p)) for d, p in schedules if int(d) > 1}))
 
 
 def sim_backfill(fleet: str) -> str:

@@ -9,8 +9,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   only lists agents after the start, so a start message overtaken by the first frame costs
   nothing); nothing is sent before the start; ``Control(stop)`` ends the loop;
 * a frame is *due* when it lists this robot in ``due`` (lockstep), or, when ``due`` is empty
-  (realtime), when a new control period of ``divider`` mocap ticks has begun since the last
-  frame computed (``seq // divider`` changed: ``seq % divider == 0`` when no frame is skipped);
+  (realtime), when a new control period of ``divider`` mocap ticks, offset by ``phase``, has
+  begun since the last frame computed (``(seq − phase) // divider`` changed:
+  ``seq % divider == phase`` when no frame is skipped);
   the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
 * per due frame: one ``step``, and after the command, status and events are published, the
   core's optional ``after_command(state) -> state`` (work the step deferred so as not to delay
@@ -20,8 +21,8 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
   first and the queries are only issued, so round trips delay neither this command nor the
   next frame; then status and events;
-* frames: an agent whose robot has control divider d ≥ 2 reads ``mocap_every/<d>`` (the frames
-  with ``seq % d == 0``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
+* frames: an agent whose robot has control divider d ≥ 2 and phase φ reads
+  ``mocap_every/<d>/<φ>`` (the frames with ``seq % d == φ``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
   only be due at those ticks, lockstep or realtime;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
   the gap between its frames, ``LoopConfig.stale_limit``, or of the gap they lately came at
@@ -79,8 +80,8 @@ class LoopConfig:
     bounds: FleetBounds | None = None  # plausibility of frames (None: codec checks only)
     max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
     resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
-    # Subscribe to keys.mocap_every(fleet, divider) instead of keys.mocap when divider ≥ 2: only
-    # the frames this robot can be due for (seq % divider == 0). The staleness limit then grows
+    # Subscribe to keys.mocap_every(fleet, divider, phase) instead of keys.mocap when divider ≥ 2:
+    # only the frames this robot can be due for (seq % divider == phase). The staleness limit then grows
     # by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
     decimated: bool = False
     mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
@@ -88,10 +89,15 @@ class LoopConfig:
     # calls mocap stale after ``stale_after`` without one, so it notices a lost simulator as
     # fast as a loop that reads every frame (issue 13 §2) at the price of a callback per tick.
     heartbeat: bool = False
+    # the tick of each control period at which the robot is due, in [0, divider)
+    # (Scenario.control_phase: the LTL agents spread over the period, issue 17)
+    phase: int = 0
 
     def __post_init__(self) -> None:
         if self.divider < 1:
             raise ValueError(f"LoopConfig.divider must be ≥ 1, got {self.divider}")
+        if not 0 <= self.phase < self.divider:
+            raise ValueError(f"LoopConfig.phase must be in [0, {self.divider}), got {self.phase}")
         if self.stale_after <= 0:
             raise ValueError(f"LoopConfig.stale_after must be positive, got {self.stale_after}")
         if not self.mocap_rate > 0:
@@ -214,8 +220,8 @@ class AgentLoop:
         self.gate = FrameGate(config.max_jump) if config.max_jump else None
         self._channel: Channel | None = None
         fleet, robot = config.fleet, config.robot
-        mocap = (keys.mocap_every(fleet, config.divider) if config.frames_decimated
-                 else keys.mocap(fleet))
+        mocap = (keys.mocap_every(fleet, config.divider, config.phase)
+                 if config.frames_decimated else keys.mocap(fleet))
         self._stale_limit = config.stale_limit
         self._gaps: deque[float] = deque(maxlen=8)  # [s] wall per frame period, lately
         self._keys = {"mocap": mocap, "control": keys.control(fleet),
@@ -437,7 +443,7 @@ class AgentLoop:
             # In realtime mode tick 0 looks the same and goes unanswered too: 1 period only.
             due = False
         else:
-            due = frame.seq // self.config.divider != self._last_period
+            due = self._period(frame.seq) != self._last_period
         if not due:
             return
         if frame.pose(robot) is None:
@@ -446,8 +452,13 @@ class AgentLoop:
                                   frame.t)
             return
         self._last_seq = frame.seq
-        self._last_period = frame.seq // self.config.divider
+        self._last_period = self._period(frame.seq)
         self._tick(frame)
+
+    def _period(self, seq: int) -> int:
+        """The control period frame ``seq`` belongs to (it begins at a tick with
+        ``seq % divider == phase``)."""
+        return (seq - self.config.phase) // self.config.divider
 
     def _resume(self, frame: MocapFrame) -> MocapFrame:
         """The first frame after a freeze or a partition (realtime): drop the backlog the

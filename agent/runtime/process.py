@@ -99,13 +99,15 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         core, state, events, link = built
         loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after,
                                  **plausibility(scenario), **frame_subscription(scenario),
-                                 heartbeat=config.heartbeat)
+                                 heartbeat=config.heartbeat,
+                                 phase=scenario.control_phase(config.robot))
         loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)
         loop.open()
         loop.ready()
         for event in events:
             loop.publish_event(event)
-        logger.info("%s ready (fleet %s, divider %d)", source, scenario.fleet, divider)
+        logger.info("%s ready (fleet %s, divider %d, phase %d)", source, scenario.fleet, divider,
+                    loop_config.phase)
         # said at WARNING so that a process started by hand shows it without -v (issue 12 §1)
         logger.warning("agent %d: waiting for start from a coordinator on %s and mocap frames "
                        "from the simulator on %s", config.robot, keys.control(scenario.fleet),

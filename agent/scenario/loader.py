@@ -10,7 +10,7 @@ File layout (every section but ``robots`` is optional)::
     name = "scenario1"            # fleet defaults to the name; used in Zenoh keys
     duration = 90.0               # [s]
     [arena]   xmin/xmax/ymin/ymax [m], [[arena.obstacles]] shape = "rect"|"disc"
-    [ltl]     suffix_weight, control_rate               (LtlParams)
+    [ltl]     suffix_weight, control_rate, stagger      (LtlParams)
     [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate, hold_f_above_r,
               complete_f_on_satisfaction, recovery   (StlParams; recovery: docs/coupling.md)
     [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog  (SimParams)

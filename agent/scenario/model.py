@@ -179,6 +179,9 @@ class LtlParams:
 
     suffix_weight: float = 10.0  # β in cost = prefix + β·suffix (P_MAS_TG default)
     control_rate: float = 5.0  # [Hz]
+    # LTL agents at phase offsets within the control period (Scenario.control_phase, issue 17):
+    # no two of them step on the same mocap tick while there are at most d of them
+    stagger: bool = True
 
 
 @dataclass(frozen=True)
@@ -276,6 +279,20 @@ class Scenario:
         (architecture.md §3). The one place this is computed: the simulator's due rule and the
         agent's loop both use it."""
         return max(1, round(self.sim.mocap_rate / self.control_rate(robot_id)))
+
+    def control_phase(self, robot_id: int) -> int:
+        """φ_r ∈ [0, d_r): robot r is due at the mocap ticks k with (k − φ_r) mod d_r = 0
+        (architecture.md §3). 0 for STL robots; for LTL robots with ``ltl.stagger`` (the
+        default), the n LTL robots in id order spread evenly over the period, φ = ⌊rank·d/n⌋
+        (Scenario 1's two at 5 Hz: ticks 0 and 10 of every 20), so their navigation steps never
+        share a tick while n ≤ d (issue 17); without it, 0. Computed here only, like the
+        divider: the simulator's due rule, the frame keys and the agent's loop all use it."""
+        robot = self.robot(robot_id)
+        divider = self.control_divider(robot_id)
+        if not robot.is_ltl or not self.ltl.stagger or divider < 2:
+            return 0
+        ltl = sorted(r.id for r in self.robots if r.is_ltl)
+        return ltl.index(robot_id) * divider // len(ltl)
 
     def speed_limits(self) -> dict[int, tuple[float, float]]:
         """Robot id → (max linear [m/s], max angular [rad/s]): the plausibility bounds of

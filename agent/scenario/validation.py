@@ -79,7 +79,7 @@ KNOWN_KEYS = frozenset({
     "name", "fleet", "duration", "description", "arena", "ltl", "stl", "sim", "regions",
     "robots", "xmin", "xmax", "ymin", "ymax", "obstacles", "shape", "center", "radius",
     "labels", "id", "kind", "pose", "phase_start_times", "rho_opt", "limits",
-    "suffix_weight", "control_rate", "eta", "n_stage1", "delta", "zeta_l", "r1", "r_sense",
+    "suffix_weight", "control_rate", "stagger", "eta", "n_stage1", "delta", "zeta_l", "r1", "r_sense",
     "beta", "hold_f_above_r", "complete_f_on_satisfaction", "physics_rate", "mocap_rate",
     "disturbance", "mocap_noise", "seed", "watchdog", "max_v", "max_omega", "acc_v",
     "acc_omega", "max_lin", "max_ang", "acc_lin", "acc_ang",

@@ -63,6 +63,32 @@ def test_a_decimated_loop_reads_only_its_frame_key():
     assert [c.seq for c in commands(network)] == [20, 40]
 
 
+def test_a_staggered_loop_reads_and_answers_the_ticks_of_its_phase():
+    """Issue 17: phase 10 of 20 — decimated, only ``mocap_every/20/10``; reading every frame
+    in realtime, a new control period begins at seq ≡ 10 (mod 20)."""
+    network = FakeNetwork()
+    loop, _ = make(network, divider=20, phase=10, decimated=True)
+    assert loop._keys["mocap"] == keys.mocap_every(FLEET, 20, 10)
+    publish(network, keys.control(FLEET), Control("start"))
+    publish(network, keys.mocap_every(FLEET, 20), MocapFrame(0.2, 20, POSES))  # phase 0's
+    loop.run_once(0.0)
+    for seq in (10, 30):
+        publish(network, keys.mocap_every(FLEET, 20, 10), MocapFrame(seq / 100, seq, POSES))
+        loop.run_once(0.0)
+    assert [c.seq for c in commands(network)] == [10, 30]
+    loop.close()
+    network = FakeNetwork()
+    loop, _ = make(network, divider=20, phase=10)
+    publish(network, keys.control(FLEET), Control("start"))
+    for seq in range(5, 55):
+        publish(network, keys.mocap(FLEET), MocapFrame(seq / 100, seq, POSES))
+        loop.run_once(0.0)
+    # the first frame after the start, then the first of each period (10, 30, 50)
+    assert [c.seq for c in commands(network)] == [5, 10, 30, 50]
+    with pytest.raises(ValueError, match="phase must be in"):
+        LoopConfig(FLEET, 1, divider=20, phase=20)
+
+
 def test_divider_1_or_not_decimated_reads_mocap():
     network = FakeNetwork()
     for config in ({"divider": 1, "decimated": True}, {"divider": 20}):

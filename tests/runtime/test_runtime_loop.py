@@ -305,7 +305,8 @@ def test_a_failing_core_is_a_fault_event_and_exit_code_1():
     network = FakeNetwork()
     sim = FakeSim(network, FLEET)
     config = AgentConfig(robot=1, stale_after=0.5)
-    scenario = types.SimpleNamespace(fleet=FLEET, control_divider=lambda _robot: 1)
+    scenario = types.SimpleNamespace(fleet=FLEET, control_divider=lambda _robot: 1,
+                                     control_phase=lambda _robot: 0)
     result = {}
     thread = threading.Thread(target=lambda: result.setdefault("code", run_agent(
         config, scenario, lambda *_: (BrokenCore(), 0, (), None),

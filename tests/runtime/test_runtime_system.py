@@ -88,9 +88,10 @@ def test_router_and_agent_processes_answer_a_frame_and_stop_on_a_signal(robot, s
         poses = tuple((r.id, *r.pose) for r in sorted(scenario.robots, key=lambda r: r.id))
         frame = MocapFrame(0.0, 0, poses, due=(robot,))
         # the keys the simulator publishes frame 0 on (robot 1, an LTL agent at 5 Hz, reads only
-        # mocap_every/20)
-        frame_keys = keys.frame_keys(fleet, 0, keys.frame_dividers(
-            scenario.control_divider(r.id) for r in scenario.robots))
+        # mocap_every/20/0)
+        frame_keys = keys.frame_keys(fleet, 0, keys.frame_schedules(
+            (scenario.control_divider(r.id), scenario.control_phase(r.id))
+            for r in scenario.robots))
         deadline = time.monotonic() + 10
         while not answered.is_set() and time.monotonic() < deadline:
             for key in frame_keys:  # duplicates are ignored

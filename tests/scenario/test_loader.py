@@ -63,6 +63,7 @@ BAD = [
     ("stl.n_stage1", 2.5, "stl.n_stage1", "expected an integer, got number 2.5"),
     ("stl.gamma", 1.0, "stl.gamma", "unknown key 'gamma'"),
     ("stl.hold_f_above_r", 0, "stl.hold_f_above_r", "expected true or false, got integer 0"),
+    ("ltl.stagger", "yes", "ltl.stagger", "expected true or false, got string 'yes'"),
     ("sim.seed", -1, "sim.seed", "expected a number ≥ 0, got -1"),
     ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
@@ -146,6 +147,8 @@ def test_scenario1_matches_the_design_table(scenarios_dir: Path):
         0.02, 0.2, 0.6, 0.7, 2.0)
     # the paper's Algorithm 2 through each F window, not the authors' code's F-hold
     assert (s.stl.hold_f_above_r, s.stl.complete_f_on_satisfaction) == (False, False)
+    # issue 17: the two LTL agents step at ticks 0 and 10 of every 20 (ltl.stagger default)
+    assert s.ltl.stagger and [s.control_phase(r.id) for r in s.robots] == [0, 10, 0, 0, 0]
 
 
 def test_missing_file(tmp_path: Path):

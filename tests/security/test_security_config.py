@@ -336,12 +336,17 @@ def test_denial_filter_drops_cache_lines_and_reports_each_denial_once(fast):
 
 
 def test_ltl_robots_read_only_their_decimated_frames(policy):
-    """Issue 17: robot 1 (LTL, divider 20) subscribes mocap_every/20 instead of mocap; the sim
-    publishes it; an STL robot (divider 1) keeps mocap."""
-    every = keys.mocap_every(F, 20)
+    """Issue 17: robot 1 (LTL, divider 20, phase 0) subscribes mocap_every/20/0 instead of
+    mocap, robot 2 (LTL, phase 10) mocap_every/20/10; the sim publishes both; an STL robot
+    (divider 1) keeps mocap."""
+    every, other = keys.mocap_every(F, 20, 0), keys.mocap_every(F, 20, 10)
     assert allowed(policy, "sim", "ingress", "put", every)
+    assert allowed(policy, "sim", "ingress", "put", other)
     assert allowed(policy, "robot1", "ingress", "declare_subscriber", every)
     assert allowed(policy, "robot1", "egress", "put", every)
+    assert allowed(policy, "robot2", "ingress", "declare_subscriber", other)
+    assert not allowed(policy, "robot1", "ingress", "declare_subscriber", other)
+    assert not allowed(policy, "robot2", "ingress", "declare_subscriber", every)
     assert not allowed(policy, "robot1", "ingress", "declare_subscriber", keys.mocap(F))
     assert not allowed(policy, "robot1", "ingress", "put", every)
     assert not allowed(policy, "robot3", "ingress", "declare_subscriber", every)

@@ -1,5 +1,6 @@
-"""Issue 17: the simulator publishes each frame on ``mocap`` and, for every control divider d ≥ 2
-of the fleet, on ``mocap_every/<d>`` when ``seq % d == 0`` (architecture.md §2)."""
+"""Issue 17: the simulator publishes each frame on ``mocap`` and, for every control schedule
+(divider d ≥ 2, phase φ) of the fleet, on ``mocap_every/<d>/<φ>`` when ``seq % d == φ``
+(architecture.md §2)."""
 
 from __future__ import annotations
 
@@ -12,16 +13,24 @@ from agent.protocol.messages import MocapFrame
 from bus.fake import FakeNetwork
 
 
-def test_frame_keys_name_the_dividers_that_divide_the_seq():
-    assert keys.frame_keys(FLEET, 40, (4, 20)) == (
-        keys.mocap(FLEET), keys.mocap_every(FLEET, 4), keys.mocap_every(FLEET, 20))
-    assert keys.frame_keys(FLEET, 8, (4, 20)) == (keys.mocap(FLEET), keys.mocap_every(FLEET, 4))
-    assert keys.frame_keys(FLEET, 7, (4, 20)) == (keys.mocap(FLEET),)
-    assert keys.frame_dividers([1, 20, 1, 4, 20]) == (4, 20)
-    assert keys.mocap_every(FLEET, 20) == f"tlfleet/{FLEET}/mocap_every/20"
-    assert not keys.key_matches(keys.mocap(FLEET), keys.mocap_every(FLEET, 20))
+def test_frame_keys_name_the_schedules_the_seq_falls_on():
+    every = keys.mocap_every
+    schedules = ((4, 0), (20, 0), (20, 10))
+    assert keys.frame_keys(FLEET, 40, schedules) == (
+        keys.mocap(FLEET), every(FLEET, 4), every(FLEET, 20))
+    assert keys.frame_keys(FLEET, 8, schedules) == (keys.mocap(FLEET), every(FLEET, 4))
+    assert keys.frame_keys(FLEET, 30, schedules) == (keys.mocap(FLEET), every(FLEET, 20, 10))
+    assert keys.frame_keys(FLEET, 7, schedules) == (keys.mocap(FLEET),)
+    assert keys.frame_schedules([(1, 0), (20, 10), (1, 0), (4, 0), (20, 0), (20, 10)]) == (
+        (4, 0), (20, 0), (20, 10))
+    assert every(FLEET, 20) == f"tlfleet/{FLEET}/mocap_every/20/0"
+    assert every(FLEET, 20, 10) == f"tlfleet/{FLEET}/mocap_every/20/10"
+    assert not keys.key_matches(keys.mocap(FLEET), every(FLEET, 20))
+    assert not keys.key_matches(every(FLEET, 20), every(FLEET, 20, 10))
     with pytest.raises(ValueError, match="divider must be ≥ 2"):
-        keys.mocap_every(FLEET, 1)
+        every(FLEET, 1)
+    with pytest.raises(ValueError, match=r"phase must be in \[0, 20\), got 20"):
+        every(FLEET, 20, 20)
 
 
 def test_the_sim_publishes_the_due_frames_of_each_divider_on_its_key():
@@ -47,3 +56,28 @@ def test_the_sim_publishes_the_due_frames_of_each_divider_on_its_key():
     assert keys.mocap_every(FLEET, 20) in published
     assert not any(key.startswith(f"tlfleet/{FLEET}/mocap_every/") and
                    key != keys.mocap_every(FLEET, 20) for key in published)
+
+
+def test_staggered_ltl_robots_each_get_the_frames_of_their_phase():
+    """Two LTL robots (phases 0 and 10 of 20): each schedule's key carries its own ticks."""
+    scen = scenario(unicycle(1, -1.0, 0.0), unicycle(3, 1.0, 1.0), omni(2, 1.0, 0.0),
+                    duration=0.5)
+    net = FakeNetwork()
+    got: dict[int, list[MocapFrame]] = {0: [], 10: []}
+    for phase, frames in got.items():
+        net.transport(f"ltl{phase}").subscribe(
+            keys.mocap_every(FLEET, 20, phase),
+            lambda k, p, frames=frames: frames.append(decode(MocapFrame, p)))
+    observer = Observer(net)
+    FakeAgent(net, 1, constant((0.0, 0.0)))
+    FakeAgent(net, 3, constant((0.0, 0.0)))
+    FakeAgent(net, 2, constant((0.0, 0.2, 0.0)))
+    with SimRun(net, scen) as run:
+        observer.start_mission()
+        assert run.join() == 0
+    mission = {phase: [f.seq for f in frames if f.t > 0.0 or f.due]
+               for phase, frames in got.items()}
+    assert mission == {0: [0, 20, 40], 10: [10, 30, 50]}  # the last frame (50) owes nothing
+    # lockstep: robot 3 is listed as due exactly on its own ticks
+    assert [f.seq for f in observer.frames if 3 in f.due] == [10, 30]
+    assert [f.seq for f in observer.frames if 1 in f.due] == [0, 20, 40]

@@ -4,6 +4,8 @@ tick ↔ time conversion and wall-clock pacing (architecture.md §3)."""
 from __future__ import annotations
 
 import pytest
+from dataclasses import replace
+
 from sim_helpers import omni, scenario, unicycle
 
 from agent.protocol.messages import Command
@@ -13,6 +15,7 @@ from sim.lockstep import (
     LockstepCollector,
     Offer,
     control_dividers,
+    control_phases,
     due_robots,
 )
 from sim.stats import TimingStats
@@ -39,6 +42,25 @@ def test_control_dividers_follow_each_robots_task_kind():
 ])
 def test_due_robots(tick, alive, expected):
     assert due_robots(tick, {3: 20, 1: 20, 2: 1}, alive) == expected
+
+
+def test_ltl_robots_are_staggered_over_their_control_period():
+    """Issue 17: n LTL robots at divider d are due at phases ⌊rank·d/n⌋ (id order), so no two
+    step on the same tick; STL robots and ``stagger = false`` keep phase 0."""
+    scen = scenario(unicycle(3, 0, 0), omni(2, 1, 0), unicycle(1, 2, 0), omni(4, 0, 1))
+    phases = control_phases(scen)
+    assert phases == {1: 0, 2: 0, 3: 10, 4: 0}
+    dividers = control_dividers(scen)
+    alive = {1, 2, 3, 4}
+    due = {k: due_robots(k, dividers, alive, phases) for k in range(60)}
+    assert [k for k in due if 1 in due[k]] == [0, 20, 40]
+    assert [k for k in due if 3 in due[k]] == [10, 30, 50]
+    assert all({2, 4} <= set(d) for d in due.values())
+    three = scenario(*(unicycle(i, i, 0) for i in (5, 6, 7)))
+    assert control_phases(three) == {5: 0, 6: 6, 7: 13}
+    aligned = replace(scen, ltl=replace(scen.ltl, stagger=False))
+    assert control_phases(aligned) == {1: 0, 2: 0, 3: 0, 4: 0}
+    assert due_robots(0, dividers, alive, control_phases(aligned)) == (1, 2, 3, 4)
 
 
 def test_lockstep_collector_accepts_one_command_per_due_robot_of_the_open_seq():
