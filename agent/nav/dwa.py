@@ -38,6 +38,7 @@ Each control period ``Δt`` [s] (0.2 s at 5 Hz):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -159,6 +160,13 @@ def rollouts(
 
     ``v`` (S,) [m/s], ``omega`` (S,) [rad/s] held constant; ``times`` (T,) [s].
     """
+    x, y, theta = _arcs(pose, v, omega, times)
+    return np.stack([x, y], axis=-1), theta
+
+
+def _arcs(pose: Sequence[float], v: np.ndarray, omega: np.ndarray, times: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``rollouts`` as coordinate arrays x, y [m] and headings θ [rad], each (S, T)."""
     x0, y0, th0 = float(pose[0]), float(pose[1]), float(pose[2])
     w = omega[:, None]
     t = times[None, :]
@@ -166,13 +174,13 @@ def rollouts(
     turning = np.abs(w) > 1e-9
     w_safe = np.where(turning, w, 1.0)
     vv = v[:, None]
-    x_arc = x0 + vv / w_safe * (np.sin(theta) - math.sin(th0))
-    y_arc = y0 - vv / w_safe * (np.cos(theta) - math.cos(th0))
-    x_line = x0 + vv * t * math.cos(th0)
-    y_line = y0 + vv * t * math.sin(th0)
-    x = np.where(turning, x_arc, x_line)
-    y = np.where(turning, y_arc, y_line)
-    return np.stack([x, y], axis=-1), theta
+    radius = vv / w_safe
+    x_arc = x0 + radius * (np.sin(theta) - math.sin(th0))
+    y_arc = y0 - radius * (np.cos(theta) - math.cos(th0))
+    vt = vv * t
+    x_line = x0 + vt * math.cos(th0)
+    y_line = y0 + vt * math.sin(th0)
+    return np.where(turning, x_arc, x_line), np.where(turning, y_arc, y_line), theta
 
 
 def _samples(v: float, omega: float, config: DwaConfig,
@@ -187,8 +195,7 @@ def _samples(v: float, omega: float, config: DwaConfig,
     ws = np.linspace(w_lo, w_hi, config.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
     if w_lo < 0.0 < w_hi and not np.any(ws == 0.0):
         ws = np.sort(np.append(ws, 0.0))
-    vg, wg = np.meshgrid(vs, ws, indexing="ij")
-    return vg.ravel(), wg.ravel()
+    return np.repeat(vs, len(ws)), np.tile(ws, len(vs))  # the (v, ω) grid, v-major
 
 
 def _extend(path: np.ndarray, position: np.ndarray, length: float) -> np.ndarray:
@@ -236,28 +243,32 @@ def dwa_control(
         return DwaResult(v, w, 0.0, 0, True, np.zeros((0, 2)))
 
     vs, ws = _samples(v0, w0, config, limits)
-    n_steps = max(1, math.ceil(config.sim_time / config.sim_dt - 1e-9))
-    times = np.arange(1, n_steps + 1) * (config.sim_time / n_steps)
-    points, theta = rollouts(pose, vs, ws, times)  # (S, T, 2), (S, T)
+    times = _times(config.sim_time, config.sim_dt)
+    x, y, theta = _arcs(pose, vs, ws, times)  # (S, T) each
 
-    clearance = grid.clearance_at(points)  # (S, T)
-    current = float(grid.clearance_at(position))
+    # Issue 17: the same arithmetic as the plain (…, 2) form, on coordinate arrays, with fewer
+    # numpy calls (a 5 Hz step of an LTL agent sits on the fleet's latency path).
+    clearance = grid.clearance_xy(x, y)  # (S, T)
+    px, py = float(position[0]), float(position[1])
+    current = grid.clearance_point(px, py)
     if len(others):
-        drift = times[:, None, None] * others.velocities[None, :, :]  # (T, K, 2)
-        predicted = others.centers[None, :, :] + drift  # (T, K, 2)
-        gaps = np.linalg.norm(points[:, :, None, :] - predicted[None], axis=-1)  # (S, T, K)
-        clearance = np.minimum(clearance, np.min(gaps - others.radii, axis=2))
-        current = min(
-            current, float(np.min(np.linalg.norm(others.centers - position, axis=1) - others.radii))
-        )
+        centers, velocities, radii = others.centers, others.velocities, others.radii
+        cx = centers[:, 0][None, :] + times[:, None] * velocities[:, 0][None, :]  # (T, K)
+        cy = centers[:, 1][None, :] + times[:, None] * velocities[:, 1][None, :]
+        dx = x[:, :, None] - cx[None]  # (S, T, K)
+        dy = y[:, :, None] - cy[None]
+        gaps = np.sqrt(dx * dx + dy * dy)
+        clearance = np.minimum(clearance, (gaps - radii).min(axis=2))
+        ex, ey = centers[:, 0] - px, centers[:, 1] - py
+        current = min(current, float((np.sqrt(ex * ex + ey * ey) - radii).min()))
     required = min(robot_radius + config.collision_margin, current - 1e-6)
-    min_clearance = np.min(clearance, axis=1)
+    min_clearance = clearance.min(axis=1)
     valid = min_clearance >= required
-    if limits and np.any(valid):
+    if limits and valid.any():
         excess = limits.excess(vs, ws)
         coupled = valid & (excess <= 1e-12)
-        if not np.any(coupled):
-            least = float(np.min(excess[valid]))
+        if not coupled.any():
+            least = float(excess[valid].min())
             coupled = valid & (excess <= least + 1e-12)
         valid = coupled
     n_valid = int(np.count_nonzero(valid))
@@ -267,20 +278,27 @@ def dwa_control(
 
     ahead = remaining_polyline(position, path)
     carrot = point_along(ahead, config.carrot_distance)
-    end = points[:, -1, :]
+    end_x, end_y = x[:, -1], y[:, -1]
+    end = np.stack([end_x, end_y], axis=1)
     cost = config.path_distance_bias * distance_to_polyline(end, ahead)
-    cost += config.goal_distance_bias * np.linalg.norm(end - carrot, axis=1)
+    gx, gy = end_x - carrot[0], end_y - carrot[1]
+    cost += config.goal_distance_bias * np.sqrt(gx * gx + gy * gy)
     # The alignment point runs forward_point_distance ahead of the robot, so it is scored against
     # the path extended by that much past the goal (else it would hold the robot short of it).
     extended = _extend(ahead, position, config.forward_point_distance)
     front_carrot = point_along(extended, config.carrot_distance + config.forward_point_distance)
     heading = theta[:, -1]
-    front = end + config.forward_point_distance * np.stack([np.cos(heading), np.sin(heading)], 1)
-    cost += config.path_distance_bias * distance_to_polyline(front, extended)
-    cost += config.goal_distance_bias * np.linalg.norm(front - front_carrot, axis=1)
-    # As ROS, the occupancy term is the worst cost along the rollout including the start pose.
+    front_x = end_x + config.forward_point_distance * np.cos(heading)
+    front_y = end_y + config.forward_point_distance * np.sin(heading)
+    cost += config.path_distance_bias * distance_to_polyline(
+        np.stack([front_x, front_y], axis=1), extended)
+    fx, fy = front_x - front_carrot[0], front_y - front_carrot[1]
+    cost += config.goal_distance_bias * np.sqrt(fx * fx + fy * fy)
+    # As ROS, the occupancy term is the worst cost along the rollout including the start pose;
+    # the inflation cost does not increase with the clearance, so the worst cost along a rollout
+    # is the cost of its least clearance (the same value, on S instead of S·T clearances).
     worst = np.maximum(
-        np.max(inflation_cost(clearance, robot_radius, config), axis=1),
+        inflation_cost(min_clearance, robot_radius, config),
         float(inflation_cost(np.array(current), robot_radius, config)),
     )
     cost += config.occdist_scale * worst
@@ -288,5 +306,16 @@ def dwa_control(
     cost = np.where(valid, cost, np.inf)
     best = int(np.argmin(cost))
     return DwaResult(
-        float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False, points[best]
+        float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False,
+        np.stack([x[best], y[best]], axis=-1),
     )
+
+
+@functools.lru_cache(maxsize=16)
+def _times(sim_time: float, sim_dt: float) -> np.ndarray:
+    """Rollout sample times t_k (T,) [s]: ⌈sim_time / sim_dt⌉ steps ending at sim_time (cached,
+    read-only)."""
+    n_steps = max(1, math.ceil(sim_time / sim_dt - 1e-9))
+    times = np.arange(1, n_steps + 1) * (sim_time / n_steps)
+    times.setflags(write=False)
+    return times

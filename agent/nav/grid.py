@@ -153,6 +153,30 @@ class OccupancyGrid:
         values = self.clearance[cells[..., 1], cells[..., 0]]
         return np.where(self.inside(pts), values, -self.resolution)
 
+    def clearance_xy(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """``clearance_at`` for points given as coordinate arrays ``x``, ``y`` [m] of one shape
+        (the DWA's rollouts, issue 17: no (…, 2) stacking; the same cells, the same values)."""
+        ny, nx = self.shape
+        ox, oy = self.origin
+        res = self.resolution
+        ix = np.floor((x - ox) / res).astype(np.int64)
+        iy = np.floor((y - oy) / res).astype(np.int64)
+        values = self.clearance[np.minimum(np.maximum(iy, 0), ny - 1),
+                                np.minimum(np.maximum(ix, 0), nx - 1)]
+        inside = (x >= ox) & (x < ox + nx * res) & (y >= oy) & (y < oy + ny * res)
+        return np.where(inside, values, -res)
+
+    def clearance_point(self, x: float, y: float) -> float:
+        """``clearance_at`` of one point (x, y) [m], in plain floats (the same value)."""
+        ny, nx = self.shape
+        ox, oy = self.origin
+        res = self.resolution
+        if not (ox <= x < ox + nx * res and oy <= y < oy + ny * res):
+            return -res
+        ix = min(max(math.floor((x - ox) / res), 0), nx - 1)
+        iy = min(max(math.floor((y - oy) / res), 0), ny - 1)
+        return float(self.clearance[iy, ix])
+
     def is_free(self, points: np.ndarray) -> np.ndarray:
         """Whether a disc robot centred at world points (..., 2) is in free c-space; shape (...)."""
         pts = np.asarray(points, dtype=float)

@@ -12,6 +12,7 @@ from agent.nav.dwa import (
     MovingDiscs,
     braking_command,
     dwa_control,
+    inflation_cost,
     rollouts,
     velocity_window,
 )
@@ -190,3 +191,15 @@ def test_two_robots_crossing_head_on_both_arrive_without_contact():
     for k in range(2):
         assert_commands_within_limits(result.commands[:, k, :])
         assert all(e.kind != "stuck" for e in controllers[k].events)
+
+
+def test_inflation_cost_never_increases_with_clearance():
+    """dwa_control scores a rollout's worst occupancy cost as the cost of its least clearance,
+    which is the same value only because the cost does not increase with the clearance."""
+    config = DwaConfig()
+    d = np.sort(np.concatenate([np.linspace(-0.5, 1.5, 2001), [0.2, 0.5, config.inflation_radius]]))
+    cost = inflation_cost(d, 0.2, config)
+    assert np.all(np.diff(cost) <= 0.0)
+    rows = np.random.default_rng(3).uniform(-0.2, 1.0, (50, 13))
+    assert np.array_equal(inflation_cost(rows, 0.2, config).max(axis=1),
+                          inflation_cost(rows.min(axis=1), 0.2, config))

@@ -117,3 +117,21 @@ def test_hand_made_grid_blocks_exactly_the_occupied_cells_without_inflation():
     assert grid.clearance[2, 0] == pytest.approx(0.5)
     assert grid.clearance[2, 3] == pytest.approx(-0.5)
     assert grid.inflated(1.0).blocked[2, 2]
+
+
+def test_coordinate_and_point_lookups_equal_clearance_at():
+    """Issue 17: the DWA's lookups on coordinate arrays and on one point read the same cells and
+    values as ``clearance_at`` — on the grid, on cell borders and off it."""
+    grid = grid_from_arena(Arena(obstacles=(RectObstacle(-0.1, -3.5, 0.1, 1.0),)), 0.3)
+    rng = np.random.default_rng(7)
+    ox, oy = grid.origin
+    xmin, xmax, ymin, ymax = grid.extent
+    border = np.array([ox + k * grid.resolution for k in range(0, 141, 7)])
+    x = np.concatenate([rng.uniform(xmin - 1, xmax + 1, 399), border, [xmin, xmax]])
+    y = np.concatenate([rng.uniform(ymin - 1, ymax + 1, 399), border[::-1], [ymax, ymin]])
+    expected = grid.clearance_at(np.stack([x, y], axis=-1))
+    assert np.array_equal(grid.clearance_xy(x, y), expected)
+    assert np.array_equal(grid.clearance_xy(x.reshape(-1, 2), y.reshape(-1, 2)),
+                          expected.reshape(-1, 2))
+    assert [grid.clearance_point(float(a), float(b)) for a, b in zip(x, y)] == list(expected)
+    assert (expected == -grid.resolution).any() and (expected > 0).any()
