@@ -583,6 +583,10 @@ class SimProcess:
                 self.transport.publish(key, payload)
         return payload, published
 
+    def _shared_tick(self, seq: int) -> bool:
+        """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks)."""
+        return any(d > 1 and seq % d == self.phases[r] for r, d in self.dividers.items())
+
     def _event(self, kind: str, **data: object) -> None:
         self._event_at(self.t, kind, **data)
 
@@ -624,7 +628,8 @@ class SimProcess:
             "malformed_by_key": dict(self.malformed),
             "stale_commands": sum(self.ages.stale.values()),
             "backfill": self.ring.stats(),
-            **self.timing.summary(),
+            **self.timing.summary(every_tick=[r for r, d in self.dividers.items() if d == 1],
+                                  shared=self._shared_tick),
         }
 
     def _log_summary(self) -> None:

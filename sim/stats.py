@@ -8,12 +8,15 @@
   to the tick timeout), so only timeouts miss; in realtime the step happens one mocap period
   after the frame, whatever arrived, and tick 0 owes nothing (agents cannot tell its frame from
   the preview frame, which they never answer).
+* **Shared ticks** (issue 17): the ticks on which a robot with a control divider ≥ 2 (an LTL
+  robot at 5 Hz) is due beside the every-tick robots. ``summary(shared=…)`` splits the every-tick
+  robots' latencies into those ticks and the others, which is where a fleet's tail comes from.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -30,6 +33,7 @@ class TimingStats:
         self._keep = keep_frames
         self._answered: dict[int, int] = {}  # robot -> newest seq answered
         self.robot_latencies: dict[int, list[float]] = {}  # robot -> its latencies [s]
+        self.robot_seqs: dict[int, list[int]] = {}  # robot -> the seq of each latency
         self.expected = 0  # due (robot, tick) pairs
         self.missed = 0
 
@@ -44,6 +48,7 @@ class TimingStats:
         published = self._published.get(seq)
         if published is not None:
             self.robot_latencies.setdefault(robot, []).append(wall - published)
+            self.robot_seqs.setdefault(robot, []).append(seq)
 
     def answered(self, robot: int, seq: int) -> None:
         """Record an answer whose latency is not measurable (an early answer to tick 0)."""
@@ -57,9 +62,12 @@ class TimingStats:
         self.missed += len(late)
         return late
 
-    def summary(self) -> dict[str, object]:
+    def summary(self, every_tick: Iterable[int] = (),
+                shared: Callable[[int], bool] | None = None) -> dict[str, object]:
         """Counts and latency percentiles [ms], over all commands and per robot (keys are robot
-        ids as strings; NaN-free: absent when nothing was measured)."""
+        ids as strings; NaN-free: absent when nothing was measured). With ``shared`` (seq → is a
+        robot with divider ≥ 2 due) also ``latency_p{50,99}_ms_{shared,alone}``: the robots in
+        ``every_tick``, on the shared ticks and on the others (module docstring)."""
         latencies = [v for values in self.robot_latencies.values() for v in values]
         out: dict[str, float | int] = {"commands": len(latencies),
                                        "due": self.expected, "missed": self.missed}
@@ -73,7 +81,23 @@ class TimingStats:
             out["latency_p99_ms_by_robot"] = {
                 str(robot): float(np.percentile(np.asarray(values) * 1000.0, 99))
                 for robot, values in sorted(self.robot_latencies.items())}
+            if shared is not None:
+                out.update(self._split(set(every_tick), shared))
             counts, _ = np.histogram(ms, bins=(*HISTOGRAM_EDGES_MS, max(ms.max(), 1e3) + 1.0))
             out["latency_histogram_ms"] = {"edges": [*HISTOGRAM_EDGES_MS, "inf"],
                                            "counts": [int(c) for c in counts]}
+        return out
+
+    def _split(self, robots: set[int], shared: Callable[[int], bool]) -> dict[str, float]:
+        groups: dict[str, list[float]] = {"shared": [], "alone": []}
+        for robot in robots:
+            for seq, value in zip(self.robot_seqs.get(robot, ()),
+                                  self.robot_latencies.get(robot, ()), strict=True):
+                groups["shared" if shared(seq) else "alone"].append(value)
+        out: dict[str, float] = {}
+        for name, values in groups.items():
+            if values:
+                ms = np.asarray(values) * 1000.0
+                out[f"latency_p50_ms_{name}"] = float(np.percentile(ms, 50))
+                out[f"latency_p99_ms_{name}"] = float(np.percentile(ms, 99))
         return out

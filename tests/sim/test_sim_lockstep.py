@@ -198,3 +198,19 @@ def test_timing_stats_latency_and_missed_deadlines():
     assert summary["latency_p99_ms_by_robot"] == {"1": pytest.approx(2.0),
                                                   "2": pytest.approx(3.0)}
     assert "latency_p50_ms" not in TimingStats().summary()
+
+
+def test_timing_stats_split_the_every_tick_robots_by_shared_ticks():
+    """Issue 17: the every-tick robots' latencies on the ticks an LTL robot is due too
+    (``shared``) and on the others."""
+    stats = TimingStats()
+    for seq in range(40):
+        stats.frame_published(seq, seq * 0.01)
+        stats.command_arrived(3, seq, seq * 0.01 + (0.004 if seq % 20 == 10 else 0.001))
+        if seq % 20 == 10:
+            stats.command_arrived(1, seq, seq * 0.01 + 0.006)  # the LTL robot, not counted
+    summary = stats.summary(every_tick=[3], shared=lambda seq: seq % 20 == 10)
+    assert summary["latency_p50_ms_shared"] == pytest.approx(4.0)
+    assert summary["latency_p99_ms_shared"] == pytest.approx(4.0)
+    assert summary["latency_p99_ms_alone"] == pytest.approx(1.0)
+    assert "latency_p50_ms_shared" not in stats.summary()
