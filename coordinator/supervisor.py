@@ -333,6 +333,11 @@ class Supervisor:
                 reason = "router_lost"
             elif self.sim_done:
                 reason = "sim_done"
+                # The sim publishes its last frame before sim_done, and zenoh keeps their order,
+                # but they come through separate channels: a drain that read the frames' channel
+                # just before both arrived saw the event only. Read once more so that the frame
+                # (and with it sim_time, the outcome's t_end) is recorded.
+                self.tap.drain()
             elif self.sim_time >= self.duration:
                 reason = "duration"
             elif stop is not None and stop.is_set():

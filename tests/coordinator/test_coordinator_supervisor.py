@@ -204,3 +204,34 @@ def test_the_sim_ending_by_itself_after_sim_done_is_not_a_death(fleet):
     peers["agent-1"].publish(keys.event(scenario.fleet), encode(Event(5.0, "sim", "sim_done", {})))
     outcome = sup.supervise()
     assert outcome.reason == "sim_done" and outcome.deaths == [] and reports == []
+
+
+def test_the_last_frame_counts_when_it_arrives_while_sim_done_is_read(fleet):
+    """The sim publishes its last frame, then sim_done; they come through separate channels,
+    so a drain may read the frames' channel just before both arrive and find sim_done alone.
+    The outcome's t_end is still the last frame's (seen once as t_end 2.99 of 3.0 in CI)."""
+    scenario, net, sup, children, _ = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    sim = peers["sim"]
+    poses = ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0))
+    for k in range(49):
+        sim.publish(keys.mocap(scenario.fleet), encode(MocapFrame(k / 10, k, poses)))
+    sup.check()
+    assert sup.sim_time == pytest.approx(4.8)
+    (events,) = [c for what, c in sup.tap._channels if what == "event"]
+    recv = events.recv
+
+    def recv_then_last_frame(timeout):
+        item = recv(timeout)
+        if item is not None:  # the last frame lands behind the drain's read of the frames
+            sim.publish(keys.mocap(scenario.fleet), encode(MocapFrame(4.9, 49, poses)))
+        return item
+
+    events.recv = recv_then_last_frame
+    children["sim"].returncode = 0  # the simulator has ended: its sim_done is plausible
+    sim.publish(keys.event(scenario.fleet), encode(Event(4.9, "sim", "sim_done", {})))
+    outcome = sup.supervise()
+    assert outcome.reason == "sim_done"
+    assert outcome.t_end == pytest.approx(4.9)
