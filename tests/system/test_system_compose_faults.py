@@ -187,13 +187,15 @@ def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
         assert [e["data"]["robot"] for e in by_kind(run_dir, "agent_silent")
                 if start["t"] <= e["t"] <= end["t"] + 1.0] == [robot]
         # the agent catches up with the newest frame (no burst of stale commands): the
-        # simulator ignored at most the one command computed on the frame before the fault
-        # (a paused agent answers the frame it was reading when it was paused)
+        # simulator ignored at most one command, computed on the newest frame the agent had
+        # when it resumed — at the latest the last one sent to it before the router dropped its
+        # link (a paused agent's socket keeps taking frames until then: seen 35.6 for a pause at
+        # 35.0 with the link lost at 35.65)
         resumed = by_kind(run_dir, "resumed", f"agent/{robot}")
         assert resumed and resumed[0]["t"] >= start["t"] and resumed[0]["data"]["gap"] >= 2.5
         late = [e for e in by_kind(run_dir, "stale_command", "sim") if e["data"]["robot"] == robot
                 and start["t"] <= e["t"] <= end["t"] + 2.0]
-        assert len(late) <= 1 and all(e["data"]["command_t"] < start["t"] + 0.6 for e in late)
+        assert len(late) <= 1 and all(e["data"]["command_t"] <= lost["t"] for e in late)
     stats = {e["source"]: e["data"] for e in by_kind(run_dir, "agent_stats")}
     assert stats["agent/3"]["stale_episodes"] >= 1 and stats["agent/3"]["stale_commands"] >= 1
     for robot in (4, 5):  # the others never lost their frames
