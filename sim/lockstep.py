@@ -41,11 +41,10 @@ def control_phases(scenario: Scenario) -> dict[int, int]:
 
 
 def due_robots(tick: int, dividers: Mapping[int, int], alive: Iterable[int],
-               phases: Mapping[int, int] | None = None) -> tuple[int, ...]:
+               phases: Mapping[int, int]) -> tuple[int, ...]:
     """The robots due at ``tick``: alive, and ``tick % divider == phase`` (phase 0 when
     ``phases`` does not list the robot); ids ascending."""
     alive = set(alive)
-    phases = phases or {}
     return tuple(sorted(r for r, d in dividers.items()
                         if r in alive and tick % d == phases.get(r, 0)))
 

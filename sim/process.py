@@ -585,7 +585,8 @@ class SimProcess:
 
     def _shared_tick(self, seq: int) -> bool:
         """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks)."""
-        return any(d > 1 and seq % d == self.phases[r] for r, d in self.dividers.items())
+        return any(self.dividers[r] > 1
+                   for r in due_robots(seq, self.dividers, self.dividers, self.phases))
 
     def _event(self, kind: str, **data: object) -> None:
         self._event_at(self.t, kind, **data)

@@ -286,10 +286,7 @@ class Executor:
         t = float(inputs.t)
         pose = np.asarray(inputs.pose, dtype=float)[:3]
         events: list[NavEvent] = []
-        s = self.refresh(state)  # a re-plan the caller did not run after the last command
-        if s.no_path_note is not None:
-            events.append(s.no_path_note)
-            s = replace(s, no_path_note=None)
+        s = self._take_note(self.refresh(state), events)  # a re-plan not run after the command
         s = replace(s, control_cycles=s.control_cycles + 1)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
@@ -514,10 +511,7 @@ class Executor:
             if following and cfg.deferred_replan:  # run after the command (module docstring)
                 s = replace(s, pending=request, path_time=t)
             else:
-                s = self._run_request(s, request)
-                if s.no_path_note is not None:
-                    events.append(s.no_path_note)
-                    s = replace(s, no_path_note=None)
+                s = self._take_note(self._run_request(s, request), events)
         if s.path is None or s.path_target != target:
             command = self._ramp(s.command, (0.0, 0.0))
             remaining = math.inf
@@ -541,14 +535,20 @@ class Executor:
     def refresh(self, state: ExecutorState) -> ExecutorState:
         """Run the global re-plan the last step deferred (``state.pending``; the module
         docstring, step 2), if any; pure. The runtime calls it after publishing the command; a
-        failure is reported as ``NoPathFound`` by the next step."""
+        failure is reported as ``NoPathFound`` by the next step. Only a step sets ``pending``,
+        for the path it follows, and the next step runs it first, so its target is current."""
         request = state.pending
         if request is None:
             return state
-        state = replace(state, pending=None)
-        if state.path_target != request.target:  # a new plan or target since: nothing to refresh
-            return state
-        return self._run_request(state, request)
+        return self._run_request(replace(state, pending=None), request)
+
+    @staticmethod
+    def _take_note(s: ExecutorState, events: list) -> ExecutorState:
+        """Move a re-plan's ``NoPathFound`` (``no_path_note``) into this step's events."""
+        if s.no_path_note is None:
+            return s
+        events.append(s.no_path_note)
+        return replace(s, no_path_note=None)
 
     def _run_request(self, s: ExecutorState, request: PathRequest) -> ExecutorState:
         """Plan ``request`` on the static grid with its robots stamped; on success the path

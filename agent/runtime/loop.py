@@ -13,17 +13,17 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   begun since the last frame computed (``(seq − phase) // divider`` changed:
   ``seq % divider == phase`` when no frame is skipped);
   the sim's preview frame (t = 0, seq = 0, due = ()) is never due, even after the start;
-* per due frame: one ``step``, and after the command, status and events are published, the
-  core's optional ``after_command(state) -> state`` (work the step deferred so as not to delay
-  the command: the LTL executor's periodic global re-plan, issue 17); in lockstep the step's collaboration messages are sent by query
+* per due frame: one ``step``; in lockstep the step's collaboration messages are sent by query
   (all in flight together) and their replies awaited **before**
   ``Command(robot, t=frame.t, seq=frame.seq, u)`` is published (so they are in their receivers'
   inboxes before the next frame: a deterministic one-step latency); in realtime the command goes
   first and the queries are only issued, so round trips delay neither this command nor the
-  next frame; then status and events;
+  next frame; then status and events; then the core's optional
+  ``after_command(state) -> state``: work the step deferred so as not to delay the command (the
+  LTL executor's periodic global re-plan, issue 17);
 * frames: an agent whose robot has control divider d ≥ 2 and phase φ reads
-  ``mocap_every/<d>/<φ>`` (the frames with ``seq % d == φ``, ``LoopConfig.decimated``) instead of every frame on ``mocap``: it can
-  only be due at those ticks, lockstep or realtime;
+  ``mocap_every/<d>/<φ>`` (the frames with ``seq % d == φ``, ``LoopConfig.decimated``) instead
+  of every frame on ``mocap``: it can only be due at those ticks, lockstep or realtime;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
   the gap between its frames, ``LoopConfig.stale_limit``, or of the gap they lately came at
   when a lockstep fleet runs slower than real time, ``LoopConfig.stale_limit_at``; with
@@ -81,8 +81,8 @@ class LoopConfig:
     max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
     resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
     # Subscribe to keys.mocap_every(fleet, divider, phase) instead of keys.mocap when divider ≥ 2:
-    # only the frames this robot can be due for (seq % divider == phase). The staleness limit then grows
-    # by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
+    # only the frames this robot can be due for (seq % divider == phase). The staleness limit
+    # then grows by the two gaps of divider − 1 unseen frames, (divider − 1) / mocap_rate [s] each.
     decimated: bool = False
     mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
     # A decimated loop also watches the sim's ``clock`` key (one tiny ``Clock`` every tick) and

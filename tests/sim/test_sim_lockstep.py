@@ -41,7 +41,7 @@ def test_control_dividers_follow_each_robots_task_kind():
     (7, set(), ()),
 ])
 def test_due_robots(tick, alive, expected):
-    assert due_robots(tick, {3: 20, 1: 20, 2: 1}, alive) == expected
+    assert due_robots(tick, {3: 20, 1: 20, 2: 1}, alive, {}) == expected
 
 
 def test_ltl_robots_are_staggered_over_their_control_period():
