@@ -115,7 +115,7 @@ class RunConfig:
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
     #                                   every process of the run (bus.zenoh_config)
     faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
-    direct_links: bool = True  # lockstep, unsecured: sim and agents linked as zenoh peers
+    direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
 
 
@@ -125,19 +125,20 @@ PEER_LISTEN = f"tcp/{HOST}:0"
 
 def peer_links(config: RunConfig) -> bool:
     """Whether the sim, the agents and the coordinator of this run are zenoh **peers**
-    (architecture.md §1, issue 17): in lockstep, without ``--secure`` and without
-    ``--zenoh-config`` (``run_fleet`` also turns them off for a run with faults). Each then
-    listens on a free loopback port, connects to the router and learns the others' locators
-    from it (zenoh's gossip), so frames and commands go sim ↔ agent directly instead of through
-    the router (one hop and two wake-ups less per sample), and so do the frames, statuses and
-    events the coordinator records and its control (:func:`_open_client`). The sim and the
-    agents also run zenoh's minimal runtime (``--zenoh-runtime minimal``,
-    :data:`bus.transport.MINIMAL_RUNTIME`: one worker thread that receives and sends too; less
-    CPU per sample); the router and the coordinator keep zenoh's pools. A secured run keeps
-    every link on the router, where the access-control policy is enforced
-    (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
-    return (config.direct_links and config.mode == "lockstep" and config.secure is None
-            and config.zenoh_config is None)
+    (architecture.md §1, issue 17): without ``--secure``, without ``--zenoh-config`` and without
+    ``--via-router``, in lockstep and in realtime (``run_fleet`` also turns them off for a run
+    with faults). Each then listens on a free loopback port, connects to the router and learns
+    the others' locators from it (zenoh's gossip), so frames and commands go sim ↔ agent
+    directly instead of through the router (one hop and two wake-ups less per sample), and so
+    do the frames, statuses and events the coordinator records and its control
+    (:func:`_open_client`). The sim and the agents also run zenoh's minimal runtime
+    (``--zenoh-runtime minimal``, :data:`bus.transport.MINIMAL_RUNTIME`: one worker thread that
+    receives and sends too; less CPU per sample); the router and the coordinator keep zenoh's
+    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md round 7): latency p50
+    2.2 → 1.7 ms, the STL robots' p99 on quiet ticks 4.1 → 3.3 ms. A secured run keeps every
+    link on the router, where the access-control policy is enforced (:mod:`coordinator.acl`);
+    a user's zenoh file keeps the topology it describes."""
+    return config.direct_links and config.secure is None and config.zenoh_config is None
 
 
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,

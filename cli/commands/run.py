@@ -84,9 +84,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "routers connected (root only; coordinator.hosts); secured by "
                              "default with keys made for the run (or --secure DIR)")
     parser.add_argument("--via-router", dest="direct_links", action="store_false",
-                        help="lockstep: send frames and commands through the router too (by "
-                             "default an unsecured lockstep run links the sim and the agents as "
-                             "zenoh peers; architecture.md §1)")
+                        help="send frames and commands through the router too (by default an "
+                             "unsecured run links the sim and the agents as zenoh peers; "
+                             "architecture.md §1)")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
 

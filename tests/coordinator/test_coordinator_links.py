@@ -1,6 +1,7 @@
-"""Which links a run's processes use (issue 17, architecture.md §1): in an unsecured lockstep
-run the simulator, the agents and the coordinator are zenoh peers linked to each other, everything
-else goes through the router (``coordinator.runner.peer_links``, ``default_child_argv``)."""
+"""Which links a run's processes use (issue 17, architecture.md §1): in an unsecured run
+(lockstep or realtime) the simulator, the agents and the coordinator are zenoh peers linked to
+each other, everything else goes through the router (``coordinator.runner.peer_links``,
+``default_child_argv``)."""
 
 from __future__ import annotations
 
@@ -27,8 +28,9 @@ def has_peer_flags(argv: list[str]) -> bool:
     return any(argv[i:i + len(PEER_FLAGS)] == PEER_FLAGS for i in range(len(argv)))
 
 
-def test_an_unsecured_lockstep_run_links_sim_and_agents_as_peers():
-    config = RunConfig(SCENARIO, mode="lockstep")
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_an_unsecured_run_links_sim_and_agents_as_peers(mode):
+    config = RunConfig(SCENARIO, mode=mode)
     assert peer_links(config)
     argv = argv_of(config)
     assert has_peer_flags(argv["sim"]) and has_peer_flags(argv["agent-3"])
@@ -41,11 +43,10 @@ def test_an_unsecured_lockstep_run_links_sim_and_agents_as_peers():
 
 
 @pytest.mark.parametrize("change", [
-    {"mode": "realtime"},
     {"secure": Path("/keys")},  # the router enforces the access-control policy
     {"zenoh_config": Path("/zenoh.json5")},  # the user's file describes the topology
     {"direct_links": False},  # tlfleet run --via-router
-], ids=["realtime", "secure", "zenoh-config", "via-router"])
+], ids=["secure", "zenoh-config", "via-router"])
 def test_every_other_run_goes_through_the_router(change):
     config = RunConfig(SCENARIO, **{"mode": "lockstep", **change})
     assert not peer_links(config)
@@ -103,5 +104,7 @@ def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
     monkeypatch.setattr(runner, "open_client", lambda config, *_a, **_k: opened.append(config))
     for mode in ("lockstep", "realtime"):
         runner._open_client(ENDPOINT, None, RunConfig(SCENARIO, mode=mode))
+    runner._open_client(ENDPOINT, None, RunConfig(SCENARIO, direct_links=False))
     assert [(c.mode, c.listen, c.connect) for c in opened] == [
-        ("peer", (PEER_LISTEN,), (ENDPOINT,)), ("client", (), (ENDPOINT,))]
+        ("peer", (PEER_LISTEN,), (ENDPOINT,)), ("peer", (PEER_LISTEN,), (ENDPOINT,)),
+        ("client", (), (ENDPOINT,))]
