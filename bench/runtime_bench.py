@@ -23,6 +23,11 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
 * ``max_fleet``: the largest generated fleet of STL robots (omni, a reach task each, on a grid)
   whose realtime runs at 100 Hz miss ≤ 1 % of their deadlines (median over the runs; sizes
   tried in ``--sizes`` order, stopping at the first that fails; target ≥ 30).
+* ``max_fleet_2_hosts_tcp`` / ``_tls``: the same generated fleets, 2 × N robots, over two
+  network-namespace hosts with a zenoh router each (``tlfleet run --hosts 2``, the multi-host
+  mesh; plain TCP and mutual TLS), interleaved run by run with the same fleet on one router
+  (``local``), N in ``--host-sizes`` order; root only. Both hosts share this machine's two
+  cores, so this measures what the mesh costs, not what a second machine adds.
 
 * ``floor``: ``bench/floor_probe.py`` in the same benchmark: CPU per tick of an agent-like
   process (receive a frame, 30 µs of work, answer) over a bare UDP socket (the floor for a
@@ -43,6 +48,7 @@ construction.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
@@ -60,6 +66,7 @@ sys.path.insert(0, str(ROOT))
 from agent.scenario import load_scenario  # noqa: E402
 from bench.common import Figure, load_average, report  # noqa: E402
 from bench.floor_probe import probe as floor_probe  # noqa: E402
+from coordinator.hosts_run import run_on_hosts  # noqa: E402
 from coordinator.rundir import read_events  # noqa: E402
 from coordinator.runner import RunConfig, run_fleet  # noqa: E402
 from coordinator.supervisor import SupervisorConfig  # noqa: E402
@@ -130,6 +137,8 @@ class CpuSampler:
                 procs[me.pid] = (me, "coordinator")
             for pid, (proc, role) in list(procs.items()):
                 try:
+                    if proc.status() == psutil.STATUS_ZOMBIE:  # ended, not yet reaped: its
+                        raise psutil.ZombieProcess(pid)       # samples would read as idle
                     times = proc.cpu_times()
                 except psutil.Error:
                     del procs[pid]
@@ -235,6 +244,54 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
     }
 
 
+def run_on_two_hosts(scenario: Path, duration: float, out: Path, *, insecure: bool) -> dict:
+    """One realtime run of ``scenario`` over two network-namespace hosts, one zenoh router each,
+    the routers connected (``tlfleet run --hosts 2``, :func:`coordinator.hosts_run.run_on_hosts`:
+    the sim and the coordinator on host 0, robot number j on host j mod 2, so every frame to and
+    every command from the robots of host 1 crosses both routers). Secured (mutual TLS and each
+    router's access control, the default of ``--hosts``) unless ``insecure`` (plain TCP). Root
+    only. Its figures from ``run.json`` and the sim's ``sim_stats``, as :func:`run_once`; CPU
+    per process over the realtime phase (located from the sim process's CPU: it works until the
+    duration has run), as % of a core and as CPU-s per sim-s (realtime: one sim second per wall
+    second)."""
+    stl_ids = {r.id for r in load_scenario(scenario).robots if r.is_stl}
+    load_before = os.getloadavg()
+    with CpuSampler(period=0.5) as sampler:
+        done = run_on_hosts(scenario, 2, out=out, mode="realtime", capture=True,
+                            insecure=insecure)
+    # the realtime phase: the `duration` [s] up to the last sample at which the sim still worked
+    # (over 5 % of a core; afterwards it waits for the coordinator's stop or has ended)
+    busy = [t1 for role, series in sampler.samples.values() if role == "sim"
+            for (t0, c0), (t1, c1) in zip(series, series[1:]) if c1 - c0 > 0.05 * (t1 - t0)]
+    cpu: dict[str, float] = {}
+    if busy:
+        end = max(busy) - 0.5
+        cpu = sampler.cpu_pct(end - duration + 2.0, end)
+    info_path = out / "run.json"
+    info = json.loads(info_path.read_text()) if info_path.is_file() else {}
+    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
+                  if e.kind == "sim_stats"), {}) if (out / "events.jsonl").is_file() else {}
+    due = stats.get("due", 0)
+    return {
+        "clean": bool(info.get("clean")) and done.returncode == 0,
+        "reason": info.get("reason", f"tlfleet supervise exited {done.returncode}"),
+        "links": "tcp" if insecure else "tls",
+        "ready_time": info.get("ready_time", math.nan),
+        "latency_p50_ms": stats.get("latency_p50_ms", math.nan),
+        "latency_p99_ms": stats.get("latency_p99_ms", math.nan),
+        "latency_histogram_ms": stats.get("latency_histogram_ms", {}),
+        "stl_latency_p99_ms": max((v for r, v in stats.get("latency_p99_ms_by_robot", {}).items()
+                                   if int(r) in stl_ids), default=math.nan),
+        "due": due, "missed": stats.get("missed", 0),
+        "missed_fraction": stats.get("missed", 0) / due if due else math.nan,
+        "cpu_pct": cpu,
+        "agent_cpu_pct": cpu.get("agent", math.nan), "sim_cpu_pct": cpu.get("sim", math.nan),
+        "router_cpu_pct": cpu.get("router", math.nan),  # mean of the two routers
+        "cpu_s_per_sim_s": {k: v / 100.0 for k, v in cpu.items() if k.startswith("agent-")},
+        "load_before": load_before[0], "load_after": os.getloadavg()[0],
+    }
+
+
 def median(runs: list[dict], key: str) -> float:
     values = [r[key] for r in runs if not math.isnan(r[key])]
     return statistics.median(values) if values else math.nan
@@ -248,6 +305,78 @@ def agent_tick_us(runs: list[dict]) -> float:
     return statistics.median(values) if values else math.nan
 
 
+#: the ways a 2 × N fleet is run by :func:`hosts_fleets`, interleaved run by run
+HOST_VARIANTS = ("local", "2 hosts tcp", "2 hosts tls")
+
+
+def hosts_fleets(sizes: list[int], runs: int, duration: float, tmpdir: Path
+                 ) -> dict[str, dict[int, list[dict]]]:
+    """Generated STL fleets of 2 × N robots (N in ``sizes``, in order) in realtime, three ways,
+    interleaved run by run so that they see the same machine: ``local`` (one router on loopback,
+    as ``max_fleet``), over two namespace hosts with plain TCP and with mutual TLS
+    (:func:`run_on_two_hosts`). Stops after the first size at which neither host variant holds
+    (≤ 1 % missed, median over the runs, every run clean). Prints a line per size and variant."""
+    out: dict[str, dict[int, list[dict]]] = {v: {} for v in HOST_VARIANTS}
+    for n in sizes:
+        path = tmpdir / f"hosts{n}.toml"
+        path.write_text(generated_fleet(2 * n, duration))
+        for k in range(runs):
+            for variant in HOST_VARIANTS:
+                run_dir = tmpdir / f"hosts{n}-{variant.replace(' ', '-')}-{k}"
+                run = (run_once(path, "realtime", duration, run_dir) if variant == "local"
+                       else run_on_two_hosts(path, duration, run_dir,
+                                             insecure=variant.endswith("tcp")))
+                out[variant].setdefault(n, []).append(run)
+        for variant in HOST_VARIANTS:
+            got = out[variant][n]
+            print(f"  2 × {n:>2} STL robots, {variant:<11}: missed "
+                  f"{100 * median(got, 'missed_fraction'):.2f} %, latency p50 "
+                  f"{median(got, 'latency_p50_ms'):.2f} ms p99 {median(got, 'latency_p99_ms'):.2f}"
+                  f" ms, CPU per agent tick {agent_tick_us(got):.0f} µs, router "
+                  f"{median(got, 'router_cpu_pct'):.1f} % of a core (each), load "
+                  f"{os.getloadavg()[0]:.1f}", flush=True)
+        if not any(holds(out[v][n]) for v in HOST_VARIANTS if v != "local"):
+            break
+    return out
+
+
+def holds(runs: list[dict]) -> bool:
+    """A realtime fleet holds: ≤ 1 % of its control deadlines missed (median) and every run
+    clean."""
+    return median(runs, "missed_fraction") <= FLEET_MISS_LIMIT and all(r["clean"] for r in runs)
+
+
+def hosts_figures(two_hosts: dict[str, dict[int, list[dict]]]) -> list[Figure]:
+    """The figures of :func:`hosts_fleets`: per variant the largest 2 × N fleet that held, and
+    at the largest size every variant ran, missed deadlines, latency p50 (with its ratio to the
+    local run of the same size) and CPU per agent tick."""
+    nan = math.nan
+    ran = list(two_hosts.get("local", {}))
+    figures = []
+    for variant in HOST_VARIANTS[1:]:
+        sizes = two_hosts.get(variant, {})
+        held = [n for n in sizes if holds(sizes[n])]
+        figures.append(Figure(f"max_fleet_{variant.replace(' ', '_')}",
+                              f"largest fleet over 2 namespace hosts ({variant[8:]}), 2 × N",
+                              float(2 * max(held)) if held else (0.0 if sizes else nan),
+                              "robots"))
+    if ran:
+        n = max(ran)
+        local_p50 = median(two_hosts["local"][n], "latency_p50_ms")
+        for variant in HOST_VARIANTS:
+            got = two_hosts[variant][n]
+            p50 = median(got, "latency_p50_ms")
+            ratio = f"; {p50 / local_p50:.2f}× the local p50" if variant != "local" else ""
+            figures.append(Figure(
+                f"hosts{2 * n}_{variant.replace(' ', '_')}_missed_pct",
+                f"  {2 * n} robots, {variant}: missed deadlines", 100 * median(
+                    got, "missed_fraction"), "%",
+                note=f"latency p50 {p50:.2f} ms, p99 {median(got, 'latency_p99_ms'):.2f} ms"
+                     f"{ratio}; CPU per agent tick {agent_tick_us(got):.0f} µs; router "
+                     f"{median(got, 'router_cpu_pct'):.1f} % of a core"))
+    return figures
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
@@ -255,8 +384,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=3, help="runs per figure (≥ 3)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 5, 10, 15, 20, 25, 30, 40],
                         help="generated fleet sizes to try, in order")
+    parser.add_argument("--host-sizes", type=int, nargs="+", default=[5, 10, 15],
+                        help="robots per host of the 2 × N fleets over two namespace hosts, in "
+                             "order (root only)")
     parser.add_argument("--skip", nargs="*", default=[],
-                        choices=("realtime", "lockstep", "fleet", "floor"),
+                        choices=("realtime", "lockstep", "fleet", "hosts", "floor"),
                         help="parts not to run (their figures are reported as n/a)")
     parser.add_argument("--out", type=Path,
                         default=ROOT / "bench" / "results" / "runtime_bench.json")
@@ -268,6 +400,7 @@ def main(argv: list[str] | None = None) -> int:
     realtime: list[dict] = []
     lockstep: list[dict] = []
     fleets: dict[int, list[dict]] = {}
+    two_hosts: dict[str, dict[int, list[dict]]] = {}  # variant → robots per host → runs
     beside: list[dict] = []  # floor probes of the UDP round trips, one after each realtime run
     max_fleet = 0
     with tempfile.TemporaryDirectory(prefix="runtime_bench-") as tmp:
@@ -292,9 +425,14 @@ def main(argv: list[str] | None = None) -> int:
                   f"{median(fleets[n], 'sim_cpu_pct'):.1f} %, router "
                   f"{median(fleets[n], 'router_cpu_pct'):.1f} % of a core, load "
                   f"{os.getloadavg()[0]:.1f}", flush=True)
-            if not miss <= FLEET_MISS_LIMIT or not all(r["clean"] for r in fleets[n]):
+            if not holds(fleets[n]):
                 break
             max_fleet = n
+        if "hosts" not in args.skip and os.geteuid() != 0:
+            print("runtime_bench: the 2 × N fleets over namespace hosts need root: not run",
+                  file=sys.stderr)
+        elif "hosts" not in args.skip:
+            two_hosts = hosts_fleets(args.host_sizes, runs, fleet_s, tmpdir)
     floor = floor_probe(runs=runs, seconds=2.0 if args.quick else 3.0) \
         if "floor" not in args.skip else {}
     nan = math.nan
@@ -350,6 +488,7 @@ def main(argv: list[str] | None = None) -> int:
                better="higher"),
         Figure("fleet_agent_tick_us", f"  CPU per agent tick in that fleet ({max_fleet} robots)",
                agent_tick_us(largest) if largest else nan, "µs"),
+        *hosts_figures(two_hosts),
         Figure("floor_udp_us", "floor: agent-like echo over bare UDP, CPU per tick",
                fl("udp", "rx_cpu_us"), "µs"),
         Figure("floor_zenoh_us", "  the same over zenoh as configured (minimal runtime)",
@@ -367,7 +506,9 @@ def main(argv: list[str] | None = None) -> int:
                   "latency_histograms_ms": [r["latency_histogram_ms"] for r in realtime],
                   "floor": floor, "floor_beside_realtime": beside,
                   "per_run": {"realtime": realtime, "lockstep": lockstep,
-                              "fleets": {str(n): r for n, r in fleets.items()}}})
+                              "fleets": {str(n): r for n, r in fleets.items()},
+                              "two_hosts": {v: {str(n): r for n, r in sizes.items()}
+                                            for v, sizes in two_hosts.items()}}})
     return 0
 
 
