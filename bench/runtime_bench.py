@@ -48,6 +48,7 @@ construction.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -262,7 +263,7 @@ def run_on_two_hosts(scenario: Path, duration: float, out: Path, *, insecure: bo
     # the realtime phase: the `duration` [s] up to the last sample at which the sim still worked
     # (over 5 % of a core; afterwards it waits for the coordinator's stop or has ended)
     busy = [t1 for role, series in sampler.samples.values() if role == "sim"
-            for (t0, c0), (t1, c1) in zip(series, series[1:]) if c1 - c0 > 0.05 * (t1 - t0)]
+            for (t0, c0), (t1, c1) in itertools.pairwise(series) if c1 - c0 > 0.05 * (t1 - t0)]
     cpu: dict[str, float] = {}
     if busy:
         end = max(busy) - 0.5

@@ -93,6 +93,6 @@ def test_a_new_plan_drops_a_pending_request():
     assert due.pending is not None
     # a new plan arrives before the refresh: the step runs the request first (same target),
     # then the plan resets the path; nothing stays pending for the old target
-    after, out = executor.step(due, ExecutorInputs(1.2, pose, np.zeros((0, 4)),
-                                                   new_plan=(("a12",), ("a12",))))
+    after, _out = executor.step(due, ExecutorInputs(1.2, pose, np.zeros((0, 4)),
+                                                    new_plan=(("a12",), ("a12",))))
     assert after.pending is None and after.path_target == "a12"

@@ -124,7 +124,7 @@ def test_coordinate_and_point_lookups_equal_clearance_at():
     values as ``clearance_at`` — on the grid, on cell borders and off it."""
     grid = grid_from_arena(Arena(obstacles=(RectObstacle(-0.1, -3.5, 0.1, 1.0),)), 0.3)
     rng = np.random.default_rng(7)
-    ox, oy = grid.origin
+    ox, _oy = grid.origin
     xmin, xmax, ymin, ymax = grid.extent
     border = np.array([ox + k * grid.resolution for k in range(0, 141, 7)])
     x = np.concatenate([rng.uniform(xmin - 1, xmax + 1, 399), border, [xmin, xmax]])
@@ -133,5 +133,6 @@ def test_coordinate_and_point_lookups_equal_clearance_at():
     assert np.array_equal(grid.clearance_xy(x, y), expected)
     assert np.array_equal(grid.clearance_xy(x.reshape(-1, 2), y.reshape(-1, 2)),
                           expected.reshape(-1, 2))
-    assert [grid.clearance_point(float(a), float(b)) for a, b in zip(x, y)] == list(expected)
+    points = zip(x, y, strict=True)
+    assert [grid.clearance_point(float(a), float(b)) for a, b in points] == list(expected)
     assert (expected == -grid.resolution).any() and (expected > 0).any()

@@ -3,9 +3,9 @@ tick ↔ time conversion and wall-clock pacing (architecture.md §3)."""
 
 from __future__ import annotations
 
-import pytest
 from dataclasses import replace
 
+import pytest
 from sim_helpers import omni, scenario, unicycle
 
 from agent.protocol.messages import Command
