@@ -385,7 +385,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=3, help="runs per figure (≥ 3)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 5, 10, 15, 20, 25, 30, 40],
                         help="generated fleet sizes to try, in order")
-    parser.add_argument("--host-sizes", type=int, nargs="+", default=[5, 10, 15],
+    parser.add_argument("--host-sizes", type=int, nargs="+", default=[3, 5, 10, 15],
                         help="robots per host of the 2 × N fleets over two namespace hosts, in "
                              "order (root only)")
     parser.add_argument("--skip", nargs="*", default=[],
