@@ -25,7 +25,7 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   tried in ``--sizes`` order, stopping at the first that fails; target ≥ 30).
 * ``max_fleet_2_hosts_tcp`` / ``_tls``: the same generated fleets, 2 × N robots, over two
   network-namespace hosts with a zenoh router each (``tlfleet run --hosts 2``, the multi-host
-  mesh; plain TCP and mutual TLS), interleaved run by run with the same fleet on one router
+  mesh; plain TCP and mutual TLS), interleaved run by run with the same fleet run locally
   (``local``), N in ``--host-sizes`` order; root only. Both hosts share this machine's two
   cores, so this measures what the mesh costs, not what a second machine adds.
 
@@ -209,6 +209,7 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
     load_before = os.getloadavg()
     with CpuSampler(period=0.5) as sampler:
         result = run_fleet(RunConfig(scenario, mode=mode, out=out, duration=duration,
+                                     minimal_coordinator=True,  # as tlfleet run
                                      supervisor=SupervisorConfig(
                                          ready_timeout=ready_timeout,
                                          wall_timeout=20 * duration + 120)),
@@ -313,8 +314,9 @@ HOST_VARIANTS = ("local", "2 hosts tcp", "2 hosts tls")
 def hosts_fleets(sizes: list[int], runs: int, duration: float, tmpdir: Path
                  ) -> dict[str, dict[int, list[dict]]]:
     """Generated STL fleets of 2 × N robots (N in ``sizes``, in order) in realtime, three ways,
-    interleaved run by run so that they see the same machine: ``local`` (one router on loopback,
-    as ``max_fleet``), over two namespace hosts with plain TCP and with mutual TLS
+    interleaved run by run so that they see the same machine: ``local`` (``tlfleet run`` on
+    loopback, as ``max_fleet``: sim and agents linked as peers), over two namespace hosts (every
+    process a client of its host's router) with plain TCP and with mutual TLS
     (:func:`run_on_two_hosts`). Stops after the first size at which neither host variant holds
     (≤ 1 % missed, median over the runs, every run clean). Prints a line per size and variant."""
     out: dict[str, dict[int, list[dict]]] = {v: {} for v in HOST_VARIANTS}

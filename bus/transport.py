@@ -139,8 +139,9 @@ def child_environment(env: Mapping[str, str]) -> dict[str, str]:
 #: payloads (10 000 per key, tests/security) a router with one worker fell behind and closed its
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
 #: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process,
-#: so tlfleet uses it only for the sim and agents of a lockstep run over loopback peer links
-#: (coordinator.runner.peer_links), which no fault or partition reaches.
+#: so tlfleet uses it only for the sim and agents of a run over loopback peer links (lockstep
+#: or realtime, coordinator.runner.peer_links), which no fault or partition reaches, and for the
+#: coordinator of such a run started by ``tlfleet run`` (RunConfig.minimal_coordinator).
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 
