@@ -216,33 +216,44 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
                            progress=progress)
     cpu = sampler.cpu_pct(marks[0] + 0.5, marks[-1]) if len(marks) >= 2 else {}
     cpu_sim = sampler.cpu_per_sim_s(sim_marks)
-    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
-                  if e.kind == "sim_stats"), {})
-    due = stats.get("due", 0)
     return {
         "clean": result.clean, "reason": result.outcome.reason, "t_end": result.outcome.t_end,
-        "links": result.info.get("links"),  # "peer": sim ↔ agents directly (lockstep)
+        "links": result.info.get("links"),  # "peer": sim ↔ agents directly
         "wall_time": result.info.get("wall_time", math.nan),
         "ready_time": result.info.get("ready_time", math.nan),
         "speedup": result.info.get("speedup", math.nan),
+        **run_figures(out, stl_ids, cpu),
+        "cpu_s_per_sim_s": cpu_sim,
+        "total_cpu_s_per_sim_s": sum(v for k, v in cpu_sim.items() if k != "agents"),
+        "load_before": load_before[0], "load_after": os.getloadavg()[0],
+    }
+
+
+def run_figures(run_dir: Path, stl_ids: set[int], cpu: dict[str, float]) -> dict:
+    """What every realtime or lockstep run reports from the sim's ``sim_stats`` event in
+    ``run_dir`` (latency, the STL robots' own, missed deadlines) and from the CPU sampler's
+    ``cpu`` (% of a core per role)."""
+    events = run_dir / "events.jsonl"
+    stats = next((e.data for e in reversed(read_events(events, strict=False))
+                  if e.kind == "sim_stats"), {}) if events.is_file() else {}
+    due = stats.get("due", 0)
+    by_robot = stats.get("latency_p99_ms_by_robot", {})
+    return {
         "latency_p50_ms": stats.get("latency_p50_ms", math.nan),
         "latency_p99_ms": stats.get("latency_p99_ms", math.nan),
-        "latency_p99_ms_by_robot": stats.get("latency_p99_ms_by_robot", {}),
+        "latency_p99_ms_by_robot": by_robot,
         "latency_histogram_ms": stats.get("latency_histogram_ms", {}),
         # the STL robots' commands on ticks where an LTL agent steps too, and on the others
         **{key: stats.get(key, math.nan) for key in (
             "latency_p50_ms_shared", "latency_p99_ms_shared", "latency_p50_ms_alone",
             "latency_p99_ms_alone")},
-        "stl_latency_p99_ms": max((v for r, v in stats.get("latency_p99_ms_by_robot", {}).items()
-                                   if int(r) in stl_ids), default=math.nan),
+        "stl_latency_p99_ms": max((v for r, v in by_robot.items() if int(r) in stl_ids),
+                                  default=math.nan),
         "due": due, "missed": stats.get("missed", 0),
         "missed_fraction": stats.get("missed", 0) / due if due else math.nan,
         "cpu_pct": cpu,
         "agent_cpu_pct": cpu.get("agent", math.nan), "sim_cpu_pct": cpu.get("sim", math.nan),
         "router_cpu_pct": cpu.get("router", math.nan),
-        "cpu_s_per_sim_s": cpu_sim,
-        "total_cpu_s_per_sim_s": sum(v for k, v in cpu_sim.items() if k != "agents"),
-        "load_before": load_before[0], "load_after": os.getloadavg()[0],
     }
 
 
@@ -271,24 +282,12 @@ def run_on_two_hosts(scenario: Path, duration: float, out: Path, *, insecure: bo
         cpu = sampler.cpu_pct(end - duration + 2.0, end)
     info_path = out / "run.json"
     info = json.loads(info_path.read_text()) if info_path.is_file() else {}
-    stats = next((e.data for e in reversed(read_events(out / "events.jsonl", strict=False))
-                  if e.kind == "sim_stats"), {}) if (out / "events.jsonl").is_file() else {}
-    due = stats.get("due", 0)
     return {
         "clean": bool(info.get("clean")) and done.returncode == 0,
         "reason": info.get("reason", f"tlfleet supervise exited {done.returncode}"),
         "links": "tcp" if insecure else "tls",
         "ready_time": info.get("ready_time", math.nan),
-        "latency_p50_ms": stats.get("latency_p50_ms", math.nan),
-        "latency_p99_ms": stats.get("latency_p99_ms", math.nan),
-        "latency_histogram_ms": stats.get("latency_histogram_ms", {}),
-        "stl_latency_p99_ms": max((v for r, v in stats.get("latency_p99_ms_by_robot", {}).items()
-                                   if int(r) in stl_ids), default=math.nan),
-        "due": due, "missed": stats.get("missed", 0),
-        "missed_fraction": stats.get("missed", 0) / due if due else math.nan,
-        "cpu_pct": cpu,
-        "agent_cpu_pct": cpu.get("agent", math.nan), "sim_cpu_pct": cpu.get("sim", math.nan),
-        "router_cpu_pct": cpu.get("router", math.nan),  # mean of the two routers
+        **run_figures(out, stl_ids, cpu),  # router_cpu_pct: the mean of the two routers
         "cpu_s_per_sim_s": {k: v / 100.0 for k, v in cpu.items() if k.startswith("agent-")},
         "load_before": load_before[0], "load_after": os.getloadavg()[0],
     }

@@ -42,6 +42,7 @@ def test_two_robot_fleet(tmp_path, mode):
     result = run(TWO, tmp_path / "run", mode=mode)
     assert result.clean, result.summary_text
     assert result.outcome.reason in ("sim_done", "duration")
+    assert read_json(tmp_path / "run" / RUN_INFO)["links"] == "peer"  # both modes (issue 17)
     t, s = load_trajectory(tmp_path / "run")
     assert t[0] == 0.0 and t[-1] == pytest.approx(20.0)
     if mode == "lockstep":
