@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from agent.scenario import load_scenario
-from agent.scenario.faults import parse_fault
 from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME
 from coordinator.runner import PEER_LISTEN, RunConfig, default_child_argv, peer_links
 
@@ -116,13 +115,14 @@ def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
 @pytest.mark.parametrize("change, runtime", [
     ({}, MINIMAL_RUNTIME),
     ({"mode": "realtime"}, MINIMAL_RUNTIME),
-    ({"direct_links": False}, DEFAULT_RUNTIME),  # through the router: zenoh's pools
-    ({"faults": (parse_fault("kill:robot3@5"),), "direct_links": False}, DEFAULT_RUNTIME),
-], ids=["lockstep", "realtime", "via-router", "faults"])
+    ({"direct_links": False}, DEFAULT_RUNTIME),  # through the router (fault runs too): pools
+    ({"secure": Path("/keys")}, DEFAULT_RUNTIME),
+], ids=["lockstep", "realtime", "via-router", "secure"])
 def test_tlfleet_runs_coordinator_asks_for_the_minimal_runtime_over_peer_links(
         monkeypatch, change, runtime):
     """``minimal_coordinator`` (what ``tlfleet run`` sets): the coordinator's session asks for
-    zenoh's minimal runtime in a peer-link run only (run_fleet turns peer links off for faults)."""
+    zenoh's minimal runtime in a peer-link run only (``run_fleet`` turns peer links off for a
+    run with faults: test_a_run_with_faults_goes_through_the_router)."""
     import coordinator.runner as runner
 
     opened = []
