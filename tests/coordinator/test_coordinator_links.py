@@ -116,8 +116,7 @@ def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
     ({}, MINIMAL_RUNTIME),
     ({"mode": "realtime"}, MINIMAL_RUNTIME),
     ({"direct_links": False}, DEFAULT_RUNTIME),  # through the router (fault runs too): pools
-    ({"secure": Path("/keys")}, DEFAULT_RUNTIME),
-], ids=["lockstep", "realtime", "via-router", "secure"])
+], ids=["lockstep", "realtime", "via-router"])
 def test_tlfleet_runs_coordinator_asks_for_the_minimal_runtime_over_peer_links(
         monkeypatch, change, runtime):
     """``minimal_coordinator`` (what ``tlfleet run`` sets): the coordinator's session asks for
