@@ -209,7 +209,6 @@ def run_once(scenario: Path, mode: str, duration: float, out: Path,
     load_before = os.getloadavg()
     with CpuSampler(period=0.5) as sampler:
         result = run_fleet(RunConfig(scenario, mode=mode, out=out, duration=duration,
-                                     minimal_coordinator=True,  # as tlfleet run
                                      supervisor=SupervisorConfig(
                                          ready_timeout=ready_timeout,
                                          wall_timeout=20 * duration + 120)),

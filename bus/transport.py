@@ -140,8 +140,7 @@ def child_environment(env: Mapping[str, str]) -> dict[str, str]:
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
 #: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process,
 #: so tlfleet uses it only for the sim and agents of a run over loopback peer links (lockstep
-#: or realtime, coordinator.runner.peer_links), which no fault or partition reaches, and for the
-#: coordinator of such a run started by ``tlfleet run`` (RunConfig.minimal_coordinator).
+#: or realtime, coordinator.runner.peer_links), which no fault or partition reaches.
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 

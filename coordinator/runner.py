@@ -50,7 +50,7 @@ from pathlib import Path
 
 from agent.scenario import Scenario
 from agent.scenario.faults import Fault
-from bus.transport import MINIMAL_RUNTIME, Transport, TransportConfig, check_config
+from bus.transport import Transport, TransportConfig, check_config
 from coordinator.cleanup import Cleanup
 from coordinator.fault_schedule import FaultScheduler, ProcessActuator
 from coordinator.faults import run_faults
@@ -117,10 +117,6 @@ class RunConfig:
     faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
     direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
-    minimal_coordinator: bool = False  # peer-link runs: the coordinator's session on zenoh's
-    #   minimal runtime when it is this process's first session (zenoh reads ZENOH_RUNTIME once
-    #   per process, so it stays for every later session here); `tlfleet run` sets it, one
-    #   fleet per process (_open_client)
 
 
 #: what a sim or agent process listens on when it is a peer (peer_links): a free loopback port
@@ -137,8 +133,8 @@ def peer_links(config: RunConfig) -> bool:
     do the frames, statuses and events the coordinator records and its control
     (:func:`_open_client`). The sim and the agents also run zenoh's minimal runtime
     (``--zenoh-runtime minimal``, :data:`bus.transport.MINIMAL_RUNTIME`: one worker thread that
-    receives and sends too; less CPU per sample); the router keeps zenoh's pools, and so does
-    the coordinator unless ``minimal_coordinator``. Realtime Scenario 1 (6 interleaved pairs,
+    receives and sends too; less CPU per sample); the router and the coordinator keep zenoh's
+    pools. Realtime Scenario 1 (6 interleaved pairs,
     docs/performance.md round 7): latency p50 2.3 → 1.8 ms, the STL robots' p99 on quiet ticks
     4.0 → 3.4 ms. A secured run keeps every link on the router, where the access-control policy
     is enforced (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
@@ -174,18 +170,11 @@ def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
     router's log when the router dies or does not answer within ``router_timeout``. In a
     peer-link run (:func:`peer_links`) it is a peer too, listening on a free loopback port: the
     frames, statuses and events it records come straight from the sim and the agents instead of
-    through the router (issue 17: the router no longer forwards 100 frames per sim second). With
-    ``minimal_coordinator`` (``tlfleet run``) its session then also asks for zenoh's minimal
-    runtime, which takes effect when it is the process's first session: 4 interleaved lockstep
-    pairs, the coordinator's CPU 0.043 → 0.031 s per sim second (lower in 4 of 4). Not the
-    library default, because a process that runs several fleets keeps the runtime of its first
-    session, and a fault run's coordinator keeps zenoh's pools (``RX_WORKERS``)."""
+    through the router (issue 17: the router no longer forwards 100 frames per sim second)."""
     client = client_config((endpoint,), secure=config.secure, lease_ms=config.lease_ms,
                            zenoh_config=config.zenoh_config)
     if peer_links(config):
         client = replace(client, mode="peer", listen=(PEER_LISTEN,))
-        if config.minimal_coordinator:
-            client = replace(client, runtime=MINIMAL_RUNTIME)
     try:
         return open_client(client, config.router_timeout,
                            given_up=lambda: router.returncode is not None)

@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        direct_links=args.direct_links, minimal_coordinator=True,
+        direct_links=args.direct_links,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from agent.scenario import load_scenario
-from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME
+from bus.transport import DEFAULT_RUNTIME
 from coordinator.runner import PEER_LISTEN, RunConfig, default_child_argv, peer_links
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "scenario1.toml"
@@ -109,42 +109,4 @@ def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
     assert [(c.mode, c.listen, c.connect) for c in opened] == [
         ("peer", (PEER_LISTEN,), (ENDPOINT,)), ("peer", (PEER_LISTEN,), (ENDPOINT,)),
         ("client", (), (ENDPOINT,))]
-    assert all(c.runtime == DEFAULT_RUNTIME for c in opened)  # unless asked for, below
-
-
-@pytest.mark.parametrize("change, runtime", [
-    ({}, MINIMAL_RUNTIME),
-    ({"mode": "realtime"}, MINIMAL_RUNTIME),
-    ({"direct_links": False}, DEFAULT_RUNTIME),  # through the router (fault runs too): pools
-], ids=["lockstep", "realtime", "via-router"])
-def test_tlfleet_runs_coordinator_asks_for_the_minimal_runtime_over_peer_links(
-        monkeypatch, change, runtime):
-    """``minimal_coordinator`` (what ``tlfleet run`` sets): the coordinator's session asks for
-    zenoh's minimal runtime in a peer-link run only (``run_fleet`` turns peer links off for a
-    run with faults: test_a_run_with_faults_goes_through_the_router)."""
-    import coordinator.runner as runner
-
-    opened = []
-    monkeypatch.setattr(runner, "open_client", lambda config, *_a, **_k: opened.append(config))
-    runner._open_client(ENDPOINT, None, RunConfig(SCENARIO, minimal_coordinator=True, **change))
-    assert [c.runtime for c in opened] == [runtime]
-
-
-def test_tlfleet_run_sets_minimal_coordinator(monkeypatch, tmp_path):
-    """The command builds its RunConfig with ``minimal_coordinator``: one fleet per process."""
-    import argparse
-
-    import cli.commands.run as run_command
-
-    seen = []
-
-    def fake_run_fleet(config, **_kwargs):
-        seen.append(config)
-        raise SystemExit(0)
-
-    monkeypatch.setattr(run_command, "run_fleet", fake_run_fleet)
-    parser = argparse.ArgumentParser()
-    run_command.add_arguments(parser)
-    with pytest.raises(SystemExit):
-        run_command.run(parser.parse_args([str(SCENARIO), "--out", str(tmp_path / "run")]))
-    assert [c.minimal_coordinator for c in seen] == [True]
+    assert all(c.runtime == DEFAULT_RUNTIME for c in opened)  # zenoh's pools (RX_WORKERS)
