@@ -134,10 +134,10 @@ def peer_links(config: RunConfig) -> bool:
     (:func:`_open_client`). The sim and the agents also run zenoh's minimal runtime
     (``--zenoh-runtime minimal``, :data:`bus.transport.MINIMAL_RUNTIME`: one worker thread that
     receives and sends too; less CPU per sample); the router and the coordinator keep zenoh's
-    pools. Realtime Scenario 1 (6 interleaved pairs,
-    docs/performance.md round 7): latency p50 2.3 → 1.8 ms, the STL robots' p99 on quiet ticks
-    4.0 → 3.4 ms. A secured run keeps every link on the router, where the access-control policy
-    is enforced (:mod:`coordinator.acl`); a user's zenoh file keeps the topology it describes."""
+    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md round 7): latency p50
+    2.3 → 1.8 ms, the STL robots' p99 on quiet ticks 4.0 → 3.4 ms. A secured run keeps every
+    link on the router, where the access-control policy is enforced (:mod:`coordinator.acl`); a
+    user's zenoh file keeps the topology it describes."""
     return config.direct_links and config.secure is None and config.zenoh_config is None
 
 
