@@ -47,7 +47,11 @@ import numpy as np
 
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.grid import OccupancyGrid
-from agent.nav.polyline import distance_to_polyline, point_along, remaining_polyline
+from agent.nav.polyline import (
+    distance_to_polyline_xy,
+    point_along_vertices,
+    remaining_vertices,
+)
 
 
 @dataclass(frozen=True)
@@ -167,20 +171,47 @@ def rollouts(
 def _arcs(pose: Sequence[float], v: np.ndarray, omega: np.ndarray, times: np.ndarray
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``rollouts`` as coordinate arrays x, y [m] and headings θ [rad], each (S, T)."""
+    x, y, theta, _, _ = _arcs_with_trig(pose, v, omega, times)
+    return x, y, theta
+
+
+def _arcs_with_trig(pose: Sequence[float], v: np.ndarray, omega: np.ndarray, times: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``_arcs`` and cos θ, sin θ (S, T). A sample with |ω| ≤ 1e-9 is a straight line."""
     x0, y0, th0 = float(pose[0]), float(pose[1]), float(pose[2])
-    w = omega[:, None]
-    t = times[None, :]
-    theta = th0 + w * t
-    turning = np.abs(w) > 1e-9
-    w_safe = np.where(turning, w, 1.0)
-    vv = v[:, None]
-    radius = vv / w_safe
-    x_arc = x0 + radius * (np.sin(theta) - math.sin(th0))
-    y_arc = y0 - radius * (np.cos(theta) - math.cos(th0))
-    vt = vv * t
-    x_line = x0 + vt * math.cos(th0)
-    y_line = y0 + vt * math.sin(th0)
-    return np.where(turning, x_arc, x_line), np.where(turning, y_arc, y_line), theta
+    theta = np.multiply.outer(omega, times)
+    theta += th0
+    turning = np.abs(omega) > 1e-9
+    radius = (v / np.where(turning, omega, 1.0))[:, None]
+    sin_t, cos_t = np.sin(theta), np.cos(theta)
+    x = sin_t - math.sin(th0)
+    x *= radius
+    x += x0
+    y = cos_t - math.cos(th0)
+    y *= radius
+    np.subtract(y0, y, out=y)
+    if not turning.all():
+        line = ~turning
+        vt = np.multiply.outer(v[line], times)
+        x[line] = x0 + vt * math.cos(th0)
+        y[line] = y0 + vt * math.sin(th0)
+    return x, y, theta, cos_t, sin_t
+
+
+def _linspace(lo: float, hi: float, num: int) -> list[float]:
+    """``np.linspace(lo, hi, num)`` in plain floats, value for value (``i·step + lo``, the last
+    one ``hi``)."""
+    if num == 1:
+        return [lo]
+    div = num - 1
+    delta = hi - lo
+    step = delta / div
+    if step == 0.0:
+        values = [i / div * delta + lo for i in range(num)]
+    else:
+        values = [i * step + lo for i in range(num)]
+    values[-1] = hi
+    return values
 
 
 def _samples(v: float, omega: float, config: DwaConfig,
@@ -191,20 +222,26 @@ def _samples(v: float, omega: float, config: DwaConfig,
         v_cap, w_cap = limits.v_max, limits.omega_max
         v_hi = max(v_lo, min(v_hi, v_cap))
         w_lo, w_hi = min(w_hi, max(w_lo, -w_cap)), max(w_lo, min(w_hi, w_cap))
-    vs = np.linspace(v_lo, v_hi, config.vx_samples) if v_hi > v_lo else np.array([v_lo])
-    ws = np.linspace(w_lo, w_hi, config.vtheta_samples) if w_hi > w_lo else np.array([w_lo])
-    if w_lo < 0.0 < w_hi and not np.any(ws == 0.0):
-        ws = np.sort(np.append(ws, 0.0))
-    return np.repeat(vs, len(ws)), np.tile(ws, len(vs))  # the (v, ω) grid, v-major
+    vs = _linspace(v_lo, v_hi, config.vx_samples) if v_hi > v_lo else [v_lo]
+    ws = _linspace(w_lo, w_hi, config.vtheta_samples) if w_hi > w_lo else [w_lo]
+    if w_lo < 0.0 < w_hi and 0.0 not in ws:
+        ws = sorted([*ws, 0.0])
+    # the (v, ω) grid, v-major
+    return np.array([v_s for v_s in vs for _ in ws]), np.array(ws * len(vs))
 
 
-def _extend(path: np.ndarray, position: np.ndarray, length: float) -> np.ndarray:
-    """The path (M, 2) with one more vertex ``length`` [m] past its end, along its last leg."""
-    direction = path[-1] - (path[-2] if len(path) >= 2 else position)
-    norm = float(np.linalg.norm(direction))
+def _extend(path: list[list[float]], position: tuple[float, float], length: float
+            ) -> list[list[float]]:
+    """The path (a vertex list) with one more vertex ``length`` [m] past its end, along its last
+    leg."""
+    (ex, ey) = path[-1]
+    bx, by = path[-2] if len(path) >= 2 else position
+    dx, dy = ex - bx, ey - by
+    norm = math.sqrt(dx * dx + dy * dy)
     if norm < 1e-9:
         return path
-    return np.vstack([path, path[-1] + direction * (length / norm)])
+    scale = length / norm
+    return [*path, [ex + dx * scale, ey + dy * scale]]
 
 
 def inflation_cost(d: np.ndarray, robot_radius: float, config: DwaConfig) -> np.ndarray:
@@ -212,6 +249,15 @@ def inflation_cost(d: np.ndarray, robot_radius: float, config: DwaConfig) -> np.
     ``252·exp(−k (d − r))`` up to ``inflation_radius``, 0 beyond."""
     decay = 252.0 * np.exp(-config.cost_scaling_factor * np.maximum(d - robot_radius, 0.0))
     return np.where(d < robot_radius, 253.0, np.where(d <= config.inflation_radius, decay, 0.0))
+
+
+def _inflation_cost_of(d: float, robot_radius: float, config: DwaConfig) -> float:
+    """``inflation_cost`` of one clearance [m] (numpy's ``exp``, as the array form)."""
+    if d < robot_radius:
+        return 253.0
+    if d > config.inflation_radius:
+        return 0.0
+    return 252.0 * float(np.exp(-config.cost_scaling_factor * max(d - robot_radius, 0.0)))
 
 
 def dwa_control(
@@ -230,37 +276,45 @@ def dwa_control(
     command, which bounds the dynamic window; ``path`` (M, 2) [m] the global path whose last
     vertex is the goal; ``grid`` the static layer; ``others`` the other robots; ``limits`` the
     coupling limits of this step (step 5), None or empty for none.
+
+    Issue 17: a 5 Hz step of an LTL agent sits on the fleet's latency path, and on arrays of
+    126 × 13 a numpy call costs more than its arithmetic. So the rollouts are coordinate arrays
+    (no (…, 2) stacking), the path's geometry is plain floats, the grid lookup skips the
+    off-grid test when every rollout stays a cell inside the grid, and other robots that cannot
+    come within ``inflation_radius`` of any rollout are left out (they change no cost and no
+    admissibility). The floating-point operations of what is computed are those of the plain
+    array form, so the result is the same to the last bit (tests/nav/test_nav_dwa_reference.py).
     """
     config = config or DwaConfig()
     others = others if others is not None else MovingDiscs.empty()
     v0, w0 = float(velocity[0]), float(velocity[1])
-    position = np.asarray(pose[:2], dtype=float)
-    path = np.asarray(path, dtype=float).reshape(-1, 2)
-    goal = path[-1]
-    goal_distance = float(np.linalg.norm(goal - position))
-    if goal_distance <= config.xy_goal_tolerance:
+    px, py = float(pose[0]), float(pose[1])
+    vertices = np.asarray(path, dtype=float).reshape(-1, 2).tolist()
+    gx, gy = vertices[-1]
+    dgx, dgy = gx - px, gy - py
+    if math.sqrt(dgx * dgx + dgy * dgy) <= config.xy_goal_tolerance:
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, 0.0, 0, True, np.zeros((0, 2)))
 
     vs, ws = _samples(v0, w0, config, limits)
     times = _times(config.sim_time, config.sim_dt)
-    x, y, theta = _arcs(pose, vs, ws, times)  # (S, T) each
+    x, y, theta, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
 
-    # Issue 17: the same arithmetic as the plain (…, 2) form, on coordinate arrays, with fewer
-    # numpy calls (a 5 Hz step of an LTL agent sits on the fleet's latency path).
-    clearance = grid.clearance_xy(x, y)  # (S, T)
-    px, py = float(position[0]), float(position[1])
+    # Every rollout point lies within reach = max |v| · sim_time of (px, py).
+    reach = float(np.abs(vs).max()) * float(times[-1])
+    clearance = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
     current = grid.clearance_point(px, py)
-    if len(others):
-        centers, velocities, radii = others.centers, others.velocities, others.radii
-        cx = centers[:, 0][None, :] + times[:, None] * velocities[:, 0][None, :]  # (T, K)
-        cy = centers[:, 1][None, :] + times[:, None] * velocities[:, 1][None, :]
-        dx = x[:, :, None] - cx[None]  # (S, T, K)
-        dy = y[:, :, None] - cy[None]
-        gaps = np.sqrt(dx * dx + dy * dy)
-        clearance = np.minimum(clearance, (gaps - radii).min(axis=2))
-        ex, ey = centers[:, 0] - px, centers[:, 1] - py
-        current = min(current, float((np.sqrt(ex * ex + ey * ey) - radii).min()))
+    for cx0, cy0, ux, uy, r in _near_discs(others, px, py, reach, float(times[-1]), config):
+        dx = x - (cx0 + times * ux)
+        dy = y - (cy0 + times * uy)
+        dx *= dx
+        dy *= dy
+        dx += dy
+        gap = np.sqrt(dx, out=dx)
+        gap -= r
+        np.minimum(clearance, gap, out=clearance)
+        ex, ey = cx0 - px, cy0 - py
+        current = min(current, math.sqrt(ex * ex + ey * ey) - r)
     required = min(robot_radius + config.collision_margin, current - 1e-6)
     min_clearance = clearance.min(axis=1)
     valid = min_clearance >= required
@@ -276,39 +330,56 @@ def dwa_control(
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, math.inf, 0, False, np.zeros((0, 2)))
 
-    ahead = remaining_polyline(position, path)
-    carrot = point_along(ahead, config.carrot_distance)
+    ahead = remaining_vertices(px, py, vertices)
+    carrot_x, carrot_y = point_along_vertices(ahead, config.carrot_distance)
     end_x, end_y = x[:, -1], y[:, -1]
-    end = np.stack([end_x, end_y], axis=1)
-    cost = config.path_distance_bias * distance_to_polyline(end, ahead)
-    gx, gy = end_x - carrot[0], end_y - carrot[1]
-    cost += config.goal_distance_bias * np.sqrt(gx * gx + gy * gy)
+    cost = distance_to_polyline_xy(end_x, end_y, ahead)
+    cost *= config.path_distance_bias
+    dx, dy = end_x - carrot_x, end_y - carrot_y
+    cost += config.goal_distance_bias * np.sqrt(dx * dx + dy * dy)
     # The alignment point runs forward_point_distance ahead of the robot, so it is scored against
     # the path extended by that much past the goal (else it would hold the robot short of it).
-    extended = _extend(ahead, position, config.forward_point_distance)
-    front_carrot = point_along(extended, config.carrot_distance + config.forward_point_distance)
-    heading = theta[:, -1]
-    front_x = end_x + config.forward_point_distance * np.cos(heading)
-    front_y = end_y + config.forward_point_distance * np.sin(heading)
-    cost += config.path_distance_bias * distance_to_polyline(
-        np.stack([front_x, front_y], axis=1), extended)
-    fx, fy = front_x - front_carrot[0], front_y - front_carrot[1]
-    cost += config.goal_distance_bias * np.sqrt(fx * fx + fy * fy)
+    fpd = config.forward_point_distance
+    extended = _extend(ahead, (px, py), fpd)
+    front_carrot_x, front_carrot_y = point_along_vertices(extended, config.carrot_distance + fpd)
+    front_x = end_x + fpd * cos_t[:, -1]
+    front_y = end_y + fpd * sin_t[:, -1]
+    cost += config.path_distance_bias * distance_to_polyline_xy(front_x, front_y, extended)
+    dx, dy = front_x - front_carrot_x, front_y - front_carrot_y
+    cost += config.goal_distance_bias * np.sqrt(dx * dx + dy * dy)
     # As ROS, the occupancy term is the worst cost along the rollout including the start pose;
     # the inflation cost does not increase with the clearance, so the worst cost along a rollout
     # is the cost of its least clearance (the same value, on S instead of S·T clearances).
-    worst = np.maximum(
-        inflation_cost(min_clearance, robot_radius, config),
-        float(inflation_cost(np.array(current), robot_radius, config)),
-    )
+    worst = np.maximum(inflation_cost(min_clearance, robot_radius, config),
+                       _inflation_cost_of(current, robot_radius, config))
     cost += config.occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
-    cost = np.where(valid, cost, np.inf)
+    cost[~valid] = np.inf
     best = int(np.argmin(cost))
     return DwaResult(
         float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False,
         np.stack([x[best], y[best]], axis=-1),
     )
+
+
+def _near_discs(others: MovingDiscs, px: float, py: float, reach: float, horizon: float,
+                config: DwaConfig) -> list[tuple[float, float, float, float, float]]:
+    """The other robots (centre x, y [m], velocity x, y [m/s], radius [m]) that may come within
+    ``inflation_radius`` of a rollout: a robot starting at distance D and moving at speed u can
+    get no closer to a rollout point within ``horizon`` [s] than ``D − reach − u·horizon``. A
+    robot left out would only raise clearances that are above ``inflation_radius`` (cost 0, and
+    above what admissibility requires) to other values above it: the result is unchanged."""
+    if not len(others):
+        return []
+    near = []
+    for (cx0, cy0), (ux, uy), r in zip(others.centers.tolist(), others.velocities.tolist(),
+                                       others.radii.tolist()):
+        ex, ey = cx0 - px, cy0 - py
+        bound = (math.sqrt(ex * ex + ey * ey) - reach - math.sqrt(ux * ux + uy * uy) * horizon
+                 - r)
+        if bound <= config.inflation_radius + 1e-6:
+            near.append((cx0, cy0, ux, uy, r))
+    return near
 
 
 @functools.lru_cache(maxsize=16)

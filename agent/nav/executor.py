@@ -64,7 +64,7 @@ from agent.nav.events import (
 )
 from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_arena
 from agent.nav.grid_planner import plan_path
-from agent.nav.polyline import polyline_length, remaining_polyline
+from agent.nav.polyline import remaining_vertices, vertices_length
 from agent.scenario.model import Region, Scenario
 
 log = logging.getLogger(__name__)
@@ -287,13 +287,11 @@ class Executor:
         pose = np.asarray(inputs.pose, dtype=float)[:3]
         events: list[NavEvent] = []
         s = self._take_note(self.refresh(state), events)  # a re-plan not run after the command
-        s = replace(s, control_cycles=s.control_cycles + 1)
+        frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
+        others = self._local_obstacles(s, frame, pose, t)
+        s = replace(s, control_cycles=s.control_cycles + 1, prev_others=frame, prev_time=t)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
-        others = self._local_obstacles(s, inputs, pose, t)
-        s = replace(
-            s, prev_others=np.asarray(inputs.others, dtype=float).reshape(-1, 4), prev_time=t
-        )
         if s.mode != HOLD:
             s = self._visit(s, pose, t, events)
         limits = inputs.limits
@@ -345,33 +343,41 @@ class Executor:
         return s
 
     def _local_obstacles(
-        self, s: ExecutorState, inputs: ExecutorInputs, pose: np.ndarray, t: float
+        self, s: ExecutorState, frame: np.ndarray, pose: np.ndarray, t: float
     ) -> MovingDiscs:
-        """Other robots within ``local_range`` as moving discs (the local cost map's layer)."""
-        frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
-        if self.robot_id is not None:
-            frame = frame[frame[:, 0] != self.robot_id]
-        if len(frame) == 0:
+        """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
+        cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
+
+        Plain floats over the few rows (issue 17), with the array form's operations:
+        ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
+        px, py = float(pose[0]), float(pose[1])
+        local_range = self.config.local_range
+        near = []
+        for row in frame.tolist():
+            if row[0] == self.robot_id:
+                continue
+            dx, dy = row[1] - px, row[2] - py
+            if math.sqrt(dx * dx + dy * dy) <= local_range:
+                near.append(row)
+        if not near:
             return MovingDiscs.empty()
-        near = np.linalg.norm(frame[:, 1:3] - pose[:2], axis=1) <= self.config.local_range
-        frame = frame[near]
-        velocities = np.zeros((len(frame), 2))
+        velocities = [(0.0, 0.0)] * len(near)
         if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
-            previous = {int(row[0]): row[1:3] for row in s.prev_others}
-            for k, row in enumerate(frame):
+            dt = t - s.prev_time
+            cap = self.config.max_other_speed
+            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
+            for k, row in enumerate(near):
                 before = previous.get(int(row[0]))
                 if before is not None:
-                    velocities[k] = (row[1:3] - before) / (t - s.prev_time)
-            speed = np.linalg.norm(velocities, axis=1, keepdims=True)
-            cap = self.config.max_other_speed
-            velocities = np.where(
-                speed > cap, velocities * cap / np.maximum(speed, 1e-12), velocities
-            )
+                    ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
+                    speed = math.sqrt(ux * ux + uy * uy)
+                    if speed > cap:
+                        ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
+                    velocities[k] = (ux, uy)
         radii_by_id = dict(self.other_radii)
-        radii = np.array(
-            [radii_by_id.get(int(i), self.config.default_other_radius) for i in frame[:, 0]]
-        )
-        return MovingDiscs(frame[:, 1:3].copy(), velocities, radii)
+        radii = [radii_by_id.get(int(row[0]), self.config.default_other_radius) for row in near]
+        return MovingDiscs(np.array([(row[1], row[2]) for row in near]), np.array(velocities),
+                           np.array(radii))
 
     def _visit(self, s: ExecutorState, pose: np.ndarray, t: float, events: list) -> ExecutorState:
         """Advance over every target the robot is currently in (bounded by the plan length).
@@ -520,16 +526,20 @@ class Executor:
                 pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa, limits
             )
             command = (result.v, result.omega)
-            ahead = remaining_polyline(pose[:2], s.path)
-            remaining = float(np.linalg.norm(ahead[0] - pose[:2])) + polyline_length(ahead)
-        s = replace(s, remaining=remaining)
+            px, py = float(pose[0]), float(pose[1])
+            ahead = remaining_vertices(px, py, s.path.tolist())
+            dx, dy = ahead[0][0] - px, ahead[0][1] - py
+            remaining = math.sqrt(dx * dx + dy * dy) + vertices_length(ahead)
         if remaining < s.best_remaining - cfg.progress_epsilon:
-            s = replace(s, best_remaining=remaining, progress_time=t)
+            s = replace(s, remaining=remaining, best_remaining=remaining, progress_time=t)
         elif t - s.progress_time >= cfg.stuck_timeout:
             events.append(Stuck(t, target, s.progress_time, (float(pose[0]), float(pose[1]))))
             log.info("stuck on the way to %s since t=%.1f s: recovering", target, s.progress_time)
-            s = replace(s, mode=ROTATE, mode_since=t, stuck_count=s.stuck_count + 1)
+            s = replace(s, remaining=remaining, mode=ROTATE, mode_since=t,
+                        stuck_count=s.stuck_count + 1)
             command = self._ramp(s.command, (0.0, 0.0))
+        else:
+            s = replace(s, remaining=remaining)
         return s, command
 
     def refresh(self, state: ExecutorState) -> ExecutorState:

@@ -153,14 +153,25 @@ class OccupancyGrid:
         values = self.clearance[cells[..., 1], cells[..., 0]]
         return np.where(self.inside(pts), values, -self.resolution)
 
-    def clearance_xy(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def clearance_xy(self, x: np.ndarray, y: np.ndarray,
+                     within: tuple[float, float, float] | None = None) -> np.ndarray:
         """``clearance_at`` for points given as coordinate arrays ``x``, ``y`` [m] of one shape
-        (the DWA's rollouts, issue 17: no (…, 2) stacking; the same cells, the same values)."""
+        (the DWA's rollouts, issue 17: no (…, 2) stacking; the same cells, the same values).
+
+        ``within = (cx, cy, reach)`` [m] promises that every point lies within ``reach`` of
+        (cx, cy); when that disc lies a cell inside the grid, the off-grid test and the index
+        clipping, which could change nothing, are skipped."""
         ny, nx = self.shape
         ox, oy = self.origin
         res = self.resolution
         ix = np.floor((x - ox) / res).astype(np.int64)
         iy = np.floor((y - oy) / res).astype(np.int64)
+        if within is not None:
+            cx, cy, reach = within
+            margin = reach + res
+            if (ox + margin < cx < ox + nx * res - margin
+                    and oy + margin < cy < oy + ny * res - margin):
+                return self.clearance[iy, ix]
         values = self.clearance[np.minimum(np.maximum(iy, 0), ny - 1),
                                 np.minimum(np.maximum(ix, 0), nx - 1)]
         inside = (x >= ox) & (x < ox + nx * res) & (y >= oy) & (y < oy + ny * res)
