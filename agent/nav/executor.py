@@ -566,7 +566,7 @@ class Executor:
         per target (``no_path_note``) and retried every ``replan_period``."""
         grid = self.grid
         if len(request.centers):
-            grid = grid.with_discs(request.centers, request.radii)
+            grid = grid.with_disc_blocks(request.centers, request.radii)
         try:
             path = plan_path(grid, request.start, request.goal).waypoints
         except NoPathError as error:

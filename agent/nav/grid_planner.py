@@ -84,9 +84,14 @@ def astar_cells(
     Returns the cells from start to goal and the path length [cells] (moves of 1 and √2), or
     None when the goal cannot be reached. No corner cutting past blocked cells.
     """
-    _ny, nx = blocked.shape
+    blocked = np.asarray(blocked, dtype=bool)
+    ny, nx = blocked.shape
     width = nx + 2
-    free = (~np.pad(np.asarray(blocked, dtype=bool), 1, constant_values=True)).ravel().tolist()
+    # Issue 17: the padded free mask as bytes (a copy, not a 20 000-element list) and g / parent
+    # as dicts of the cells reached (a search of a re-plan touches a few hundred).
+    padded = np.zeros((ny + 2, width), dtype=bool)
+    np.logical_not(blocked, out=padded[1:-1, 1:-1])
+    free = padded.tobytes()
     s = (start[1] + 1) * width + start[0] + 1
     g_idx = (goal[1] + 1) * width + goal[0] + 1
     if not (free[s] and free[g_idx]):
@@ -103,16 +108,17 @@ def astar_cells(
         (-width + 1, 1, -1, SQRT2, 1, -width),
         (-width - 1, -1, -1, SQRT2, -1, -width),
     ]
-    n = len(free)
     inf = math.inf
-    g = [inf] * n
-    parent = [-1] * n
-    openable = list(free)  # free and not yet closed (one lookup instead of two per neighbour)
+    g = {}
+    parent = {}
+    openable = bytearray(free)  # free and not yet closed (one lookup instead of two per neighbour)
     k = SQRT2 - 1.0
     sy, sx = divmod(s, width)
     dx0, dy0 = abs(sx - gx), abs(sy - gy)
     h0 = max(dx0, dy0) + k * min(dx0, dy0)
     g[s] = 0.0
+    parent[s] = -1
+    g_of = g.get
     heap = [(h0, h0, s, sx, sy)]
     push, pop = heapq.heappush, heapq.heappop
     found = False
@@ -132,7 +138,7 @@ def astar_cells(
             if o1 and not (free[u + o1] and free[u + o2]):
                 continue
             ng = gu + cost
-            if ng < g[v]:
+            if ng < g_of(v, inf):
                 g[v] = ng
                 parent[v] = u
                 vx, vy = ux + ddx, uy + ddy

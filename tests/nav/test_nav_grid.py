@@ -85,6 +85,25 @@ def test_with_discs_blocks_inflated_discs_and_leaves_the_original_untouched():
     assert grid.with_discs(np.zeros((0, 2)), []) is grid
 
 
+
+@pytest.mark.parametrize("seed", range(4))
+def test_with_disc_blocks_blocks_exactly_the_cells_with_discs_blocks(seed):
+    """The planning stamp (windows around each disc) against the whole-grid stamp, cell for
+    cell: discs inside, at the edge of and beyond the grid, overlapping, of zero radius."""
+    rng = np.random.default_rng(seed)
+    grid = grid_from_arena(Arena(), inflation=0.25)
+    for _ in range(40):
+        k = int(rng.integers(1, 9))
+        centers = rng.uniform(-4.2, 4.2, size=(k, 2))
+        radii = rng.choice([0.0, 0.05, 0.2, 0.45, 1.2], size=k)
+        whole = grid.with_discs(centers, radii)
+        windows = grid.with_disc_blocks(centers, radii)
+        assert np.array_equal(windows.blocked, whole.blocked)
+        assert np.array_equal(windows.occupied, whole.occupied)
+        assert windows.clearance is grid.clearance  # the static layer, as documented
+    assert grid.with_disc_blocks(np.zeros((0, 2)), []) is grid
+    assert not grid.blocked[70, 70] and grid.with_disc_blocks([[0.025, 0.025]], [0.1]).blocked[70, 70]
+
 def test_cell_centre_round_trip():
     grid = grid_from_arena(Arena(), inflation=0.0)
     cells = np.array([[0, 0], [139, 139], [70, 12]])
