@@ -298,7 +298,7 @@ def dwa_control(
 
     vs, ws = _samples(v0, w0, config, limits)
     times = _times(config.sim_time, config.sim_dt)
-    x, y, theta, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
+    x, y, _, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
 
     # Every rollout point lies within reach = max |v| · sim_time of (px, py).
     reach = float(np.abs(vs).max()) * float(times[-1])
@@ -373,7 +373,7 @@ def _near_discs(others: MovingDiscs, px: float, py: float, reach: float, horizon
         return []
     near = []
     for (cx0, cy0), (ux, uy), r in zip(others.centers.tolist(), others.velocities.tolist(),
-                                       others.radii.tolist()):
+                                       others.radii.tolist(), strict=True):
         ex, ey = cx0 - px, cy0 - py
         bound = (math.sqrt(ex * ex + ey * ey) - reach - math.sqrt(ux * ux + uy * uy) * horizon
                  - r)

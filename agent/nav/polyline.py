@@ -13,6 +13,7 @@ same to the last bit (tests/nav/test_nav_polyline.py checks it against numpy).
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 
@@ -40,7 +41,7 @@ def distance_to_polyline_xy(x: np.ndarray, y: np.ndarray, polyline: np.ndarray) 
         dx, dy = x - vx, y - vy
         return np.sqrt(dx * dx + dy * dy)
     least = None
-    for (ax, ay), (bx, by) in zip(vertices, vertices[1:]):
+    for (ax, ay), (bx, by) in pairwise(vertices):
         abx, aby = bx - ax, by - ay
         len2 = max(abx * abx + aby * aby, 1e-12)
         apx, apy = x - ax, y - ay
@@ -62,7 +63,7 @@ def _project(px: float, py: float, vertices: list[list[float]]) -> tuple[int, fl
     """Closest point of the polyline (a vertex list, ≥ 2 vertices) to (px, py): (segment index,
     x, y); the first segment on ties."""
     best, best_k, best_x, best_y = math.inf, 0, 0.0, 0.0
-    for k, ((ax, ay), (bx, by)) in enumerate(zip(vertices, vertices[1:])):
+    for k, ((ax, ay), (bx, by)) in enumerate(pairwise(vertices)):
         abx, aby = bx - ax, by - ay
         len2 = max(abx * abx + aby * aby, 1e-12)
         s = min(max(((px - ax) * abx + (py - ay) * aby) / len2, 0.0), 1.0)
@@ -106,7 +107,7 @@ def point_along_vertices(vertices: list[list[float]], distance: float) -> tuple[
     if len(vertices) == 1 or distance <= 0.0:
         return vertices[0][0], vertices[0][1]
     travelled = 0.0
-    for (ax, ay), (bx, by) in zip(vertices, vertices[1:]):
+    for (ax, ay), (bx, by) in pairwise(vertices):
         dx, dy = bx - ax, by - ay
         seg = math.sqrt(dx * dx + dy * dy)
         reached = travelled + seg
@@ -125,7 +126,7 @@ def polyline_length(polyline: np.ndarray) -> float:
 def vertices_length(vertices: list[list[float]]) -> float:
     """``polyline_length`` on a vertex list."""
     lengths = []
-    for (ax, ay), (bx, by) in zip(vertices, vertices[1:]):
+    for (ax, ay), (bx, by) in pairwise(vertices):
         dx, dy = bx - ax, by - ay
         lengths.append(math.sqrt(dx * dx + dy * dy))
     if len(lengths) >= 8:  # numpy sums 8 terms or more pairwise: the array form's order

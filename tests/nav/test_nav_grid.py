@@ -102,7 +102,8 @@ def test_with_disc_blocks_blocks_exactly_the_cells_with_discs_blocks(seed):
         assert np.array_equal(windows.occupied, whole.occupied)
         assert windows.clearance is grid.clearance  # the static layer, as documented
     assert grid.with_disc_blocks(np.zeros((0, 2)), []) is grid
-    assert not grid.blocked[70, 70] and grid.with_disc_blocks([[0.025, 0.025]], [0.1]).blocked[70, 70]
+    stamped = grid.with_disc_blocks([[0.025, 0.025]], [0.1])
+    assert not grid.blocked[70, 70] and stamped.blocked[70, 70]
 
 def test_cell_centre_round_trip():
     grid = grid_from_arena(Arena(), inflation=0.0)
