@@ -12,8 +12,9 @@ Three layers, all of shape ``(ny, nx)``:
 * ``blocked``   — configuration space of a disc robot: ``clearance < inflation`` with
   ``inflation = robot radius + margin`` [m]. The global planner searches the free cells.
 
-Other robots are stamped onto a copy as inflated discs each control cycle (``with_discs``), which
-is what the paper's local cost map does with the robots seen by the sensors.
+Other robots are stamped onto a copy as inflated discs (``with_discs``), which is what the
+paper's local cost map does with the robots seen by the sensors; the global re-plan stamps only
+the cells the planner reads (``with_disc_blocks``: ``blocked``, computed around each disc).
 """
 
 from __future__ import annotations
