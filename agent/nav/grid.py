@@ -195,6 +195,23 @@ class OccupancyGrid:
         cells = self.cell_of(pts)
         return self.inside(pts) & ~self.blocked[cells[..., 1], cells[..., 0]]
 
+    def cell_of_point(self, x: float, y: float) -> tuple[int, int]:
+        """``cell_of`` of one point (x, y) [m], in plain floats (the same cell)."""
+        ny, nx = self.shape
+        ix = math.floor((x - self.origin[0]) / self.resolution)
+        iy = math.floor((y - self.origin[1]) / self.resolution)
+        return min(max(ix, 0), nx - 1), min(max(iy, 0), ny - 1)
+
+    def is_free_point(self, x: float, y: float) -> bool:
+        """``is_free`` of one point (x, y) [m], in plain floats (the same answer)."""
+        ny, nx = self.shape
+        ox, oy = self.origin
+        res = self.resolution
+        if not (ox <= x < ox + nx * res and oy <= y < oy + ny * res):
+            return False
+        ix, iy = self.cell_of_point(x, y)
+        return not self.blocked[iy, ix]
+
     def inflated(self, inflation: float) -> OccupancyGrid:
         """The same obstacles inflated by another radius [m]."""
         return OccupancyGrid(

@@ -212,10 +212,10 @@ def plan_path(
     """
     p0 = (float(start[0]), float(start[1]))
     p1 = (float(goal[0]), float(goal[1]))
-    start_free = bool(grid.is_free(np.array(p0)))
-    goal_free = bool(grid.is_free(np.array(p1)))
-    c0 = tuple(int(v) for v in grid.cell_of(np.array(p0))) if start_free else None
-    c1 = tuple(int(v) for v in grid.cell_of(np.array(p1))) if goal_free else None
+    start_free = grid.is_free_point(*p0)
+    goal_free = grid.is_free_point(*p1)
+    c0 = grid.cell_of_point(*p0) if start_free else None
+    c1 = grid.cell_of_point(*p1) if goal_free else None
     if c0 is None:
         c0 = nearest_free_cell(grid, p0)
     if c1 is None:

@@ -156,3 +156,17 @@ def test_coordinate_and_point_lookups_equal_clearance_at():
     points = zip(x, y, strict=True)
     assert [grid.clearance_point(float(a), float(b)) for a, b in points] == list(expected)
     assert (expected == -grid.resolution).any() and (expected > 0).any()
+    # the planner's one-point lookups
+    cells = grid.cell_of(np.stack([x, y], axis=-1))
+    free = grid.is_free(np.stack([x, y], axis=-1))
+    for k, (a, b) in enumerate(zip(x.tolist(), y.tolist(), strict=True)):
+        assert grid.cell_of_point(a, b) == tuple(cells[k]) and grid.is_free_point(a, b) == free[k]
+    assert free.any() and not free.all()
+    # the DWA's promise that every point lies within reach of a centre: the same values whether
+    # the disc lies inside the grid (the test is skipped) or crosses its edge (it is not)
+    for cx, cy in ((0.0, 0.0), (2.9, -2.9), (3.4, 0.0)):
+        px, py = cx + rng.uniform(-0.5, 0.5, 200), cy + rng.uniform(-0.5, 0.5, 200)
+        inside_reach = np.hypot(px - cx, py - cy) <= 0.5
+        px, py = px[inside_reach], py[inside_reach]
+        assert np.array_equal(grid.clearance_xy(px, py, within=(cx, cy, 0.5)),
+                              grid.clearance_at(np.stack([px, py], axis=-1)))
