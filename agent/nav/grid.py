@@ -249,7 +249,6 @@ class OccupancyGrid:
             self.inflation,
         )
 
-
     def with_disc_blocks(self, centers: np.ndarray,
                          radii: np.ndarray | Sequence[float]) -> OccupancyGrid:
         """For path planning: ``blocked`` and ``occupied`` exactly as ``with_discs`` gives them,
@@ -283,6 +282,7 @@ class OccupancyGrid:
             occupied[j_lo:j_hi, i_lo:i_hi] |= gap <= 0.0
             blocked[j_lo:j_hi, i_lo:i_hi] |= gap < self.inflation
         return OccupancyGrid(self.origin, res, occupied, self.clearance, blocked, self.inflation)
+
 
 def grid_from_arena(
     arena: Arena, inflation: float, resolution: float = DEFAULT_RESOLUTION

@@ -6,8 +6,9 @@ Paths here have a handful of vertices and are read once per 5 Hz control step, s
 but the distance of many points is computed in plain floats over the vertex list (issue 17: a
 numpy call costs 1–13 µs here, more than the arithmetic). The operations and their order are
 those of the array form (``s = clip((p − a)·(b − a) / ‖b − a‖², 0, 1)`` with the dot product
-summed x then y, ``‖·‖ = sqrt(x² + y²)``, cumulative sums left to right), so the values are the
-same to the last bit (tests/nav/test_nav_polyline.py checks it against numpy).
+summed x then y, ``‖·‖ = sqrt(x² + y²)``, cumulative sums left to right, numpy's pairwise sum
+for a length of 8 segments or more), so the values are the same to the last bit
+(tests/nav/test_nav_dwa_reference.py checks them against the array form).
 """
 
 from __future__ import annotations
