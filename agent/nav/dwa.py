@@ -251,15 +251,6 @@ def inflation_cost(d: np.ndarray, robot_radius: float, config: DwaConfig) -> np.
     return np.where(d < robot_radius, 253.0, np.where(d <= config.inflation_radius, decay, 0.0))
 
 
-def _inflation_cost_of(d: float, robot_radius: float, config: DwaConfig) -> float:
-    """``inflation_cost`` of one clearance [m] (numpy's ``exp``, as the array form)."""
-    if d < robot_radius:
-        return 253.0
-    if d > config.inflation_radius:
-        return 0.0
-    return 252.0 * float(np.exp(-config.cost_scaling_factor * max(d - robot_radius, 0.0)))
-
-
 def dwa_control(
     pose: Sequence[float],
     velocity: Sequence[float],
@@ -300,11 +291,12 @@ def dwa_control(
     times = _times(config.sim_time, config.sim_dt)
     x, y, _, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
 
-    # Every rollout point lies within reach = max |v| · sim_time of (px, py).
-    reach = float(np.abs(vs).max()) * float(times[-1])
+    # Every rollout point lies within reach = max |v| · horizon of (px, py).
+    horizon = float(times[-1])
+    reach = float(np.abs(vs).max()) * horizon
     clearance = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
     current = grid.clearance_point(px, py)
-    for cx0, cy0, ux, uy, r in _near_discs(others, px, py, reach, float(times[-1]), config):
+    for cx0, cy0, ux, uy, r in _near_discs(others, px, py, reach, horizon, config):
         dx = x - (cx0 + times * ux)
         dy = y - (cy0 + times * uy)
         dx *= dx
@@ -351,7 +343,7 @@ def dwa_control(
     # the inflation cost does not increase with the clearance, so the worst cost along a rollout
     # is the cost of its least clearance (the same value, on S instead of S·T clearances).
     worst = np.maximum(inflation_cost(min_clearance, robot_radius, config),
-                       _inflation_cost_of(current, robot_radius, config))
+                       float(inflation_cost(np.float64(current), robot_radius, config)))
     cost += config.occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
     cost[~valid] = np.inf
