@@ -20,7 +20,17 @@ runtime), ``zenoh-minimal`` (the same with ``bus.transport.MINIMAL_RUNTIME``),
 thread), ``zenoh-fifo`` (minimal runtime, a ``FifoChannel`` read by the main thread with a
 blocking ``recv``). Zenoh variants run peer to peer on loopback (multicast scouting off).
 
-    .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
+**The lockstep floor** (:func:`lockstep_probe`): the lockstep fleet's shape with nothing of the
+fleet's own in it. A sim-like process publishes a frame to ``agents`` agent-like processes and
+one listener (the coordinator's recorder, which records every frame but answers none), waits
+for every agent's answer, spends ``sim_work_us`` (the simulator's world tick, commands and
+encoding), and publishes the next frame at once; each agent spends ``work_us`` per frame. The
+frames per wall second over the mocap rate (100 Hz) are the speed-up that shape allows on this
+machine at this moment: over bare UDP (``udp``: the wake-ups alone) and over zenoh as the fleet
+runs it (``zenoh``: peers on loopback, minimal runtime, FIFO channels read by the stepping
+thread). With 0 µs of work it is the round trip of the wake-ups alone.
+
+    .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3] [--lockstep]
 """
 
 from __future__ import annotations
@@ -180,6 +190,142 @@ def sender(variant: str, port: int, ticks: int, ready) -> list[float]:
     return rtts
 
 
+def listener(transport: str, port: int) -> None:
+    """Lockstep probe: receive every frame, answer none (the recorder), until killed."""
+    if transport == "udp":
+        rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        rx.bind(("127.0.0.1", port + 1))
+        print("ready", flush=True)
+        while True:
+            rx.recvfrom(2048)
+    import zenoh
+
+    session = zenoh.open(_config(f"tcp/127.0.0.1:{port}", None))
+    sub = session.declare_subscriber("probe/frame", zenoh.handlers.FifoChannel(1024))
+    print("ready", flush=True)
+    while True:
+        sub.recv().payload.to_bytes()
+
+
+def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
+                    sim_work_us: float) -> dict:
+    """Publish a frame, wait for ``agents`` answers, spend ``sim_work_us``; ``ticks`` times
+    (after a warm-up that waits until every agent answers). ``ports``: the agents' then the
+    listener's. Returns frames per wall second and this process's CPU per frame."""
+    warm = 200
+    if transport == "udp":
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        tx.bind(("127.0.0.1", 0))
+        tx.settimeout(2.0)
+        targets = [("127.0.0.1", p + 1) for p in ports]
+
+        def put() -> None:
+            for target in targets:
+                tx.sendto(FRAME, target)
+
+        def answer() -> None:
+            tx.recvfrom(2048)
+    else:
+        import zenoh
+
+        config = _config(None, None)
+        config.insert_json5("connect/endpoints",
+                            json.dumps([f"tcp/127.0.0.1:{p}" for p in ports]))
+        session = zenoh.open(config)
+        sub = session.declare_subscriber("probe/cmd", zenoh.handlers.FifoChannel(64))
+        pub = session.declare_publisher("probe/frame")
+
+        def put() -> None:
+            pub.put(FRAME)
+
+        def answer() -> None:
+            sub.recv()
+
+        # every agent subscribed: a frame answered by all of them (bounded: 10 s)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline:
+            pub.put(FRAME)
+            time.sleep(0.2)
+            got = 0
+            while sub.try_recv() is not None:
+                got += 1
+            if got >= agents:
+                break
+        else:
+            raise RuntimeError("lockstep probe: not every agent answered within 10 s")
+    for k in range(warm + ticks):
+        if k == warm:
+            started = time.perf_counter()
+            c0 = time.process_time()
+        put()
+        for _ in range(agents):
+            answer()
+        _busy(sim_work_us)
+    wall = time.perf_counter() - started
+    cpu = time.process_time() - c0
+    if transport != "udp":
+        session.close()
+    return {"frames_per_s": ticks / wall, "sender_cpu_us": 1e6 * cpu / ticks}
+
+
+def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
+                   work_us: float = 100.0, sim_work_us: float = 150.0,
+                   transports: tuple[str, ...] = ("udp", "zenoh"), base_port: int = 0
+                   ) -> dict[str, dict]:
+    """The lockstep floor (module docstring): per transport, the median over ``runs`` of the
+    frames per second and the speed-up over 100 Hz; the run lasts about ``seconds`` at 10×."""
+    port = base_port or (20000 + (os.getpid() * 7) % 20000)
+    ticks = int(seconds * 1000)
+    out: dict[str, dict] = {}
+    for transport in transports:
+        rows = []
+        for _ in range(max(1, runs)):
+            ports = [port + 3 * i for i in range(agents + 1)]
+            port += 3 * (agents + 1)
+            rows.append(_lockstep_once(transport, ports, agents, ticks, work_us, sim_work_us))
+        ok = [r for r in rows if "error" not in r] or rows
+        fps = statistics.median(r["frames_per_s"] for r in ok)
+        out[transport] = {"frames_per_s": fps, "speedup": fps / 100.0,
+                          "sender_cpu_us": statistics.median(r["sender_cpu_us"] for r in ok),
+                          "agents": agents, "work_us": work_us, "sim_work_us": sim_work_us,
+                          "runs": rows}
+    return out
+
+
+def _lockstep_once(transport: str, ports: list[int], agents: int, ticks: int,
+                   work_us: float, sim_work_us: float) -> dict:
+    env = dict(os.environ)
+    env.pop("ZENOH_RUNTIME", None)
+    if transport == "zenoh":
+        env["ZENOH_RUNTIME"] = MINIMAL_RUNTIME
+    variant = "udp" if transport == "udp" else "zenoh-fifo"
+    started: list[subprocess.Popen] = []
+    nan = float("nan")
+    try:
+        for i, p in enumerate(ports):  # the agents answer (far more frames than sent), the
+            role = ["--role", "listener"] if i == agents else ["--role", "receiver"]  # last
+            started.append(subprocess.Popen(  # only listens
+                [sys.executable, __file__, "--variant", variant, "--port", str(p),
+                 "--ticks", str(10 * ticks + 10_000), "--work-us", str(work_us), *role],
+                stdout=subprocess.PIPE, text=True, env=env))
+            if started[-1].stdout is None or started[-1].stdout.readline().strip() != "ready":
+                return {"frames_per_s": nan, "sender_cpu_us": nan, "error": "did not start"}
+        tx = subprocess.run([sys.executable, __file__, "--role", "lockstep-sender",
+                             "--variant", variant, "--ports", *map(str, ports),
+                             "--agents", str(agents), "--ticks", str(ticks),
+                             "--sim-work-us", str(sim_work_us)],
+                            capture_output=True, text=True, env=env, timeout=60 + ticks / 100)
+        if tx.returncode != 0:
+            return {"frames_per_s": nan, "sender_cpu_us": nan, "error": tx.stderr[-500:]}
+        return json.loads(tx.stdout.strip().splitlines()[-1])
+    except subprocess.TimeoutExpired:
+        return {"frames_per_s": nan, "sender_cpu_us": nan, "error": "timed out"}
+    finally:
+        for p in started:
+            p.kill()
+            p.wait()
+
+
 def relay(port: int, ticks: int) -> None:
     """``udp-relay``: forward the sender's frames (from ``port``) to the receiver (``port + 1``)
     and the receiver's answers back, on ``port + 2``, until ``ticks`` answers or 3 s of quiet."""
@@ -266,14 +412,38 @@ def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--role", choices=("sender", "receiver", "relay"))
+    parser.add_argument("--role", choices=("sender", "receiver", "relay", "listener",
+                                           "lockstep-sender"))
     parser.add_argument("--variant", choices=VARIANTS)
     parser.add_argument("--port", type=int, default=0)
     parser.add_argument("--ticks", type=int, default=300)
     parser.add_argument("--work-us", type=float, default=30.0)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--ports", type=int, nargs="*", default=[])
+    parser.add_argument("--agents", type=int, default=3)
+    parser.add_argument("--sim-work-us", type=float, default=150.0)
+    parser.add_argument("--lockstep", action="store_true",
+                        help="the lockstep floor (lockstep_probe) instead of the echo variants")
     args = parser.parse_args(argv)
+    transport = "udp" if args.variant in ("udp", "udp-relay") else "zenoh"
+    if args.role == "listener":
+        listener(transport, args.port)
+        return 0
+    if args.role == "lockstep-sender":
+        print(json.dumps(lockstep_sender(transport, args.ports, args.agents, args.ticks,
+                                         args.sim_work_us)))
+        return 0
+    if args.lockstep:
+        print(f"load average {os.getloadavg()[0]:.2f}")
+        for work, sim_work in ((args.work_us if args.work_us != 30.0 else 100.0,
+                                args.sim_work_us), (0.0, 0.0)):
+            result = lockstep_probe(args.runs, args.seconds, args.agents, work, sim_work)
+            for name, row in result.items():
+                print(f"lockstep {name:<6} {args.agents} agents ({work:.0f} µs), sim "
+                      f"{sim_work:.0f} µs: {row['frames_per_s']:7.0f} frames/s = "
+                      f"{row['speedup']:5.2f}× real time")
+        return 0
     if args.role == "receiver":
         print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us)))
         return 0

@@ -34,7 +34,10 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   Python process woken 100× a second) and over zenoh as tlfleet configures it, so the gap of
   the real agent tick to physics is visible; and the round trip's p99 over bare UDP, directly
   and through a relay process (the realtime fleet's shape: sim → router → agent → router →
-  sim), the floor of the latency p99 on this machine at this moment;
+  sim), the floor of the latency p99 on this machine at this moment; and the lockstep
+  fleet's shape with the fleet's code replaced by fixed work (``floor_probe.lockstep_probe``:
+  a sim-like process, 3 agent-like ones and a listener, over zenoh and over bare UDP), the
+  speed-up that shape allows at this moment, beside the real fleet's;
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
 Besides, for every run, the CPU time of each child process per wall second of the supervised
@@ -66,6 +69,7 @@ sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
 from bench.common import Figure, load_average, report  # noqa: E402
+from bench.floor_probe import lockstep_probe  # noqa: E402
 from bench.floor_probe import probe as floor_probe  # noqa: E402
 from coordinator.hosts_run import run_on_hosts  # noqa: E402
 from coordinator.rundir import read_events  # noqa: E402
@@ -438,6 +442,8 @@ def main(argv: list[str] | None = None) -> int:
             two_hosts = hosts_fleets(args.host_sizes, runs, fleet_s, tmpdir)
     floor = floor_probe(runs=runs, seconds=2.0 if args.quick else 3.0) \
         if "floor" not in args.skip else {}
+    lockstep_floor = lockstep_probe(runs=runs, seconds=1.0 if args.quick else 3.0) \
+        if "floor" not in args.skip and "lockstep" not in args.skip else {}
     nan = math.nan
     cpu_sim = median(lockstep, "total_cpu_s_per_sim_s") if lockstep else nan
     cores = os.cpu_count() or 1
@@ -490,6 +496,14 @@ def main(argv: list[str] | None = None) -> int:
                cpu_sim, "s"),
         Figure("cpu_bound_speedup", f"  speed-up that CPU allows on {cores} cores (ceiling)",
                cores / cpu_sim if cpu_sim > 0 else nan, "×"),
+        Figure("lockstep_floor_zenoh", "  floor: the lockstep shape over zenoh, speed-up",
+               lockstep_floor.get("zenoh", {}).get("speedup", nan), "×",
+               note="a sim-like process and 3 agent-like ones (minimal runtime, FIFO channels) "
+                    "and a listener that only records: frame out, 3 answers in, 150 µs of sim "
+                    "work, next frame; 100 µs of work per agent; no LTL agents "
+                    "(bench/floor_probe.py --lockstep)"),
+        Figure("lockstep_floor_udp", "  floor: the same shape over bare UDP, speed-up",
+               lockstep_floor.get("udp", {}).get("speedup", nan), "×"),
         Figure("max_fleet", "largest STL fleet at 100 Hz with ≤ 1 % missed",
                float(max_fleet) if fleets else nan, "robots", TARGETS["max_fleet"],
                better="higher"),
@@ -512,6 +526,7 @@ def main(argv: list[str] | None = None) -> int:
                                   "fleet": fleet_s},
                   "latency_histograms_ms": [r["latency_histogram_ms"] for r in realtime],
                   "floor": floor, "floor_beside_realtime": beside,
+                  "lockstep_floor": lockstep_floor,
                   "per_run": {"realtime": realtime, "lockstep": lockstep,
                               "fleets": {str(n): r for n, r in fleets.items()},
                               "two_hosts": {v: {str(n): r for n, r in sizes.items()}

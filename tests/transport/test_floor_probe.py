@@ -1,0 +1,31 @@
+"""``bench/floor_probe.py``'s lockstep floor (issue 17): the lockstep fleet's shape with fixed work
+per process, over bare UDP and over zenoh. Checked: every run completes on loopback, the sender
+really waits for every agent's answer before the next frame (a frame cannot go faster than one
+agent's work), and the speed-up is the frame rate over the 100 Hz mocap rate."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+from bench.floor_probe import lockstep_probe  # noqa: E402
+
+
+@pytest.mark.parametrize("transport", ["udp", "zenoh"])
+def test_lockstep_floor_runs_and_waits_for_every_agent(transport):
+    work_us = 2000.0  # each agent busy 2 ms per frame: at most 500 frames per wall second
+    result = lockstep_probe(runs=1, seconds=0.2, agents=2, work_us=work_us, sim_work_us=10.0,
+                            transports=(transport,))
+    row = result[transport]
+    assert [r.get("error") for r in row["runs"]] == [None]
+    assert math.isfinite(row["frames_per_s"]) and row["frames_per_s"] > 0.0
+    assert row["frames_per_s"] <= 1e6 / work_us  # the lockstep wait, not a timing target
+    assert row["speedup"] == pytest.approx(row["frames_per_s"] / 100.0)
+    assert row["sender_cpu_us"] > 0.0
+    assert (row["agents"], row["work_us"], row["sim_work_us"]) == (2, work_us, 10.0)
