@@ -74,8 +74,9 @@ def _config(listen: str | None, connect: str | None):
     return c
 
 
-def receiver(variant: str, port: int, ticks: int, work_us: float) -> dict:
-    """Answer ``ticks`` frames; return CPU per tick of this process."""
+def receiver(variant: str, port: int, ticks: int, work_us: float,
+             key: str = "probe/frame") -> dict:
+    """Answer ``ticks`` frames (zenoh: on ``key``); return CPU per tick of this process."""
     done = 0
     if variant in ("udp", "udp-relay"):
         rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -95,7 +96,7 @@ def receiver(variant: str, port: int, ticks: int, work_us: float) -> dict:
         pub = session.declare_publisher("probe/cmd")
         try:
             if variant == "zenoh-fifo":
-                sub = session.declare_subscriber("probe/frame", zenoh.handlers.FifoChannel(16))
+                sub = session.declare_subscriber(key, zenoh.handlers.FifoChannel(16))
                 print("ready", flush=True)
                 c0 = resource.getrusage(resource.RUSAGE_SELF)
                 while done < ticks:  # zenoh is reliable: the sender's frames all arrive
@@ -115,7 +116,7 @@ def receiver(variant: str, port: int, ticks: int, work_us: float) -> dict:
 
                 handler = (zenoh.handlers.Callback(on_sample, indirect=False)
                            if variant == "zenoh-direct" else on_sample)
-                session.declare_subscriber("probe/frame", handler)
+                session.declare_subscriber(key, handler)
                 print("ready", flush=True)
                 c0 = resource.getrusage(resource.RUSAGE_SELF)
                 quiet = time.monotonic() + 10.0
@@ -207,21 +208,37 @@ def listener(transport: str, port: int) -> None:
         sub.recv().payload.to_bytes()
 
 
+def ltl_phases(n: int, divider: int) -> list[int]:
+    """The decimated agents' phases, spread over the period as the fleet's LTL agents are
+    (architecture.md §3: φ = ⌊rank·d/n⌋)."""
+    return [rank * divider // n for rank in range(n)]
+
+
 def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
-                    sim_work_us: float) -> dict:
-    """Publish a frame, wait for ``agents`` answers, spend ``sim_work_us``; ``ticks`` times
-    (after a warm-up that waits until every agent answers). ``ports``: the agents' then the
-    listener's. Returns frames per wall second and this process's CPU per frame."""
+                    sim_work_us: float, ltl_ports: list[int] = (), divider: int = 20) -> dict:
+    """Publish a frame, wait for the due agents' answers, spend ``sim_work_us``; ``ticks``
+    times (after a warm-up that waits until every agent answers). ``ports``: the every-tick
+    agents' then the listener's; ``ltl_ports``: decimated agents, due every ``divider`` frames at
+    their phase (zenoh: each reads its own key ``probe/every/<phase>``, as the LTL agents read
+    ``mocap_every``). Returns frames per wall second and this process's CPU per frame."""
     warm = 200
+    phases = ltl_phases(len(ltl_ports), divider)
     if transport == "udp":
         tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         tx.bind(("127.0.0.1", 0))
         tx.settimeout(2.0)
         targets = [("127.0.0.1", p + 1) for p in ports]
+        decimated = [("127.0.0.1", p + 1) for p in ltl_ports]
 
-        def put() -> None:
+        def put(k: int) -> int:
             for target in targets:
                 tx.sendto(FRAME, target)
+            due = 0
+            for target, phase in zip(decimated, phases, strict=True):
+                if k % divider == phase:
+                    tx.sendto(FRAME, target)
+                    due += 1
+            return due
 
         def answer() -> None:
             tx.recvfrom(2048)
@@ -230,26 +247,35 @@ def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
 
         config = _config(None, None)
         config.insert_json5("connect/endpoints",
-                            json.dumps([f"tcp/127.0.0.1:{p}" for p in ports]))
+                            json.dumps([f"tcp/127.0.0.1:{p}" for p in (*ports, *ltl_ports)]))
         session = zenoh.open(config)
         sub = session.declare_subscriber("probe/cmd", zenoh.handlers.FifoChannel(64))
         pub = session.declare_publisher("probe/frame")
+        every = [session.declare_publisher(f"probe/every/{phase}") for phase in phases]
 
-        def put() -> None:
+        def put(k: int) -> int:
             pub.put(FRAME)
+            due = 0
+            for publisher, phase in zip(every, phases, strict=True):
+                if k % divider == phase:
+                    publisher.put(FRAME)
+                    due += 1
+            return due
 
         def answer() -> None:
             sub.recv()
 
-        # every agent subscribed: a frame answered by all of them (bounded: 10 s)
+        # every agent subscribed: a frame on every key answered by all (bounded: 10 s)
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline:
             pub.put(FRAME)
+            for publisher in every:
+                publisher.put(FRAME)
             time.sleep(0.2)
             got = 0
             while sub.try_recv() is not None:
                 got += 1
-            if got >= agents:
+            if got >= agents + len(every):
                 break
         else:
             raise RuntimeError("lockstep probe: not every agent answered within 10 s")
@@ -257,8 +283,8 @@ def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
         if k == warm:
             started = time.perf_counter()
             c0 = time.process_time()
-        put()
-        for _ in range(agents):
+        due = put(k)
+        for _ in range(agents + due):
             answer()
         _busy(sim_work_us)
     wall = time.perf_counter() - started
@@ -270,30 +296,38 @@ def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
 
 def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
                    work_us: float = 100.0, sim_work_us: float = 150.0,
-                   transports: tuple[str, ...] = ("udp", "zenoh"), base_port: int = 0
+                   transports: tuple[str, ...] = ("udp", "zenoh"), base_port: int = 0,
+                   ltl_agents: int = 0, ltl_work_us: float = 1000.0, divider: int = 20
                    ) -> dict[str, dict]:
     """The lockstep floor (module docstring): per transport, the median over ``runs`` of the
-    frames per second and the speed-up over 100 Hz; the run lasts about ``seconds`` at 10×."""
+    frames per second and the speed-up over 100 Hz; the run lasts about ``seconds`` at 10×.
+    ``ltl_agents`` decimated agents (``ltl_work_us`` per frame, due every ``divider`` frames,
+    staggered) add the LTL agents' shape."""
     port = base_port or (20000 + (os.getpid() * 7) % 20000)
     ticks = int(seconds * 1000)
     out: dict[str, dict] = {}
     for transport in transports:
         rows = []
         for _ in range(max(1, runs)):
-            ports = [port + 3 * i for i in range(agents + 1)]
-            port += 3 * (agents + 1)
-            rows.append(_lockstep_once(transport, ports, agents, ticks, work_us, sim_work_us))
+            ports = [port + 3 * i for i in range(agents + 1 + ltl_agents)]
+            port += 3 * len(ports)
+            rows.append(_lockstep_once(transport, ports, agents, ticks, work_us, sim_work_us,
+                                       ltl_agents, ltl_work_us, divider))
         ok = [r for r in rows if "error" not in r] or rows
         fps = statistics.median(r["frames_per_s"] for r in ok)
         out[transport] = {"frames_per_s": fps, "speedup": fps / 100.0,
                           "sender_cpu_us": statistics.median(r["sender_cpu_us"] for r in ok),
                           "agents": agents, "work_us": work_us, "sim_work_us": sim_work_us,
-                          "runs": rows}
+                          "ltl_agents": ltl_agents, "ltl_work_us": ltl_work_us,
+                          "divider": divider, "runs": rows}
     return out
 
 
 def _lockstep_once(transport: str, ports: list[int], agents: int, ticks: int,
-                   work_us: float, sim_work_us: float) -> dict:
+                   work_us: float, sim_work_us: float, ltl_agents: int = 0,
+                   ltl_work_us: float = 0.0, divider: int = 20) -> dict:
+    """One lockstep probe: ``ports`` are the every-tick agents', the listener's, then the
+    decimated agents'."""
     env = dict(os.environ)
     env.pop("ZENOH_RUNTIME", None)
     if transport == "zenoh":
@@ -302,16 +336,25 @@ def _lockstep_once(transport: str, ports: list[int], agents: int, ticks: int,
     started: list[subprocess.Popen] = []
     nan = float("nan")
     try:
-        for i, p in enumerate(ports):  # the agents answer (far more frames than sent), the
-            role = ["--role", "listener"] if i == agents else ["--role", "receiver"]  # last
-            started.append(subprocess.Popen(  # only listens
+        phases = ltl_phases(ltl_agents, divider)
+        for i, p in enumerate(ports):  # the agents answer (far more frames than sent)
+            if i == agents:
+                role = ["--role", "listener"]  # only listens
+            elif i < agents:
+                role = ["--role", "receiver", "--work-us", str(work_us)]
+            else:
+                role = ["--role", "receiver", "--work-us", str(ltl_work_us),
+                        "--key", f"probe/every/{phases[i - agents - 1]}"]
+            started.append(subprocess.Popen(
                 [sys.executable, __file__, "--variant", variant, "--port", str(p),
-                 "--ticks", str(10 * ticks + 10_000), "--work-us", str(work_us), *role],
+                 "--ticks", str(10 * ticks + 10_000), *role],
                 stdout=subprocess.PIPE, text=True, env=env))
             if started[-1].stdout is None or started[-1].stdout.readline().strip() != "ready":
                 return {"frames_per_s": nan, "sender_cpu_us": nan, "error": "did not start"}
         tx = subprocess.run([sys.executable, __file__, "--role", "lockstep-sender",
-                             "--variant", variant, "--ports", *map(str, ports),
+                             "--variant", variant, "--ports", *map(str, ports[:agents + 1]),
+                             "--ltl-ports", *map(str, ports[agents + 1:]),
+                             "--divider", str(divider),
                              "--agents", str(agents), "--ticks", str(ticks),
                              "--sim-work-us", str(sim_work_us)],
                             capture_output=True, text=True, env=env, timeout=60 + ticks / 100)
@@ -421,6 +464,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--ports", type=int, nargs="*", default=[])
+    parser.add_argument("--ltl-ports", type=int, nargs="*", default=[])
+    parser.add_argument("--divider", type=int, default=20)
+    parser.add_argument("--key", default="probe/frame")
     parser.add_argument("--agents", type=int, default=3)
     parser.add_argument("--sim-work-us", type=float, default=150.0)
     parser.add_argument("--lockstep", action="store_true",
@@ -432,20 +478,24 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.role == "lockstep-sender":
         print(json.dumps(lockstep_sender(transport, args.ports, args.agents, args.ticks,
-                                         args.sim_work_us)))
+                                         args.sim_work_us, args.ltl_ports, args.divider)))
         return 0
     if args.lockstep:
         print(f"load average {os.getloadavg()[0]:.2f}")
-        for work, sim_work in ((args.work_us if args.work_us != 30.0 else 100.0,
-                                args.sim_work_us), (0.0, 0.0)):
-            result = lockstep_probe(args.runs, args.seconds, args.agents, work, sim_work)
+        agent_work = args.work_us if args.work_us != 30.0 else 100.0  # (30: the echo's)
+        for work, sim_work, ltl in ((agent_work, args.sim_work_us, 0),
+                                    (agent_work, args.sim_work_us, 2), (0.0, 0.0, 0)):
+            result = lockstep_probe(args.runs, args.seconds, args.agents, work, sim_work,
+                                    ltl_agents=ltl)
             for name, row in result.items():
-                print(f"lockstep {name:<6} {args.agents} agents ({work:.0f} µs), sim "
-                      f"{sim_work:.0f} µs: {row['frames_per_s']:7.0f} frames/s = "
-                      f"{row['speedup']:5.2f}× real time")
+                print(f"lockstep {name:<6} {args.agents} agents ({work:.0f} µs), "
+                      f"{ltl} LTL-like ({row['ltl_work_us']:.0f} µs every "
+                      f"{row['divider']}th), sim {sim_work:.0f} µs: "
+                      f"{row['frames_per_s']:7.0f} frames/s = {row['speedup']:5.2f}× real time")
         return 0
     if args.role == "receiver":
-        print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us)))
+        print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us,
+                                  args.key)))
         return 0
     if args.role == "relay":
         relay(args.port, args.ticks)

@@ -36,7 +36,8 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   and through a relay process (the realtime fleet's shape: sim → router → agent → router →
   sim), the floor of the latency p99 on this machine at this moment; and the lockstep
   fleet's shape with the fleet's code replaced by fixed work (``floor_probe.lockstep_probe``:
-  a sim-like process, 3 agent-like ones and a listener, over zenoh and over bare UDP), the
+  a sim-like process, 3 agent-like ones, 2 decimated LTL-like ones and a listener, over
+  zenoh and over bare UDP), the
   speed-up that shape allows at this moment, beside the real fleet's;
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
@@ -442,7 +443,8 @@ def main(argv: list[str] | None = None) -> int:
             two_hosts = hosts_fleets(args.host_sizes, runs, fleet_s, tmpdir)
     floor = floor_probe(runs=runs, seconds=2.0 if args.quick else 3.0) \
         if "floor" not in args.skip else {}
-    lockstep_floor = lockstep_probe(runs=runs, seconds=1.0 if args.quick else 3.0) \
+    lockstep_floor = lockstep_probe(runs=runs, seconds=1.0 if args.quick else 3.0,
+                                    ltl_agents=2, ltl_work_us=1000.0, divider=20) \
         if "floor" not in args.skip and "lockstep" not in args.skip else {}
     nan = math.nan
     cpu_sim = median(lockstep, "total_cpu_s_per_sim_s") if lockstep else nan
@@ -498,10 +500,10 @@ def main(argv: list[str] | None = None) -> int:
                cores / cpu_sim if cpu_sim > 0 else nan, "×"),
         Figure("lockstep_floor_zenoh", "  floor: the lockstep shape over zenoh, speed-up",
                lockstep_floor.get("zenoh", {}).get("speedup", nan), "×",
-               note="a sim-like process and 3 agent-like ones (minimal runtime, FIFO channels) "
-                    "and a listener that only records: frame out, 3 answers in, 150 µs of sim "
-                    "work, next frame; 100 µs of work per agent; no LTL agents "
-                    "(bench/floor_probe.py --lockstep)"),
+               note="Scenario 1's shape with fixed work: a sim-like process (150 µs per "
+                    "frame), 3 agent-like ones (100 µs), 2 decimated ones (1 ms every 20th "
+                    "frame, staggered) and a listener that only records; minimal runtime, FIFO "
+                    "channels (bench/floor_probe.py --lockstep)"),
         Figure("lockstep_floor_udp", "  floor: the same shape over bare UDP, speed-up",
                lockstep_floor.get("udp", {}).get("speedup", nan), "×"),
         Figure("max_fleet", "largest STL fleet at 100 Hz with ≤ 1 % missed",

@@ -29,3 +29,23 @@ def test_lockstep_floor_runs_and_waits_for_every_agent(transport):
     assert row["speedup"] == pytest.approx(row["frames_per_s"] / 100.0)
     assert row["sender_cpu_us"] > 0.0
     assert (row["agents"], row["work_us"], row["sim_work_us"]) == (2, work_us, 10.0)
+
+
+@pytest.mark.parametrize("transport", ["udp", "zenoh"])
+def test_lockstep_floor_waits_for_the_decimated_agents_on_their_ticks(transport):
+    ltl_work_us, divider = 5000.0, 4  # one 5 ms answer every 4 frames: ≤ 800 frames a second
+    result = lockstep_probe(runs=1, seconds=0.2, agents=1, work_us=10.0, sim_work_us=10.0,
+                            transports=(transport,), ltl_agents=1, ltl_work_us=ltl_work_us,
+                            divider=divider)
+    row = result[transport]
+    assert [r.get("error") for r in row["runs"]] == [None]
+    assert 0.0 < row["frames_per_s"] <= divider * 1e6 / ltl_work_us
+    assert (row["ltl_agents"], row["ltl_work_us"], row["divider"]) == (1, ltl_work_us, divider)
+
+
+def test_the_decimated_agents_are_staggered_as_the_fleets_ltl_agents():
+    from bench.floor_probe import ltl_phases
+
+    assert ltl_phases(2, 20) == [0, 10]
+    assert ltl_phases(3, 20) == [0, 6, 13]
+    assert ltl_phases(0, 20) == []
