@@ -30,7 +30,9 @@ machine at this moment: over bare UDP (``udp``: the wake-ups alone) and over zen
 runs it (``zenoh``: peers on loopback, minimal runtime, FIFO channels read by the stepping
 thread). With 0 µs of work it is the round trip of the wake-ups alone.
 
-    .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3] [--lockstep]
+    .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
+    .venv/bin/python bench/floor_probe.py --lockstep [--work-us 100] [--sim-work-us 150]
+                                          [--ltl-agents 2] [--ltl-work-us 1000]
 """
 
 from __future__ import annotations
@@ -469,6 +471,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--key", default="probe/frame")
     parser.add_argument("--agents", type=int, default=3)
     parser.add_argument("--sim-work-us", type=float, default=150.0)
+    parser.add_argument("--ltl-agents", type=int, default=2,
+                        help="--lockstep: decimated agents (every 20th frame, staggered)")
+    parser.add_argument("--ltl-work-us", type=float, default=1000.0)
     parser.add_argument("--lockstep", action="store_true",
                         help="the lockstep floor (lockstep_probe) instead of the echo variants")
     args = parser.parse_args(argv)
@@ -484,9 +489,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"load average {os.getloadavg()[0]:.2f}")
         agent_work = args.work_us if args.work_us != 30.0 else 100.0  # (30: the echo's)
         for work, sim_work, ltl in ((agent_work, args.sim_work_us, 0),
-                                    (agent_work, args.sim_work_us, 2), (0.0, 0.0, 0)):
+                                    (agent_work, args.sim_work_us, args.ltl_agents),
+                                    (0.0, 0.0, 0)):
             result = lockstep_probe(args.runs, args.seconds, args.agents, work, sim_work,
-                                    ltl_agents=ltl)
+                                    ltl_agents=ltl, ltl_work_us=args.ltl_work_us)
             for name, row in result.items():
                 print(f"lockstep {name:<6} {args.agents} agents ({work:.0f} µs), "
                       f"{ltl} LTL-like ({row['ltl_work_us']:.0f} µs every "
