@@ -77,7 +77,7 @@ from coordinator.supervise import (
 )
 from coordinator.supervisor import Outcome, SupervisorConfig
 
-__all__ = ["RunConfig", "RunResult", "default_child_argv", "peer_links", "run_fleet"]
+__all__ = ["RunConfig", "RunResult", "child_sched", "default_child_argv", "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
@@ -117,6 +117,7 @@ class RunConfig:
     faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
     direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
+    sched: str = "auto"  # OS scheduling of the router, sim and agents (child_sched)
 
 
 #: what a sim or agent process listens on when it is a peer (peer_links): a free loopback port
@@ -141,6 +142,18 @@ def peer_links(config: RunConfig) -> bool:
     return config.direct_links and config.secure is None and config.zenoh_config is None
 
 
+def child_sched(config: RunConfig) -> str:
+    """``--sched`` of the router, the sim and the agents (:mod:`cli.process_flags`): ``auto``
+    is ``batch`` in lockstep (Linux ``SCHED_BATCH``: no process is preempted when another wakes
+    up; Scenario 1 lockstep ≈ 4–8 % faster, docs/performance.md round 9) and ``default`` in
+    realtime, where it made the latency tail worse."""
+    if config.sched not in ("auto", "default", "batch"):
+        raise ValueError(f"RunConfig.sched {config.sched!r}: expected auto, default or batch")
+    if config.sched == "auto":
+        return "batch" if config.mode == "lockstep" else "default"
+    return config.sched
+
+
 def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
                        endpoint: str) -> list[str]:
     """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
@@ -150,6 +163,7 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
     lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
         if role != "router" and peer_links(config) else ()
+    lease += ("--sched", "batch") if child_sched(config) == "batch" else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)
@@ -194,6 +208,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
     scenario = load_checked(config.scenario_path, config.secure)  # before anything else
+    child_sched(config)  # ValueError for a bad RunConfig.sched, before anything is started
     faults = run_faults(scenario, config.faults, config.duration)  # FaultSpecError: the same
     ProcessActuator.check_all(faults)  # link cuts need namespace hosts (coordinator.hosts)
     if config.zenoh_config is not None:  # a bad file fails here, before anything is written

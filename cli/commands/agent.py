@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 
 from agent.runtime.config import AgentConfig, AgentConfigError
+from cli.process_flags import add_process_arguments, apply_process_flags
 from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "agent"
@@ -33,6 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "costs one tiny message per tick (tlfleet run turns it on for runs "
                              "with link faults)")
     add_transport_arguments(parser)
+    add_process_arguments(parser)
 
 
 def config_from_args(args: argparse.Namespace) -> AgentConfig:
@@ -49,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from agent.runtime.main import main
 
     config = config_from_args(args)
+    apply_process_flags(args, f"agent/{args.robot}")
     try:
         return main(config)
     except AgentConfigError as exc:  # raised before any session is opened

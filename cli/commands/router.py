@@ -6,6 +6,7 @@ import argparse
 import threading
 
 from bus.router import RouterConfig, RouterConfigError
+from cli.process_flags import add_process_arguments, apply_process_flags
 from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "router"
@@ -17,6 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fleet name of the liveliness token alive/router/0 (default "
                              "'default'; a scenario's fleet is its [fleet] or its name)")
     add_transport_arguments(parser, default_mode="router")
+    add_process_arguments(parser)
 
 
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
@@ -26,4 +28,5 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         config = RouterConfig(fleet=args.fleet, transport=transport_config(args, "router"))
     except RouterConfigError as exc:
         raise SystemExit(f"tlfleet router: {exc}") from None
+    apply_process_flags(args, "router")
     return main(config, stop)

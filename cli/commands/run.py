@@ -87,6 +87,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="send frames and commands through the router too (by default an "
                              "unsecured run links the sim and the agents as zenoh peers; "
                              "architecture.md §1)")
+    parser.add_argument("--sched", choices=("auto", "default", "batch"), default="auto",
+                        help="OS scheduling of the router, sim and agents: 'batch' (Linux "
+                             "SCHED_BATCH, no preemption on wake-up) in lockstep and the OS "
+                             "default in realtime (auto, the default), or either for both")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
 
@@ -198,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        direct_links=args.direct_links,
+        direct_links=args.direct_links, sched=args.sched,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

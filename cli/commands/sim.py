@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from cli.arg_types import non_negative_float, positive_float
+from cli.process_flags import add_process_arguments, apply_process_flags
 from cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
@@ -43,6 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="sim time of recent frames kept to backfill a recorder that missed "
                              "them during a link cut [s] (default 10; also bounded to 8 MiB)")
     add_transport_arguments(parser)
+    add_process_arguments(parser)
 
 
 def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
@@ -76,4 +78,6 @@ def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
 def run(args: argparse.Namespace) -> int:
     from sim.process import main
 
-    return main(process_config(args))
+    config = process_config(args)
+    apply_process_flags(args, "sim")
+    return main(config)
