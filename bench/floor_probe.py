@@ -28,7 +28,10 @@ encoding), and publishes the next frame at once; each agent spends ``work_us`` p
 frames per wall second over the mocap rate (100 Hz) are the speed-up that shape allows on this
 machine at this moment: over bare UDP (``udp``: the wake-ups alone) and over zenoh as the fleet
 runs it (``zenoh``: peers on loopback, minimal runtime, FIFO channels read by the stepping
-thread). With 0 µs of work it is the round trip of the wake-ups alone.
+thread). With 0 µs of work it is the round trip of the wake-ups alone. ``ltl_agents`` adds
+decimated agent-like processes (the LTL agents: ``ltl_work_us`` every ``divider``-th frame, at
+staggered phases, each on a key of its own as ``mocap_every``), whose ticks the sender waits
+for too.
 
     .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
     .venv/bin/python bench/floor_probe.py --lockstep [--work-us 100] [--sim-work-us 150]
