@@ -90,7 +90,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sched", choices=("auto", "default", "batch"), default="auto",
                         help="OS scheduling of the router, sim and agents: 'batch' (Linux "
                              "SCHED_BATCH, no preemption on wake-up) in lockstep and the OS "
-                             "default in realtime (auto, the default), or either for both")
+                             "default in realtime (auto, the default), or either for both; "
+                             "--hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
 
