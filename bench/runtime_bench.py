@@ -37,8 +37,8 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   sim), the floor of the latency p99 on this machine at this moment; and the lockstep
   fleet's shape with the fleet's code replaced by fixed work (``floor_probe.lockstep_probe``:
   a sim-like process, 3 agent-like ones, 2 decimated LTL-like ones and a listener, over
-  zenoh and over bare UDP), the
-  speed-up that shape allows at this moment, beside the real fleet's;
+  zenoh and over bare UDP), the speed-up that shape allows at this moment, beside the real
+  fleet's;
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
 Besides, for every run, the CPU time of each child process per wall second of the supervised

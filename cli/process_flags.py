@@ -49,14 +49,13 @@ def apply_scheduling(policy: str) -> str | None:
         threads = [int(tid) for tid in os.listdir("/proc/self/task")]
     except OSError:
         threads = [0]
-    try:
-        for tid in threads:
-            try:
-                os.sched_setscheduler(tid, batch, os.sched_param(0))
-            except ProcessLookupError:  # a thread that ended meanwhile
-                continue
-    except OSError as exc:
-        return f"sched_setscheduler(SCHED_BATCH) failed: {exc}"
+    for tid in threads:
+        try:
+            os.sched_setscheduler(tid, batch, os.sched_param(0))
+        except ProcessLookupError:  # a thread that ended meanwhile
+            continue
+        except OSError as exc:
+            return f"sched_setscheduler(SCHED_BATCH) failed: {exc}"
     return None
 
 

@@ -77,7 +77,8 @@ from coordinator.supervise import (
 )
 from coordinator.supervisor import Outcome, SupervisorConfig
 
-__all__ = ["RunConfig", "RunResult", "child_sched", "default_child_argv", "peer_links", "run_fleet"]
+__all__ = ["SCHED_CHOICES", "RunConfig", "RunResult", "child_sched", "default_child_argv",
+           "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
@@ -142,13 +143,18 @@ def peer_links(config: RunConfig) -> bool:
     return config.direct_links and config.secure is None and config.zenoh_config is None
 
 
+#: ``RunConfig.sched`` values (``tlfleet run --sched``)
+SCHED_CHOICES = ("auto", "default", "batch")
+
+
 def child_sched(config: RunConfig) -> str:
     """``--sched`` of the router, the sim and the agents (:mod:`cli.process_flags`): ``auto``
     is ``batch`` in lockstep (Linux ``SCHED_BATCH``: no process is preempted when another wakes
     up; Scenario 1 lockstep ≈ 4–8 % faster, docs/performance.md round 9) and ``default`` in
     realtime, where it made the latency tail worse."""
-    if config.sched not in ("auto", "default", "batch"):
-        raise ValueError(f"RunConfig.sched {config.sched!r}: expected auto, default or batch")
+    if config.sched not in SCHED_CHOICES:
+        raise ValueError(f"RunConfig.sched {config.sched!r}: expected one of "
+                         f"{', '.join(SCHED_CHOICES)}")
     if config.sched == "auto":
         return "batch" if config.mode == "lockstep" else "default"
     return config.sched

@@ -27,7 +27,7 @@ from bus.signals import stop_on_signals, wait_for_signal
 from cli.arg_types import fault_spec, positive_float
 from cli.run_flags import add_mode_arguments, add_output_arguments
 from cli.transport_flags import add_zenoh_config_argument
-from coordinator.runner import RunConfig, RunResult, run_fleet
+from coordinator.runner import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 from coordinator.supervisor import SupervisorConfig
 
 if TYPE_CHECKING:
@@ -87,7 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="send frames and commands through the router too (by default an "
                              "unsecured run links the sim and the agents as zenoh peers; "
                              "architecture.md §1)")
-    parser.add_argument("--sched", choices=("auto", "default", "batch"), default="auto",
+    parser.add_argument("--sched", choices=SCHED_CHOICES, default="auto",
                         help="OS scheduling of the router, sim and agents: 'batch' (Linux "
                              "SCHED_BATCH, no preemption on wake-up) in lockstep and the OS "
                              "default in realtime (auto, the default), or either for both; "
