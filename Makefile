@@ -10,12 +10,12 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# Reinstall whenever pyproject.toml changes.
-$(VENV)/.installed: pyproject.toml | $(PY)
+# Reinstall whenever the build changes (pyproject.toml, setup.py, the C tracking law).
+$(VENV)/.installed: pyproject.toml setup.py sim/tracking.c sim/tracking.h sim/_tracking_build.py | $(PY)
 	$(PY) -m pip install --quiet -e .
 	touch $@
 
-$(VENV)/.installed-test: pyproject.toml | $(PY)
+$(VENV)/.installed-test: pyproject.toml setup.py sim/tracking.c sim/tracking.h sim/_tracking_build.py | $(PY)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@ $(VENV)/.installed
 

@@ -18,7 +18,8 @@ rm -f "$WH"/tlfleet-*.whl
 had_build=$([[ -e $ROOT/build ]] && echo 1 || true)
 "$PY" -m pip wheel --quiet --disable-pip-version-check --no-deps -w "$WH" "$ROOT" 2> >(quiet)
 [[ -n $had_build ]] || rm -rf "$ROOT/build"
-PLATFORMS=()
+# linux_x86_64: the project's own wheel, which carries the C tracking law built on this host
+PLATFORMS=(--platform linux_x86_64)
 for p in manylinux_2_28 manylinux_2_27 manylinux_2_17 manylinux2014 manylinux_2_12 manylinux2010 manylinux1; do
   PLATFORMS+=(--platform "${p}_x86_64")
 done

@@ -93,7 +93,7 @@ from sim.lockstep import (
     due_robots,
 )
 from sim.stats import TimingStats
-from sim.world import WALL, World, WorldConfig
+from sim.world import WALL, World, WorldConfig, native_tracking_available
 
 logger = logging.getLogger(__name__)
 
@@ -199,6 +199,14 @@ class SimProcess:
         self.fleet = scenario.fleet
         self.world = World.from_scenario(scenario, np.random.default_rng(config.seed),
                                          config.world)
+        if self.world.config.native_tracking:
+            logger.info("tracking law: C (sim._tracking)")
+        elif native_tracking_available():
+            logger.info("tracking law: Python (tracking = %r)", self.world.config.tracking)
+        else:
+            logger.warning("the C tracking law (sim._tracking) was not built at install time (no "
+                           "C compiler?): running the Python law, the same results, about 3x "
+                           "slower physics")
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
         self.phases = control_phases(scenario)

@@ -27,8 +27,13 @@ Chipmunk's ``cpBodySetVelocityUpdateFunc`` through pymunk's own cffi module and 
 the body with Chipmunk's getters and setters: what ``body.velocity_func`` and the ``Body``
 properties do, without a ``Vec2d`` per read and a Python ``__setattr__`` per write (half the
 physics time); and one such callback per physics step runs the law of every robot
-(:meth:`World._install_tracking`, issue 17), instead of one per robot. The trajectories are
-bit-identical.
+(:meth:`World._install_tracking`, issue 17), instead of one per robot. That one callback runs
+the law in C (``sim/tracking.c``, built at install time as ``sim._tracking``; several times
+cheaper than 5 Python laws) or, where the extension was not built or
+``WorldConfig.tracking = "python"``, in Python (:meth:`SimRobot.track`): the same IEEE operations
+in the same order, so both give the same trajectories to the last bit (tests/sim). The law's
+norm is ``sqrt(x² + y²)``, correctly rounded in C and in Python alike (``math.hypot``'s CPython
+and libm versions may differ in the last bit).
 
 Contacts (robot–robot, robot–wall/obstacle) are recorded on each contact *begin* and drained with
 :meth:`World.drain_contacts`. The command watchdog (architecture.md §1, contract) stops a robot
@@ -40,15 +45,29 @@ Only this package imports pymunk (architecture.md §4); this module knows nothin
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pymunk
 from pymunk._chipmunk_cffi import ffi as _ffi
 from pymunk._chipmunk_cffi import lib as _cp
 
+from agent.errors import TlfleetError
 from agent.scenario.model import DiscObstacle, RectObstacle, Robot, Scenario
+
+try:  # the C tracking law (setup.py builds it where a C compiler is; optional)
+    from sim import _tracking as _native
+except ImportError:  # pragma: no cover - depends on the install
+    _native = None
+
+TRACKING_CHOICES = ("auto", "native", "python")
+
+
+class TrackingConfigError(TlfleetError, ValueError):
+    """``WorldConfig.tracking`` (or ``$TLFLEET_TRACKING``) is unknown or asks for a C law that
+    was not built."""
 
 ROBOT_TYPE = 1  # pymunk collision types
 WALL_TYPE = 2
@@ -60,7 +79,26 @@ _set_angular_velocity = _cp.cpBodySetAngularVelocity
 _get_angle = _cp.cpBodyGetAngle
 _get_position = _cp.cpBodyGetPosition
 _space_step = _cp.cpSpaceStep
-_hypot, _cos, _sin = math.hypot, math.cos, math.sin
+_sqrt, _cos, _sin = math.sqrt, math.cos, math.sin
+
+
+def native_tracking_available() -> bool:
+    """Whether the C tracking law (``sim._tracking``) was built at install time."""
+    return _native is not None
+
+
+def _default_tracking() -> str:
+    return os.environ.get("TLFLEET_TRACKING", "auto")
+
+
+# tl_chipmunk's fields (sim/tracking.h) in order, and the Chipmunk function each one points to
+_CHIPMUNK_ACCESSORS = (
+    ("get_velocity", "cpBodyGetVelocity"),
+    ("set_velocity", "cpBodySetVelocity"),
+    ("get_angular_velocity", "cpBodyGetAngularVelocity"),
+    ("set_angular_velocity", "cpBodySetAngularVelocity"),
+    ("get_angle", "cpBodyGetAngle"),
+)
 
 
 @dataclass(frozen=True)
@@ -72,6 +110,24 @@ class WorldConfig:
     wall_radius: float = 0.05  # [m] thickness/2 of the arena's wall segments (outside the arena)
     collision_slop: float = 0.001  # [m] allowed overlap (pymunk's default 0.1 is pixel-scale)
     solver_iterations: int = 10
+    # where the tracking law runs: "native" (C, sim._tracking), "python", or "auto" (C when it
+    # was built); the same trajectories either way. Default: $TLFLEET_TRACKING, else "auto".
+    tracking: str = field(default_factory=_default_tracking)
+
+    def __post_init__(self) -> None:
+        if self.tracking not in TRACKING_CHOICES:
+            raise TrackingConfigError(
+                f"WorldConfig.tracking (or $TLFLEET_TRACKING): expected one of "
+                f"{', '.join(TRACKING_CHOICES)}, got {self.tracking!r}")
+        if self.tracking == "native" and _native is None:
+            raise TrackingConfigError(
+                "WorldConfig.tracking (or $TLFLEET_TRACKING) = 'native', but the C tracking law "
+                "(sim._tracking) was not built: reinstall with a C compiler")
+
+    @property
+    def native_tracking(self) -> bool:
+        """Whether worlds of this configuration run the C law."""
+        return self.tracking == "native" or (self.tracking == "auto" and _native is not None)
 
 
 @dataclass(frozen=True)
@@ -99,6 +155,21 @@ def _limit_norm(x: float, y: float, bound: float) -> tuple[float, float]:
         return x, y
     scale = bound / norm
     while math.hypot(x * scale, y * scale) > bound:
+        scale = math.nextafter(scale, 0.0)
+    return x * scale, y * scale
+
+
+def _limit_norm_sqrt(x: float, y: float, bound: float) -> tuple[float, float]:
+    """The tracking law's :func:`_limit_norm`: the norm as ``sqrt(x² + y²)``, the operations
+    of ``limit_norm`` in ``sim/tracking.c``."""
+    norm = _sqrt(x * x + y * y)
+    if norm <= bound:
+        return x, y
+    scale = bound / norm
+    while True:
+        xs, ys = x * scale, y * scale
+        if not _sqrt(xs * xs + ys * ys) > bound:
+            break
         scale = math.nextafter(scale, 0.0)
     return x * scale, y * scale
 
@@ -132,14 +203,15 @@ class SimRobot:
             lim = robot.omni
             self.max_lin, self.max_ang = lim.max_lin, lim.max_ang
             self.acc_lin, self.acc_ang = lim.acc_lin, lim.acc_ang
-            self.target: tuple[float, ...] = (0.0, 0.0, 0.0)
+            self._target: tuple[float, ...] = (0.0, 0.0, 0.0)
         else:
             lim = robot.unicycle
             self.max_lin, self.max_ang = lim.max_v, lim.max_omega
             self.acc_lin, self.acc_ang = lim.acc_v, lim.acc_omega
-            self.target = (0.0, 0.0)
-        self.disturbance = (0.0, 0.0, 0.0)  # w_i to apply from the next physics step on
-        self._applied = (0.0, 0.0, 0.0)  # w_i inside the body's current velocity
+            self._target = (0.0, 0.0)
+        self._disturbance = (0.0, 0.0, 0.0)  # w_i to apply from the next physics step on
+        self._applied = (0.0, 0.0, 0.0)  # w_i inside the body's current velocity (Python law)
+        self._native = None  # this robot's tl_robot when the world runs the C law
         self.last_command_t: float | None = None  # [s] sim time of the last accepted command
         self.watchdog_tripped = False
         # the last command clipped and its result: the simulator checks a command when it
@@ -160,6 +232,42 @@ class SimRobot:
         self.shape.friction = 0.0
         self.shape.elasticity = 0.0
         self.shape.collision_type = ROBOT_TYPE
+
+    @property
+    def target(self) -> tuple[float, ...]:
+        """The clipped command the law tracks: ``(vx, vy, ω)`` or ``(v, ω)``."""
+        return self._target
+
+    @target.setter
+    def target(self, value: tuple[float, ...]) -> None:
+        self._target = value
+        if self._native is not None:
+            if self._omni:
+                self._native.target = value
+            else:
+                self._native.target = (value[0], 0.0, value[1])
+
+    @property
+    def disturbance(self) -> tuple[float, float, float]:
+        """w_i = (wx, wy, wω) applied from the next physics step on."""
+        return self._disturbance
+
+    @disturbance.setter
+    def disturbance(self, value: tuple[float, float, float]) -> None:
+        self._disturbance = value
+        if self._native is not None:
+            self._native.disturbance = value
+
+    def bind_native(self, native: object) -> None:
+        """Run this robot's law in C from now on: ``native`` is its ``tl_robot`` (the state
+        so far is copied in; :class:`World` calls this before the first step)."""
+        native.body = _native.ffi.cast("void *", int(_ffi.cast("uintptr_t", self._cbody)))
+        native.omni = int(self._omni)
+        native.tau, native.acc_lin, native.acc_ang = self._tau, self.acc_lin, self.acc_ang
+        native.dt = native.gain = native.dv_max = native.dw_max = math.nan
+        native.applied = self._applied
+        self._native = native
+        self.target, self.disturbance = self._target, self._disturbance
 
     def clipped(self, u: Sequence[float]) -> tuple[float, ...]:
         """``u`` clipped to the velocity limits; ``ValueError`` if it is malformed.
@@ -193,9 +301,10 @@ class SimRobot:
         integrated, before the contact solver).
 
         Runs for every robot at every physics step (5 robots at 1 kHz: 5 000 calls per sim
-        second), so the per-step constants are cached per ``dt`` and the omni and unicycle laws
-        are separate straight-line paths; the floating-point operations and their order are
-        those of the plain law (tests/sim: byte-identical trajectories).
+        second) where the C law (``sim/tracking.c``) is not used, so the per-step constants are
+        cached per ``dt`` and the omni and unicycle laws are separate straight-line paths; the
+        floating-point operations and their order are those of the plain law and of the C law
+        (tests/sim: byte-identical trajectories).
         """
         if dt != self._dt:
             self._dt = dt
@@ -210,13 +319,13 @@ class SimRobot:
         # min(b, max(-b, x)) written as comparisons (no builtin calls): the same value for every
         # x, ties included (max and min return their first argument on a tie)
         if self._omni:
-            ux, uy, uw = self.target
+            ux, uy, uw = self._target
             dvx, dvy = (ux - vx) * gain, (uy - vy) * gain
-            if _hypot(dvx, dvy) > self._dv_max:  # _limit_norm's own test, its fast path inline
-                dvx, dvy = _limit_norm(dvx, dvy, self._dv_max)
+            if _sqrt(dvx * dvx + dvy * dvy) > self._dv_max:  # the limit's own test, inline
+                dvx, dvy = _limit_norm_sqrt(dvx, dvy, self._dv_max)
             vx, vy = vx + dvx, vy + dvy
         else:
-            u_lin, uw = self.target
+            u_lin, uw = self._target
             angle = _get_angle(cbody)
             c, s = _cos(angle), _sin(angle)
             v = vx * c + vy * s  # forward speed; the lateral part is dropped (no slip)
@@ -229,7 +338,7 @@ class SimRobot:
         dw = (uw - omega) * gain
         dw = dw if dw > -dw_max else -dw_max
         omega += dw if dw < dw_max else dw_max
-        wx, wy, ww = self._applied = self.disturbance
+        wx, wy, ww = self._applied = self._disturbance
         _set_velocity(cbody, (vx + wx, vy + wy))
         _set_angular_velocity(cbody, omega + ww)
 
@@ -322,15 +431,31 @@ class World:
         self._tracked = tuple(self.robots.values())
         if not self._tracked:
             return
+        update = self._track_all
+        if self.config.native_tracking:
+            ffi = _native.ffi
+            self._native_robots = ffi.new("tl_robot[]", len(self._tracked))
+            for i, robot in enumerate(self._tracked):
+                robot.bind_native(self._native_robots[i])
+            fields = dict(ffi.typeof("tl_chipmunk").fields)  # pymunk's pointers, C's types
+            self._native_cp = ffi.new("tl_chipmunk *", {
+                name: ffi.cast(fields[name].type,
+                               int(_ffi.cast("uintptr_t", _ffi.addressof(_cp, symbol))))
+                for name, symbol in _CHIPMUNK_ACCESSORS})
+            update = self._track_all_native
         # kept referenced: Chipmunk holds only the raw function pointer
-        self._velocity_update = _ffi.callback("void(cpBody *, cpVect, cpFloat, cpFloat)",
-                                              self._track_all)
+        self._velocity_update = _ffi.callback("void(cpBody *, cpVect, cpFloat, cpFloat)", update)
         _cp.cpBodySetVelocityUpdateFunc(self._tracked[0]._cbody, self._velocity_update)
 
     def _track_all(self, _body: object, _gravity: object, _damping: float, dt: float) -> None:
         """Chipmunk's velocity update of the first robot's body: every robot's tracking law."""
         for robot in self._tracked:
             robot.track(dt)
+
+    def _track_all_native(self, _body: object, _gravity: object, _damping: float, dt: float
+                          ) -> None:
+        """:meth:`_track_all` with the law in C: one call for every robot."""
+        _native.lib.tl_track_all(self._native_cp, self._native_robots, len(self._tracked), dt)
 
     # ----------------------------------------------------------------- contacts
 

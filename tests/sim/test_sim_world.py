@@ -10,7 +10,7 @@ import pytest
 from sim_helpers import distance, omni, scenario, unicycle
 
 from agent.scenario.model import Arena, DiscObstacle, RectObstacle
-from sim.world import WALL, Contact, World, wrap_angle
+from sim.world import WALL, Contact, World, native_tracking_available, wrap_angle
 
 DT = 0.001  # [s] one physics step at the default 1 kHz
 
@@ -254,11 +254,14 @@ def _reference_track(robot, body, _gravity, _damping, dt):
     dv_max, dw_max = robot.acc_lin * dt, robot.acc_ang * dt
     if robot.kind == "omni":
         ux, uy, uw = robot.target
-        norm = math.hypot((ux - vx) * gain, (uy - vy) * gain)
         dvx, dvy = (ux - vx) * gain, (uy - vy) * gain
+        norm = math.sqrt(dvx * dvx + dvy * dvy)  # not hypot: the C law's correctly rounded norm
         if norm > dv_max:
             scale = dv_max / norm
-            while math.hypot(dvx * scale, dvy * scale) > dv_max:
+            while True:
+                xs, ys = dvx * scale, dvy * scale
+                if not math.sqrt(xs * xs + ys * ys) > dv_max:
+                    break
                 scale = math.nextafter(scale, 0.0)
             dvx, dvy = dvx * scale, dvy * scale
         vx, vy = vx + dvx, vy + dvy
@@ -274,9 +277,14 @@ def _reference_track(robot, body, _gravity, _damping, dt):
     body.angular_velocity = omega + ww
 
 
-def test_the_chipmunk_velocity_callback_equals_the_public_api_law():
+@pytest.mark.parametrize("tracking", [
+    "python", pytest.param("native", marks=pytest.mark.skipif(
+        not native_tracking_available(), reason="the C tracking law was not built"))])
+def test_the_chipmunk_velocity_callback_equals_the_public_api_law(tracking, monkeypatch):
     """Robots crossing, pushing each other and a wall, both kinds, with disturbance: the same
-    poses to the last bit as with the law written against ``body.velocity_func``."""
+    poses to the last bit as with the law written against ``body.velocity_func`` (the Python
+    law and the C law, tests/sim/test_sim_tracking_native.py)."""
+    monkeypatch.setenv("TLFLEET_TRACKING", tracking)
     robots = (omni(1, -1.0, 0.0), omni(2, 1.0, 0.05), unicycle(3, 0.0, -1.0, math.pi / 2),
               unicycle(4, 3.0, 2.0))
     commands = {1: (1.0, 0.0, 0.5), 2: (-1.0, 0.0, -0.3), 3: (0.8, 0.2), 4: (0.5, 0.0)}
