@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from agent.errors import UnsatisfiableTask
+from agent.frozen import evolve
 from agent.ltl.buchi import Buchi, buchi_step
 from agent.ltl.planner import Plan, plan_robot, replan
 from agent.ltl.task import task_automaton
@@ -203,7 +204,7 @@ class LtlAgent:
         """The first step of a robot away from its start pose: a plan from where it is."""
         point = (float(inputs.pose[0]), float(inputs.pose[1]))
         away = float(np.hypot(point[0] - self.start_point[0], point[1] - self.start_point[1]))
-        state = replace(state, stepped=True)
+        state = evolve(state, stepped=True)
         if away <= JOIN_DISTANCE:
             return state, None
         try:
@@ -213,7 +214,7 @@ class LtlAgent:
             return state, Notice(inputs.t, "replan_failed", {"joined": True, "error": str(exc)})
         logger.info("robot %d: joined %.2f m from its start pose at t=%.2f: %s · (%s)^ω",
                     self.robot, away, inputs.t, plan.prefix, plan.suffix)
-        state = replace(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
+        state = evolve(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
                         buchi_states=frozenset(self.buchi.initial), replans=state.replans + 1)
         return state, self.plan_notice(inputs.t, plan, replanned=True,
                                        reason={"joined": True, "from": list(point),
@@ -236,7 +237,7 @@ class LtlAgent:
         else:
             first = prev.step
         buchi = self._track(state.buchi_states, ex_state, first)
-        state = replace(state, executor=ex_state, buchi_states=buchi, pending_plan=None)
+        state = evolve(state, executor=ex_state, buchi_states=buchi, pending_plan=None)
         notices: list[Notice] = [] if joined is None else [joined]
         for nav_event in ex_out.events:
             if isinstance(nav_event, ReplanRequest):
@@ -255,7 +256,7 @@ class LtlAgent:
         work runs (the next step runs it first)."""
         if state.executor.pending is None:
             return state
-        return replace(state, executor=self.executor.refresh(state.executor))
+        return evolve(state, executor=self.executor.refresh(state.executor))
 
     def _track(self, states: frozenset[int], ex_state: ExecutorState, first: int
                ) -> frozenset[int]:
@@ -296,7 +297,7 @@ class LtlAgent:
                     Notice(t, "replan_failed", {**reason, "error": str(exc)}))
         logger.info("robot %d: replanned at t=%.2f: %s · (%s)^ω", self.robot, t, plan.prefix,
                     plan.suffix)
-        state = replace(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
+        state = evolve(state, plan=plan, pending_plan=(plan.prefix, plan.suffix),
                         penalties=penalties, replans=state.replans + 1)
         return state, self.plan_notice(t, plan, replanned=True, reason=reason)
 

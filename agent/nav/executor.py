@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from agent.frozen import evolve
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
 from agent.nav.errors import InvalidPlanError, NoPathError
@@ -289,7 +290,7 @@ class Executor:
         s = self._take_note(self.refresh(state), events)  # a re-plan not run after the command
         frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
         others = self._local_obstacles(s, frame, pose, t)
-        s = replace(s, control_cycles=s.control_cycles + 1, prev_others=frame, prev_time=t)
+        s = evolve(s, control_cycles=s.control_cycles + 1, prev_others=frame, prev_time=t)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
         if s.mode != HOLD:
@@ -301,7 +302,7 @@ class Executor:
             s, command = self._recover(s, pose, t, others, events, limits)
         else:
             s, command = self._navigate(s, pose, t, others, events, limits)
-        s = replace(s, command=command)
+        s = evolve(s, command=command)
         for event in events:
             log.debug("t=%.2f %s", t, event)
         return s, ExecutorOutputs(
@@ -323,7 +324,7 @@ class Executor:
         # prefix[0] is where the planner assumes the robot is: the last region it visited (when
         # replanning from there) is taken as reached, without counting a new visit.
         start_step = 1 if prefix and prefix[0] == s.last_region else 0
-        s = replace(
+        s = evolve(
             s,
             prefix=prefix,
             suffix=suffix,
@@ -339,7 +340,7 @@ class Executor:
         )
         if self._finished(s):
             events.append(PlanFinished(t, s.last_region or prefix[-1]))
-            s = replace(s, mode=HOLD, mode_since=t)
+            s = evolve(s, mode=HOLD, mode_since=t)
         return s
 
     def _local_obstacles(
@@ -393,7 +394,7 @@ class Executor:
                 break
             previous = target_at(s.prefix, s.suffix, s.step - 1) if s.step > 0 else None
             if s.step == 0 and target == START_STATE:
-                s = replace(s, step=1)
+                s = evolve(s, step=1)
                 continue
             stay = previous == target and s.last_region == target
             if not stay:
@@ -404,7 +405,7 @@ class Executor:
                 counts = dict(s.visits)
                 counts[target] = counts.get(target, 0) + 1
                 events.append(RegionVisited(t, target, counts[target]))
-                s = replace(
+                s = evolve(
                     s,
                     mode=NAVIGATE if s.mode in (ROTATE, BACK_OFF) else s.mode,  # ends recovery
                     visits=tuple(counts.items()),
@@ -414,17 +415,17 @@ class Executor:
                     path=None,
                     path_target=None,
                 )
-            s = replace(s, step=s.step + 1)
+            s = evolve(s, step=s.step + 1)
             into_suffix = s.step - len(s.prefix)
             if s.suffix and into_suffix == 0:
-                s = replace(s, cycle_start=t)
+                s = evolve(s, cycle_start=t)
             elif s.suffix and into_suffix > 0 and into_suffix % len(s.suffix) == 0:
                 start = s.cycle_start if s.cycle_start is not None else t
                 events.append(CycleCompleted(t, s.cycles, t - start))
-                s = replace(s, cycle_start=t)
+                s = evolve(s, cycle_start=t)
             if self._finished(s):
                 events.append(PlanFinished(t, target))
-                return replace(s, mode=HOLD, mode_since=t)
+                return evolve(s, mode=HOLD, mode_since=t)
         return s
 
     def _finished(self, s: ExecutorState) -> bool:
@@ -459,7 +460,7 @@ class Executor:
             back_free = bool(self.grid.clearance_at(behind) > cfg.robot_radius) and bool(
                 np.all(gaps > cfg.robot_radius)
             )
-            s = replace(s, mode=BACK_OFF if back_free else NAVIGATE, mode_since=t)
+            s = evolve(s, mode=BACK_OFF if back_free else NAVIGATE, mode_since=t)
             if s.mode == NAVIGATE:
                 return self._end_recovery(s, pose, t, events), self._ramp(s.command, (0.0, 0.0))
         if s.mode == BACK_OFF and t - s.mode_since >= cfg.back_off_time:
@@ -487,7 +488,7 @@ class Executor:
                     (float(pose[0]), float(pose[1])),
                 )
             )
-        return replace(
+        return evolve(
             s,
             mode=NAVIGATE,
             mode_since=t,
@@ -504,7 +505,7 @@ class Executor:
         cfg = self.config
         target = s.target
         if target is None:  # past the end of a finite plan: nothing to drive to
-            return replace(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
+            return evolve(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
         blocked = t - s.progress_time >= cfg.blocked_after and len(others) > 0
         following = s.path is not None and s.path_target == target
@@ -515,7 +516,7 @@ class Executor:
             request = PathRequest(t, target, pose[:2].copy(), np.asarray(goal, dtype=float),
                                   centers, radii, blocked)
             if following and cfg.deferred_replan:  # run after the command (module docstring)
-                s = replace(s, pending=request, path_time=t)
+                s = evolve(s, pending=request, path_time=t)
             else:
                 s = self._take_note(self._run_request(s, request), events)
         if s.path is None or s.path_target != target:
@@ -531,15 +532,15 @@ class Executor:
             dx, dy = ahead[0][0] - px, ahead[0][1] - py
             remaining = math.sqrt(dx * dx + dy * dy) + vertices_length(ahead)
         if remaining < s.best_remaining - cfg.progress_epsilon:
-            s = replace(s, remaining=remaining, best_remaining=remaining, progress_time=t)
+            s = evolve(s, remaining=remaining, best_remaining=remaining, progress_time=t)
         elif t - s.progress_time >= cfg.stuck_timeout:
             events.append(Stuck(t, target, s.progress_time, (float(pose[0]), float(pose[1]))))
             log.info("stuck on the way to %s since t=%.1f s: recovering", target, s.progress_time)
-            s = replace(s, remaining=remaining, mode=ROTATE, mode_since=t,
+            s = evolve(s, remaining=remaining, mode=ROTATE, mode_since=t,
                         stuck_count=s.stuck_count + 1)
             command = self._ramp(s.command, (0.0, 0.0))
         else:
-            s = replace(s, remaining=remaining)
+            s = evolve(s, remaining=remaining)
         return s, command
 
     def refresh(self, state: ExecutorState) -> ExecutorState:
@@ -550,7 +551,7 @@ class Executor:
         request = state.pending
         if request is None:
             return state
-        return self._run_request(replace(state, pending=None), request)
+        return self._run_request(evolve(state, pending=None), request)
 
     @staticmethod
     def _take_note(s: ExecutorState, events: list) -> ExecutorState:
@@ -558,7 +559,7 @@ class Executor:
         if s.no_path_note is None:
             return s
         events.append(s.no_path_note)
-        return replace(s, no_path_note=None)
+        return evolve(s, no_path_note=None)
 
     def _run_request(self, s: ExecutorState, request: PathRequest) -> ExecutorState:
         """Plan ``request`` on the static grid with its robots stamped; on success the path
@@ -574,8 +575,8 @@ class Executor:
             if s.no_path_to != request.target:  # report once, keep trying every replan period
                 note = NoPathFound(request.t, request.target, error.reason)
                 log.info("no path to %s: %s", request.target, error.reason)
-            return replace(s, path_time=request.t, no_path_to=request.target, no_path_note=note)
-        return replace(s, path=path, path_target=request.target, path_time=request.t,
+            return evolve(s, path_time=request.t, no_path_to=request.target, no_path_note=note)
+        return evolve(s, path=path, path_target=request.target, path_time=request.t,
                        no_path_to=None, blocked_plan=request.blocked)
 
     def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False
@@ -628,7 +629,7 @@ class Executor:
                 path = plan_path(self.grid, pose[:2], goal).waypoints
             except NoPathError:
                 return s, self._ramp(s.command, (0.0, 0.0))
-            s = replace(s, path=path, path_target=s.last_region)
+            s = evolve(s, path=path, path_target=s.last_region)
         result = dwa_control(
             pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa,
             limits,

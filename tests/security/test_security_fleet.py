@@ -232,9 +232,12 @@ def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
     The rogue and robot 4's agent race to answer each frame, and the sim takes the first answer
     (``sim.lockstep``): which one wins each race is up to the scheduler, so how far robot 4 is
     pushed is too (0.06–0.68 m over five runs). What does not depend on the race is that every
-    one of robot 4's ticks got a second command, the loser of the race, counted by the sim as a
+    one of robot 4's ticks gets a second command, the loser of the race, counted by the sim as a
     duplicate (it came while the tick was open) or of the wrong seq (it came after); a plain run
-    has neither (``test_plain_ignores_nothing``)."""
+    has neither (``test_plain_ignores_nothing``). Not every tick: zenoh drops a put whose link is
+    congested (the rogue's publisher has the default congestion control, drop), so on a loaded
+    machine some of the rogue's commands never reach the sim (2 992–2 996 of 3 000 arrived on a
+    quiet machine, 2 740 with a second test suite running); at least half must."""
     rogue = Rogue(None, send_stop=False)
     try:
         result = fleet_run(tmp_path / "run", None, rogue.on_endpoint)
@@ -248,7 +251,7 @@ def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
     assert result.outcome.t_end >= result.info["duration"] - 0.02, result.outcome
     assert rogue.sent >= 2900, rogue.sent  # robot 4 owes every frame of the 30 s: 3 000
     ignored = sim_ignored(tmp_path / "run")
-    assert ignored.get("duplicate", 0) + ignored.get("wrong_seq", 0) >= 0.95 * rogue.sent, \
+    assert ignored.get("duplicate", 0) + ignored.get("wrong_seq", 0) >= 0.5 * rogue.sent, \
         (ignored, rogue.sent)
     attacked, reference = robot_path(tmp_path / "run", 4), robot_path(plain.run_dir, 4)
     assert attacked.shape == reference.shape
