@@ -1,4 +1,4 @@
-"""``agent.frozen.evolve`` against ``dataclasses.replace`` (issue 17: the LTL step's states)."""
+"""``agent.nav.evolve.evolve`` against ``dataclasses.replace`` (issue 17: the LTL step's states)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from agent.frozen import evolve
 from agent.ltl.agent import LtlState
+from agent.nav.evolve import evolve
 from agent.nav.executor import ExecutorState
 
 NAMES = st.sampled_from(["a", "b", "c"])
