@@ -26,6 +26,7 @@ The 1-minute load average is recorded before every run (``os.getloadavg``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -40,6 +41,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+from common import Figure, load_average  # noqa: E402
 from runtime_bench import CpuSampler  # noqa: E402
 
 from agent.scenario import load_scenario  # noqa: E402
@@ -117,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     runs = max(3, args.runs)
     lockstep_s, realtime_s = (30.0, 10.0) if args.quick else (90.0, 30.0)
     started = time.monotonic()
+    load_before = load_average()
     per_run: dict[str, list[dict]] = {"lockstep": [], "realtime": [], "lockstep_no_trace": []}
     with tempfile.TemporaryDirectory(prefix="security_bench-") as tmp:
         tmpdir = Path(tmp)
@@ -207,8 +210,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"secured lockstep trajectories byte-identical to the plain ones: {identical}"
           + ("" if baseline_identical is None
              else f"; to {args.baseline}: {baseline_identical}"))
-    payload = {"quick": args.quick, "runs": runs, "python": platform.python_version(),
-               "machine": platform.machine(), "cores": os.cpu_count(), "results": results,
+    figures = [  # the two targets in the layout bench/summary.py reads (bench/common.py)
+        Figure("lockstep_speedup_ratio", "secured / plain lockstep speed-up (Scenario 1)",
+               results["lockstep_speedup_ratio"], "x", TARGETS["lockstep_speedup_ratio"],
+               "higher"),
+        Figure("latency_p99_ratio", "secured / plain realtime latency p99 (Scenario 1)",
+               results["latency_p99_ratio"], "x", TARGETS["latency_p99_ratio"], "lower")]
+    payload = {"benchmark": "security_bench", "quick": args.quick, "runs": runs,
+               "python": platform.python_version(), "machine": platform.machine(),
+               "cores": os.cpu_count(), "load_average_before": list(load_before),
+               "load_average_after": list(load_average()),
+               "figures": [{**dataclasses.asdict(f), "met": f.met} for f in figures],
+               "results": results,
                "targets": TARGETS, "meets_targets": meets,
                "durations_s": {"lockstep": lockstep_s, "realtime": realtime_s},
                "per_run": per_run,

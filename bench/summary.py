@@ -14,40 +14,67 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def rows(results: Path) -> list[tuple[str, str, str, str, str, str]]:
+Row = tuple[str, str, str, str, str, str]
+
+
+def _figure_rows(name: str, data: dict, load: float) -> list[Row]:
+    """The common layout (``bench/common.py``: ``figures``)."""
     out = []
-    for path in sorted(results.glob("*_bench.json")):
-        data = json.loads(path.read_text())
-        load = data.get("load_average_before", [math.nan])[0]
-        for f in data.get("figures", []):
-            value = "n/a" if f["value"] is None or not math.isfinite(f["value"]) \
-                else f"{f['value']:.3g} {f['unit']}"
-            wall = "-" if f.get("wall") is None else f"{f['wall']:.3g} {f['unit']}"
-            target = "-" if f["target"] is None else \
-                f"{'≤' if f['better'] == 'lower' else '≥'} {f['target']:g} {f['unit']}"
-            met = "" if f["met"] is None else "met" if f["met"] else "NOT MET"
-            out.append((data.get("benchmark", path.stem), f["label"].strip(), value, wall,
-                        target, f"{met}  (load {load:.1f})" if met else ""))
-        if "figures" not in data and "meets_targets" in data:  # nav_bench's own layout
-            for key, ok in data["meets_targets"].items():
-                r = data["results"][key]
-                out.append((data.get("benchmark", path.stem), key,
-                            f"{r.get('cpu_median_ms', math.nan):.3g} ms",
-                            f"{r['median_ms']:.3g} ms", f"≤ {data['targets_ms'][key]:g} ms",
-                            f"{'met' if ok else 'NOT MET'}  (load "
-                            f"{data.get('load_average_before', [math.nan])[0]:.1f})"))
+    for f in data["figures"]:
+        value = "n/a" if f["value"] is None or not math.isfinite(f["value"]) \
+            else f"{f['value']:.3g} {f['unit']}"
+        wall = "-" if f.get("wall") is None else f"{f['wall']:.3g} {f['unit']}"
+        target = "-" if f["target"] is None else \
+            f"{'≤' if f['better'] == 'lower' else '≥'} {f['target']:g} {f['unit']}"
+        met = "" if f["met"] is None else "met" if f["met"] else "NOT MET"
+        out.append((name, f["label"].strip(), value, wall, target,
+                    f"{met}  (load {load:.1f})" if met else ""))
     return out
+
+
+def _nav_rows(name: str, data: dict, load: float) -> list[Row]:
+    """``nav_bench``'s own layout: ``results`` per case in ms, ``targets_ms``."""
+    out = []
+    for key, ok in data["meets_targets"].items():
+        r = data["results"][key]
+        out.append((name, key, f"{r.get('cpu_median_ms', math.nan):.3g} ms",
+                    f"{r['median_ms']:.3g} ms", f"≤ {data['targets_ms'][key]:g} ms",
+                    f"{'met' if ok else 'NOT MET'}  (load {load:.1f})"))
+    return out
+
+
+def rows(results: Path) -> tuple[list[Row], list[str]]:
+    """Every figure of every ``*_bench.json`` under ``results``, and the problems met: a file
+    that is not JSON or not in a known layout is named, not skipped in silence."""
+    out: list[Row] = []
+    problems: list[str] = []
+    for path in sorted(results.glob("*_bench.json")):
+        try:
+            data = json.loads(path.read_text())
+            name = data.get("benchmark", path.stem)
+            load = data.get("load_average_before", [math.nan])[0]
+            if "figures" in data:
+                out += _figure_rows(name, data, load)
+            elif "targets_ms" in data:
+                out += _nav_rows(name, data, load)
+            else:  # outcome tables without timing targets (fleet_bench, scenario_bench)
+                out.append((name, f"no timed figures here: see {path.name}", "", "", "", ""))
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            problems.append(f"{path}: {type(exc).__name__}: {exc}")
+    return out, problems
 
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     results = Path(args[0]) if args else ROOT / "bench" / "results"
-    table = rows(results)
+    table, problems = rows(results)
     print(f"== every benchmark figure ({results})")
     print(f"{'bench':<14} {'measure':<58} {'value (CPU)':>13} {'wall':>12} {'target':>14}  met")
     for bench, label, value, wall, target, met in table:
         print(f"{bench:<14} {label:<58} {value:>13} {wall:>12} {target:>14}  {met}")
-    return 0
+    for problem in problems:
+        print(f"unreadable: {problem}", file=sys.stderr)
+    return 1 if problems else 0
 
 
 if __name__ == "__main__":
