@@ -17,7 +17,16 @@ ROOT = Path(__file__).resolve().parent.parent
 Row = tuple[str, str, str, str, str, str]
 
 
-def _figure_rows(name: str, data: dict, load: float) -> list[Row]:
+def _when(data: dict) -> str:
+    """The load average before the run and, where the file has it, the hour it ran (UTC): this
+    shared machine's speed moves every multi-process figure from one hour to the next."""
+    load = data.get("load_average_before", [math.nan])[0]
+    stamp = data.get("time_utc")
+    return f"(load {load:.1f}, {stamp[11:16]}Z)" if isinstance(stamp, str) and len(stamp) >= 16 \
+        else f"(load {load:.1f})"
+
+
+def _figure_rows(name: str, data: dict, when: str) -> list[Row]:
     """The common layout (``bench/common.py``: ``figures``)."""
     out = []
     for f in data["figures"]:
@@ -28,18 +37,18 @@ def _figure_rows(name: str, data: dict, load: float) -> list[Row]:
             f"{'≤' if f['better'] == 'lower' else '≥'} {f['target']:g} {f['unit']}"
         met = "" if f["met"] is None else "met" if f["met"] else "NOT MET"
         out.append((name, f["label"].strip(), value, wall, target,
-                    f"{met}  (load {load:.1f})" if met else ""))
+                    f"{met}  {when}" if met else ""))
     return out
 
 
-def _nav_rows(name: str, data: dict, load: float) -> list[Row]:
+def _nav_rows(name: str, data: dict, when: str) -> list[Row]:
     """``nav_bench``'s own layout: ``results`` per case in ms, ``targets_ms``."""
     out = []
     for key, ok in data["meets_targets"].items():
         r = data["results"][key]
         out.append((name, key, f"{r.get('cpu_median_ms', math.nan):.3g} ms",
                     f"{r['median_ms']:.3g} ms", f"≤ {data['targets_ms'][key]:g} ms",
-                    f"{'met' if ok else 'NOT MET'}  (load {load:.1f})"))
+                    f"{'met' if ok else 'NOT MET'}  {when}"))
     return out
 
 
@@ -52,11 +61,11 @@ def rows(results: Path) -> tuple[list[Row], list[str]]:
         try:
             data = json.loads(path.read_text())
             name = data.get("benchmark", path.stem)
-            load = data.get("load_average_before", [math.nan])[0]
+            when = _when(data)
             if "figures" in data:
-                out += _figure_rows(name, data, load)
+                out += _figure_rows(name, data, when)
             elif "targets_ms" in data:
-                out += _nav_rows(name, data, load)
+                out += _nav_rows(name, data, when)
             else:  # outcome tables without timing targets (fleet_bench, scenario_bench)
                 out.append((name, f"no timed figures here: see {path.name}", "", "", "", ""))
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:

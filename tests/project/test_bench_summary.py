@@ -20,6 +20,7 @@ def _summary(repo_root):
 
 COMMON = {  # bench/common.py's report(): what stl, ltl, runtime, tick, fault, backfill write
     "benchmark": "stl_bench", "load_average_before": [1.5, 1.0, 0.5],
+    "time_utc": "2026-12-03T06:47:12Z",
     "figures": [
         {"key": "step", "label": "STL control step", "value": 28.0, "unit": "µs",
          "target": 50.0, "better": "lower", "wall": 28.1, "note": "", "met": True},
@@ -42,8 +43,8 @@ def test_every_layout_gives_rows_and_a_broken_file_is_named(repo_root, tmp_path)
     by_label = {label: (bench, value, wall, target, met)
                 for bench, label, value, wall, target, met in table}
     assert by_label["STL control step"] == ("stl_bench", "28 µs", "28.1 µs", "≤ 50 µs",
-                                            "met  (load 1.5)")
-    assert by_label["largest fleet"][3:] == ("≥ 30 robots", "NOT MET  (load 1.5)")
+                                            "met  (load 1.5, 06:47Z)")
+    assert by_label["largest fleet"][3:] == ("≥ 30 robots", "NOT MET  (load 1.5, 06:47Z)")
     assert by_label["latency p50"][1:] == ("n/a", "-", "-", "")
     assert by_label["dwa"] == ("nav", "0.339 ms", "0.34 ms", "≤ 2 ms", "met  (load 2.0)")
     assert by_label["no timed figures here: see scenario_bench.json"][0] == "scenario_bench"
