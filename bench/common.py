@@ -116,6 +116,11 @@ def print_table(title: str, figures: Sequence[Figure], load_before: Sequence[flo
             print(f"    {f.note}")
 
 
+def figure_records(figures: Sequence[Figure]) -> list[dict]:
+    """``figures`` as the JSON rows ``bench/summary.py`` reads (each with its ``met``)."""
+    return [{**asdict(f), "met": f.met} for f in figures]
+
+
 def report(name: str, figures: Sequence[Figure], out: Path, *, load_before: Sequence[float],
            extra: dict | None = None, quick: bool = False) -> dict:
     """Print the table and write ``out`` (JSON): figures with targets and met, load, machine."""
@@ -130,7 +135,7 @@ def report(name: str, figures: Sequence[Figure], out: Path, *, load_before: Sequ
         "cpu_count": os.cpu_count(),
         "load_average_before": list(load_before),
         "load_average_after": list(load_after),
-        "figures": [{**asdict(f), "met": f.met} for f in figures],
+        "figures": figure_records(figures),
         "results": {f.key: f.value for f in figures},
         "targets": {f.key: f.target for f in figures if f.target is not None},
         "meets_targets": {f.key: f.met for f in figures if f.target is not None},
