@@ -10,12 +10,14 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# Reinstall whenever the build changes (pyproject.toml, setup.py, the C tracking law).
-$(VENV)/.installed: pyproject.toml setup.py sim/tracking.c sim/tracking.h sim/_tracking_build.py | $(PY)
+# Reinstall whenever the build changes (pyproject.toml, setup.py, the C tracking law and DWA).
+NATIVE := sim/tracking.c sim/tracking.h sim/_tracking_build.py \
+          agent/nav/dwa_kernel.c agent/nav/dwa_kernel.h agent/nav/_dwa_build.py
+$(VENV)/.installed: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e .
 	touch $@
 
-$(VENV)/.installed-test: pyproject.toml setup.py sim/tracking.c sim/tracking.h sim/_tracking_build.py | $(PY)
+$(VENV)/.installed-test: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@ $(VENV)/.installed
 

@@ -1,9 +1,13 @@
-"""The one part of the build ``pyproject.toml`` cannot say: the optional C tracking law.
+"""The one part of the build ``pyproject.toml`` cannot say: the optional C accelerators.
 
-``sim._tracking`` (``sim/tracking.c``, built by cffi from ``sim/_tracking_build.py``) makes the
-simulator's physics step several times cheaper (issue 17). It is optional: without a C compiler
-the build warns and the package installs without it, and ``sim.world`` runs the same law in
-Python, with the same results to the last bit."""
+* ``sim._tracking`` (``sim/tracking.c``, built by cffi from ``sim/_tracking_build.py``) makes the
+  simulator's physics step several times cheaper (issue 17);
+* ``agent.nav._dwa`` (``agent/nav/dwa_kernel.c``, from ``agent/nav/_dwa_build.py``) does the
+  LTL agents' DWA rollouts and costs (issue 17).
+
+Both are optional: without a C compiler the build warns and the package installs without them,
+and ``sim.world`` and ``agent.nav.dwa`` run the same arithmetic in Python, with the same
+results to the last bit."""
 
 from setuptools import setup
 from setuptools.command.build_ext import build_ext
@@ -16,16 +20,16 @@ class OptionalBuildExt(build_ext):
         try:
             super().run()
         except Exception as exc:  # no compiler, no headers: install the pure-Python law
-            self.warn(f"tlfleet: the C tracking law was not built ({exc}); the simulator "
-                      "will run its Python law (same results, slower)")
+            self.warn(f"tlfleet: the C accelerators were not built ({exc}); the simulator and "
+                      "the DWA will run their Python forms (same results, slower)")
 
     def build_extension(self, ext) -> None:
         try:
             super().build_extension(ext)
         except Exception as exc:
-            self.warn(f"tlfleet: building {ext.name} failed ({exc}); the simulator will run "
-                      "its Python law (same results, slower)")
+            self.warn(f"tlfleet: building {ext.name} failed ({exc}); its Python form will run "
+                      "instead (same results, slower)")
 
 
-setup(cffi_modules=["sim/_tracking_build.py:ffibuilder"],
+setup(cffi_modules=["sim/_tracking_build.py:ffibuilder", "agent/nav/_dwa_build.py:ffibuilder"],
       cmdclass={"build_ext": OptionalBuildExt})

@@ -71,17 +71,22 @@ def scenario_with_fleet() -> Scenario:
 
 
 def bench_dwa(runs: int, calls: int) -> dict:
+    """One DWA cycle as the agents run it (``DwaConfig()``: the C kernel where it was built) and,
+    beside it, with the numpy kernel (issue 17: the ratio of the two in the same minute)."""
     grid = grid_from_arena(Arena(), 0.25)
     path = plan_path(grid, (-2.0, 0.0), (2.5, 0.0)).waypoints
     others = five_other_robots()
-    config = DwaConfig()
     pose = (0.0, 0.0, 0.1)
-    result = dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, config)
-    out = per_call(
-        lambda: dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, config), calls, runs
-    )
-    out["samples_per_cycle"] = config.vx_samples * (config.vtheta_samples + 1)
-    out["admissible"] = result.n_valid
+    out = {}
+    for name, config in (("dwa_cycle_5_others", DwaConfig()),
+                         ("dwa_cycle_5_others_numpy", DwaConfig(kernel="python"))):
+        result = dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, config)
+        out[name] = per_call(
+            lambda c=config: dwa_control(pose, (0.2, 0.1), path, grid, 0.2, others, c),
+            calls, runs)
+        out[name]["samples_per_cycle"] = config.vx_samples * (config.vtheta_samples + 1)
+        out[name]["admissible"] = result.n_valid
+        out[name]["kernel"] = "C" if config.native else "numpy"
     return out
 
 
@@ -137,12 +142,15 @@ def bench_executor(runs: int, calls: int) -> dict:
     }
 
 
-def bench_ltl_agent_replay(runs: int, sim_seconds: float) -> dict:
+def bench_ltl_agent_replay(runs: int, sim_seconds: float, kernel: str = "auto",
+                           suffix: str = "") -> dict:
     """Scenario 1's two LTL agents as their processes step them (``LtlCore.step`` on every 20th
     frame, then ``after_command``, which runs a deferred global re-plan), over ``sim_seconds``
     of a kinematic replay: each unicycle integrates its own commands, the STL robots stay at
     their start poses. CPU per call, percentiles over every step of ``runs`` replays (the step
-    is on the fleet's latency path; the re-plan runs after the command is sent)."""
+    is on the fleet's latency path; the re-plan runs after the command is sent). ``kernel`` is
+    the DWA's (``DwaConfig.kernel``); ``suffix`` ends the figures' names."""
+    from agent.nav.executor import ExecutorConfig
     from agent.protocol.messages import MocapFrame
     from agent.runtime.loop import TickInput
     from agent.runtime.ltl_agent import LtlCore
@@ -150,9 +158,11 @@ def bench_ltl_agent_replay(runs: int, sim_seconds: float) -> dict:
 
     scenario = load_scenario(ROOT / "scenarios" / "scenario1.toml")
     ltl = [r.id for r in scenario.robots if r.kind == "unicycle"]
+    config = ExecutorConfig(dwa=DwaConfig(kernel=kernel))
     steps, replans, commands = [], [], []
     for _ in range(runs):
-        cores = {j: LtlCore(scenario, j) for j in ltl}
+        cores = {j: LtlCore(scenario, j, executor=Executor.from_scenario(scenario, j, config))
+                 for j in ltl}
         states = {j: cores[j].initial_state(cores[j].plan())[0] for j in ltl}
         poses = {r.id: tuple(map(float, r.pose)) for r in scenario.robots}
         for k in range(0, round(sim_seconds * 100), 20):
@@ -175,13 +185,14 @@ def bench_ltl_agent_replay(runs: int, sim_seconds: float) -> dict:
                 poses[j] = (x, y, th)
     p50, p90, p99 = np.percentile(steps, [50, 90, 99])
     return {
-        "ltl_agent_step_scenario1": {
+        f"ltl_agent_step_scenario1{suffix}": {
             "cpu_median_ms": float(p50), "cpu_p90_ms": float(p90), "cpu_p99_ms": float(p99),
             "median_ms": float(p50), "min_ms": float(min(steps)), "max_ms": float(max(steps)),
             "steps": len(steps), "runs": runs, "sim_seconds": sim_seconds,
             "moved": bool(any(v != 0.0 for v, _ in commands)),
+            "kernel": "C" if config.dwa.native else "numpy",
         },
-        "ltl_agent_deferred_replan_scenario1": {
+        f"ltl_agent_deferred_replan_scenario1{suffix}": {
             "cpu_median_ms": float(np.median(replans)), "median_ms": float(np.median(replans)),
             "min_ms": float(min(replans)), "max_ms": float(max(replans)),
             "replans": len(replans), "per_step": len(replans) / len(steps),
@@ -234,10 +245,12 @@ def main(argv: list[str] | None = None) -> int:
     sim_seconds = 5.0 if args.quick else 30.0
 
     load_before = os.getloadavg()
-    results: dict[str, dict] = {"dwa_cycle_5_others": bench_dwa(runs, calls)}
+    results: dict[str, dict] = bench_dwa(runs, calls)  # as the agents run it, and numpy
     results.update(bench_global_plans(runs, max(1, calls // 5)))
     results.update(bench_executor(runs, max(1, calls // 5)))
-    results.update(bench_ltl_agent_replay(3 if args.quick else 5, 20.0 if args.quick else 60.0))
+    replays = (3 if args.quick else 5, 20.0 if args.quick else 60.0)
+    results.update(bench_ltl_agent_replay(*replays))
+    results.update(bench_ltl_agent_replay(*replays, kernel="python", suffix="_numpy"))
     results.update(bench_harness(runs, sim_seconds))
 
     load_after = os.getloadavg()
@@ -259,6 +272,8 @@ def main(argv: list[str] | None = None) -> int:
             note = f"after the command, on {100 * r['per_step']:.0f} % of the steps"
         if "length_m" in r:
             note = (note + f"  path {r['length_m']:.2f} m").strip()
+        if "kernel" in r:
+            note = (note + f"  DWA kernel: {r['kernel']}").strip()
         cpu = r.get("cpu_median_ms", math.nan)
         print(f"{name:52s} {cpu:8.3f}ms {r['median_ms']:8.3f}ms {r['min_ms']:8.3f}ms "
               f"{r['max_ms']:8.3f}ms  {note}")

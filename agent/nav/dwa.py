@@ -40,11 +40,13 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from agent.errors import TlfleetError
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.grid import OccupancyGrid
 from agent.nav.polyline import (
@@ -52,6 +54,27 @@ from agent.nav.polyline import (
     point_along_vertices,
     remaining_vertices,
 )
+
+try:  # steps 2-4 in C (setup.py builds agent/nav/dwa_kernel.c where a C compiler is; optional)
+    from agent.nav import _dwa as _native
+except ImportError:  # pragma: no cover - depends on the install
+    _native = None
+
+KERNEL_CHOICES = ("auto", "native", "python")
+
+
+class DwaKernelError(TlfleetError, ValueError):
+    """``DwaConfig.kernel`` (or ``$TLFLEET_DWA``) is unknown or asks for the C kernel, which was
+    not built."""
+
+
+def native_kernel_available() -> bool:
+    """Whether the DWA's C kernel (``agent.nav._dwa``) was built at install time."""
+    return _native is not None
+
+
+def _default_kernel() -> str:
+    return os.environ.get("TLFLEET_DWA", "auto")
 
 
 @dataclass(frozen=True)
@@ -78,8 +101,19 @@ class DwaConfig:
     collision_margin: float = 0.03  # [m] beyond the robot radius, rollouts closer are rejected
     carrot_distance: float = 0.8  # [m] look-ahead along the global path for the goal term
     speed_bias: float = 2.0  # weight of the speed term (ours; ROS has none)
+    # where steps 2-4 run: "native" (C, agent.nav._dwa), "python" (numpy), or "auto" (C when it
+    # was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
+    kernel: str = field(default_factory=_default_kernel)
 
     def __post_init__(self) -> None:
+        if self.kernel not in KERNEL_CHOICES:
+            raise DwaKernelError(
+                f"DwaConfig.kernel (or $TLFLEET_DWA): expected one of "
+                f"{', '.join(KERNEL_CHOICES)}, got {self.kernel!r}")
+        if self.kernel == "native" and _native is None:
+            raise DwaKernelError(
+                "DwaConfig.kernel (or $TLFLEET_DWA) = 'native', but the DWA's C kernel "
+                "(agent.nav._dwa) was not built: reinstall with a C compiler")
         for name in (
             "max_vel_x",
             "max_rot_vel",
@@ -95,6 +129,11 @@ class DwaConfig:
             raise ValueError("DwaConfig needs at least one sample per velocity axis")
         if self.min_vel_x > self.max_vel_x:
             raise ValueError(f"min_vel_x {self.min_vel_x} > max_vel_x {self.max_vel_x}")
+
+    @property
+    def native(self) -> bool:
+        """Whether cycles of this configuration run steps 2-4 in C."""
+        return self.kernel == "native" or (self.kernel == "auto" and _native is not None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -289,26 +328,22 @@ def dwa_control(
 
     vs, ws = _samples(v0, w0, config, limits)
     times = _times(config.sim_time, config.sim_dt)
-    x, y, _, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
-
     # Every rollout point lies within reach = max |v| · horizon of (px, py).
     horizon = float(times[-1])
     reach = float(np.abs(vs).max()) * horizon
-    clearance = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
+    near = _near_discs(others, px, py, reach, horizon, config)
     current = grid.clearance_point(px, py)
-    for cx0, cy0, ux, uy, r in _near_discs(others, px, py, reach, horizon, config):
-        dx = x - (cx0 + times * ux)
-        dy = y - (cy0 + times * uy)
-        dx *= dx
-        dy *= dy
-        dx += dy
-        gap = np.sqrt(dx, out=dx)
-        gap -= r
-        np.minimum(clearance, gap, out=clearance)
+    for cx0, cy0, _, _, r in near:
         ex, ey = cx0 - px, cy0 - py
         current = min(current, math.sqrt(ex * ex + ey * ey) - r)
     required = min(robot_radius + config.collision_margin, current - 1e-6)
-    min_clearance = clearance.min(axis=1)
+
+    if config.native:
+        targets = _path_targets(px, py, vertices, config)
+        x, y, min_clearance, cost = _score_native(
+            pose, vs, ws, times, grid, near, current, targets, robot_radius, config)
+    else:
+        x, y, cos_t, sin_t, min_clearance = _clearances(pose, vs, ws, times, grid, near, reach)
     valid = min_clearance >= required
     if limits and valid.any():
         excess = limits.excess(vs, ws)
@@ -322,18 +357,68 @@ def dwa_control(
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, math.inf, 0, False, np.zeros((0, 2)))
 
+    if not config.native:
+        targets = _path_targets(px, py, vertices, config)
+        cost = _costs(x, y, cos_t, sin_t, vs, min_clearance, current, targets, robot_radius,
+                      config)
+    cost[~valid] = np.inf
+    best = int(np.argmin(cost))
+    return DwaResult(
+        float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False,
+        np.stack([x[best], y[best]], axis=-1),
+    )
+
+
+_PathTargets = tuple[list[list[float]], tuple[float, float], list[list[float]],
+                     tuple[float, float]]
+
+
+def _path_targets(px: float, py: float, vertices: list[list[float]], config: DwaConfig
+                  ) -> _PathTargets:
+    """What step 4 scores against: the path ahead of the robot, its look-ahead point, the path
+    extended ``forward_point_distance`` past its end and the look-ahead point of the alignment
+    point on it."""
     ahead = remaining_vertices(px, py, vertices)
-    carrot_x, carrot_y = point_along_vertices(ahead, config.carrot_distance)
+    carrot = point_along_vertices(ahead, config.carrot_distance)
+    # The alignment point runs forward_point_distance ahead of the robot, so it is scored against
+    # the path extended by that much past the goal (else it would hold the robot short of it).
+    fpd = config.forward_point_distance
+    extended = _extend(ahead, (px, py), fpd)
+    front_carrot = point_along_vertices(extended, config.carrot_distance + fpd)
+    return ahead, carrot, extended, front_carrot
+
+
+def _clearances(pose: Sequence[float], vs: np.ndarray, ws: np.ndarray, times: np.ndarray,
+                grid: OccupancyGrid, near: list[tuple[float, float, float, float, float]],
+                reach: float) -> tuple[np.ndarray, ...]:
+    """Steps 2-3 in numpy: the rollouts x, y, cos θ, sin θ (S, T) and each rollout's least
+    clearance (S,) [m] to the grid's obstacles and the ``near`` discs."""
+    px, py = float(pose[0]), float(pose[1])
+    x, y, _, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
+    clearance = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
+    for cx0, cy0, ux, uy, r in near:
+        dx = x - (cx0 + times * ux)
+        dy = y - (cy0 + times * uy)
+        dx *= dx
+        dy *= dy
+        dx += dy
+        gap = np.sqrt(dx, out=dx)
+        gap -= r
+        np.minimum(clearance, gap, out=clearance)
+    return x, y, cos_t, sin_t, clearance.min(axis=1)
+
+
+def _costs(x: np.ndarray, y: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, vs: np.ndarray,
+           min_clearance: np.ndarray, current: float, targets: _PathTargets,
+           robot_radius: float, config: DwaConfig) -> np.ndarray:
+    """Step 4 in numpy: every sample's cost (S,), admissible or not."""
+    ahead, (carrot_x, carrot_y), extended, (front_carrot_x, front_carrot_y) = targets
     end_x, end_y = x[:, -1], y[:, -1]
     cost = distance_to_polyline_xy(end_x, end_y, ahead)
     cost *= config.path_distance_bias
     dx, dy = end_x - carrot_x, end_y - carrot_y
     cost += config.goal_distance_bias * np.sqrt(dx * dx + dy * dy)
-    # The alignment point runs forward_point_distance ahead of the robot, so it is scored against
-    # the path extended by that much past the goal (else it would hold the robot short of it).
     fpd = config.forward_point_distance
-    extended = _extend(ahead, (px, py), fpd)
-    front_carrot_x, front_carrot_y = point_along_vertices(extended, config.carrot_distance + fpd)
     front_x = end_x + fpd * cos_t[:, -1]
     front_y = end_y + fpd * sin_t[:, -1]
     cost += config.path_distance_bias * distance_to_polyline_xy(front_x, front_y, extended)
@@ -346,12 +431,49 @@ def dwa_control(
                        float(inflation_cost(np.float64(current), robot_radius, config)))
     cost += config.occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
-    cost[~valid] = np.inf
-    best = int(np.argmin(cost))
-    return DwaResult(
-        float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False,
-        np.stack([x[best], y[best]], axis=-1),
-    )
+    return cost
+
+
+def _score_native(pose: Sequence[float], vs: np.ndarray, ws: np.ndarray, times: np.ndarray,
+                  grid: OccupancyGrid, near: list[tuple[float, float, float, float, float]],
+                  current: float, targets: _PathTargets, robot_radius: float,
+                  config: DwaConfig) -> tuple[np.ndarray, ...]:
+    """Steps 2-4 in C (``agent/nav/dwa_kernel.c``, the same operations as ``_clearances`` and
+    ``_costs``): the rollouts x, y (S, T), each rollout's least clearance and cost (S,)."""
+    ffi, lib = _native.ffi, _native.lib
+    ahead, (carrot_x, carrot_y), extended, (front_carrot_x, front_carrot_y) = targets
+    clearance = grid.clearance
+    if clearance.dtype != np.float64 or not clearance.flags.c_contiguous:
+        clearance = np.ascontiguousarray(clearance, dtype=np.float64)
+    ny, nx = clearance.shape
+    cycle = ffi.new("tl_dwa_cycle *", {
+        "px": float(pose[0]), "py": float(pose[1]), "th0": float(pose[2]),
+        "ox": float(grid.origin[0]), "oy": float(grid.origin[1]),
+        "res": float(grid.resolution), "nx": nx, "ny": ny,
+        "carrot_x": carrot_x, "carrot_y": carrot_y,
+        "front_carrot_x": front_carrot_x, "front_carrot_y": front_carrot_y,
+        "forward_point_distance": config.forward_point_distance,
+        "path_distance_bias": config.path_distance_bias,
+        "goal_distance_bias": config.goal_distance_bias,
+        "occdist_scale": config.occdist_scale, "speed_bias": config.speed_bias,
+        "max_vel_x": config.max_vel_x, "robot_radius": robot_radius,
+        "inflation_radius": config.inflation_radius,
+        "cost_scaling_factor": config.cost_scaling_factor, "current": current,
+    })
+    n_samples, n_times = len(vs), len(times)
+    x = np.empty((n_samples, n_times))
+    y = np.empty((n_samples, n_times))
+    min_clearance = np.empty(n_samples)
+    cost = np.empty(n_samples)
+    doubles = functools.partial(ffi.from_buffer, "double[]")
+    discs = ffi.new("double[]", [value for disc in near for value in disc]) if near else ffi.NULL
+    lib.tl_dwa_score(
+        cycle, n_samples, doubles(vs), doubles(ws), n_times, doubles(times), doubles(clearance),
+        len(near), discs,
+        len(ahead), ffi.new("double[]", [value for vertex in ahead for value in vertex]),
+        len(extended), ffi.new("double[]", [value for vertex in extended for value in vertex]),
+        doubles(x), doubles(y), doubles(min_clearance), doubles(cost))
+    return x, y, min_clearance, cost
 
 
 def _near_discs(others: MovingDiscs, px: float, py: float, reach: float, horizon: float,

@@ -16,6 +16,7 @@ import numpy as np
 
 from agent.ltl.agent import Distance, LtlAgent, LtlState, LtlStepInput, Notice
 from agent.ltl.planner import Plan
+from agent.nav.dwa import DwaConfig, native_kernel_available
 from agent.nav.events import ReplanRequest
 from agent.nav.executor import Executor
 from agent.protocol.messages import Event, LtlStatus
@@ -99,6 +100,18 @@ def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) 
         events = (event, core.coupling_event()) if core.coupling else (event,)
         logger.info("robot %d: plan %s · (%s)^ω, cost %.3f, %.1f ms", config.robot, plan.prefix,
                     plan.suffix, plan.cost, 1e3 * plan.timings.total)
+        _log_dwa_kernel(config.robot, core.agent.executor.config.dwa)
         return core, state, events, None
 
     return run_agent(config, scenario, build, transport=transport, stop=stop)
+
+
+def _log_dwa_kernel(robot: int, dwa: DwaConfig) -> None:
+    if dwa.native:
+        logger.info("robot %d: DWA kernel: C (agent.nav._dwa)", robot)
+    elif native_kernel_available():
+        logger.info("robot %d: DWA kernel: numpy (kernel = %r)", robot, dwa.kernel)
+    else:
+        logger.warning("robot %d: the DWA's C kernel (agent.nav._dwa) was not built at install "
+                       "time (no C compiler?): running its numpy form, the same commands, a "
+                       "slower step", robot)

@@ -37,9 +37,14 @@ def test_quick_benchmark_writes_every_figure(repo_root, tmp_path):
     assert set(data["meets_targets"]) == set(data["targets_ms"])
     # Scenario 1's LTL agents as their processes step them: they drive, and re-plan after some
     # commands (not all: most steps only run the DWA).
-    step = results["ltl_agent_step_scenario1"]
-    assert step["moved"] and step["steps"] == 3 * 2 * 100
-    assert 0 < step["cpu_median_ms"] <= step["cpu_p90_ms"] <= step["cpu_p99_ms"]
-    assert 0 < results["ltl_agent_deferred_replan_scenario1"]["per_step"] < 0.5
+    for suffix in ("", "_numpy"):  # the DWA kernel the agents run, and the numpy one beside it
+        step = results[f"ltl_agent_step_scenario1{suffix}"]
+        assert step["moved"] and step["steps"] == 3 * 2 * 100
+        assert 0 < step["cpu_median_ms"] <= step["cpu_p90_ms"] <= step["cpu_p99_ms"]
+        assert 0 < results[f"ltl_agent_deferred_replan_scenario1{suffix}"]["per_step"] < 0.5
+    assert results["ltl_agent_step_scenario1_numpy"]["kernel"] == "numpy"
+    assert results["dwa_cycle_5_others_numpy"]["kernel"] == "numpy"
+    assert results["dwa_cycle_5_others_numpy"]["admissible"] == results["dwa_cycle_5_others"][
+        "admissible"]
     # The corner-to-corner path on the empty arena is the straight diagonal (6.4·√2 m).
     assert abs(results["plan_corner_to_corner_empty_arena"]["length_m"] - 6.4 * 2**0.5) < 1e-6

@@ -5,6 +5,9 @@ coordinate arrays, and leave out other robots that cannot matter; the reference 
 straightforward numpy form of ltl-planning.md §6 (rollouts (S, T, 2), every robot, every
 polyline as one (P, M−1) array) that they replaced. Equality is exact (``==``), not approximate:
 the lockstep trajectories depend on every bit of the chosen command.
+
+These tests pin the DWA's numpy kernel (``DwaConfig(kernel="python")``); its C kernel is compared
+with this one in test_nav_dwa_native.py.
 """
 
 from __future__ import annotations
@@ -13,9 +16,10 @@ import math
 
 import numpy as np
 import pytest
+from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_limits, random_others, random_path
 
 from agent.nav import polyline
-from agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
+from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.dwa import (
     DwaConfig,
     MovingDiscs,
@@ -24,12 +28,6 @@ from agent.nav.dwa import (
     inflation_cost,
     velocity_window,
 )
-from agent.nav.grid import grid_from_arena
-from agent.scenario.model import Arena
-
-GRID = grid_from_arena(Arena(), inflation=0.25)
-ROBOT_RADIUS = 0.2
-
 
 # ----------------------------------------------------------------------- the reference forms
 
@@ -151,34 +149,6 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
             points[best])
 
 
-# ----------------------------------------------------------------------- random inputs
-
-def random_path(rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
-    """1–20 vertices ahead of ``start`` (mostly up to 6), some legs of zero length."""
-    n = int(rng.integers(1, 7) if rng.random() < 0.8 else rng.integers(7, 21))
-    legs = rng.normal(scale=rng.choice([0.05, 0.5, 1.5]), size=(n, 2))
-    legs[rng.random(n) < 0.1] = 0.0
-    return np.clip(start + np.cumsum(legs, axis=0), -3.4, 3.4)
-
-
-def random_others(rng: np.random.Generator, position: np.ndarray) -> MovingDiscs:
-    k = int(rng.integers(0, 7))
-    spread = rng.choice([0.4, 1.0, 3.0], size=(k, 1))
-    centers = position + rng.normal(size=(k, 2)) * spread
-    velocities = rng.normal(scale=0.2, size=(k, 2)) * (rng.random((k, 1)) < 0.7)
-    return MovingDiscs(centers, velocities, rng.choice([0.15, 0.2, 0.25], size=k))
-
-
-def random_limits(rng: np.random.Generator) -> VelocityLimits | None:
-    if rng.random() < 0.6:
-        return None
-    n = int(rng.integers(1, 3))
-    return VelocityLimits(tuple(
-        CouplingConstraint(float(rng.uniform(0, 1.5)), float(rng.uniform(0, 0.8)),
-                           float(rng.uniform(0.02, 0.4)), "random")
-        for _ in range(n)))
-
-
 def assert_same_result(result, reference) -> None:
     v, omega, cost, n_valid, reached, trajectory = reference
     assert (result.v, result.omega, result.cost, result.n_valid, result.goal_reached) == (
@@ -190,7 +160,7 @@ def assert_same_result(result, reference) -> None:
 @pytest.mark.parametrize("seed", range(8))
 def test_dwa_equals_the_array_form_bit_for_bit(seed):
     rng = np.random.default_rng(seed)
-    config = DwaConfig()
+    config = PYTHON
     outcomes = set()
     for _ in range(150):
         # mostly inside the arena, some poses at its edge and beyond (the off-grid lookup)
@@ -210,7 +180,7 @@ def test_dwa_equals_the_array_form_bit_for_bit(seed):
 
 def test_dwa_equals_the_array_form_with_a_robot_just_outside_the_pruning_bound():
     """Other robots placed around the distance where ``_near_discs`` starts leaving them out."""
-    config = DwaConfig()
+    config = PYTHON
     pose = np.array([0.0, 0.0, 0.3])
     path = np.array([[1.5, 0.5], [2.5, 2.0]])
     reach = config.max_vel_x * config.sim_time

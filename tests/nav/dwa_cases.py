@@ -1,0 +1,40 @@
+"""Random DWA inputs shared by the reference and the native-kernel tests (tests/nav)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
+from agent.nav.dwa import DwaConfig, MovingDiscs
+from agent.nav.grid import grid_from_arena
+from agent.scenario.model import Arena
+
+GRID = grid_from_arena(Arena(), inflation=0.25)
+ROBOT_RADIUS = 0.2
+PYTHON = DwaConfig(kernel="python")  # the numpy form, whatever $TLFLEET_DWA says
+
+
+def random_path(rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
+    """1–20 vertices ahead of ``start`` (mostly up to 6), some legs of zero length."""
+    n = int(rng.integers(1, 7) if rng.random() < 0.8 else rng.integers(7, 21))
+    legs = rng.normal(scale=rng.choice([0.05, 0.5, 1.5]), size=(n, 2))
+    legs[rng.random(n) < 0.1] = 0.0
+    return np.clip(start + np.cumsum(legs, axis=0), -3.4, 3.4)
+
+
+def random_others(rng: np.random.Generator, position: np.ndarray) -> MovingDiscs:
+    k = int(rng.integers(0, 7))
+    spread = rng.choice([0.4, 1.0, 3.0], size=(k, 1))
+    centers = position + rng.normal(size=(k, 2)) * spread
+    velocities = rng.normal(scale=0.2, size=(k, 2)) * (rng.random((k, 1)) < 0.7)
+    return MovingDiscs(centers, velocities, rng.choice([0.15, 0.2, 0.25], size=k))
+
+
+def random_limits(rng: np.random.Generator) -> VelocityLimits | None:
+    if rng.random() < 0.6:
+        return None
+    n = int(rng.integers(1, 3))
+    return VelocityLimits(tuple(
+        CouplingConstraint(float(rng.uniform(0, 1.5)), float(rng.uniform(0, 0.8)),
+                           float(rng.uniform(0.02, 0.4)), "random")
+        for _ in range(n)))
