@@ -7,15 +7,21 @@ zenoh (``runtime_bench``): the codec of the three per-tick messages (the frame e
 the recorder decode, the command the sim decodes once per due robot, the frame, command and
 clock encoded) and the simulator's world tick (``World.step`` over one mocap period: 10 physics
 sub-steps with the tracking law of 5 robots, then ``World.mocap_poses``). CPU of this thread
-(``time.thread_time``) beside wall, medians of ``--runs`` runs; warm caches, so a real
-process, woken 100 times a second, pays 3–6× these figures (``docs/performance.md``). No
-targets: the figures compare trees (run this file from each checkout).
+(``time.thread_time``) beside wall, medians of ``--runs`` runs; warm caches.
+
+A real agent process is woken 100 times a second, and on a VM whose idle vCPUs halt it pays
+several times the warm figure (``docs/performance.md``, round 11). So the last two figures are
+one STL agent's whole tick (decode the frame, step, encode the command) along a replay of
+Scenario 1, back to back and after a 10 ms sleep before every tick, and their ratio. No targets:
+the figures compare trees (run this file from each checkout) and hours.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +31,58 @@ sys.path.insert(0, str(ROOT))
 
 from agent.protocol.codec import decode, encode  # noqa: E402
 from agent.protocol.messages import Clock, Command, MocapFrame  # noqa: E402
+from agent.runtime.loop import TickInput  # noqa: E402
+from agent.runtime.stl_agent import StlCore  # noqa: E402
 from agent.scenario import load_scenario  # noqa: E402
+from agent.scenario.model import Scenario  # noqa: E402
+from agent.stl.agent import build_agents  # noqa: E402
 from bench.common import RESULTS, Figure, load_average, report, time_calls  # noqa: E402
 from sim.world import World  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
+TICK = 0.01  # [s] Scenario 1's mocap period
+TIMED_ROBOT = 4  # the STL robot whose ticks are timed (its task couples it to robots 3 and 5)
+
+
+def replay_frames(scenario: Scenario, ticks: int) -> list[bytes]:
+    """Encoded realtime frames of a kinematic replay of ``scenario``: its STL agents step on every
+    frame and their robots move as commanded (world-frame velocities over one tick), the LTL
+    robots stay where they start."""
+    agents = build_agents(scenario)
+    cores = {rid: StlCore(agent) for rid, agent in agents.items()}
+    states = {rid: core.initial_state() for rid, core in cores.items()}
+    poses = {r.id: tuple(map(float, r.pose)) for r in scenario.robots}
+    payloads = []
+    for k in range(ticks):
+        frame = MocapFrame(k * TICK, k, tuple((rid, *pose) for rid, pose in sorted(poses.items())))
+        payloads.append(encode(frame))
+        for rid, core in cores.items():
+            states[rid], out = core.step(states[rid], TickInput(frame))
+            (x, y, theta), (vx, vy, omega) = poses[rid], out.u
+            poses[rid] = (x + TICK * vx, y + TICK * vy, theta + TICK * omega)
+    return payloads
+
+
+def agent_ticks(core: StlCore, payloads: list[bytes], runs: int, sleep: float
+                ) -> tuple[float, float]:
+    """Median over ``runs`` replays of the CPU and wall time [s] of one agent tick (decode the
+    frame, step from the replay's state, encode the command), ``sleep`` [s] untimed before each."""
+    cpu_runs, wall_runs = [], []
+    for _ in range(max(3, runs)):
+        state = core.initial_state()
+        cpu = wall = 0.0
+        for payload in payloads:
+            if sleep:
+                time.sleep(sleep)
+            c0, w0 = time.thread_time(), time.perf_counter()
+            frame = decode(MocapFrame, payload)
+            state, out = core.step(state, TickInput(frame))
+            encode(Command(core.robot, frame.t, frame.seq, out.u))
+            cpu += time.thread_time() - c0
+            wall += time.perf_counter() - w0
+        cpu_runs.append(cpu / len(payloads))
+        wall_runs.append(wall / len(payloads))
+    return statistics.median(cpu_runs), statistics.median(wall_runs)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,6 +120,18 @@ def main(argv: list[str] | None = None) -> int:
     for key, label, fn, n in cases:
         timing = time_calls(fn, args.runs, n)
         figures.append(Figure(key, label, 1e6 * timing.cpu, "µs", wall=1e6 * timing.wall))
+    payloads = replay_frames(scenario, 60 if args.quick else 300)
+    core = StlCore(build_agents(scenario, robots=[TIMED_ROBOT])[TIMED_ROBOT])
+    warm = agent_ticks(core, payloads, args.runs, 0.0)
+    slept = agent_ticks(core, payloads, args.runs, TICK)
+    figures.append(Figure("stl_agent_tick_us", f"STL agent tick, S1 robot {TIMED_ROBOT}, back to "
+                          "back", 1e6 * warm[0], "µs", wall=1e6 * warm[1],
+                          note=f"decode the frame, step, encode the command; {len(payloads)} "
+                               "ticks of a replay of Scenario 1"))
+    figures.append(Figure("stl_agent_tick_after_sleep_us", "  the same, after a 10 ms sleep each",
+                          1e6 * slept[0], "µs", wall=1e6 * slept[1],
+                          note=f"{slept[0] / warm[0]:.1f}× the tick back to back: what a 100 Hz "
+                               "agent pays on a VM whose idle vCPUs halt"))
     report("tick_bench", figures, args.out, load_before=load_before, quick=args.quick,
            extra={"runs": max(3, args.runs), "calls": calls})
     return 0
