@@ -317,6 +317,8 @@ def dwa_control(
     """
     config = config or DwaConfig()
     others = others if others is not None else MovingDiscs.empty()
+    if config.native:
+        return _control_native(pose, velocity, path, grid, robot_radius, others, config, limits)
     v0, w0 = float(velocity[0]), float(velocity[1])
     px, py = float(pose[0]), float(pose[1])
     vertices = np.asarray(path, dtype=float).reshape(-1, 2).tolist()
@@ -338,12 +340,7 @@ def dwa_control(
         current = min(current, math.sqrt(ex * ex + ey * ey) - r)
     required = min(robot_radius + config.collision_margin, current - 1e-6)
 
-    if config.native:
-        targets = _path_targets(px, py, vertices, config)
-        x, y, min_clearance, cost = _score_native(
-            pose, vs, ws, times, grid, near, current, targets, robot_radius, config)
-    else:
-        x, y, cos_t, sin_t, min_clearance = _clearances(pose, vs, ws, times, grid, near, reach)
+    x, y, cos_t, sin_t, min_clearance = _clearances(pose, vs, ws, times, grid, near, reach)
     valid = min_clearance >= required
     if limits and valid.any():
         excess = limits.excess(vs, ws)
@@ -357,10 +354,8 @@ def dwa_control(
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, math.inf, 0, False, np.zeros((0, 2)))
 
-    if not config.native:
-        targets = _path_targets(px, py, vertices, config)
-        cost = _costs(x, y, cos_t, sin_t, vs, min_clearance, current, targets, robot_radius,
-                      config)
+    targets = _path_targets(px, py, vertices, config)
+    cost = _costs(x, y, cos_t, sin_t, vs, min_clearance, current, targets, robot_radius, config)
     cost[~valid] = np.inf
     best = int(np.argmin(cost))
     return DwaResult(
@@ -434,46 +429,81 @@ def _costs(x: np.ndarray, y: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, v
     return cost
 
 
-def _score_native(pose: Sequence[float], vs: np.ndarray, ws: np.ndarray, times: np.ndarray,
-                  grid: OccupancyGrid, near: list[tuple[float, float, float, float, float]],
-                  current: float, targets: _PathTargets, robot_radius: float,
-                  config: DwaConfig) -> tuple[np.ndarray, ...]:
-    """Steps 2-4 in C (``agent/nav/dwa_kernel.c``, the same operations as ``_clearances`` and
-    ``_costs``): the rollouts x, y (S, T), each rollout's least clearance and cost (S,)."""
-    ffi, lib = _native.ffi, _native.lib
-    ahead, (carrot_x, carrot_y), extended, (front_carrot_x, front_carrot_y) = targets
-    clearance = grid.clearance
-    if clearance.dtype != np.float64 or not clearance.flags.c_contiguous:
-        clearance = np.ascontiguousarray(clearance, dtype=np.float64)
-    ny, nx = clearance.shape
-    cycle = ffi.new("tl_dwa_cycle *", {
-        "px": float(pose[0]), "py": float(pose[1]), "th0": float(pose[2]),
-        "ox": float(grid.origin[0]), "oy": float(grid.origin[1]),
-        "res": float(grid.resolution), "nx": nx, "ny": ny,
-        "carrot_x": carrot_x, "carrot_y": carrot_y,
-        "front_carrot_x": front_carrot_x, "front_carrot_y": front_carrot_y,
-        "forward_point_distance": config.forward_point_distance,
+@functools.lru_cache(maxsize=32)
+def _native_params(config: DwaConfig, robot_radius: float):
+    """The C kernel's ``tl_dwa_params`` of a configuration and robot radius (kept: the
+    configuration is frozen)."""
+    return _native.ffi.new("tl_dwa_params *", {
+        "max_vel_x": config.max_vel_x, "min_vel_x": config.min_vel_x,
+        "max_rot_vel": config.max_rot_vel, "acc_lim_x": config.acc_lim_x,
+        "acc_lim_theta": config.acc_lim_theta, "controller_period": config.controller_period,
+        "vx_samples": config.vx_samples, "vtheta_samples": config.vtheta_samples,
         "path_distance_bias": config.path_distance_bias,
-        "goal_distance_bias": config.goal_distance_bias,
-        "occdist_scale": config.occdist_scale, "speed_bias": config.speed_bias,
-        "max_vel_x": config.max_vel_x, "robot_radius": robot_radius,
+        "goal_distance_bias": config.goal_distance_bias, "occdist_scale": config.occdist_scale,
+        "xy_goal_tolerance": config.xy_goal_tolerance,
+        "forward_point_distance": config.forward_point_distance,
         "inflation_radius": config.inflation_radius,
-        "cost_scaling_factor": config.cost_scaling_factor, "current": current,
+        "cost_scaling_factor": config.cost_scaling_factor,
+        "collision_margin": config.collision_margin, "carrot_distance": config.carrot_distance,
+        "speed_bias": config.speed_bias, "robot_radius": float(robot_radius),
     })
-    n_samples, n_times = len(vs), len(times)
-    x = np.empty((n_samples, n_times))
-    y = np.empty((n_samples, n_times))
-    min_clearance = np.empty(n_samples)
-    cost = np.empty(n_samples)
-    doubles = functools.partial(ffi.from_buffer, "double[]")
-    discs = ffi.new("double[]", [value for disc in near for value in disc]) if near else ffi.NULL
-    lib.tl_dwa_score(
-        cycle, n_samples, doubles(vs), doubles(ws), n_times, doubles(times), doubles(clearance),
-        len(near), discs,
-        len(ahead), ffi.new("double[]", [value for vertex in ahead for value in vertex]),
-        len(extended), ffi.new("double[]", [value for vertex in extended for value in vertex]),
-        doubles(x), doubles(y), doubles(min_clearance), doubles(cost))
-    return x, y, min_clearance, cost
+
+
+def _doubles(values, shape: tuple[int, ...]) -> np.ndarray:
+    return np.ascontiguousarray(values, dtype=np.float64).reshape(shape)
+
+
+def _control_native(pose: Sequence[float], velocity: Sequence[float], path: np.ndarray,
+                    grid: OccupancyGrid, robot_radius: float, others: MovingDiscs,
+                    config: DwaConfig, limits: VelocityLimits | None,
+                    scores: dict | None = None) -> DwaResult:
+    """``dwa_control`` in C (``agent/nav/dwa_kernel.c``: the numpy kernel's operations in its
+    order). ``scores``, when given, receives every sample's least clearance, cost and excess over
+    the coupling limits (tests)."""
+    ffi, lib = _native.ffi, _native.lib
+    vertices = _doubles(path, (-1, 2))
+    if not len(vertices):
+        raise IndexError("dwa_control: the path has no vertex")
+    clearance = _doubles(grid.clearance, grid.clearance.shape)
+    ny, nx = clearance.shape
+    layer = ffi.new("tl_dwa_grid *", {
+        "clearance": ffi.from_buffer("double[]", clearance), "nx": nx, "ny": ny,
+        "ox": float(grid.origin[0]), "oy": float(grid.origin[1]), "res": float(grid.resolution)})
+    k = len(others)
+    centers = _doubles(others.centers, (k, 2))
+    velocities = _doubles(others.velocities, (k, 2))
+    radii = _doubles(others.radii, (k,))
+    if limits:
+        rows = _doubles([(c.a_v, c.a_omega, c.bound) for c in limits.constraints], (-1, 3))
+        v_cap, w_cap = limits.v_max, limits.omega_max
+    else:
+        rows, v_cap, w_cap = np.zeros((0, 3)), math.inf, math.inf
+    times = _times(config.sim_time, config.sim_dt)
+    trajectory = np.empty((len(times), 2))
+    result = ffi.new("tl_dwa_result *")
+    most = config.vx_samples * (config.vtheta_samples + 1)
+    min_clearance, cost, excess, count = (
+        (np.empty(most), np.empty(most), np.empty(most), ffi.new("int *"))
+        if scores is not None else (None, None, None, ffi.NULL))
+    buffer = functools.partial(ffi.from_buffer, "double[]")
+    status = lib.tl_dwa_control(
+        _native_params(config, robot_radius), layer,
+        float(pose[0]), float(pose[1]), float(pose[2]), float(velocity[0]), float(velocity[1]),
+        len(vertices), buffer(vertices), k, buffer(centers), buffer(velocities), buffer(radii),
+        len(rows), buffer(rows), v_cap, w_cap, len(times), buffer(times), result,
+        buffer(trajectory),
+        *((buffer(min_clearance), buffer(cost), buffer(excess)) if scores is not None
+          else (ffi.NULL, ffi.NULL, ffi.NULL)), count)
+    if status != 0:
+        raise MemoryError("dwa_control: the C kernel could not allocate its samples")
+    if scores is not None:
+        n = count[0]
+        scores.update(min_clearance=min_clearance[:n], cost=cost[:n], excess=excess[:n])
+    if result.goal_reached:
+        return DwaResult(result.v, result.omega, 0.0, 0, True, np.zeros((0, 2)))
+    if result.n_valid == 0:
+        return DwaResult(result.v, result.omega, math.inf, 0, False, np.zeros((0, 2)))
+    return DwaResult(result.v, result.omega, result.cost, result.n_valid, False, trajectory)
 
 
 def _near_discs(others: MovingDiscs, px: float, py: float, reach: float, horizon: float,

@@ -1,26 +1,45 @@
-/* The DWA's per-sample arithmetic in C (agent/nav/dwa_kernel.c), parsed by cffi's cdef as well
- * (no guards or other directives). Units: m, rad, s. */
+/* The DWA cycle in C (agent/nav/dwa_kernel.c), parsed by cffi's cdef as well (no guards or other
+ * directives). Units: m, rad, s. */
 
-/* What one cycle's samples are scored against (dwa.py's dwa_control computes it in Python). */
+/* A DwaConfig and the robot's radius (dwa.py builds one per configuration and keeps it). */
 typedef struct {
-    double px, py, th0;              /* the robot's pose */
-    double ox, oy, res;              /* the grid's origin [m] and cell size [m] */
-    int nx, ny;                      /* the grid's columns and rows */
-    double carrot_x, carrot_y;       /* look-ahead point on the remaining path */
-    double front_carrot_x, front_carrot_y;  /* the same on the path extended past its end */
-    double forward_point_distance, path_distance_bias, goal_distance_bias;
-    double occdist_scale, speed_bias, max_vel_x;
-    double robot_radius, inflation_radius, cost_scaling_factor;
-    double current;                  /* clearance at the pose itself, other robots included */
-} tl_dwa_cycle;
+    double max_vel_x, min_vel_x, max_rot_vel, acc_lim_x, acc_lim_theta, controller_period;
+    int vx_samples, vtheta_samples;
+    double path_distance_bias, goal_distance_bias, occdist_scale, xy_goal_tolerance;
+    double forward_point_distance, inflation_radius, cost_scaling_factor, collision_margin;
+    double carrot_distance, speed_bias;
+    double robot_radius;
+} tl_dwa_params;
 
-/* Steps 2-4 of the module docstring of dwa.py for n_samples samples (v[i], omega[i]) over the
- * times[0..n_times-1]: rollouts into x, y (n_samples x n_times, row-major), each rollout's least
- * clearance into min_clearance and its cost, before admissibility, into cost (n_samples each).
- * clearance: the grid's (ny x nx) clearance layer, row-major; discs: n_discs rows of
- * (cx, cy, ux, uy, r); ahead, extended: n_ahead and n_extended path vertices (x, y). */
-void tl_dwa_score(const tl_dwa_cycle *c, int n_samples, const double *v, const double *omega,
-                  int n_times, const double *times, const double *clearance,
-                  int n_discs, const double *discs, int n_ahead, const double *ahead,
-                  int n_extended, const double *extended,
-                  double *x, double *y, double *min_clearance, double *cost);
+/* The static layer: an OccupancyGrid's clearance (ny x nx, row-major) and placement. */
+typedef struct {
+    const double *clearance;
+    int nx, ny;
+    double ox, oy, res;
+} tl_dwa_grid;
+
+/* The decision: the command, its cost, the admissible samples, whether the goal was reached,
+ * and which sample was chosen (-1: braking). */
+typedef struct {
+    double v, omega, cost;
+    int n_valid, goal_reached, best;
+} tl_dwa_result;
+
+/* One cycle of dwa.py's dwa_control: pose (px, py, th0), the last command (v0, w0), the path's
+ * n_path vertices (x, y), the n_others other robots (centres and velocities (x, y), radii), the
+ * n_limits coupling constraints (a_v, a_omega, bound) with their largest |v| and |omega|
+ * (v_cap, w_cap), the rollout times. Writes the result, the chosen rollout into trajectory
+ * (n_times x 2) and, when not NULL, every sample's least clearance, cost (admissible or not)
+ * and excess over the coupling limits (0 without limits; n_samples entries, at most
+ * vx_samples * (vtheta_samples + 1)) with the count in *n_samples.
+ * Returns 0, or -1 when memory ran out. */
+int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
+                   double px, double py, double th0, double v0, double w0,
+                   int n_path, const double *path,
+                   int n_others, const double *centers, const double *velocities,
+                   const double *radii,
+                   int n_limits, const double *limits, double v_cap, double w_cap,
+                   int n_times, const double *times,
+                   tl_dwa_result *result, double *trajectory,
+                   double *min_clearance_out, double *cost_out, double *excess_out,
+                   int *n_samples);

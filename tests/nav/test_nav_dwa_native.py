@@ -65,7 +65,7 @@ def test_c_kernel_equals_numpy_kernel_on_random_cycles(seed):
     """Poses inside the arena, at its edge and beyond it (the off-grid lookups), 0–6 other
     robots near and far (the pruned square roots), coupling limits, every outcome."""
     rng = np.random.default_rng(500 + seed)
-    outcomes, disagree = set(), 0
+    outcomes, disagree, limited = set(), 0, 0
     for _ in range(200):
         position = rng.uniform(-3.6, 3.6, size=2) * rng.choice([0.6, 1.0, 1.05])
         pose = np.array([*position, rng.uniform(-math.pi, math.pi)])
@@ -75,13 +75,19 @@ def test_c_kernel_equals_numpy_kernel_on_random_cycles(seed):
         others = random_others(rng, position)
         limits = random_limits(rng)
         args = (pose, velocity, path, GRID, ROBOT_RADIUS, others)
-        native = dwa_control(*args, NATIVE, limits)
+        scores = {}
+        native = dwa_module._control_native(*args, NATIVE, limits, scores)
         python = dwa_control(*args, PYTHON, limits)
         disagree += not same(native, python)
+        if limits and EXACT and not python.goal_reached:  # the samples' excess, every bit
+            vs, ws = dwa_module._samples(*velocity, PYTHON, limits)
+            assert scores["excess"].tolist() == limits.excess(vs, ws).tolist()
+            limited += 1
         outcomes.add("reached" if python.goal_reached else
                      "braked" if python.n_valid == 0 else "moved")
     assert outcomes == {"reached", "braked", "moved"}  # every branch was compared
     assert disagree <= (0 if EXACT else 2)  # elsewhere a near-tie may flip on an ulp
+    assert limited >= 40 or not EXACT
 
 
 @pytest.mark.needs_system
@@ -109,29 +115,35 @@ def test_c_kernel_equals_numpy_kernel_with_robots_at_the_clearance():
 def test_skipped_square_roots_never_change_the_least_clearance():
     """The C kernel skips a robot's square root where its gap must exceed the least clearance
     found so far. A standing robot is placed so that its gap to one rollout point is that
-    point's grid clearance d times 1 + δ, for δ from −1e-4 to 1e-4 down to 1e-15: the least
-    clearances of both kernels must stay equal, and the robot must set the minimum for δ < 0."""
-    config = NATIVE
-    pose = (0.4, -0.3, 0.9)
-    vs, ws = dwa_module._samples(0.2, 0.3, config)
-    times = dwa_module._times(config.sim_time, config.sim_dt)
-    targets = dwa_module._path_targets(pose[0], pose[1], [[1.5, 0.8], [2.5, 2.0]], config)
-    x, y, _, _, base = dwa_module._clearances(pose, vs, ws, times, GRID, [], 1.0)
+    point's grid clearance d times 1 + δ, for δ from −1e-4 to 1e-4 down to 1e-15: every
+    sample's least clearance must stay equal to the numpy kernel's, and the robot must set the
+    minimum for δ < 0."""
+    pose, velocity = (2.9, -0.3, 0.4), (0.2, 0.3)  # heading for the wall at x = 3.5
+    path = np.array([[3.0, 0.8], [2.5, 2.0]])
+    vs, ws = dwa_module._samples(*velocity, PYTHON)
+    times = dwa_module._times(PYTHON.sim_time, PYTHON.sim_dt)
+    reach = float(np.abs(vs).max()) * float(times[-1])
+    x, y, _, _, base = dwa_module._clearances(pose, vs, ws, times, GRID, [], reach)
     radius = 0.2
     lowered = 0
-    for i, k in ((5, 12), (40, 6), (97, 12)):
-        d = float(GRID.clearance_xy(x[i:i + 1, k], y[i:i + 1, k])[0])
-        assert d > 0.05  # a point in free space
+    clearance = GRID.clearance_xy(x, y)
+    points = np.argwhere((clearance > 0.05) & (clearance < 0.3))  # free, near the wall
+    assert len(points) >= 10
+    for i, k in points[[0, len(points) // 2, -1]].tolist():
+        d = float(clearance[i, k])
         for delta in (-1e-4, -1e-6, -1e-8, -1e-10, -1e-12, -1e-15, 0.0, 1e-15, 1e-12, 1e-8,
                       1e-4):
-            gap = d * (1.0 + delta)
-            disc = (float(x[i, k]) + gap + radius, float(y[i, k]), 0.0, 0.0, radius)
-            current = min(GRID.clearance_point(pose[0], pose[1]),
-                          math.hypot(disc[0] - pose[0], disc[1] - pose[1]) - radius)
-            _, _, _, _, python = dwa_module._clearances(pose, vs, ws, times, GRID, [disc], 1.0)
-            _, _, native, _ = dwa_module._score_native(pose, vs, ws, times, GRID, [disc], current,
-                                                       targets, ROBOT_RADIUS, config)
-            assert native.tolist() == python.tolist(), (i, k, delta)
+            disc = (float(x[i, k]) + d * (1.0 + delta) + radius, float(y[i, k]), 0.0, 0.0,
+                    radius)
+            others = MovingDiscs(np.array([disc[:2]]), np.zeros((1, 2)), np.array([radius]))
+            near = dwa_module._near_discs(others, pose[0], pose[1], reach, float(times[-1]),
+                                          PYTHON)
+            assert near == [disc]
+            python = dwa_module._clearances(pose, vs, ws, times, GRID, near, reach)[4]
+            scores = {}
+            dwa_module._control_native(pose, velocity, path, GRID, ROBOT_RADIUS, others, NATIVE,
+                                       None, scores)
+            assert scores["min_clearance"].tolist() == python.tolist(), (i, k, delta)
             lowered += python[i] < base[i]
     assert lowered >= 3 * 5  # the robot was the nearest obstacle in the δ < 0 placements
 
