@@ -314,6 +314,8 @@ def dwa_control(
     come within ``inflation_radius`` of any rollout are left out (they change no cost and no
     admissibility). The floating-point operations of what is computed are those of the plain
     array form, so the result is the same to the last bit (tests/nav/test_nav_dwa_reference.py).
+    With ``config.native`` (the default where it was built) the whole cycle runs in C instead
+    (``agent/nav/dwa_kernel.c``, the same operations; tests/nav/test_nav_dwa_native.py).
     """
     config = config or DwaConfig()
     others = others if others is not None else MovingDiscs.empty()
