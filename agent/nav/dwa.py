@@ -55,7 +55,7 @@ from agent.nav.polyline import (
     remaining_vertices,
 )
 
-try:  # steps 2-4 in C (setup.py builds agent/nav/dwa_kernel.c where a C compiler is; optional)
+try:  # the cycle in C (setup.py builds agent/nav/dwa_kernel.c where a C compiler is; optional)
     from agent.nav import _dwa as _native
 except ImportError:  # pragma: no cover - depends on the install
     _native = None
@@ -101,8 +101,8 @@ class DwaConfig:
     collision_margin: float = 0.03  # [m] beyond the robot radius, rollouts closer are rejected
     carrot_distance: float = 0.8  # [m] look-ahead along the global path for the goal term
     speed_bias: float = 2.0  # weight of the speed term (ours; ROS has none)
-    # where steps 2-4 run: "native" (C, agent.nav._dwa), "python" (numpy), or "auto" (C when it
-    # was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
+    # where the cycle runs: "native" (C, agent.nav._dwa), "python" (numpy), or "auto" (C when
+    # it was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
     kernel: str = field(default_factory=_default_kernel)
 
     def __post_init__(self) -> None:
@@ -132,7 +132,7 @@ class DwaConfig:
 
     @property
     def native(self) -> bool:
-        """Whether cycles of this configuration run steps 2-4 in C."""
+        """Whether cycles of this configuration run in C."""
         return self.kernel == "native" or (self.kernel == "auto" and _native is not None)
 
 
