@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agent.errors import TlfleetError
+from agent.nav import dwa_native
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.grid import OccupancyGrid
 from agent.nav.polyline import (
@@ -54,11 +55,6 @@ from agent.nav.polyline import (
     point_along_vertices,
     remaining_vertices,
 )
-
-try:  # the cycle in C (setup.py builds agent/nav/dwa_kernel.c where a C compiler is; optional)
-    from agent.nav import _dwa as _native
-except ImportError:  # pragma: no cover - depends on the install
-    _native = None
 
 KERNEL_CHOICES = ("auto", "native", "python")
 
@@ -70,7 +66,7 @@ class DwaKernelError(TlfleetError, ValueError):
 
 def native_kernel_available() -> bool:
     """Whether the DWA's C kernel (``agent.nav._dwa``) was built at install time."""
-    return _native is not None
+    return dwa_native.available()
 
 
 def _default_kernel() -> str:
@@ -110,7 +106,7 @@ class DwaConfig:
             raise DwaKernelError(
                 f"DwaConfig.kernel (or $TLFLEET_DWA): expected one of "
                 f"{', '.join(KERNEL_CHOICES)}, got {self.kernel!r}")
-        if self.kernel == "native" and _native is None:
+        if self.kernel == "native" and not dwa_native.available():
             raise DwaKernelError(
                 "DwaConfig.kernel (or $TLFLEET_DWA) = 'native', but the DWA's C kernel "
                 "(agent.nav._dwa) was not built: reinstall with a C compiler")
@@ -133,7 +129,7 @@ class DwaConfig:
     @property
     def native(self) -> bool:
         """Whether cycles of this configuration run in C."""
-        return self.kernel == "native" or (self.kernel == "auto" and _native is not None)
+        return self.kernel == "native" or (self.kernel == "auto" and dwa_native.available())
 
 
 @dataclass(frozen=True, eq=False)
@@ -431,81 +427,14 @@ def _costs(x: np.ndarray, y: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, v
     return cost
 
 
-@functools.lru_cache(maxsize=32)
-def _native_params(config: DwaConfig, robot_radius: float):
-    """The C kernel's ``tl_dwa_params`` of a configuration and robot radius (kept: the
-    configuration is frozen)."""
-    return _native.ffi.new("tl_dwa_params *", {
-        "max_vel_x": config.max_vel_x, "min_vel_x": config.min_vel_x,
-        "max_rot_vel": config.max_rot_vel, "acc_lim_x": config.acc_lim_x,
-        "acc_lim_theta": config.acc_lim_theta, "controller_period": config.controller_period,
-        "vx_samples": config.vx_samples, "vtheta_samples": config.vtheta_samples,
-        "path_distance_bias": config.path_distance_bias,
-        "goal_distance_bias": config.goal_distance_bias, "occdist_scale": config.occdist_scale,
-        "xy_goal_tolerance": config.xy_goal_tolerance,
-        "forward_point_distance": config.forward_point_distance,
-        "inflation_radius": config.inflation_radius,
-        "cost_scaling_factor": config.cost_scaling_factor,
-        "collision_margin": config.collision_margin, "carrot_distance": config.carrot_distance,
-        "speed_bias": config.speed_bias, "robot_radius": float(robot_radius),
-    })
-
-
-def _doubles(values, shape: tuple[int, ...]) -> np.ndarray:
-    return np.ascontiguousarray(values, dtype=np.float64).reshape(shape)
-
-
 def _control_native(pose: Sequence[float], velocity: Sequence[float], path: np.ndarray,
                     grid: OccupancyGrid, robot_radius: float, others: MovingDiscs,
                     config: DwaConfig, limits: VelocityLimits | None,
                     scores: dict | None = None) -> DwaResult:
-    """``dwa_control`` in C (``agent/nav/dwa_kernel.c``: the numpy kernel's operations in its
-    order). ``scores``, when given, receives every sample's least clearance, cost and excess over
-    the coupling limits (tests)."""
-    ffi, lib = _native.ffi, _native.lib
-    vertices = _doubles(path, (-1, 2))
-    if not len(vertices):
-        raise IndexError("dwa_control: the path has no vertex")
-    clearance = _doubles(grid.clearance, grid.clearance.shape)
-    ny, nx = clearance.shape
-    layer = ffi.new("tl_dwa_grid *", {
-        "clearance": ffi.from_buffer("double[]", clearance), "nx": nx, "ny": ny,
-        "ox": float(grid.origin[0]), "oy": float(grid.origin[1]), "res": float(grid.resolution)})
-    k = len(others)
-    centers = _doubles(others.centers, (k, 2))
-    velocities = _doubles(others.velocities, (k, 2))
-    radii = _doubles(others.radii, (k,))
-    if limits:
-        rows = _doubles([(c.a_v, c.a_omega, c.bound) for c in limits.constraints], (-1, 3))
-        v_cap, w_cap = limits.v_max, limits.omega_max
-    else:
-        rows, v_cap, w_cap = np.zeros((0, 3)), math.inf, math.inf
-    times = _times(config.sim_time, config.sim_dt)
-    trajectory = np.empty((len(times), 2))
-    result = ffi.new("tl_dwa_result *")
-    most = config.vx_samples * (config.vtheta_samples + 1)
-    min_clearance, cost, excess, count = (
-        (np.empty(most), np.empty(most), np.empty(most), ffi.new("int *"))
-        if scores is not None else (None, None, None, ffi.NULL))
-    buffer = functools.partial(ffi.from_buffer, "double[]")
-    status = lib.tl_dwa_control(
-        _native_params(config, robot_radius), layer,
-        float(pose[0]), float(pose[1]), float(pose[2]), float(velocity[0]), float(velocity[1]),
-        len(vertices), buffer(vertices), k, buffer(centers), buffer(velocities), buffer(radii),
-        len(rows), buffer(rows), v_cap, w_cap, len(times), buffer(times), result,
-        buffer(trajectory),
-        *((buffer(min_clearance), buffer(cost), buffer(excess)) if scores is not None
-          else (ffi.NULL, ffi.NULL, ffi.NULL)), count)
-    if status != 0:
-        raise MemoryError("dwa_control: the C kernel could not allocate its samples")
-    if scores is not None:
-        n = count[0]
-        scores.update(min_clearance=min_clearance[:n], cost=cost[:n], excess=excess[:n])
-    if result.goal_reached:
-        return DwaResult(result.v, result.omega, 0.0, 0, True, np.zeros((0, 2)))
-    if result.n_valid == 0:
-        return DwaResult(result.v, result.omega, math.inf, 0, False, np.zeros((0, 2)))
-    return DwaResult(result.v, result.omega, result.cost, result.n_valid, False, trajectory)
+    """``dwa_control`` in C (``agent.nav.dwa_native``); ``scores``, when given, receives every
+    sample's least clearance, cost and excess over the coupling limits (tests)."""
+    return DwaResult(*dwa_native.control(pose, velocity, path, grid, robot_radius, others, config,
+                                         limits, _times(config.sim_time, config.sim_dt), scores))
 
 
 def _near_discs(others: MovingDiscs, px: float, py: float, reach: float, horizon: float,

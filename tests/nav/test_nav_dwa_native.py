@@ -21,6 +21,7 @@ import pytest
 from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_limits, random_others, random_path
 
 import agent.nav.dwa as dwa_module
+import agent.nav.dwa_native as dwa_native
 from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control, native_kernel_available
 from agent.nav.executor import Executor, ExecutorConfig
 
@@ -205,7 +206,7 @@ def test_the_kernel_setting_is_checked(monkeypatch):
 
 def test_without_the_c_kernel_auto_runs_numpy_and_native_is_refused(monkeypatch):
     monkeypatch.delenv("TLFLEET_DWA", raising=False)
-    monkeypatch.setattr(dwa_module, "_native", None)
+    monkeypatch.setattr(dwa_native, "_native", None)
     assert not native_kernel_available()
     with pytest.raises(ValueError, match="not built"):
         DwaConfig(kernel="native")
