@@ -171,7 +171,6 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
 {
     result->goal_reached = 0;
     result->n_valid = 0;
-    result->best = -1;
     result->cost = 0.0;
     if (n_samples)
         *n_samples = 0;
@@ -420,7 +419,6 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
     result->omega = sw[best];
     result->cost = cost[best];
     result->n_valid = n_valid;
-    result->best = best;
     for (int k = 0; k < n_times; k++) {
         double cos_t, sin_t;
         rollout_point(&arc, sv[best], sw[best], times[k], trajectory + 2 * k,

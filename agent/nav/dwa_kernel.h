@@ -18,11 +18,10 @@ typedef struct {
     double ox, oy, res;
 } tl_dwa_grid;
 
-/* The decision: the command, its cost, the admissible samples, whether the goal was reached,
- * and which sample was chosen (-1: braking). */
+/* The decision: the command, its cost, the admissible samples, whether the goal was reached. */
 typedef struct {
     double v, omega, cost;
-    int n_valid, goal_reached, best;
+    int n_valid, goal_reached;
 } tl_dwa_result;
 
 /* One cycle of dwa.py's dwa_control: pose (px, py, th0), the last command (v0, w0), the path's

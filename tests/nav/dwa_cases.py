@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
@@ -38,3 +40,17 @@ def random_limits(rng: np.random.Generator) -> VelocityLimits | None:
         CouplingConstraint(float(rng.uniform(0, 1.5)), float(rng.uniform(0, 0.8)),
                            float(rng.uniform(0.02, 0.4)), "random")
         for _ in range(n)))
+
+
+def random_cycle(rng: np.random.Generator
+                 ) -> tuple[np.ndarray, tuple[float, float], np.ndarray, MovingDiscs,
+                            VelocityLimits | None]:
+    """One DWA cycle's inputs (pose, last command, path, other robots, coupling limits): poses
+    mostly inside the arena, some at its edge and beyond (the off-grid lookups)."""
+    position = rng.uniform(-3.6, 3.6, size=2) * rng.choice([0.6, 1.0, 1.05])
+    pose = np.array([*position, rng.uniform(-math.pi, math.pi)])
+    velocity = (float(rng.choice([0.0, rng.uniform(0, 0.3)])),
+                float(rng.choice([0.0, rng.uniform(-1, 1), 1e-10])))
+    path = random_path(rng, position)
+    others = random_others(rng, position)
+    return pose, velocity, path, others, random_limits(rng)

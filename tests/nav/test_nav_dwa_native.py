@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_limits, random_others, random_path
+from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_cycle
 
 import agent.nav.dwa as dwa_module
 import agent.nav.dwa_native as dwa_native
@@ -68,13 +68,7 @@ def test_c_kernel_equals_numpy_kernel_on_random_cycles(seed):
     rng = np.random.default_rng(500 + seed)
     outcomes, disagree, limited = set(), 0, 0
     for _ in range(200):
-        position = rng.uniform(-3.6, 3.6, size=2) * rng.choice([0.6, 1.0, 1.05])
-        pose = np.array([*position, rng.uniform(-math.pi, math.pi)])
-        velocity = (float(rng.choice([0.0, rng.uniform(0, 0.3)])),
-                    float(rng.choice([0.0, rng.uniform(-1, 1), 1e-10])))
-        path = random_path(rng, position)
-        others = random_others(rng, position)
-        limits = random_limits(rng)
+        pose, velocity, path, others, limits = random_cycle(rng)
         args = (pose, velocity, path, GRID, ROBOT_RADIUS, others)
         scores = {}
         native = dwa_module._control_native(*args, NATIVE, limits, scores)

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 import pytest
-from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_limits, random_others, random_path
+from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_cycle, random_path
 
 from agent.nav import polyline
 from agent.nav.coupling_limits import VelocityLimits
@@ -163,14 +163,7 @@ def test_dwa_equals_the_array_form_bit_for_bit(seed):
     config = PYTHON
     outcomes = set()
     for _ in range(150):
-        # mostly inside the arena, some poses at its edge and beyond (the off-grid lookup)
-        position = rng.uniform(-3.6, 3.6, size=2) * rng.choice([0.6, 1.0, 1.05])
-        pose = np.array([*position, rng.uniform(-math.pi, math.pi)])
-        velocity = (float(rng.choice([0.0, rng.uniform(0, 0.3)])),
-                    float(rng.choice([0.0, rng.uniform(-1, 1), 1e-10])))
-        path = random_path(rng, position)
-        others = random_others(rng, position)
-        limits = random_limits(rng)
+        pose, velocity, path, others, limits = random_cycle(rng)
         result = dwa_control(pose, velocity, path, GRID, ROBOT_RADIUS, others, config, limits)
         assert_same_result(result, ref_dwa(pose, velocity, path, others, config, limits))
         outcomes.add("reached" if result.goal_reached else
