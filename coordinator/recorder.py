@@ -41,6 +41,7 @@ from agent.protocol.messages import (
 from agent.protocol.plausibility import FrameGate, Verdict
 from bus.transport import Channel, Closeable, Transport
 from coordinator import rundir
+from coordinator.event_dedup import EventDedup
 from coordinator.frame_merge import FrameMerger
 
 logger = logging.getLogger(__name__)
@@ -239,6 +240,7 @@ class RecorderTap:
         self.gate = FrameGate(max_jump) if max_jump else None
         self.robot_ids = frozenset(robot_ids) if robot_ids is not None else None
         self.flagged = 0
+        self.dedup = EventDedup()  # replayed agent events (agent.runtime.event_log)
         self.malformed_by_source: Counter[tuple[str, str]] = Counter()
         self._logged: dict[str, float] = {}
         self.malformed: Counter[str] = Counter()
@@ -333,7 +335,7 @@ class RecorderTap:
                 message = decode(Event, payload)
                 if message.source == COORDINATOR_SOURCE:  # ours are recorded when made
                     return
-                if self._flag(message):
+                if self._flag(message) or not self.dedup.admit(message):
                     return
                 self.recorder.on_event(message)
         except ProtocolError as exc:

@@ -239,6 +239,8 @@ class Supervision:
         info["malformed_received_by_source"] = {
             f"{what} from {source}": n for (what, source), n in tap.malformed_by_source.items()}
         info["flagged_events"] = tap.flagged
+        info["replayed_events"] = {"recorded": tap.dedup.replayed,
+                                   "duplicates_dropped": tap.dedup.duplicates}
         cleanup.step("close the supervisor", self.supervisor.close)
         info["recovered"] = [d.process for d in self.supervisor.recovered]
         cleanup.step("withdraw the coordinator's token", self._token.close)

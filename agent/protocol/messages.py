@@ -144,12 +144,19 @@ class CollabReply:
 
 @dataclass(frozen=True, slots=True)
 class Event:
-    """Something worth recording: plan ready, critical event, repair, collision, fault…"""
+    """Something worth recording: plan ready, critical event, repair, collision, fault…
+
+    ``data[EVENT_REPLAYED]`` (True) marks an agent's event published again after the
+    coordinator came back into reach (``agent.runtime.event_log``): the same event, late.
+    """
 
     t: float
     source: str
     kind: str
     data: dict[str, object] = field(default_factory=dict)
+
+
+EVENT_REPLAYED = "replayed"  # Event.data field of a replayed event
 
 
 @dataclass(frozen=True, slots=True)

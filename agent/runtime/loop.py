@@ -42,7 +42,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
 * (issue 11) resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
   previous one (the process was frozen, or the link cut) first drains the backlog the transport
   delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
-  ``Event(resumed)``.
+  ``Event(resumed)``;
+* events: the last ones are published again, marked ``replayed``, when the coordinator's
+  liveliness token goes and returns (the link was down: :mod:`agent.runtime.event_log`).
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ from agent.protocol.bounds import FleetBounds
 from agent.protocol.codec import ProtocolError, decode, encode
 from agent.protocol.messages import Clock, CollabMessage, Command, Control, Event, MocapFrame
 from agent.protocol.plausibility import FrameGate, Verdict
+from agent.runtime.event_log import EventLog
 from agent.runtime.inbox import Mailbox, MalformedCounter
 from agent.runtime.peers import CollabLink
 from bus.transport import Channel, Closeable, Transport
@@ -206,6 +209,7 @@ class AgentLoop:
         self.clock = clock
         self.mailbox = Mailbox()
         self.stats = LoopStats()
+        self.events = EventLog(transport, config.fleet, self.source)
         self._after_command = getattr(core, "after_command", None)
         self.started = False
         self.stopped = False
@@ -226,7 +230,7 @@ class AgentLoop:
         self._gaps: deque[float] = deque(maxlen=8)  # [s] wall per frame period, lately
         self._keys = {"mocap": mocap, "control": keys.control(fleet),
                       "cmd": keys.cmd(fleet, robot), "status": keys.status(fleet, robot),
-                      "event": keys.event(fleet), "alive": keys.alive(fleet, "agent", robot),
+                      "alive": keys.alive(fleet, "agent", robot),
                       "clock": keys.clock(fleet)}
 
     # set-up and tear-down -------------------------------------------------------------------
@@ -254,6 +258,7 @@ class AgentLoop:
         self._handles.append(self.transport.subscribe(self._keys["control"], on_control))
         if self.config.watches_clock:
             self._handles.append(self.transport.subscribe(self._keys["clock"], self._on_clock))
+        self._handles.append(self.events.watch())
         if self.link is not None:
             self.link.open()
 
@@ -285,7 +290,8 @@ class AgentLoop:
             "stale_commands": st.stale_commands, "frames_overwritten":
             self.mailbox.frames_overwritten, "malformed": self.malformed.total,
             "malformed_by_kind": dict(self.malformed.kinds), "resumes": st.resumes,
-            "backlog_dropped": st.backlog_dropped, "old_frames": st.old_frames}
+            "backlog_dropped": st.backlog_dropped, "old_frames": st.old_frames,
+            "events_replayed": self.events.replayed}
         if self.link is not None:
             out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
                        collab_received=self.link.received,
@@ -294,7 +300,9 @@ class AgentLoop:
         return out
 
     def publish_event(self, event: Event) -> None:
-        self.transport.publish(self._keys["event"], encode(event))
+        """Publish ``event``; it is published again if the coordinator's token goes and comes
+        back soon after (:mod:`agent.runtime.event_log`)."""
+        self.events.publish(event)
 
     # the loop --------------------------------------------------------------------------------
 

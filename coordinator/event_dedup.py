@@ -1,0 +1,64 @@
+"""Which replayed agent events the recorder has already recorded.
+
+An agent publishes its recent events again when the coordinator's token returns after a loss
+(:mod:`agent.runtime.event_log`): delivery is at least once. :class:`EventDedup` remembers the
+identity — source, kind, sim time and data, without the ``replayed`` mark — of the last
+:data:`REMEMBERED` events of each source, and admits a replayed event only when its original
+is not among them. Originals are always admitted: two identical events published twice are two
+facts, and only a replay can be a copy.
+
+The bound is per source and four times an agent's replay capacity, so an original a replay can
+repeat is still remembered however many events came in between.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+
+from agent.protocol.messages import EVENT_REPLAYED, Event
+from coordinator.rundir import json_default
+
+# identities kept per source: four times an agent's replay capacity
+# (agent.runtime.event_log.CAPACITY; tests/runtime/test_runtime_event_log.py checks it)
+REMEMBERED = 256
+SOURCES = 1024  # sources remembered at most (a fleet has one per process)
+
+
+def identity(event: Event) -> str:
+    """The event's source, kind, t and data without the replay mark, as one string."""
+    data = {k: v for k, v in event.data.items() if k != EVENT_REPLAYED}
+    return json.dumps([event.source, event.kind, event.t, data], sort_keys=True,
+                      default=json_default, allow_nan=True)
+
+
+class EventDedup:
+    """Admits every original event and each replayed one not yet recorded."""
+
+    def __init__(self, remembered: int = REMEMBERED):
+        self.remembered = remembered
+        self._order: dict[str, deque[str]] = {}
+        self._seen: dict[str, set[str]] = {}
+        self.replayed = 0  # replayed events admitted (their original was lost)
+        self.duplicates = 0  # replayed events dropped (their original was recorded)
+
+    def admit(self, event: Event) -> bool:
+        """True when ``event`` should be recorded."""
+        key = identity(event)
+        seen = self._seen.get(event.source)
+        if seen is None:
+            if len(self._seen) >= SOURCES:  # a flood of made-up sources: remember none of them
+                return True
+            seen = self._seen[event.source] = set()
+        if event.data.get(EVENT_REPLAYED) is True:
+            if key in seen:
+                self.duplicates += 1
+                return False
+            self.replayed += 1
+        order = self._order.setdefault(event.source, deque())
+        if key not in seen:
+            seen.add(key)
+            order.append(key)
+            if len(order) > self.remembered:
+                seen.discard(order.popleft())
+        return True
