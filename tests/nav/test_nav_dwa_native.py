@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_cycle
+from dwa_cases import EXACT, GRID, PYTHON, ROBOT_RADIUS, random_cycle
 
 import agent.nav.dwa as dwa_module
 import agent.nav.dwa_native as dwa_native
@@ -30,20 +30,6 @@ NATIVE = replace(PYTHON, kernel="native") if native_kernel_available() else None
 c_kernel_built = pytest.mark.skipif(not native_kernel_available(),
                                     reason="the DWA's C kernel (agent.nav._dwa) was not built: no "
                                            "C compiler at install time")
-
-
-def numpy_is_libm() -> bool:
-    """Whether numpy's float64 sin, cos and exp give libm's values (``math`` calls libm) on
-    100 000 arguments over the ranges the DWA uses: headings and the inflation's exponents."""
-    rng = np.random.default_rng(7)
-    angles = rng.uniform(-12.0, 12.0, 100_000)
-    exponents = rng.uniform(-25.0, 0.0, 100_000)
-    return (np.sin(angles).tolist() == [math.sin(a) for a in angles.tolist()]
-            and np.cos(angles).tolist() == [math.cos(a) for a in angles.tolist()]
-            and np.exp(exponents).tolist() == [math.exp(e) for e in exponents.tolist()])
-
-
-EXACT = numpy_is_libm()
 
 
 def same(native, python) -> bool:

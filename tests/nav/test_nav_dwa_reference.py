@@ -4,7 +4,11 @@
 coordinate arrays, and leave out other robots that cannot matter; the reference below is the
 straightforward numpy form of ltl-planning.md §6 (rollouts (S, T, 2), every robot, every
 polyline as one (P, M−1) array) that they replaced. Equality is exact (``==``), not approximate:
-the lockstep trajectories depend on every bit of the chosen command.
+the lockstep trajectories depend on every bit of the chosen command — where numpy's sin, cos and
+exp are libm's (``dwa_cases.EXACT``, checked on every run). Where numpy uses its own SIMD forms
+(x86-64 with AVX-512) the kernel's plain-float trigonometry and the reference's numpy arrays are
+a few ulp apart: the command must then be the same (a near-tie may flip in at most 2 of 150
+random cycles), the cost and the rollout within 1e-12.
 
 These tests pin the DWA's numpy kernel (``DwaConfig(kernel="python")``); its C kernel is compared
 with this one in test_nav_dwa_native.py.
@@ -16,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from dwa_cases import GRID, PYTHON, ROBOT_RADIUS, random_cycle, random_path
+from dwa_cases import EXACT, GRID, PYTHON, ROBOT_RADIUS, random_cycle, random_path
 
 from agent.nav import polyline
 from agent.nav.coupling_limits import VelocityLimits
@@ -149,26 +153,38 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
             points[best])
 
 
-def assert_same_result(result, reference) -> None:
+def agrees(result, reference) -> bool:
+    """Every bit the same where numpy's trigonometry is libm's (``EXACT``); elsewhere the same
+    command, and the cost and the rollout within 1e-12."""
     v, omega, cost, n_valid, reached, trajectory = reference
-    assert (result.v, result.omega, result.cost, result.n_valid, result.goal_reached) == (
-        v, omega, cost, n_valid, reached)
-    assert result.trajectory.shape == trajectory.shape
-    assert np.array_equal(result.trajectory, trajectory)
+    if (result.v, result.omega, result.n_valid, result.goal_reached) != (v, omega, n_valid,
+                                                                         reached):
+        return False
+    if result.trajectory.shape != trajectory.shape:
+        return False
+    if EXACT:
+        return result.cost == cost and bool(np.array_equal(result.trajectory, trajectory))
+    return (result.cost == pytest.approx(cost, rel=1e-12, abs=1e-12)
+            and bool(np.allclose(result.trajectory, trajectory, rtol=0.0, atol=1e-12)))
+
+
+def assert_same_result(result, reference) -> None:
+    assert agrees(result, reference), (result, reference[:5])
 
 
 @pytest.mark.parametrize("seed", range(8))
 def test_dwa_equals_the_array_form_bit_for_bit(seed):
     rng = np.random.default_rng(seed)
     config = PYTHON
-    outcomes = set()
+    outcomes, disagree = set(), 0
     for _ in range(150):
         pose, velocity, path, others, limits = random_cycle(rng)
         result = dwa_control(pose, velocity, path, GRID, ROBOT_RADIUS, others, config, limits)
-        assert_same_result(result, ref_dwa(pose, velocity, path, others, config, limits))
+        disagree += not agrees(result, ref_dwa(pose, velocity, path, others, config, limits))
         outcomes.add("reached" if result.goal_reached else
                      "braked" if result.n_valid == 0 else "moved")
     assert outcomes == {"reached", "braked", "moved"}  # every branch was compared
+    assert disagree <= (0 if EXACT else 2)  # elsewhere a near-tie may flip on an ulp
 
 
 def test_dwa_equals_the_array_form_with_a_robot_just_outside_the_pruning_bound():
