@@ -12,7 +12,8 @@ $(PY):
 
 # Reinstall whenever the build changes (pyproject.toml, setup.py, the C tracking law and DWA).
 NATIVE := sim/tracking.c sim/tracking.h sim/_tracking_build.py \
-          agent/nav/dwa_kernel.c agent/nav/dwa_kernel.h agent/nav/_dwa_build.py
+          agent/nav/dwa_kernel.c agent/nav/dwa_kernel.h agent/nav/_dwa_build.py \
+          agent/protocol/wire_kernel.c
 $(VENV)/.installed: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e .
 	touch $@

@@ -22,3 +22,10 @@ def test_quick_tick_bench_writes_every_figure(repo_root, tmp_path):
     assert all(f["value"] > 0 for f in figures.values())
     assert "× the tick back to back" in figures["stl_agent_tick_after_sleep_us"]["note"]
     assert "after a 10 ms sleep" in completed.stdout
+    from agent.protocol.fast_paths import native_codec
+
+    if native_codec():  # both codecs, each figure under its own key
+        assert {"decode_frame_python_us", "encode_command_python_us",
+                "stl_agent_tick_after_sleep_python_us"} <= set(figures)
+        assert figures["decode_frame_us"]["note"] == "C codec"
+        assert figures["decode_frame_python_us"]["note"] == "Python codec"
