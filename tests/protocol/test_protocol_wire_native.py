@@ -179,8 +179,12 @@ def test_the_c_encoder_chooses_msgpacks_int_forms_at_every_boundary():
                     MocapFrame(1.0, v, ((abs(v) % 2 ** 63, 0.0, 0.0, 0.0),), (v,))):
             encoder = native.encode_command if type(msg) is Command else native.encode_frame
             assert encoder(msg) == fast_paths._encode_python(msg), msg
-    long = Command(1, 1.0, 2, tuple(float(i) for i in range(70_000)))  # array32
-    assert native.encode_command(long) == fast_paths._encode_python(long)
+    for n in (0, 1, 15, 16, 65535, 65536, 70_000):  # fixarray, array16, array32 and edges
+        command = Command(1, 1.0, 2, tuple(float(i) for i in range(n)))
+        assert native.encode_command(command) == fast_paths._encode_python(command), n
+    for n in (15, 16):
+        frame = MocapFrame(1.0, 2, tuple((i, 0.0, 0.0, 0.0) for i in range(n)), tuple(range(n)))
+        assert native.encode_frame(frame) == fast_paths._encode_python(frame), n
 
 
 def test_the_c_encoder_leaves_other_types_to_python():
