@@ -206,6 +206,14 @@ static int read_header_value(Reader *r, const unsigned char *key, int64_t klen,
     return 0;
 }
 
+/* The next entry's key: -1 refuse, 1 a header entry ("v"/"k") read, 0 a field to read now. */
+static int next_key(Reader *r, const char *kind, unsigned *seen, const unsigned char **key,
+                    int64_t *klen) {
+    if (read_fixstr(r, key, klen))
+        return -1;
+    return read_header_value(r, *key, *klen, kind, seen);
+}
+
 /* A new instance of a slotted dataclass with its four fields set (steals the values). */
 static PyObject *build(PyTypeObject *type, PyObject *const *slots, PyObject *values[4]) {
     PyObject *obj = NULL;
@@ -250,9 +258,7 @@ static PyObject *decode_frame(PyObject *self, PyObject *data) {
     for (int e = 0; e < entries; e++) {
         const unsigned char *key;
         int64_t klen;
-        if (read_fixstr(&r, &key, &klen))
-            Py_RETURN_NONE;
-        int header = read_header_value(&r, key, klen, "MocapFrame", &seen);
+        int header = next_key(&r, "MocapFrame", &seen, &key, &klen);
         if (header < 0)
             Py_RETURN_NONE;
         if (header > 0)
@@ -370,9 +376,7 @@ static PyObject *decode_command(PyObject *self, PyObject *data) {
     for (int e = 0; e < entries; e++) {
         const unsigned char *key;
         int64_t klen;
-        if (read_fixstr(&r, &key, &klen))
-            Py_RETURN_NONE;
-        int header = read_header_value(&r, key, klen, "Command", &seen);
+        int header = next_key(&r, "Command", &seen, &key, &klen);
         if (header < 0)
             Py_RETURN_NONE;
         if (header > 0)
@@ -502,18 +506,24 @@ static PyObject *finish(unsigned char *buf, Writer *w) {
     return out;
 }
 
+/* The four fields of a message (borrowed: the message holds them); -1 with an exception set. */
+static int fields_of(PyObject *msg, PyTypeObject *type, PyObject *const *slots, PyObject *f[4]) {
+    for (int i = 0; i < 4; i++) {
+        f[i] = Py_TYPE(slots[i])->tp_descr_get(slots[i], msg, (PyObject *)type);
+        if (f[i] == NULL)
+            return -1;
+        Py_DECREF(f[i]);
+    }
+    return 0;
+}
+
 static PyObject *encode_command(PyObject *self, PyObject *msg) {
     (void)self;
     if (!W.ready || Py_TYPE(msg) != W.command_type)
         Py_RETURN_NONE;
     PyObject *f[4];
-    for (int i = 0; i < 4; i++) {  /* borrowed after the DECREF: the message holds them */
-        f[i] = Py_TYPE(W.command_slots[i])->tp_descr_get(W.command_slots[i], msg,
-                                                         (PyObject *)W.command_type);
-        if (f[i] == NULL)
-            return NULL;
-        Py_DECREF(f[i]);
-    }
+    if (fields_of(msg, W.command_type, W.command_slots, f))
+        return NULL;
     int64_t robot, seq;
     double t;
     if (exact_int(f[0], &robot) || exact_float(f[1], &t) || exact_int(f[2], &seq)
@@ -544,13 +554,8 @@ static PyObject *encode_frame(PyObject *self, PyObject *msg) {
     if (!W.ready || Py_TYPE(msg) != W.frame_type)
         Py_RETURN_NONE;
     PyObject *f[4];
-    for (int i = 0; i < 4; i++) {
-        f[i] = Py_TYPE(W.frame_slots[i])->tp_descr_get(W.frame_slots[i], msg,
-                                                       (PyObject *)W.frame_type);
-        if (f[i] == NULL)
-            return NULL;
-        Py_DECREF(f[i]);
-    }
+    if (fields_of(msg, W.frame_type, W.frame_slots, f))
+        return NULL;
     int64_t seq;
     double t;
     if (exact_float(f[0], &t) || exact_int(f[1], &seq) || !PyTuple_CheckExact(f[2])
