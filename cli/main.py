@@ -68,7 +68,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     chosen = next((a for a in argv if not a.startswith("-")), None)
     module = None
     if chosen in COMMANDS:
-        module = importlib.import_module(COMMANDS[chosen][0])
+        try:  # importing reads settings from the environment ($TLFLEET_CODEC)
+            module = importlib.import_module(COMMANDS[chosen][0])
+        except TlfleetError as exc:
+            print(f"tlfleet {chosen}: {exc}", file=sys.stderr)
+            return 1
         module.add_arguments(subparsers[chosen])
     args = parser.parse_args(argv)
     if module is None:
