@@ -12,15 +12,17 @@ sub-steps with the tracking law of 5 robots, then ``World.mocap_poses``). CPU of
 A real agent process is woken 100 times a second, and on a VM whose idle vCPUs halt it pays
 several times the warm figure (``docs/performance.md``, round 11). So the last two figures are
 one STL agent's whole tick (decode the frame, step, encode the command) along a replay of
-Scenario 1, back to back and after a 10 ms sleep before every tick, and their ratio. Where the C
-codec (``agent.protocol._wire``) was built, every codec figure and the agent tick are given with
-it and with the Python codec (``*_python``), the ticks interleaved. No targets: the figures
+Scenario 1, back to back and after a 10 ms sleep before every tick, and their ratio. The figures
+are those of the codec ``$TLFLEET_CODEC`` selects; where that is the C codec
+(``agent.protocol._wire``), every codec figure and the agent tick are given with the Python codec
+too (``*_python``), the ticks interleaved. No targets: the figures
 compare trees (run this file from each checkout), codecs and hours.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -119,34 +121,34 @@ def main(argv: list[str] | None = None) -> int:
         ("world_tick_us", "sim world tick: World.step(10 ms) + mocap_poses, 5 robots",
          lambda: (world.step(0.01), world.mocap_poses()), calls // 20),
     ]
-    codecs = ["auto", "python"] if fast_paths.native_codec() else ["python"]
+    # the codec this process runs ($TLFLEET_CODEC, unsuffixed keys), then, where that is the C
+    # codec, the Python codec too (``*_python`` keys)
+    setting = os.environ.get("TLFLEET_CODEC", "auto")
+    what = "C codec" if fast_paths.native_codec() else "Python codec"
+    runs = [(setting, "", what)] + ([("python", "_python", "Python codec")]
+                                     if fast_paths.native_codec() else [])
     figures = []
-    for setting in codecs:  # the codec's figures with the C codec (when built), then without
-        fast_paths.use_codec(setting)
-        suffix, note = ("", "C codec") if setting == "auto" and len(codecs) == 2 else (
-            "_python", "Python codec")
+    for codec, suffix, what in runs:
+        fast_paths.use_codec(codec)
         for key, label, fn, n in cases:
-            if setting == "python" and key == "world_tick_us" and len(codecs) == 2:
+            if suffix and key == "world_tick_us":
                 continue  # no message in it
             timing = time_calls(fn, args.runs, n)
             coded = "frame" in key or "command" in key  # the kinds the C codec handles
             figures.append(Figure(key.replace("_us", suffix + "_us"), label, 1e6 * timing.cpu,
-                                  "µs", wall=1e6 * timing.wall, note=note if coded else ""))
+                                  "µs", wall=1e6 * timing.wall, note=what if coded else ""))
     payloads = replay_frames(scenario, 60 if args.quick else 300)
     core = StlCore(build_agents(scenario, robots=[TIMED_ROBOT])[TIMED_ROBOT])
-    ticks: dict[str, tuple] = {}
-    for _ in range(2):  # the two codecs interleaved: this machine's pace drifts
-        for setting in codecs:
-            fast_paths.use_codec(setting)
-            warm = agent_ticks(core, payloads, args.runs, 0.0)
-            slept = agent_ticks(core, payloads, args.runs, TICK)
-            ticks.setdefault(setting, []).append((warm, slept))
-    fast_paths.use_codec("auto")
-    for setting in codecs:
-        suffix, what = ("", "C codec") if setting == "auto" and len(codecs) == 2 else (
-            "_python", "Python codec")
-        warm = tuple(statistics.median(w[i] for w, _ in ticks[setting]) for i in (0, 1))
-        slept = tuple(statistics.median(s[i] for _, s in ticks[setting]) for i in (0, 1))
+    ticks: dict[str, list] = {}
+    for _ in range(2):  # the codecs interleaved: this machine's pace drifts
+        for codec, suffix, _what in runs:
+            fast_paths.use_codec(codec)
+            ticks.setdefault(suffix, []).append((agent_ticks(core, payloads, args.runs, 0.0),
+                                                 agent_ticks(core, payloads, args.runs, TICK)))
+    fast_paths.use_codec(setting)
+    for _codec, suffix, what in runs:
+        warm = tuple(statistics.median(w[i] for w, _ in ticks[suffix]) for i in (0, 1))
+        slept = tuple(statistics.median(s[i] for _, s in ticks[suffix]) for i in (0, 1))
         figures.append(Figure(f"stl_agent_tick{suffix}_us", f"STL agent tick, S1 robot "
                               f"{TIMED_ROBOT}, back to back, {what}", 1e6 * warm[0], "µs",
                               wall=1e6 * warm[1],

@@ -14,7 +14,6 @@ repeat is still remembered however many events came in between.
 from __future__ import annotations
 
 import json
-from collections import deque
 
 from agent.protocol.messages import EVENT_REPLAYED, Event
 from coordinator.rundir import json_default
@@ -37,8 +36,8 @@ class EventDedup:
 
     def __init__(self, remembered: int = REMEMBERED):
         self.remembered = remembered
-        self._order: dict[str, deque[str]] = {}
-        self._seen: dict[str, set[str]] = {}
+        # source -> the identities of its last events, oldest first (a dict as an ordered set)
+        self._seen: dict[str, dict[str, None]] = {}
         self.replayed = 0  # replayed events admitted (their original was lost)
         self.duplicates = 0  # replayed events dropped (their original was recorded)
 
@@ -49,16 +48,14 @@ class EventDedup:
         if seen is None:
             if len(self._seen) >= SOURCES:  # a flood of made-up sources: remember none of them
                 return True
-            seen = self._seen[event.source] = set()
+            seen = self._seen[event.source] = {}
         if event.data.get(EVENT_REPLAYED) is True:
             if key in seen:
                 self.duplicates += 1
                 return False
             self.replayed += 1
-        order = self._order.setdefault(event.source, deque())
         if key not in seen:
-            seen.add(key)
-            order.append(key)
-            if len(order) > self.remembered:
-                seen.discard(order.popleft())
+            seen[key] = None
+            if len(seen) > self.remembered:
+                del seen[next(iter(seen))]
         return True
