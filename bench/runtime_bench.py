@@ -520,6 +520,8 @@ def main(argv: list[str] | None = None) -> int:
                fl("zenoh-default", "rx_cpu_us"), "µs"),
         Figure("floor_zenoh_fifo_us", "  the same, FIFO channel read by the stepping thread",
                fl("zenoh-fifo", "rx_cpu_us"), "µs"),
+        Figure("floor_zenoh_inline_us", "  the same, work and answer inside zenoh's callback",
+               fl("zenoh-inline", "rx_cpu_us"), "µs"),
     ]
     print(f"runtime_bench: {time.monotonic() - started:.0f} s")
     report("runtime_bench", figures, args.out, load_before=load_before, quick=args.quick,

@@ -20,7 +20,11 @@ Protocol (architecture.md §3 and the issue-5 contract):
     dropped at once), applies them, then steps the physics by one mocap period;
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
     (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
-    from tick 1 (tick 0 looks like the preview frame, which agents do not answer);
+    from tick 1 (tick 0 looks like the preview frame, which agents do not answer); with
+    ``SimParams.mid_tick`` (default) the frames of the robots with divider ≥ 2 are not the
+    tick's: half a period later the loop applies the commands so far, steps to the mid-tick and
+    publishes ``MocapFrame(t_k + ½ period, k, poses, ())`` on their ``mocap_every`` keys only,
+    then finishes the period at t_{k+1} (architecture.md §3);
 * after every step: ``watchdog_stop`` and ``contact`` events, stamped t_k and t_{k+1}; they are
   published after the next frame (:meth:`SimProcess._report_step`);
 * at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_stats")`` (counters,
@@ -100,6 +104,7 @@ logger = logging.getLogger(__name__)
 SOURCE = "sim"
 LINGER = 0.1  # [s] wall between the last publication and closing the session
 SWITCH_INTERVAL = 0.0005  # [s] GIL switch interval: callbacks not held ~5 ms (stack-notes §2.3)
+MID_TOLERANCE = 1e-9  # [s] sim time: a command's t after its tick's by more answers a mid frame
 
 
 class SimConfigError(TlfleetError, ValueError):
@@ -212,6 +217,12 @@ class SimProcess:
         self.phases = control_phases(scenario)
         schedules = keys.frame_schedules((d, self.phases[r]) for r, d in self.dividers.items())
         self._every = tuple((d, p, keys.mocap_every(scenario.fleet, d, p)) for d, p in schedules)
+        # realtime: the decimated schedules' frames are sampled this many physics sub-steps
+        # after their tick (SimParams.mid_tick, architecture.md §3); 0: on the tick
+        per_period = self.world.substeps(self.clock.period)
+        self._mid_steps = (per_period // 2 if config.mode == "realtime" and scenario.sim.mid_tick
+                           and self._every and per_period >= 2 else 0)
+        self._mid_offset = self._mid_steps * self.clock.period / per_period  # [s] sim time
         self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
                                max_age=config.max_command_age)
         a = scenario.arena
@@ -240,6 +251,8 @@ class SimProcess:
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
         # the last step's tick, due robots and watchdog stops, reported after the next frame
         self._unreported: tuple[int, tuple[int, ...], list[int]] | None = None
+        # a period stepped up to its mid-tick frame: (tick, the watchdog's stops at t_k)
+        self._halfway: tuple[int, list[int]] | None = None
 
     # ----------------------------------------------------------------- public
 
@@ -392,11 +405,18 @@ class SimProcess:
             if k >= last:
                 self._finish()
                 break
+            mid_keys = self._mid_keys(k)
+            if mid_keys:  # the decimated robots' frame, half a period on (SimParams.mid_tick)
+                self._sleep(pacer, self.clock.period - self._mid_offset)
+                self._pump(0.0)
+                if self.stopping:
+                    break
+                self._advance_to_mid(k, self.latest.take())
+                self._publish_mid_frame(k, mid_keys)
             # Commands only take effect at the tick and their arrival is stamped in the transport
             # callback, so the loop sleeps through the period and takes them all at once: one
             # wake-up per tick instead of one per command (30 robots: 3000 a second).
-            while not self.stopping and (left := pacer.remaining()) > 0.0:
-                self.stop_event.wait(min(left, self.config.poll))
+            self._sleep(pacer, 0.0)
             self._pump(0.0)
             if self.stopping:
                 break
@@ -409,6 +429,18 @@ class SimProcess:
             k += 1
         self.stats.overruns = pacer.overruns
 
+    def _sleep(self, pacer: Pacer, until_left: float) -> None:
+        """Wait until ``until_left`` [s] of the pacer's period are left (or a stop)."""
+        while not self.stopping and (left := pacer.remaining() - until_left) > 0.0:
+            self.stop_event.wait(min(left, self.config.poll))
+
+    def _mid_keys(self, k: int) -> tuple[str, ...]:
+        """The ``mocap_every`` keys whose frame of tick k is sampled mid-tick (none unless
+        ``_mid_steps``)."""
+        if not self._mid_steps:
+            return ()
+        return tuple(key for divider, phase, key in self._every if k % divider == phase)
+
     # ----------------------------------------------------------------- one tick
 
     def _publish_tick(self, k: int, due: tuple[int, ...]) -> None:
@@ -420,7 +452,8 @@ class SimProcess:
         before the frame's first put."""
         self.t = self.clock.time(k)
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
-        payload, published = self._publish_frame(MocapFrame(self.t, k, poses, due))
+        payload, published = self._publish_frame(MocapFrame(self.t, k, poses, due),
+                                                 schedules=not self._mid_steps)
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
         self.timing.frame_published(k, published)
         self.ring.append(k, payload)
@@ -431,9 +464,36 @@ class SimProcess:
 
         ``due``: the live robots that owed a command for tick k. Their deadline bookkeeping and
         the watchdog's and the contacts' events wait for :meth:`_report_step`, after the next
-        frame (issue 17: off the lockstep round trip).
+        frame (issue 17: off the lockstep round trip). After :meth:`_advance_to_mid` the
+        commands that came since are applied from the mid-tick on, and the rest of the period is
+        stepped with the same disturbance.
         """
         t = self.clock.time(k)
+        if self._halfway is not None and self._halfway[0] == k:
+            stopped = self._halfway[1]
+            self._halfway = None
+            self._apply(commands, t + self._mid_offset)
+            self.world.step(self.clock.period - self._mid_offset, draw_disturbance=False)
+        else:
+            self._apply(commands, t)
+            stopped = self.world.check_watchdog(t)
+            self.world.step(self.clock.period)
+        self.stats.ticks = k + 1
+        self.t = self.clock.time(k + 1)
+        self._unreported = (k, due, stopped)
+
+    def _advance_to_mid(self, k: int, commands: list[Command]) -> None:
+        """Realtime, a tick with mid-tick frames: apply the commands that came so far, run the
+        watchdog at t_k and step the physics to t_k + ``_mid_offset``; :meth:`_advance`
+        finishes the period."""
+        t = self.clock.time(k)
+        self._apply(commands, t)
+        self._halfway = (k, self.world.check_watchdog(t))
+        self.world.step(self._mid_offset)
+
+    def _apply(self, commands: list[Command], t: float) -> None:
+        """Set the commands (realtime: the fresh ones, :mod:`sim.command_age`) from sim time
+        ``t`` [s] on."""
         if self.config.mode == "realtime":
             commands, started = self.ages.fresh(commands, t)
             for command in started:
@@ -443,11 +503,6 @@ class SimProcess:
                             age=t - command.t)
         for command in commands:
             self.world.set_command(command.robot, command.u, t)
-        stopped = self.world.check_watchdog(t)
-        self.world.step(self.clock.period)
-        self.stats.ticks = k + 1
-        self.t = self.clock.time(k + 1)
-        self._unreported = (k, due, stopped)
 
     def _report_step(self) -> None:
         """Report the step :meth:`_advance` made last, once: tick k's missed deadlines
@@ -531,7 +586,9 @@ class SimProcess:
         collector = self.lockstep if self.config.mode == "lockstep" else self.latest
         outcome = collector.offer(command)
         if outcome is Offer.ACCEPTED:
-            self.timing.command_arrived(command.robot, command.seq, arrival)
+            # an answer to a mid-tick frame is stamped with that frame's time, after t_seq
+            mid = command.t > self.clock.time(command.seq) + MID_TOLERANCE
+            self.timing.command_arrived(command.robot, command.seq, arrival, mid=mid)
         elif outcome is Offer.EARLY and collector is self.latest:
             self.timing.answered(command.robot, command.seq)
         else:
@@ -579,17 +636,32 @@ class SimProcess:
     def _publish(self, key: str, message: object) -> None:
         self.transport.publish(key, encode(message))
 
-    def _publish_frame(self, frame: MocapFrame) -> tuple[bytes, float]:
-        """Encode ``frame`` once; publish it on ``mocap`` and on ``mocap_every/d/φ`` for each
-        control schedule (d ≥ 2, φ) of the fleet with ``seq % d == φ`` (keys.frame_keys).
-        Returns the payload and the wall time [s] just before the first put."""
+    def _publish_frame(self, frame: MocapFrame, *,
+                       schedules: bool = True) -> tuple[bytes, float]:
+        """Encode ``frame`` once; publish it on ``mocap`` and (with ``schedules``) on
+        ``mocap_every/d/φ`` for each control schedule (d ≥ 2, φ) of the fleet with
+        ``seq % d == φ`` (keys.frame_keys). Returns the payload and the wall time [s] just
+        before the first put."""
         payload = encode(frame)
         published = self._now()
         self.transport.publish(self._keys["mocap"], payload)
-        for divider, phase, key in self._every:
-            if frame.seq % divider == phase:
-                self.transport.publish(key, payload)
+        if schedules:
+            for divider, phase, key in self._every:
+                if frame.seq % divider == phase:
+                    self.transport.publish(key, payload)
         return payload, published
+
+    def _publish_mid_frame(self, k: int, mid_keys: tuple[str, ...]) -> None:
+        """The decimated schedules' frame of tick k, sampled at t_k + ``_mid_offset``
+        (SimParams.mid_tick): seq k, so its answer is tick k's command, due before t_{k+1}.
+        Only on ``mid_keys``: ``mocap`` and the recorder keep the tick frames."""
+        frame = MocapFrame(self.clock.time(k) + self._mid_offset, k, self.world.mocap_poses(),
+                           ())
+        payload = encode(frame)
+        published = self._now()
+        for key in mid_keys:
+            self.transport.publish(key, payload)
+        self.timing.frame_published(k, published, mid=True)
 
     def _shared_tick(self, seq: int) -> bool:
         """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks)."""

@@ -1,8 +1,9 @@
 """Command timing as the simulator sees it (issue 5 §6: latency and missed control deadlines).
 
 * **Latency** of a command: its arrival at the sim (wall clock, taken in the transport callback)
-  minus the publication of the frame it answers (same ``seq``) [s]. Both are read on the sim's
-  own monotonic clock, so no clock synchronisation is involved.
+  minus the publication of the frame it answers (same ``seq``; for an answer to a mid-tick
+  frame, ``SimParams.mid_tick``, that frame's) [s]. Both are read on the sim's own monotonic
+  clock, so no clock synchronisation is involved.
 * **Control deadline** of robot r at tick k (r due at k): its ``Command(seq=k)`` must have
   arrived before the sim steps the physics from t_k to t_{k+1}. In lockstep the sim waits (up
   to the tick timeout), so only timeouts miss; in realtime the step happens one mocap period
@@ -30,22 +31,27 @@ class TimingStats:
 
     def __init__(self, keep_frames: int = 1000):
         self._published: OrderedDict[int, float] = OrderedDict()  # seq -> wall time [s]
+        self._published_mid: OrderedDict[int, float] = OrderedDict()  # the mid-tick frames'
         self._keep = keep_frames
         self._answered: dict[int, int] = {}  # robot -> newest seq answered
         self.robot_latencies: dict[int, list[float]] = {}  # robot -> its latencies [s]
         self.robot_seqs: dict[int, list[int]] = {}  # robot -> the seq of each latency
         self.expected = 0  # due (robot, tick) pairs
         self.missed = 0
+        self.missed_by_robot: dict[int, int] = {}
 
-    def frame_published(self, seq: int, wall: float) -> None:
-        self._published[seq] = wall
-        while len(self._published) > self._keep:
-            self._published.popitem(last=False)
+    def frame_published(self, seq: int, wall: float, *, mid: bool = False) -> None:
+        """Frame ``seq`` (``mid``: its mid-tick frame) went out at ``wall`` [s]."""
+        published = self._published_mid if mid else self._published
+        published[seq] = wall
+        while len(published) > self._keep:
+            published.popitem(last=False)
 
-    def command_arrived(self, robot: int, seq: int, wall: float) -> None:
-        """Record a command accepted for ``seq``; its latency if that frame is remembered."""
+    def command_arrived(self, robot: int, seq: int, wall: float, *, mid: bool = False) -> None:
+        """Record a command accepted for ``seq`` (``mid``: answering its mid-tick frame); its
+        latency if that frame is remembered."""
         self.answered(robot, seq)
-        published = self._published.get(seq)
+        published = (self._published_mid if mid else self._published).get(seq)
         if published is not None:
             self.robot_latencies.setdefault(robot, []).append(wall - published)
             self.robot_seqs.setdefault(robot, []).append(seq)
@@ -60,6 +66,8 @@ class TimingStats:
         late = tuple(r for r in due if self._answered.get(r, -1) < seq)
         self.expected += len(due)
         self.missed += len(late)
+        for robot in late:
+            self.missed_by_robot[robot] = self.missed_by_robot.get(robot, 0) + 1
         return late
 
     def summary(self, every_tick: Iterable[int] = (),
@@ -69,8 +77,10 @@ class TimingStats:
         robot with divider ≥ 2 due) also ``latency_p{50,99}_ms_{shared,alone}``: the robots in
         ``every_tick``, on the shared ticks and on the others (module docstring)."""
         latencies = [v for values in self.robot_latencies.values() for v in values]
-        out: dict[str, float | int] = {"commands": len(latencies),
-                                       "due": self.expected, "missed": self.missed}
+        out: dict[str, object] = {"commands": len(latencies), "due": self.expected,
+                                  "missed": self.missed,
+                                  "missed_by_robot": {str(robot): count for robot, count
+                                                      in sorted(self.missed_by_robot.items())}}
         if latencies:
             ms = np.asarray(latencies) * 1000.0
             out.update(latency_p50_ms=float(np.percentile(ms, 50)),

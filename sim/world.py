@@ -514,13 +514,15 @@ class World:
     def substeps(self, duration: float) -> int:
         return max(1, round(duration / self.physics_dt))
 
-    def step(self, duration: float) -> None:
+    def step(self, duration: float, *, draw_disturbance: bool = True) -> None:
         """Advance the physics by ``duration`` [s] in physics-rate sub-steps.
 
         A fresh disturbance w_i (uniform in the ball ‖w‖ ≤ bound) is drawn for every robot first
-        and held over the whole call.
+        and held over the whole call; ``draw_disturbance=False`` keeps the last one (a mocap
+        period stepped in two parts, for a frame sampled between its ticks, holds one draw).
         """
-        self._draw_disturbance()
+        if draw_disturbance:
+            self._draw_disturbance()
         n = self.substeps(duration)
         dt = duration / n
         space = self.space

@@ -12,7 +12,8 @@ dropped (never half-applied, never a crash):
   :data:`MAX_COORD` of the origin, commands within :data:`MAX_SPEED`.
 * **Fleet bounds** (:class:`FleetBounds`), built from the scenario by the simulator, the agents
   and the coordinator: a mocap frame's time lies inside the run (t ≤ duration + slack) and agrees
-  with its sequence number (t = seq / mocap_rate, the sim's tick clock), its rows name known
+  with its sequence number (t = seq / mocap_rate, the sim's tick clock, within half a period: a
+  realtime mid-tick frame is half a period after its tick), its rows name known
   robots in ascending order and put them inside a generous box around the arena; a command's
   values stay within a multiple of the robot's limits. A frame or command that fails is
   *implausible*: counted and dropped like a malformed one.
@@ -274,7 +275,9 @@ class FleetBounds:
     def _time_and_seq(self, t: float, seq: int) -> str | None:
         if not 0.0 <= t <= self.t_max:
             return f"t = {t!r} s lies outside the run [0, {self.t_max:g}] s"
-        if abs(t - seq / self.mocap_rate) > 0.5 / self.mocap_rate:
+        # half a period either way: a mid-tick frame (SimParams.mid_tick) is at most half a
+        # period after its tick, and its t, a sum of doubles, may round past the half
+        if abs(t - seq / self.mocap_rate) > 0.5 / self.mocap_rate + 1e-9:
             return (f"t = {t!r} s does not match seq {seq} at {self.mocap_rate:g} Hz "
                     f"(expected {seq / self.mocap_rate:g} s)")
         return None

@@ -236,6 +236,10 @@ class SimParams:
     mocap_noise: float = 0.0  # [m] standard deviation of position noise (heading: same in rad)
     seed: int = 0
     watchdog: float = 0.5  # [s] a robot with no fresh command for this long is stopped
+    # Realtime only: the frames of the robots with control divider ≥ 2 (the LTL robots) are
+    # sampled half a mocap period after their tick, so their agents compute while the
+    # every-tick agents are idle (architecture.md §3, issue 17). Lockstep ignores it.
+    mid_tick: bool = True
 
 
 @dataclass(frozen=True)

@@ -365,6 +365,7 @@ def test_realtime_counts_missed_control_deadlines():
     stats = observer.events_of("sim_stats")[0].data
     # ticks 1..9 are due (tick 0 looks like the preview frame); the even ones 2..8 are missed
     assert (stats["due"], stats["missed"], stats["commands"]) == (9, 4, 5)
+    assert stats["missed_by_robot"] == {"1": 4}
     assert stats["ignored"] == {"unknown_robot": 10}
 
 

@@ -6,6 +6,7 @@ agent's work), and the speed-up is the frame rate over the 100 Hz mocap rate."""
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -49,3 +50,15 @@ def test_the_decimated_agents_are_staggered_as_the_fleets_ltl_agents():
     assert ltl_phases(2, 20) == [0, 10]
     assert ltl_phases(3, 20) == [0, 6, 13]
     assert ltl_phases(0, 20) == []
+
+
+def test_the_inline_echo_answers_every_frame_from_zenohs_thread():
+    """Round 13's ``zenoh-inline`` variant: the work and the answer run inside zenoh's callback
+    (no Python thread woken); every frame is answered and its CPU per tick is measured."""
+    from bench.floor_probe import run_pair
+
+    port = 40000 + 3 * (os.getpid() % 5000)  # sender, receiver (the relay port unused)
+    row = run_pair("zenoh-inline", port, 0.5, 30.0)
+    assert row.get("error") is None
+    assert row["ticks"] == 50 and row["answered"] == 50
+    assert math.isfinite(row["rx_cpu_us"]) and row["rx_cpu_us"] >= 30.0  # the busy work alone
