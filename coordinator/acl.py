@@ -8,10 +8,10 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
 ``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event``;
                token ``alive/agent/i``; serve ``robot/i/collab`` (STL robots);
                query ``robot/j/collab`` for every robot j it is coupled with (below);
-               subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead), ``clock``,
-               ``control``; watch ``alive/**``
+               subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead; frame offset
+               s ≥ 1: ``mocap_at/s``), ``clock``, ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
-               ``clock``, ``event``; subscribe ``robot/*/cmd``,
+               ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``, ``event``; subscribe ``robot/*/cmd``,
                ``control``; serve ``sim/backfill`` (issue 13); token ``alive/sim/0``;
                watch ``alive/**``
 ``coordinator`` publish ``control``, ``event``; subscribe ``**``; query ``sim/backfill``;
@@ -68,6 +68,9 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
                 for r in scenario.robots}
     every = tuple(keys.mocap_every(fleet, d, p)
                   for d, p in keys.frame_schedules(schedule.values()))
+    offsets = {r.id: scenario.frame_offset(r.id) for r in scenario.robots}
+    every += tuple(keys.mocap_at(fleet, s) for s in sorted(
+        {offsets[i] for i, (d, _p) in schedule.items() if d == 1 and offsets[i] > 0}))
     grants = [Grant("router", publish=everything, discover=everything, subscribe=everything,
                     serve=everything, query=everything, token=everything, watch=everything)
               ] if mesh else []
@@ -84,7 +87,7 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         i = robot.id
         d, p = schedule[i]
-        frames = keys.mocap(fleet) if d == 1 else keys.mocap_every(fleet, d, p)
+        frames = keys.robot_frames(fleet, d, p, offsets[i])
         grants.append(Grant(
             identity("agent", i),
             publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet)),

@@ -21,10 +21,12 @@ Protocol (architecture.md §3 and the issue-5 contract):
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
     (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
     from tick 1 (tick 0 looks like the preview frame, which agents do not answer); with
-    ``SimParams.mid_tick`` (default) the frames of the robots with divider ≥ 2 are not the
-    tick's: half a period later the loop applies the commands so far, steps to the mid-tick and
-    publishes ``MocapFrame(t_k + ½ period, k, poses, ())`` on their ``mocap_every`` keys only,
-    then finishes the period at t_{k+1} (architecture.md §3);
+    ``SimParams.spread_frames`` (default) each robot's frames are sampled at its offset s_r
+    (``Scenario.frame_offset``): the tick frame goes on ``mocap`` only, and at each offset s ≥ 1
+    of the period the loop applies the commands that came so far, steps the physics to
+    t_k + s·dt and publishes ``MocapFrame(t_k + s·dt, k, poses, ())`` on ``mocap_at/s`` and
+    on the due ``mocap_every`` keys of that offset; at t_{k+1} it finishes the period. Robot
+    r's deadline for tick k is then t_{k+1} + s_r·dt (architecture.md §3);
 * after every step: ``watchdog_stop`` and ``contact`` events, stamped t_k and t_{k+1}; they are
   published after the next frame (:meth:`SimProcess._report_step`);
 * at t = ``duration``: the final frame (``due = ()``), ``Event(kind="sim_stats")`` (counters,
@@ -104,7 +106,6 @@ logger = logging.getLogger(__name__)
 SOURCE = "sim"
 LINGER = 0.1  # [s] wall between the last publication and closing the session
 SWITCH_INTERVAL = 0.0005  # [s] GIL switch interval: callbacks not held ~5 ms (stack-notes §2.3)
-MID_TOLERANCE = 1e-9  # [s] sim time: a command's t after its tick's by more answers a mid frame
 
 
 class SimConfigError(TlfleetError, ValueError):
@@ -217,12 +218,16 @@ class SimProcess:
         self.phases = control_phases(scenario)
         schedules = keys.frame_schedules((d, self.phases[r]) for r, d in self.dividers.items())
         self._every = tuple((d, p, keys.mocap_every(scenario.fleet, d, p)) for d, p in schedules)
-        # realtime: the decimated schedules' frames are sampled this many physics sub-steps
-        # after their tick (SimParams.mid_tick, architecture.md §3); 0: on the tick
-        per_period = self.world.substeps(self.clock.period)
-        self._mid_steps = (per_period // 2 if config.mode == "realtime" and scenario.sim.mid_tick
-                           and self._every and per_period >= 2 else 0)
-        self._mid_offset = self._mid_steps * self.clock.period / per_period  # [s] sim time
+        # frame offsets (Scenario.frame_offset, architecture.md §3): in realtime each robot's
+        # frames are sampled its offset s_r of physics steps after the tick; lockstep publishes
+        # the tick's frame on every key
+        self.offsets = {r.id: scenario.frame_offset(r.id) for r in scenario.robots}
+        self._step = self.clock.period / scenario.substeps_per_tick  # [s] sim time per step
+        self._at = {s: keys.mocap_at(scenario.fleet, s) for s in sorted(
+            {s for r, s in self.offsets.items() if self.dividers.get(r) == 1 and s > 0})}
+        self._every_offset = max((s for r, s in self.offsets.items()
+                                  if self.dividers.get(r, 1) > 1), default=0)
+        self._spread = config.mode == "realtime" and any(self.offsets.values())
         self.ages = CommandAge(self.dividers, scenario.sim.mocap_rate,
                                max_age=config.max_command_age)
         a = scenario.arena
@@ -251,8 +256,13 @@ class SimProcess:
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
         # the last step's tick, due robots and watchdog stops, reported after the next frame
         self._unreported: tuple[int, tuple[int, ...], list[int]] | None = None
-        # a period stepped up to its mid-tick frame: (tick, the watchdog's stops at t_k)
-        self._halfway: tuple[int, list[int]] | None = None
+        # realtime with spread frames: physics steps of the current period already taken, the
+        # watchdog's stops at its tick, and the deadlines still open, as (sim time [s] of the
+        # pump that closes them, tick, robots): robot r's command for tick k must come before
+        # the sim steps past t_{k+1} + s_r·dt
+        self._stepped = 0
+        self._tick_stops: list[int] = []
+        self._deadlines: list[tuple[float, int, tuple[int, ...]]] = []
 
     # ----------------------------------------------------------------- public
 
@@ -405,14 +415,16 @@ class SimProcess:
             if k >= last:
                 self._finish()
                 break
-            mid_keys = self._mid_keys(k)
-            if mid_keys:  # the decimated robots' frame, half a period on (SimParams.mid_tick)
-                self._sleep(pacer, self.clock.period - self._mid_offset)
+            for offset, frame_keys in self._sub_ticks(k):  # spread frames (SimParams)
+                self._sleep(pacer, self.clock.period - offset * self._step)
                 self._pump(0.0)
                 if self.stopping:
                     break
-                self._advance_to_mid(k, self.latest.take())
-                self._publish_mid_frame(k, mid_keys)
+                self._close_deadlines(self.clock.time(k) + offset * self._step)
+                self._advance_part(k, offset, self.latest.take())
+                self._publish_sub_frame(k, offset, frame_keys)
+            if self.stopping:
+                break
             # Commands only take effect at the tick and their arrival is stamped in the transport
             # callback, so the loop sleeps through the period and takes them all at once: one
             # wake-up per tick instead of one per command (30 robots: 3000 a second).
@@ -420,6 +432,7 @@ class SimProcess:
             self._pump(0.0)
             if self.stopping:
                 break
+            self._close_deadlines(self.clock.time(k + 1))
             pacer.advance()
             # Tick 0 owes no command: its frame (t = 0, seq = 0, due = ()) cannot be told from
             # the preview frame, which agents never answer (agent.runtime.loop), so counting it
@@ -434,12 +447,26 @@ class SimProcess:
         while not self.stopping and (left := pacer.remaining() - until_left) > 0.0:
             self.stop_event.wait(min(left, self.config.poll))
 
-    def _mid_keys(self, k: int) -> tuple[str, ...]:
-        """The ``mocap_every`` keys whose frame of tick k is sampled mid-tick (none unless
-        ``_mid_steps``)."""
-        if not self._mid_steps:
-            return ()
-        return tuple(key for divider, phase, key in self._every if k % divider == phase)
+    def _sub_ticks(self, k: int) -> list[tuple[int, tuple[str, ...]]]:
+        """Realtime with spread frames: (offset s ≥ 1 [physics steps], keys) of every frame of
+        period k sampled after its tick, in time order: each ``mocap_at/s`` and the due
+        ``mocap_every`` keys (at their schedules' offset). Empty without spread frames."""
+        if not self._spread:
+            return []
+        groups: dict[int, list[str]] = {s: [key] for s, key in self._at.items()}
+        if self._every_offset:
+            for divider, phase, key in self._every:
+                if k % divider == phase:
+                    groups.setdefault(self._every_offset, []).append(key)
+        return sorted((s, tuple(frame_keys)) for s, frame_keys in groups.items())
+
+    def _close_deadlines(self, t: float) -> None:
+        """Count the misses of the open deadlines that close at or before sim time ``t`` [s]
+        (spread frames: ``_deadlines``)."""
+        while self._deadlines and self._deadlines[0][0] <= t + 1e-9:
+            _, k, robots = self._deadlines.pop(0)
+            for robot in self.timing.close_tick(k, robots):
+                logger.debug("robot %d missed the deadline of tick %d", robot, k)
 
     # ----------------------------------------------------------------- one tick
 
@@ -453,7 +480,7 @@ class SimProcess:
         self.t = self.clock.time(k)
         poses = self._frame0 if k == 0 else self.world.mocap_poses()
         payload, published = self._publish_frame(MocapFrame(self.t, k, poses, due),
-                                                 schedules=not self._mid_steps)
+                                                 schedules=not self._spread)
         self._publish(self._keys["clock"], Clock(self.t, k, self.config.mode))
         self.timing.frame_published(k, published)
         self.ring.append(k, payload)
@@ -464,32 +491,45 @@ class SimProcess:
 
         ``due``: the live robots that owed a command for tick k. Their deadline bookkeeping and
         the watchdog's and the contacts' events wait for :meth:`_report_step`, after the next
-        frame (issue 17: off the lockstep round trip). After :meth:`_advance_to_mid` the
-        commands that came since are applied from the mid-tick on, and the rest of the period is
-        stepped with the same disturbance.
+        frame (issue 17: off the lockstep round trip). After :meth:`_advance_part` (spread
+        frames) the commands are applied from where that left off, and the rest of the period is
+        stepped with the same disturbance; the robots due at an offset s ≥ 1 have their deadline
+        at t_{k+1} + s·dt instead (``_deadlines``).
         """
         t = self.clock.time(k)
-        if self._halfway is not None and self._halfway[0] == k:
-            stopped = self._halfway[1]
-            self._halfway = None
-            self._apply(commands, t + self._mid_offset)
-            self.world.step(self.clock.period - self._mid_offset, draw_disturbance=False)
+        if self._stepped:
+            stopped, self._tick_stops = self._tick_stops, []
+            self._apply(commands, t + self._stepped * self._step)
+            self.world.step(self.clock.period - self._stepped * self._step,
+                            draw_disturbance=False)
+            self._stepped = 0
         else:
             self._apply(commands, t)
             stopped = self.world.check_watchdog(t)
             self.world.step(self.clock.period)
+        if self._spread and due:
+            later: dict[int, list[int]] = {}
+            for robot in due:
+                later.setdefault(self.offsets.get(robot, 0), []).append(robot)
+            due = tuple(later.pop(0, ()))
+            t_next = self.clock.time(k + 1)
+            self._deadlines.extend((t_next + s * self._step, k, tuple(robots))
+                                   for s, robots in sorted(later.items()))
         self.stats.ticks = k + 1
         self.t = self.clock.time(k + 1)
         self._unreported = (k, due, stopped)
 
-    def _advance_to_mid(self, k: int, commands: list[Command]) -> None:
-        """Realtime, a tick with mid-tick frames: apply the commands that came so far, run the
-        watchdog at t_k and step the physics to t_k + ``_mid_offset``; :meth:`_advance`
-        finishes the period."""
+    def _advance_part(self, k: int, offset: int, commands: list[Command]) -> None:
+        """Spread frames, period k: apply the commands that came since the last part (from where
+        it ended; the first part also runs the watchdog at t_k and draws the disturbance) and
+        step the physics to t_k + ``offset``·dt; :meth:`_advance` finishes the period."""
         t = self.clock.time(k)
-        self._apply(commands, t)
-        self._halfway = (k, self.world.check_watchdog(t))
-        self.world.step(self._mid_offset)
+        first = self._stepped == 0
+        self._apply(commands, t + self._stepped * self._step)
+        if first:
+            self._tick_stops = self.world.check_watchdog(t)
+        self.world.step((offset - self._stepped) * self._step, draw_disturbance=first)
+        self._stepped = offset
 
     def _apply(self, commands: list[Command], t: float) -> None:
         """Set the commands (realtime: the fresh ones, :mod:`sim.command_age`) from sim time
@@ -586,9 +626,9 @@ class SimProcess:
         collector = self.lockstep if self.config.mode == "lockstep" else self.latest
         outcome = collector.offer(command)
         if outcome is Offer.ACCEPTED:
-            # an answer to a mid-tick frame is stamped with that frame's time, after t_seq
-            mid = command.t > self.clock.time(command.seq) + MID_TOLERANCE
-            self.timing.command_arrived(command.robot, command.seq, arrival, mid=mid)
+            # an answer to a spread frame is stamped with that frame's time, t_seq + s·dt
+            offset = max(0, round((command.t - self.clock.time(command.seq)) / self._step))
+            self.timing.command_arrived(command.robot, command.seq, arrival, offset=offset)
         elif outcome is Offer.EARLY and collector is self.latest:
             self.timing.answered(command.robot, command.seq)
         else:
@@ -640,8 +680,8 @@ class SimProcess:
                        schedules: bool = True) -> tuple[bytes, float]:
         """Encode ``frame`` once; publish it on ``mocap`` and (with ``schedules``) on
         ``mocap_every/d/φ`` for each control schedule (d ≥ 2, φ) of the fleet with
-        ``seq % d == φ`` (keys.frame_keys). Returns the payload and the wall time [s] just
-        before the first put."""
+        ``seq % d == φ`` (keys.frame_keys) and on every ``mocap_at/s``. Returns the payload and
+        the wall time [s] just before the first put."""
         payload = encode(frame)
         published = self._now()
         self.transport.publish(self._keys["mocap"], payload)
@@ -649,19 +689,21 @@ class SimProcess:
             for divider, phase, key in self._every:
                 if frame.seq % divider == phase:
                     self.transport.publish(key, payload)
+            for key in self._at.values():
+                self.transport.publish(key, payload)
         return payload, published
 
-    def _publish_mid_frame(self, k: int, mid_keys: tuple[str, ...]) -> None:
-        """The decimated schedules' frame of tick k, sampled at t_k + ``_mid_offset``
-        (SimParams.mid_tick): seq k, so its answer is tick k's command, due before t_{k+1}.
-        Only on ``mid_keys``: ``mocap`` and the recorder keep the tick frames."""
-        frame = MocapFrame(self.clock.time(k) + self._mid_offset, k, self.world.mocap_poses(),
-                           ())
+    def _publish_sub_frame(self, k: int, offset: int, frame_keys: tuple[str, ...]) -> None:
+        """The frame of period k sampled ``offset`` physics steps after its tick (spread frames):
+        t = t_k + offset·dt, seq k, so its answer is tick k's command. Only on ``frame_keys``:
+        ``mocap`` and the recorder keep the tick frames."""
+        frame = MocapFrame(self.clock.time(k) + offset * self._step, k,
+                           self.world.mocap_poses(), ())
         payload = encode(frame)
         published = self._now()
-        for key in mid_keys:
+        for key in frame_keys:
             self.transport.publish(key, payload)
-        self.timing.frame_published(k, published, mid=True)
+        self.timing.frame_published(k, published, offset=offset)
 
     def _shared_tick(self, seq: int) -> bool:
         """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks)."""

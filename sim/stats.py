@@ -1,8 +1,8 @@
 """Command timing as the simulator sees it (issue 5 §6: latency and missed control deadlines).
 
 * **Latency** of a command: its arrival at the sim (wall clock, taken in the transport callback)
-  minus the publication of the frame it answers (same ``seq``; for an answer to a mid-tick
-  frame, ``SimParams.mid_tick``, that frame's) [s]. Both are read on the sim's own monotonic
+  minus the publication of the frame it answers (same ``seq``, and for an answer to a frame
+  sampled after its tick, ``SimParams.spread_frames``, the same offset) [s]. Both are read on the sim's own monotonic
   clock, so no clock synchronisation is involved.
 * **Control deadline** of robot r at tick k (r due at k): its ``Command(seq=k)`` must have
   arrived before the sim steps the physics from t_k to t_{k+1}. In lockstep the sim waits (up
@@ -30,8 +30,8 @@ class TimingStats:
     """Frame publication times, command latencies and deadline misses of one run."""
 
     def __init__(self, keep_frames: int = 1000):
-        self._published: OrderedDict[int, float] = OrderedDict()  # seq -> wall time [s]
-        self._published_mid: OrderedDict[int, float] = OrderedDict()  # the mid-tick frames'
+        # (seq, offset [physics steps after the tick]) -> wall time [s] of publication
+        self._published: OrderedDict[tuple[int, int], float] = OrderedDict()
         self._keep = keep_frames
         self._answered: dict[int, int] = {}  # robot -> newest seq answered
         self.robot_latencies: dict[int, list[float]] = {}  # robot -> its latencies [s]
@@ -40,18 +40,19 @@ class TimingStats:
         self.missed = 0
         self.missed_by_robot: dict[int, int] = {}
 
-    def frame_published(self, seq: int, wall: float, *, mid: bool = False) -> None:
-        """Frame ``seq`` (``mid``: its mid-tick frame) went out at ``wall`` [s]."""
-        published = self._published_mid if mid else self._published
-        published[seq] = wall
-        while len(published) > self._keep:
+    def frame_published(self, seq: int, wall: float, *, offset: int = 0) -> None:
+        """Frame ``seq`` (sampled ``offset`` physics steps after its tick) went out at ``wall``
+        [s]. The frames of the last ``keep_frames`` ticks are remembered."""
+        published = self._published
+        published[(seq, offset)] = wall
+        while next(iter(published))[0] <= seq - self._keep:
             published.popitem(last=False)
 
-    def command_arrived(self, robot: int, seq: int, wall: float, *, mid: bool = False) -> None:
-        """Record a command accepted for ``seq`` (``mid``: answering its mid-tick frame); its
-        latency if that frame is remembered."""
+    def command_arrived(self, robot: int, seq: int, wall: float, *, offset: int = 0) -> None:
+        """Record a command accepted for ``seq`` (answering the frame sampled ``offset`` physics
+        steps after that tick); its latency if that frame is remembered."""
         self.answered(robot, seq)
-        published = (self._published_mid if mid else self._published).get(seq)
+        published = self._published.get((seq, offset))
         if published is not None:
             self.robot_latencies.setdefault(robot, []).append(wall - published)
             self.robot_seqs.setdefault(robot, []).append(seq)

@@ -12,8 +12,9 @@ dropped (never half-applied, never a crash):
   :data:`MAX_COORD` of the origin, commands within :data:`MAX_SPEED`.
 * **Fleet bounds** (:class:`FleetBounds`), built from the scenario by the simulator, the agents
   and the coordinator: a mocap frame's time lies inside the run (t ≤ duration + slack) and agrees
-  with its sequence number (t = seq / mocap_rate, the sim's tick clock, within half a period: a
-  realtime mid-tick frame is half a period after its tick), its rows name known
+  with its sequence number (t = seq / mocap_rate, the sim's tick clock: from half a period
+  before to one period after, since a realtime frame may be sampled after its tick), its rows
+  name known
   robots in ascending order and put them inside a generous box around the arena; a command's
   values stay within a multiple of the robot's limits. A frame or command that fails is
   *implausible*: counted and dropped like a malformed one.
@@ -275,11 +276,12 @@ class FleetBounds:
     def _time_and_seq(self, t: float, seq: int) -> str | None:
         if not 0.0 <= t <= self.t_max:
             return f"t = {t!r} s lies outside the run [0, {self.t_max:g}] s"
-        # half a period either way: a mid-tick frame (SimParams.mid_tick) is at most half a
-        # period after its tick, and its t, a sum of doubles, may round past the half
-        if abs(t - seq / self.mocap_rate) > 0.5 / self.mocap_rate + 1e-9:
+        # from half a period before the tick to the next tick: a realtime frame sampled after
+        # its tick (SimParams.spread_frames) has t = t_seq + s·dt with s·dt < one period
+        period = 1.0 / self.mocap_rate
+        if not -0.5 * period - 1e-9 <= t - seq / self.mocap_rate < period:
             return (f"t = {t!r} s does not match seq {seq} at {self.mocap_rate:g} Hz "
-                    f"(expected {seq / self.mocap_rate:g} s)")
+                    f"(expected {seq / self.mocap_rate:g} s, or up to one period later)")
         return None
 
     def frame_problem(self, frame: Any) -> str | None:

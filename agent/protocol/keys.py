@@ -52,6 +52,25 @@ def mocap_every(fleet: str, divider: int, phase: int = 0) -> str:
     return f"{prefix(fleet)}/mocap_every/{d}/{p}"
 
 
+def mocap_at(fleet: str, offset: int) -> str:
+    """Sim → the agents of the every-tick robots whose frames are sampled ``offset`` = s ≥ 1
+    physics steps after the tick (``Scenario.frame_offset``, architecture.md §3): in realtime
+    the ``MocapFrame`` of that instant (t = t_k + s·dt, seq k), in lockstep the tick's frame
+    (the same payload as ``mocap``). Robots at offset 0 read ``mocap``."""
+    s = int(offset)
+    if s < 1:
+        raise ValueError(f"mocap_at: offset must be ≥ 1 (offset 0 reads mocap), got {s}")
+    return f"{prefix(fleet)}/mocap_at/{s}"
+
+
+def robot_frames(fleet: str, divider: int, phase: int, offset: int) -> str:
+    """The one frame key the agent of a robot with control divider d, phase φ and frame offset
+    s reads: ``mocap_every/d/φ`` (d ≥ 2), ``mocap_at/s`` (d = 1, s ≥ 1) or ``mocap``."""
+    if int(divider) > 1:
+        return mocap_every(fleet, divider, phase)
+    return mocap_at(fleet, offset) if int(offset) > 0 else mocap(fleet)
+
+
 Schedule = tuple[int, int]  # (divider d ≥ 1, phase φ ∈ [0, d)) of a robot's control ticks
 
 

@@ -23,7 +23,9 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   LTL executor's periodic global re-plan, issue 17);
 * frames: an agent whose robot has control divider d ≥ 2 and phase φ reads
   ``mocap_every/<d>/<φ>`` (the frames with ``seq % d == φ``, ``LoopConfig.decimated``) instead
-  of every frame on ``mocap``: it can only be due at those ticks, lockstep or realtime;
+  of every frame on ``mocap``: it can only be due at those ticks, lockstep or realtime; an
+  every-tick robot at frame offset s ≥ 1 (``Scenario.frame_offset``) reads ``mocap_at/<s>``,
+  where a realtime simulator publishes the frames it samples s physics steps after each tick;
 * stale mocap: no frame for ``stale_after`` [s] wall after the start (a decimated loop adds twice
   the gap between its frames, ``LoopConfig.stale_limit``, or of the gap they lately came at
   when a lockstep fleet runs slower than real time, ``LoopConfig.stale_limit_at``; with
@@ -95,12 +97,18 @@ class LoopConfig:
     # the tick of each control period at which the robot is due, in [0, divider)
     # (Scenario.control_phase: the LTL agents spread over the period, issue 17)
     phase: int = 0
+    # physics steps after its tick at which a realtime simulator samples this robot's frames
+    # (Scenario.frame_offset); with ``decimated``, an every-tick robot at offset s ≥ 1 reads
+    # keys.mocap_at(fleet, s) instead of keys.mocap
+    offset: int = 0
 
     def __post_init__(self) -> None:
         if self.divider < 1:
             raise ValueError(f"LoopConfig.divider must be ≥ 1, got {self.divider}")
         if not 0 <= self.phase < self.divider:
             raise ValueError(f"LoopConfig.phase must be in [0, {self.divider}), got {self.phase}")
+        if self.offset < 0:
+            raise ValueError(f"LoopConfig.offset must be ≥ 0, got {self.offset}")
         if self.stale_after <= 0:
             raise ValueError(f"LoopConfig.stale_after must be positive, got {self.stale_after}")
         if not self.mocap_rate > 0:
@@ -224,8 +232,8 @@ class AgentLoop:
         self.gate = FrameGate(config.max_jump) if config.max_jump else None
         self._channel: Channel | None = None
         fleet, robot = config.fleet, config.robot
-        mocap = (keys.mocap_every(fleet, config.divider, config.phase)
-                 if config.frames_decimated else keys.mocap(fleet))
+        mocap = (keys.robot_frames(fleet, config.divider, config.phase, config.offset)
+                 if config.decimated else keys.mocap(fleet))
         self._stale_limit = config.stale_limit
         self._gaps: deque[float] = deque(maxlen=8)  # [s] wall per frame period, lately
         self._keys = {"mocap": mocap, "control": keys.control(fleet),

@@ -53,12 +53,14 @@ def plausibility(scenario: Scenario) -> dict[str, Any]:
     return {"bounds": bounds, "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers)}
 
 
-def frame_subscription(scenario: Scenario) -> dict[str, Any]:
-    """The loop reads only the frames it can be due for (``keys.mocap_every``, issue 17): the
-    simulator of a real scenario publishes them. Test doubles keep reading every frame."""
+def frame_subscription(scenario: Scenario, robot: int) -> dict[str, Any]:
+    """The loop reads only the frames it can be due for, at its frame offset
+    (``keys.robot_frames``, issue 17): the simulator of a real scenario publishes them. Test
+    doubles keep reading every frame on ``mocap``."""
     if not isinstance(scenario, Scenario):
         return {}
-    return {"decimated": True, "mocap_rate": scenario.sim.mocap_rate}
+    return {"decimated": True, "mocap_rate": scenario.sim.mocap_rate,
+            "offset": scenario.frame_offset(robot)}
 
 
 def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
@@ -98,7 +100,8 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             return 1
         core, state, events, link = built
         loop_config = LoopConfig(scenario.fleet, config.robot, divider, config.stale_after,
-                                 **plausibility(scenario), **frame_subscription(scenario),
+                                 **plausibility(scenario),
+                                 **frame_subscription(scenario, config.robot),
                                  heartbeat=config.heartbeat,
                                  phase=scenario.control_phase(config.robot))
         loop = AgentLoop(transport, loop_config, core, state, link=link, malformed=malformed)

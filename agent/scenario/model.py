@@ -236,10 +236,10 @@ class SimParams:
     mocap_noise: float = 0.0  # [m] standard deviation of position noise (heading: same in rad)
     seed: int = 0
     watchdog: float = 0.5  # [s] a robot with no fresh command for this long is stopped
-    # Realtime only: the frames of the robots with control divider ≥ 2 (the LTL robots) are
-    # sampled half a mocap period after their tick, so their agents compute while the
-    # every-tick agents are idle (architecture.md §3, issue 17). Lockstep ignores it.
-    mid_tick: bool = True
+    # Realtime only: each robot's frames are sampled at its own offset within the mocap period
+    # (Scenario.frame_offset), so the agents compute one after another instead of all at once
+    # at the tick (architecture.md §3, issue 17). Lockstep samples every frame at the tick.
+    spread_frames: bool = True
 
 
 @dataclass(frozen=True)
@@ -297,6 +297,29 @@ class Scenario:
             return 0
         ltl = sorted(r.id for r in self.robots if r.is_ltl)
         return ltl.index(robot_id) * divider // len(ltl)
+
+    @property
+    def substeps_per_tick(self) -> int:
+        """Physics steps per mocap period (the simulator's ``World.substeps`` of one period)."""
+        return max(1, round(self.sim.physics_rate / self.sim.mocap_rate))
+
+    def frame_offset(self, robot_id: int) -> int:
+        """s_r ∈ [0, S), S = :attr:`substeps_per_tick`: in realtime with ``sim.spread_frames``
+        (the default) robot r's frames are sampled s_r physics steps after their tick and
+        published then (architecture.md §3, issue 17). The period has m evenly spaced slots,
+        s = ⌊j·S/m⌋: one per robot due every tick (id order, slots 0 …) and, when the fleet has
+        robots with divider ≥ 2 (LTL robots, whose ticks ``control_phase`` already spreads), one
+        more, the last, which they share. Scenario 1 (S = 10): STL robots 3, 4, 5 at 0, 2 and 5
+        ms of each 10, LTL robots 1 and 2 at 7. 0 without ``spread_frames`` or with S = 1.
+        Lockstep ignores it: its frames are all the tick's. Computed here only: the simulator's
+        schedule, the frame keys and the agent's loop all use it."""
+        steps = self.substeps_per_tick
+        if not self.sim.spread_frames or steps < 2:
+            return 0
+        every = sorted(r.id for r in self.robots if self.control_divider(r.id) == 1)
+        slots = len(every) + (len(every) < len(self.robots))
+        slot = every.index(robot_id) if self.control_divider(robot_id) == 1 else slots - 1
+        return slot * steps // slots
 
     def speed_limits(self) -> dict[int, tuple[float, float]]:
         """Robot id → (max linear [m/s], max angular [rad/s]): the plausibility bounds of

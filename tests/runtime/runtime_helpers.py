@@ -50,10 +50,15 @@ class FakeSim:
         self.transport.publish(keys.control(self.fleet), encode(Control(cmd)))
 
     def frame(self, t: float, seq: int, poses: Mapping[int, Sequence[float]],
-              due: Iterable[int] = ()) -> MocapFrame:
+              due: Iterable[int] = (), offsets: Iterable[int] = ()) -> MocapFrame:
+        """Publish a frame on ``mocap`` and, as a lockstep simulator does, on ``mocap_at/s``
+        for each frame offset s ≥ 1 in ``offsets`` (``Scenario.frame_offset``)."""
         frame = MocapFrame(t, seq, tuple((int(j), float(p[0]), float(p[1]), float(p[2]))
                                          for j, p in sorted(poses.items())), tuple(due))
-        self.transport.publish(keys.mocap(self.fleet), encode(frame))
+        payload = encode(frame)
+        self.transport.publish(keys.mocap(self.fleet), payload)
+        for offset in sorted(set(offsets) - {0}):
+            self.transport.publish(keys.mocap_at(self.fleet, offset), payload)
         return frame
 
     def raw(self, key: str, payload: bytes) -> None:

@@ -217,7 +217,7 @@ def test_the_stl_process_main_on_the_fake_network():
         assert alive in network.alive_keys()
         sim.control("start")
         poses = {r.id: r.pose for r in scenario.robots}
-        sim.frame(0.0, 0, poses, due=[4])
+        sim.frame(0.0, 0, poses, due=[4], offsets=[scenario.frame_offset(4)])  # mocap_at/3
         while not sim.commands and time.monotonic() < deadline:
             time.sleep(0.005)
         assert sim.commands[0].robot == 4 and len(sim.commands[0].u) == 3

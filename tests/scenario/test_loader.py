@@ -65,7 +65,7 @@ BAD = [
     ("stl.hold_f_above_r", 0, "stl.hold_f_above_r", "expected true or false, got integer 0"),
     ("ltl.stagger", "yes", "ltl.stagger", "expected true or false, got string 'yes'"),
     ("sim.seed", -1, "sim.seed", "expected a number ≥ 0, got -1"),
-    ("sim.mid_tick", 1, "sim.mid_tick", "expected true or false, got integer 1"),
+    ("sim.spread_frames", 1, "sim.spread_frames", "expected true or false, got integer 1"),
     ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
     ("regions.0.name", "true", "regions[0].name", "'true' is not a valid proposition name"),
