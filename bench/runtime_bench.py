@@ -469,12 +469,12 @@ def main(argv: list[str] | None = None) -> int:
                median(realtime, "stl_latency_p99_ms") if realtime else nan, "ms"),
         Figure("ltl_latency_p99_ms", "  the LTL robots (worst robot's p99)",
                median(realtime, "ltl_latency_p99_ms") if realtime else nan, "ms",
-               note="5 Hz: 10 of the fleet's 310 commands a second; their frames are sampled "
-                    "mid-tick ([sim] mid_tick), so they step while the STL agents are idle"),
+               note="5 Hz: 10 of the fleet's 310 commands a second; with spread frames "
+                    "([sim] spread_frames) their frames are sampled 7 ms into the period"),
         Figure("stl_alone_p99_ms", "  STL robots on ticks without an LTL step, p99",
                median(realtime, "latency_p99_ms_alone") if realtime else nan, "ms",
                note=f"p50 {median(realtime, 'latency_p50_ms_alone'):.2f} ms; on the ticks an LTL "
-                    f"robot is due on (Scenario 1: 2 of 20, staggered; its step at mid-tick), p50 "
+                    f"robot is due on (Scenario 1: 2 of 20, staggered; its frame at 7 ms), p50 "
                     f"{median(realtime, 'latency_p50_ms_shared'):.2f} ms, p99 "
                     f"{median(realtime, 'latency_p99_ms_shared'):.2f} ms" if realtime else ""),
         Figure("floor_relay_p99_ms", "  floor: the fleet's round trip over bare UDP, p99",

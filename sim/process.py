@@ -5,7 +5,8 @@ transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.
 callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
 channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
 ``mocap`` and on ``mocap_every/<d>/<φ>`` for the fleet's control schedules (d ≥ 2, φ) with
-``seq % d == φ``.
+``seq % d == φ`` and on ``mocap_at/<s>`` for the every-tick robots' frame offsets s ≥ 1; in
+realtime with spread frames those keys carry frames sampled at their offsets instead.
 
 Protocol (architecture.md §3 and the issue-5 contract):
 
