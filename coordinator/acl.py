@@ -11,9 +11,9 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
                subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead; frame offset
                s ≥ 1: ``mocap_at/s``), ``clock``, ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
-               ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``, ``event``; subscribe ``robot/*/cmd``,
-               ``control``; serve ``sim/backfill`` (issue 13); token ``alive/sim/0``;
-               watch ``alive/**``
+               ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``, ``event``;
+               subscribe ``robot/*/cmd``, ``control``; serve ``sim/backfill`` (issue 13);
+               token ``alive/sim/0``; watch ``alive/**``
 ``coordinator`` publish ``control``, ``event``; subscribe ``**``; query ``sim/backfill``;
                token ``alive/coordinator/0``; watch ``alive/**``
 ``router``     nothing through its links (its own session is local to it); in a router mesh

@@ -426,9 +426,10 @@ class SimProcess:
                 self._publish_sub_frame(k, offset, frame_keys)
             if self.stopping:
                 break
-            # Commands only take effect at the tick and their arrival is stamped in the transport
-            # callback, so the loop sleeps through the period and takes them all at once: one
-            # wake-up per tick instead of one per command (30 robots: 3000 a second).
+            # Commands only take effect at the loop's next wake-up (the tick, or a spread frame's
+            # slot) and their arrival is stamped in the transport callback, so the loop sleeps
+            # until then and takes them all at once: one wake-up per tick and slot instead of one
+            # per command (30 robots: 3000 a second).
             self._sleep(pacer, 0.0)
             self._pump(0.0)
             if self.stopping:

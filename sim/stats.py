@@ -2,13 +2,14 @@
 
 * **Latency** of a command: its arrival at the sim (wall clock, taken in the transport callback)
   minus the publication of the frame it answers (same ``seq``, and for an answer to a frame
-  sampled after its tick, ``SimParams.spread_frames``, the same offset) [s]. Both are read on the sim's own monotonic
-  clock, so no clock synchronisation is involved.
+  sampled after its tick, ``SimParams.spread_frames``, the same offset) [s]. Both are read on
+  the sim's own monotonic clock, so no clock synchronisation is involved.
 * **Control deadline** of robot r at tick k (r due at k): its ``Command(seq=k)`` must have
-  arrived before the sim steps the physics from t_k to t_{k+1}. In lockstep the sim waits (up
-  to the tick timeout), so only timeouts miss; in realtime the step happens one mocap period
-  after the frame, whatever arrived, and tick 0 owes nothing (agents cannot tell its frame from
-  the preview frame, which they never answer).
+  arrived before the sim steps the physics from t_k to t_{k+1} (with spread frames, past
+  t_{k+1} + s_r·dt: one period after r's frame; the simulator closes it then). In lockstep the
+  sim waits (up to the tick timeout), so only timeouts miss; in realtime the step happens one
+  mocap period after the frame, whatever arrived, and tick 0 owes nothing (agents cannot tell
+  its frame from the preview frame, which they never answer).
 * **Shared ticks** (issue 17): the ticks on which a robot with a control divider ≥ 2 (an LTL
   robot at 5 Hz) is due beside the every-tick robots. ``summary(shared=…)`` splits the every-tick
   robots' latencies into those ticks and the others, which is where a fleet's tail comes from.
