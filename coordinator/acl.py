@@ -68,9 +68,7 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
                 for r in scenario.robots}
     every = tuple(keys.mocap_every(fleet, d, p)
                   for d, p in keys.frame_schedules(schedule.values()))
-    offsets = {r.id: scenario.frame_offset(r.id) for r in scenario.robots}
-    every += tuple(keys.mocap_at(fleet, s) for s in sorted(
-        {offsets[i] for i, (d, _p) in schedule.items() if d == 1 and offsets[i] > 0}))
+    every += tuple(keys.mocap_at(fleet, s) for s in scenario.every_tick_offsets())
     grants = [Grant("router", publish=everything, discover=everything, subscribe=everything,
                     serve=everything, query=everything, token=everything, watch=everything)
               ] if mesh else []
@@ -87,7 +85,7 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         i = robot.id
         d, p = schedule[i]
-        frames = keys.robot_frames(fleet, d, p, offsets[i])
+        frames = keys.robot_frames(fleet, d, p, scenario.frame_offset(i))
         grants.append(Grant(
             identity("agent", i),
             publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet)),

@@ -64,7 +64,7 @@ import queue
 import sys
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -224,8 +224,9 @@ class SimProcess:
         # the tick's frame on every key
         self.offsets = {r.id: scenario.frame_offset(r.id) for r in scenario.robots}
         self._step = self.clock.period / scenario.substeps_per_tick  # [s] sim time per step
-        self._at = {s: keys.mocap_at(scenario.fleet, s) for s in sorted(
-            {s for r, s in self.offsets.items() if self.dividers.get(r) == 1 and s > 0})}
+        self._at = {s: keys.mocap_at(scenario.fleet, s) for s in scenario.every_tick_offsets()}
+        # the slots of a period in which no robot with divider ≥ 2 is due (most of them)
+        self._at_slots = [(s, (key,)) for s, key in self._at.items()]
         self._every_offset = max((s for r, s in self.offsets.items()
                                   if self.dividers.get(r, 1) > 1), default=0)
         self._spread = config.mode == "realtime" and any(self.offsets.values())
@@ -263,7 +264,7 @@ class SimProcess:
         # the sim steps past t_{k+1} + s_r·dt
         self._stepped = 0
         self._tick_stops: list[int] = []
-        self._deadlines: list[tuple[float, int, tuple[int, ...]]] = []
+        self._deadlines: deque[tuple[float, int, tuple[int, ...]]] = deque()
 
     # ----------------------------------------------------------------- public
 
@@ -455,18 +456,18 @@ class SimProcess:
         ``mocap_every`` keys (at their schedules' offset). Empty without spread frames."""
         if not self._spread:
             return []
+        due = [key for divider, phase, key in self._every if k % divider == phase]
+        if not due:
+            return self._at_slots
         groups: dict[int, list[str]] = {s: [key] for s, key in self._at.items()}
-        if self._every_offset:
-            for divider, phase, key in self._every:
-                if k % divider == phase:
-                    groups.setdefault(self._every_offset, []).append(key)
+        groups.setdefault(self._every_offset, []).extend(due)
         return sorted((s, tuple(frame_keys)) for s, frame_keys in groups.items())
 
     def _close_deadlines(self, t: float) -> None:
         """Count the misses of the open deadlines that close at or before sim time ``t`` [s]
         (spread frames: ``_deadlines``)."""
         while self._deadlines and self._deadlines[0][0] <= t + 1e-9:
-            _, k, robots = self._deadlines.pop(0)
+            _, k, robots = self._deadlines.popleft()
             for robot in self.timing.close_tick(k, robots):
                 logger.debug("robot %d missed the deadline of tick %d", robot, k)
 

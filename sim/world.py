@@ -519,7 +519,7 @@ class World:
 
         A fresh disturbance w_i (uniform in the ball ‖w‖ ≤ bound) is drawn for every robot first
         and held over the whole call; ``draw_disturbance=False`` keeps the last one (a mocap
-        period stepped in two parts, for a frame sampled between its ticks, holds one draw).
+        period stepped in parts, for frames sampled between its ticks, holds one draw).
         """
         if draw_disturbance:
             self._draw_disturbance()

@@ -321,6 +321,12 @@ class Scenario:
         slot = every.index(robot_id) if self.control_divider(robot_id) == 1 else slots - 1
         return slot * steps // slots
 
+    def every_tick_offsets(self) -> tuple[int, ...]:
+        """The distinct frame offsets s ≥ 1 of the robots due every tick, ascending: the
+        ``mocap_at/<s>`` keys of the fleet (:meth:`frame_offset`)."""
+        return tuple(sorted({self.frame_offset(r.id) for r in self.robots
+                             if self.control_divider(r.id) == 1} - {0}))
+
     def speed_limits(self) -> dict[int, tuple[float, float]]:
         """Robot id → (max linear [m/s], max angular [rad/s]): the plausibility bounds of
         commands (agent.protocol.bounds.FleetBounds)."""

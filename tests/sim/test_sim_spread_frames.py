@@ -51,8 +51,10 @@ def test_frame_offsets_spread_the_every_tick_robots_and_put_the_ltl_robots_mid_t
     s1 = load_scenario(ROOT / "scenarios" / "scenario1.toml")
     assert s1.substeps_per_tick == 10
     assert [s1.frame_offset(r.id) for r in s1.robots] == [7, 7, 0, 2, 5]
+    assert s1.every_tick_offsets() == (2, 5)  # the mocap_at keys (the LTL robots' 7 is not one)
     off = replace(s1, sim=replace(s1.sim, spread_frames=False))
     assert [off.frame_offset(r.id) for r in off.robots] == [0] * 5
+    assert off.every_tick_offsets() == ()
     coarse = replace(s1, sim=replace(s1.sim, physics_rate=100.0))  # one physics step a tick
     assert [coarse.frame_offset(r.id) for r in coarse.robots] == [0] * 5
     many = scenario(*(omni(i, 0.5 * i, 0.0) for i in range(1, 31)))
@@ -221,12 +223,14 @@ def test_commands_apply_from_the_part_they_arrived_in_and_deadlines_follow_the_o
     assert sim.t == pytest.approx(0.41) and sim.world.time == pytest.approx(0.01)
     # robot 2 (offset 0) closes with the next frame; robot 3 at t_41 + 3 ms, robot 1 + 6 ms
     assert sim._unreported[:2] == (40, (2,))
-    assert sim._deadlines == [(pytest.approx(0.413), 40, (3,)), (pytest.approx(0.416), 40, (1,))]
+    assert list(sim._deadlines) == [(pytest.approx(0.413), 40, (3,)),
+                                    (pytest.approx(0.416), 40, (1,))]
     sim.timing.answered(3, 40)
     sim._close_deadlines(0.4125)
     assert sim.timing.missed == 0 and len(sim._deadlines) == 2
     sim._close_deadlines(0.416)
-    assert (sim.timing.missed, sim.timing.missed_by_robot, sim._deadlines) == (1, {1: 1}, [])
+    assert (sim.timing.missed, sim.timing.missed_by_robot, list(sim._deadlines)) == (
+        1, {1: 1}, [])
     # lockstep, and realtime without the setting, never split a period
     assert not SimProcess(FakeNetwork().transport("s"), _fleet(), SimConfig())._spread
     off = replace(_fleet(), sim=replace(_fleet().sim, spread_frames=False))
