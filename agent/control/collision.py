@@ -10,7 +10,7 @@ z in m, velocities in m/s. All robots within R count (LTL ones included); the an
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 
@@ -39,18 +39,20 @@ def repulsion_magnitude(d: float, params: CollisionParams) -> float:
     return 0.0
 
 
-def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[tuple[float, float]],
+def collision_velocity(z_i: tuple[float, float], neighbours: Iterable[Sequence[float]],
                        params: CollisionParams) -> tuple[float, float, float]:
     """ū_col,i = (v_x, v_y, 0) [m/s] from the positions of the other robots (any number; those
-    beyond R contribute nothing). Coincident positions (d = 0) have no direction and are skipped."""
+    beyond R contribute nothing): (x, y) or poses (x, y, θ), of which only x and y are read.
+    Coincident positions (d = 0) have no direction and are skipped, so robot i's own pose may be
+    among them."""
     xi, yi = z_i
     r1, big_r, umax = params.r1, params.r_sense, params.max_lin
     k = params.gain
     r2 = big_r * big_r
     vx = vy = 0.0
-    for xj, yj in neighbours:
-        dx = xi - xj
-        dy = yi - yj
+    for z_j in neighbours:
+        dx = xi - z_j[0]
+        dy = yi - z_j[1]
         if dx * dx + dy * dy > r2:
             continue
         d = math.hypot(dx, dy)  # exact also for tiny offsets, where dx² + dy² underflows

@@ -72,7 +72,7 @@ class StlCore:
         poses = {row[0]: row[1:] for row in frame.poses}
         before = state.agent
         after, out = self.agent.step(before, StepInput(t, poses, inputs.inbox,
-                                                       inputs.unreachable))
+                                                       inputs.unreachable, tuples=True))
         messages = tuple(to_wire(m, t) for m in out.messages) if out.messages else ()
         events = self._events(t, before, after, out.log, out.messages)
         unreachable = inputs.unreachable

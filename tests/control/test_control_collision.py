@@ -60,3 +60,18 @@ def test_zero_beyond_r_and_bounded_inside(p, d, angle):
 @given(p=params, d=st.floats(0.0, 2.0))
 def test_magnitude_is_non_increasing_in_distance(p, d):
     assert repulsion_magnitude(d, p) >= repulsion_magnitude(d + 1e-3, p) - 1e-12
+
+
+coords = st.floats(-3.0, 3.0)
+
+
+@given(p=params, own=st.tuples(coords, coords),
+       others=st.lists(st.tuples(coords, coords, st.floats(-math.pi, math.pi)), max_size=8))
+def test_poses_with_the_own_one_among_them_give_the_same_sum(p, own, others):
+    """The agent passes every pose of the frame, its own included, as (x, y, θ) (issue 17: no
+    per-tick list of the others): the own pose is at distance 0 and adds nothing, θ is not read,
+    and the sum is the same to the last bit as over the others' (x, y)."""
+    positions = [(x, y) for x, y, _ in others]
+    expected = collision_velocity(own, positions, p)
+    with_own = [*others[:len(others) // 2], (*own, 0.3), *others[len(others) // 2:]]
+    assert collision_velocity(own, with_own, p) == expected

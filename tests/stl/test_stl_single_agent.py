@@ -152,3 +152,38 @@ def test_code_faithful_random_mode_is_reproducible_and_keeps_the_bound():
     assert first.events(1) != other.events(1)
     assert 0 < first.logs[1][0].r < 0.5 * first.logs[1][0].rho_max  # r = ρ_max·U(0,1)/2
     assert task_robustness(task, first.trajectory) >= outcome.final_r
+
+
+def test_tuple_poses_taken_as_they_are_step_as_the_copied_ones(repo_root):
+    """``StepInput(tuples=True)`` (the runtime's decoded rows, issue 17) skips the step's copy of
+    the poses: along a kinematic replay of Scenario 1's three coupled STL agents (repairs and
+    stage 2 included) every state and output equals the copying step's."""
+    from agent.scenario import load_scenario
+    from agent.stl.agent import build_agents
+
+    scenario = load_scenario(repo_root / "scenarios" / "scenario1.toml")
+    agents = build_agents(scenario)
+    poses = {r.id: tuple(map(float, r.pose)) for r in scenario.robots}
+    copied = {i: a.initial_state() for i, a in agents.items()}
+    taken = dict(copied)
+    inbox_copied: dict[int, list] = {i: [] for i in agents}
+    inbox_taken: dict[int, list] = {i: [] for i in agents}
+    dt, repaired = 0.01, 0
+    for k in range(1500):
+        t = k * dt
+        sent_copied, sent_taken = [], []
+        for i, agent in agents.items():
+            copied[i], out_c = agent.step(copied[i], StepInput(t, dict(poses), inbox_copied[i]))
+            taken[i], out_t = agent.step(taken[i], StepInput(t, dict(poses), inbox_taken[i],
+                                                             tuples=True))
+            assert taken[i] == copied[i] and out_t == out_c, (i, t)
+            repaired += bool(out_c.log.repair)
+            sent_copied += out_c.messages
+            sent_taken += out_t.messages
+            x, y, th = poses[i]
+            vx, vy, w = out_c.u
+            poses[i] = (x + dt * vx, y + dt * vy, th + dt * w)
+        for i in agents:
+            inbox_copied[i] = [m for m in sent_copied if m.receiver == i]
+            inbox_taken[i] = [m for m in sent_taken if m.receiver == i]
+    assert repaired > 0  # the replay went through the repair paths, not only nominal steps
