@@ -10,6 +10,7 @@ typedef struct {
     double (*get_angular_velocity)(void *body);
     void (*set_angular_velocity)(void *body, double omega);
     double (*get_angle)(void *body);
+    tl_vect (*get_position)(void *body);
 } tl_chipmunk;
 
 /* One robot: its body, its law's constants and its state (world.py's SimRobot). */
@@ -24,3 +25,8 @@ typedef struct {
 } tl_robot;
 
 void tl_track_all(const tl_chipmunk *cp, tl_robot *robots, int n, double dt);
+
+/* Every robot's pose, as World.poses (noise NULL) or World.mocap_poses (noise: n rows of
+ * (nx, ny, ntheta)) reads it: out[3i..3i+2] = (x, y, theta wrapped to (-pi, pi]). */
+void tl_read_poses(const tl_chipmunk *cp, const tl_robot *robots, int n, const double *noise,
+                   double *out);

@@ -48,6 +48,7 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pymunk
@@ -98,6 +99,7 @@ _CHIPMUNK_ACCESSORS = (
     ("get_angular_velocity", "cpBodyGetAngularVelocity"),
     ("set_angular_velocity", "cpBodySetAngularVelocity"),
     ("get_angle", "cpBodyGetAngle"),
+    ("get_position", "cpBodyGetPosition"),
 )
 
 
@@ -372,6 +374,8 @@ class World:
             self.space.add(sim_robot.body, sim_robot.shape)
             self.robots[robot.id] = sim_robot
         self.ids = tuple(self.robots)  # ascending
+        self._native_cp: Any = None  # the C law's accessors and robots (_install_tracking)
+        self._native_robots: Any = None
         self._install_tracking()
         self._robot_of_shape = {r.shape: r.id for r in self.robots.values()}
         self.space.on_collision(ROBOT_TYPE, ROBOT_TYPE, begin=self._on_robot_robot)
@@ -443,6 +447,7 @@ class World:
                                int(_ffi.cast("uintptr_t", _ffi.addressof(_cp, symbol))))
                 for name, symbol in _CHIPMUNK_ACCESSORS})
             update = self._track_all_native
+            self._pose_buffer = ffi.new("double[]", 3 * len(self._tracked))
         # kept referenced: Chipmunk holds only the raw function pointer
         self._velocity_update = _ffi.callback("void(cpBody *, cpVect, cpFloat, cpFloat)", update)
         _cp.cpBodySetVelocityUpdateFunc(self._tracked[0]._cbody, self._velocity_update)
@@ -563,6 +568,8 @@ class World:
 
     def poses(self) -> tuple[tuple[int, float, float, float], ...]:
         """True poses ``(id, x [m], y [m], θ [rad] in (−π, π])``, ids ascending."""
+        if self._native_cp is not None:
+            return self._read_native(None)
         out = []
         for rid, sim_robot in self.robots.items():
             cbody = sim_robot._cbody  # Chipmunk's values, as body.position and body.angle give
@@ -573,12 +580,26 @@ class World:
     def mocap_poses(self) -> tuple[tuple[int, float, float, float], ...]:
         """What the motion-capture system reports: the true poses plus Gaussian noise
         (σ = ``mocap_noise`` on x [m], y [m] and θ [rad]), θ wrapped to (−π, π]."""
-        poses = self.poses()
         if self.mocap_noise <= 0.0:
-            return poses
-        noise = self.rng.normal(0.0, self.mocap_noise, size=(len(poses), 3)).tolist()
+            return self.poses()
+        noise = self.rng.normal(0.0, self.mocap_noise, size=(len(self.ids), 3))
+        if self._native_cp is not None:
+            return self._read_native(noise)
         return tuple((rid, x + nx, y + ny, wrap_angle(th + nth))
-                     for (rid, x, y, th), (nx, ny, nth) in zip(poses, noise, strict=True))
+                     for (rid, x, y, th), (nx, ny, nth) in zip(self.poses(), noise.tolist(),
+                                                               strict=True))
+
+    def _read_native(self, noise: np.ndarray | None) -> tuple[tuple[int, float, float, float],
+                                                               ...]:
+        """:meth:`poses` (``noise`` None) or :meth:`mocap_poses` (``noise``: n × 3, C order) read
+        by ``tl_read_poses`` in one call (issue 17: 30 robots pose by pose in Python cost ≈ 40 µs
+        per frame from cold caches); the same values to the last bit (tests/sim)."""
+        ffi, out, n = _native.ffi, self._pose_buffer, len(self._tracked)
+        _native.lib.tl_read_poses(self._native_cp, self._native_robots, n,
+                                  ffi.NULL if noise is None else ffi.from_buffer("double[]", noise),
+                                  out)
+        values = iter(ffi.unpack(out, 3 * n))
+        return tuple(zip(self.ids, values, values, values, strict=True))
 
     def velocities(self) -> dict[int, tuple[float, float, float]]:
         """Each robot's world-frame body velocity ``(vx [m/s], vy [m/s], ω [rad/s])``."""

@@ -131,3 +131,44 @@ def test_without_the_c_law_auto_runs_the_python_law_and_native_is_refused(monkey
     w.step(0.5)
     assert w.robots[1]._native is None
     assert w.velocities()[1][0] == pytest.approx(0.2, abs=1e-9)  # the Python law tracked it
+
+
+def bits(poses) -> tuple:
+    """Poses with every float as its exact bits (``==`` takes −0.0 for 0.0)."""
+    return tuple((rid, *(v.hex() for v in values)) for rid, *values in poses)
+
+
+@pytest.mark.needs_system
+@c_law_built
+def test_c_pose_read_out_equals_python_from_random_states():
+    """``tl_read_poses`` (``World.poses`` and ``World.mocap_poses`` with the C law) against the
+    Python read-out: 500 random states of 6 robots, headings anywhere (many turns, exactly ±π,
+    next to ±π) and mocap noise on and off; the same values to the last bit and the same random
+    stream afterwards."""
+    rng = np.random.default_rng(7)
+    robots = tuple(omni(i, -2.0 + 0.7 * i, 0.0) for i in range(1, 4)) + tuple(
+        unicycle(i, -2.0 + 0.7 * i, 1.0, 0.5) for i in range(4, 7))
+    specials = (math.pi, -math.pi, math.nextafter(math.pi, 0.0),
+                math.nextafter(-math.pi, 0.0), 3 * math.pi, 0.0, -0.0)
+    for noise in (0.0, 0.05):
+        scn = scenario(*robots, mocap_noise=noise)
+        worlds = {mode: World.from_scenario(scn, np.random.default_rng(5),
+                                            WorldConfig(tracking=mode))
+                  for mode in ("python", "native")}
+        assert worlds["native"]._native_cp is not None and worlds["python"]._native_cp is None
+        for k in range(500):
+            angles = rng.uniform(-40.0, 40.0, len(robots)).tolist()
+            if k % 5 == 0:
+                angles[k % len(robots)] = specials[k % len(specials)]
+            positions = rng.uniform(-2.5, 2.5, (len(robots), 2)).tolist()
+            for w in worlds.values():
+                for robot, angle, (x, y) in zip(w.robots.values(), angles, positions,
+                                                strict=True):
+                    robot.body.angle = angle
+                    robot.body.position = (x, y)
+            python, native = worlds["python"], worlds["native"]
+            assert bits(native.poses()) == bits(python.poses())
+            got, expected = native.mocap_poses(), python.mocap_poses()
+            assert bits(got) == bits(expected)
+            assert all(-math.pi < th <= math.pi for _, _, _, th in got)
+        assert worlds["native"].rng.random() == worlds["python"].rng.random()
