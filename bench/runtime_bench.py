@@ -38,7 +38,9 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   fleet's shape with the fleet's code replaced by fixed work (``floor_probe.lockstep_probe``:
   a sim-like process, 3 agent-like ones, 2 decimated LTL-like ones and a listener, over
   zenoh and over bare UDP), the speed-up that shape allows at this moment, beside the real
-  fleet's;
+  fleet's; and the fleet size's floor (``bench/fleet_floor.py``): the target's 30 agent-like
+  processes answering a sim-like process's spread frames over zenoh, with 30, 150 and 250 µs
+  of work per tick, and the deadlines they miss (with ``fleet`` and ``floor``);
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
 Besides, for every run, the CPU time of each child process per wall second of the supervised
@@ -70,6 +72,7 @@ sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
 from bench.common import Figure, load_average, report  # noqa: E402
+from bench.fleet_floor import fleet_probe  # noqa: E402
 from bench.floor_probe import lockstep_probe  # noqa: E402
 from bench.floor_probe import probe as floor_probe  # noqa: E402
 from coordinator.hosts_run import run_on_hosts  # noqa: E402
@@ -81,6 +84,13 @@ SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"latency_p99_ms": 2.0, "missed_fraction": 0.001, "lockstep_speedup": 10.0,
            "max_fleet": 30}
 FLEET_MISS_LIMIT = 0.01
+# the fleet-size floor (bench/fleet_floor.py): the sim's slots a period at 30 robots (one per
+# physics step), its Python per slot (the sender then costs about the sim's 40 % of a core), the
+# agent-like work per tick: the floor's 30 µs, 150 µs, and 250 µs, about what a generated fleet's
+# STL agent spends per tick in its own Python from cold caches (decode, checks, step, encode)
+FLEET_FLOOR_SLOTS = 10
+FLEET_FLOOR_SENDER_US = 100.0
+FLEET_FLOOR_WORK_US = (30.0, 150.0, 250.0)
 
 
 def generated_fleet(n: int, duration: float) -> str:
@@ -348,6 +358,32 @@ def hosts_fleets(sizes: list[int], runs: int, duration: float, tmpdir: Path
     return out
 
 
+def fleet_floor_figures(fleet_floor: dict[float, list[dict]]) -> list[Figure]:
+    """The fleet-size floor (bench/fleet_floor.py): the target's number of agent-like processes
+    over zenoh, with the floor's work per tick and with about an agent's Python."""
+    out = []
+    n = TARGETS["max_fleet"]
+    for work in FLEET_FLOOR_WORK_US:
+        rows = fleet_floor.get(work, [])
+        label = (f"  floor: {n} agent-like processes over zenoh ({work:.0f} µs a tick), missed"
+                 if work == FLEET_FLOOR_WORK_US[0] else
+                 f"    the same with {work:.0f} µs of Python a tick, missed")
+        note = ""
+        if rows:
+            note = (f"median of {len(rows)}: latency p50 {median(rows, 'latency_p50_ms'):.2f} ms, "
+                    f"p99 {median(rows, 'latency_p99_ms'):.2f} ms, receiver CPU "
+                    f"{median(rows, 'rx_cpu_us'):.0f} µs a tick, sender "
+                    f"{median(rows, 'sender_cpu_pct'):.0f} % of a core, machine idle "
+                    f"{median(rows, 'idle_pct'):.0f} %")
+            if work == FLEET_FLOOR_WORK_US[0]:
+                note += (f"; {FLEET_FLOOR_SLOTS} slots a period, {FLEET_FLOOR_SENDER_US:.0f} µs "
+                         "of sender work before each (bench/fleet_floor.py)")
+        out.append(Figure(f"floor_fleet_{work:.0f}us_missed_pct", label,
+                          100 * median(rows, "missed_fraction") if rows else math.nan, "%",
+                          note=note))
+    return out
+
+
 def holds(runs: list[dict]) -> bool:
     """A realtime fleet holds: ≤ 1 % of its control deadlines missed (median) and every run
     clean."""
@@ -446,6 +482,11 @@ def main(argv: list[str] | None = None) -> int:
     lockstep_floor = lockstep_probe(runs=runs, seconds=1.0 if args.quick else 3.0,
                                     ltl_agents=2, ltl_work_us=1000.0, divider=20) \
         if "floor" not in args.skip and "lockstep" not in args.skip else {}
+    fleet_floor = {work: [fleet_probe(TARGETS["max_fleet"], FLEET_FLOOR_SLOTS, work,
+                                      FLEET_FLOOR_SENDER_US, 3.0 if args.quick else 5.0)
+                          for _ in range(runs)]
+                   for work in FLEET_FLOOR_WORK_US} \
+        if "floor" not in args.skip and "fleet" not in args.skip else {}
     nan = math.nan
     cpu_sim = median(lockstep, "total_cpu_s_per_sim_s") if lockstep else nan
     cores = os.cpu_count() or 1
@@ -511,6 +552,7 @@ def main(argv: list[str] | None = None) -> int:
                better="higher"),
         Figure("fleet_agent_tick_us", f"  CPU per agent tick in that fleet ({max_fleet} robots)",
                agent_tick_us(largest) if largest else nan, "µs"),
+        *fleet_floor_figures(fleet_floor),
         *hosts_figures(two_hosts),
         Figure("floor_udp_us", "floor: agent-like echo over bare UDP, CPU per tick",
                fl("udp", "rx_cpu_us"), "µs"),
@@ -531,6 +573,7 @@ def main(argv: list[str] | None = None) -> int:
                   "latency_histograms_ms": [r["latency_histogram_ms"] for r in realtime],
                   "floor": floor, "floor_beside_realtime": beside,
                   "lockstep_floor": lockstep_floor,
+                  "fleet_floor": {str(work): rows for work, rows in fleet_floor.items()},
                   "per_run": {"realtime": realtime, "lockstep": lockstep,
                               "fleets": {str(n): r for n, r in fleets.items()},
                               "two_hosts": {v: {str(n): r for n, r in sizes.items()}

@@ -1,0 +1,215 @@
+"""The fleet size's floor (issue 17 item 5): N agent-like processes over zenoh at 100 Hz.
+
+``bench/floor_probe.py`` measures one agent tick's floor; this measures the fleet's. A sim-like
+process (this one) publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` keys,
+slot g at ``g / slots`` of the period (as the simulator's spread frames, architecture.md §3),
+after spending ``sender_work_us`` of CPU before each (the simulator's per-slot Python: its
+physics part, poses, encoding; 100 µs puts the sender, answers included, at about the
+simulator's share of a core in a 30-robot fleet, 40 %). ``n`` receiver processes, receiver i on
+slot ``i % slots``, do what an STL agent's runtime does around its step: a ``FifoChannel`` read
+by the main thread, the newest of the queued frames taken, ``work_us`` of CPU (the agent's
+decode, step and encode), an answer of 12 bytes on a key of its own. Peers on loopback,
+multicast scouting off, the minimal zenoh runtime in every process: the fleet's transport with
+nothing of the fleet's code in it.
+
+Measured, as the simulator measures a realtime fleet (``sim.stats``): the latency of each
+answer from its frame's publication, and the share of the (receiver, period) deadlines missed
+(no answer within one period of the frame); the receivers' CPU per tick (median), the
+sender's share of a core, and the machine's idle and steal shares during the run
+(``/proc/stat``). With ``work_us`` near 0 it is the floor of the fleet size on this machine:
+what zenoh and the wake-ups alone allow; with the agent's measured Python per tick it is what
+that Python costs at fleet scale.
+
+    .venv/bin/python bench/fleet_floor.py [--n 30] [--slots 10] [--work-us 30 250]
+                                          [--sender-work-us 100] [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bench.floor_probe import _busy, _config  # noqa: E402
+from bus.transport import MINIMAL_RUNTIME  # noqa: E402
+
+PERIOD = 0.01  # [s] the mocap period at 100 Hz
+FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
+READY_TIMEOUT = 60.0  # [s] for every receiver to start (30 processes importing zenoh)
+
+
+def _cpu_stat() -> list[int]:
+    """The machine's CPU time counters (``/proc/stat``'s first line, in clock ticks)."""
+    with open("/proc/stat") as f:
+        return [int(v) for v in f.readline().split()[1:]]
+
+
+def receiver(port: int, index: int, slot: int, work_us: float, seconds: float) -> dict:
+    """One agent-like process: answer the newest frame of slot ``slot`` until ``end``."""
+    import zenoh
+
+    session = zenoh.open(_config(None, f"tcp/127.0.0.1:{port}"))
+    answered = 0
+    try:
+        pub = session.declare_publisher(f"probe/fleet/cmd/{index}")
+        sub = session.declare_subscriber(f"probe/fleet/frame/{slot}",
+                                         zenoh.handlers.FifoChannel(64))
+        print("ready", flush=True)
+        c0 = resource.getrusage(resource.RUSAGE_SELF)
+        me = index.to_bytes(4, "little")
+        deadline = time.monotonic() + seconds + READY_TIMEOUT + 30.0
+        while time.monotonic() < deadline:
+            sample = sub.recv()
+            newer = sub.try_recv()
+            while newer is not None:  # the newest queued frame, as the agent's mailbox
+                sample, newer = newer, sub.try_recv()
+            payload = sample.payload.to_bytes()
+            if payload == b"end":
+                break
+            _busy(work_us)
+            pub.put(payload[:8] + me)
+            answered += 1
+        c1 = resource.getrusage(resource.RUSAGE_SELF)
+    finally:
+        session.close()
+    cpu = (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)
+    return {"answered": answered, "cpu_us_per_tick": 1e6 * cpu / max(answered, 1)}
+
+
+def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
+                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0) -> dict:
+    """One run: ``n`` receivers answering ``seconds`` of 100 Hz periods (module docstring)."""
+    import zenoh
+
+    port = port or 30000 + os.getpid() % 20000
+    periods = round(seconds / PERIOD)
+    env = dict(os.environ, ZENOH_RUNTIME=MINIMAL_RUNTIME)
+    os.environ["ZENOH_RUNTIME"] = MINIMAL_RUNTIME  # before this process's session opens
+    arrivals: list[tuple[int, int, float]] = []
+    lock = threading.Lock()
+
+    def on_answer(sample) -> None:
+        wall = time.monotonic()
+        payload = sample.payload.to_bytes()
+        with lock:
+            arrivals.append((int.from_bytes(payload[:8], "little"),
+                             int.from_bytes(payload[8:12], "little"), wall))
+
+    session = zenoh.open(_config(f"tcp/127.0.0.1:{port}", None))
+    procs: list[subprocess.Popen] = []
+    try:
+        session.declare_subscriber("probe/fleet/cmd/*", on_answer)
+        pubs = [session.declare_publisher(f"probe/fleet/frame/{g}") for g in range(slots)]
+        for i in range(n):
+            procs.append(subprocess.Popen(
+                [sys.executable, __file__, "--role", "receiver", "--port", str(port),
+                 "--index", str(i), "--slot", str(i % slots), "--work-us", str(work_us),
+                 "--seconds", str(seconds)], stdout=subprocess.PIPE, text=True, env=env))
+        started = time.monotonic()
+        for p in procs:
+            line = p.stdout.readline().strip() if p.stdout is not None else ""
+            if line != "ready" or time.monotonic() - started > READY_TIMEOUT:
+                raise RuntimeError(f"fleet floor: a receiver did not start ({line!r})")
+        settle = time.monotonic() + 10.0  # every receiver's subscription known to the sender
+        while (not all(pub.matching_status.matching for pub in pubs)
+               and time.monotonic() < settle):
+            time.sleep(0.01)
+        time.sleep(0.5)
+        published: dict[tuple[int, int], float] = {}
+        stat0, own0 = _cpu_stat(), resource.getrusage(resource.RUSAGE_SELF)
+        t0 = time.monotonic() + 0.05
+        for k in range(periods):
+            for g in range(slots):
+                due = t0 + (k + g / slots) * PERIOD
+                while (left := due - time.monotonic()) > 0.0:
+                    time.sleep(left)
+                _busy(sender_work_us)
+                published[(k, g)] = time.monotonic()
+                pubs[g].put(k.to_bytes(8, "little") + FRAME_PAD)
+        time.sleep(2 * PERIOD)
+        stat1, own1 = _cpu_stat(), resource.getrusage(resource.RUSAGE_SELF)
+        for pub in pubs:
+            pub.put(b"end")
+        rows = []
+        for p in procs:
+            out, _ = p.communicate(timeout=30.0)
+            lines = [line for line in out.splitlines() if line.startswith("{")]
+            if lines:
+                rows.append(json.loads(lines[-1]))
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        session.close()
+    with lock:
+        got = {(k, i): wall for k, i, wall in arrivals}
+    latencies, missed = [], 0
+    for k in range(periods):
+        for i in range(n):
+            wall = got.get((k, i))
+            sent = published[(k, i % slots)]
+            if wall is None or wall - sent > PERIOD:
+                missed += 1
+            if wall is not None:
+                latencies.append(1e3 * (wall - sent))
+    latencies.sort()
+    delta = [b - a for a, b in zip(stat0, stat1, strict=True)]
+    total = sum(delta) or 1
+    nan = float("nan")
+    return {
+        "n": n, "slots": slots, "work_us": work_us, "sender_work_us": sender_work_us,
+        "periods": periods, "due": periods * n, "missed": missed,
+        "missed_fraction": missed / (periods * n),
+        "latency_p50_ms": latencies[len(latencies) // 2] if latencies else nan,
+        "latency_p99_ms": (latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))]
+                           if latencies else nan),
+        "rx_cpu_us": (statistics.median(r["cpu_us_per_tick"] for r in rows) if rows else nan),
+        "receivers_reported": len(rows),
+        "sender_cpu_pct": 100.0 * ((own1.ru_utime + own1.ru_stime)
+                                   - (own0.ru_utime + own0.ru_stime)) / (periods * PERIOD),
+        "idle_pct": 100.0 * delta[3] / total,
+        "steal_pct": 100.0 * delta[7] / total if len(delta) > 7 else nan,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--role", choices=("receiver",))
+    parser.add_argument("--port", type=int, default=0)
+    parser.add_argument("--index", type=int, default=0)
+    parser.add_argument("--slot", type=int, default=0)
+    parser.add_argument("--n", type=int, default=30)
+    parser.add_argument("--slots", type=int, default=10)
+    parser.add_argument("--work-us", type=float, nargs="+", default=[30.0, 250.0])
+    parser.add_argument("--sender-work-us", type=float, default=100.0)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    args = parser.parse_args(argv)
+    if args.role == "receiver":
+        print(json.dumps(receiver(args.port, args.index, args.slot, args.work_us[0],
+                                  args.seconds)), flush=True)
+        return 0
+    print(f"load average {os.getloadavg()[0]:.2f}")
+    for work in args.work_us:
+        row = fleet_probe(args.n, args.slots, work, args.sender_work_us, args.seconds)
+        print(f"{row['n']} agent-like processes, {work:.0f} µs of work each, {row['slots']} "
+              f"slots, sender {row['sender_work_us']:.0f} µs a slot: missed "
+              f"{100 * row['missed_fraction']:.2f} %, latency p50 {row['latency_p50_ms']:.2f} "
+              f"ms p99 {row['latency_p99_ms']:.2f} ms, receiver CPU {row['rx_cpu_us']:.0f} "
+              f"µs/tick, sender {row['sender_cpu_pct']:.0f} % of a core, idle "
+              f"{row['idle_pct']:.0f} %, steal {row['steal_pct']:.1f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

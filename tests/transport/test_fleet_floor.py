@@ -1,0 +1,42 @@
+"""``bench/fleet_floor.py``, the fleet size's floor (issue 17): N agent-like processes answering a
+sim-like process's spread frames over zenoh on loopback. Checked: every receiver starts, answers
+and reports its CPU; the deadlines are counted per (receiver, period) as the simulator counts
+them, so receivers whose work outlasts the period miss most of them and quick ones few."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+from bench.fleet_floor import fleet_probe  # noqa: E402
+
+
+def _port(offset: int) -> int:
+    return 41000 + 7 * (os.getpid() % 3000) + offset
+
+
+def test_quick_receivers_answer_every_period_of_their_slot():
+    row = fleet_probe(n=3, slots=2, work_us=30.0, sender_work_us=10.0, seconds=0.5,
+                      port=_port(0))
+    assert row["receivers_reported"] == 3
+    assert row["periods"] == 50 and row["due"] == 150
+    assert 0 <= row["missed"] <= row["due"]
+    assert row["missed_fraction"] < 0.5  # 30 µs of work in a 10 ms period: answered in time
+    assert 0.0 < row["latency_p50_ms"] <= row["latency_p99_ms"]
+    assert math.isfinite(row["rx_cpu_us"]) and row["rx_cpu_us"] > 30.0  # the work, at least
+    assert 0.0 <= row["idle_pct"] <= 100.0 and row["sender_cpu_pct"] > 0.0
+
+
+def test_receivers_slower_than_the_period_miss_most_deadlines():
+    """20 ms of work per frame: a receiver answers at most every other period, each answer more
+    than one period after its frame, so at least half the deadlines are missed."""
+    row = fleet_probe(n=2, slots=1, work_us=20_000.0, sender_work_us=10.0, seconds=0.5,
+                      port=_port(1))
+    assert row["receivers_reported"] == 2
+    assert row["missed_fraction"] >= 0.5
+    assert row["latency_p50_ms"] > 10.0
