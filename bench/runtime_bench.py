@@ -132,36 +132,49 @@ class CpuSampler:
     def _run(self) -> None:
         me = psutil.Process()
         procs: dict[int, tuple[psutil.Process, str]] = {}
+        scans = 0
         while not self._stop.is_set():
             now = time.monotonic()
-            try:
-                children = me.children(recursive=True)
-            except psutil.Error:
-                children = []
-            for child in children:
-                if child.pid not in procs:
-                    try:
-                        argv = child.cmdline()
-                    except psutil.Error:
-                        continue
-                    if "cli.main" in argv[:-1]:
-                        role = argv[argv.index("cli.main") + 1]
-                        if "--robot" in argv[:-1]:
-                            role += "-" + argv[argv.index("--robot") + 1]
-                        procs[child.pid] = (child, role)
+            # the process tree is read from the whole of /proc: every sample until the fleet's
+            # processes are there, then every 4th (issue 17: the sampler is part of the
+            # coordinator's CPU it reports; a fleet's processes all start before its mission)
+            if len(procs) <= 1 or scans % 4 == 0:
+                self._add_children(me, procs)
+            scans += 1
             if me.pid not in procs:  # the coordinator runs in this process (run_fleet)
                 procs[me.pid] = (me, "coordinator")
             for pid, (proc, role) in list(procs.items()):
                 try:
-                    if proc.status() == psutil.STATUS_ZOMBIE:  # ended, not yet reaped: its
-                        raise psutil.ZombieProcess(pid)       # samples would read as idle
-                    times = proc.cpu_times()
+                    with proc.oneshot():  # one read of /proc/<pid>/stat for both
+                        if proc.status() == psutil.STATUS_ZOMBIE:  # ended, not yet reaped:
+                            raise psutil.ZombieProcess(pid)       # its samples read as idle
+                        times = proc.cpu_times()
                 except psutil.Error:
                     del procs[pid]
                     continue
                 self.samples.setdefault(pid, (role, []))[1].append(
                     (now, times.user + times.system))
             self._stop.wait(self.period)
+
+    @staticmethod
+    def _add_children(me: psutil.Process, procs: dict[int, tuple[psutil.Process, str]]
+                      ) -> None:
+        """Add this process's new descendants that are tlfleet processes, with their roles."""
+        try:
+            children = me.children(recursive=True)
+        except psutil.Error:
+            return
+        for child in children:
+            if child.pid not in procs:
+                try:
+                    argv = child.cmdline()
+                except psutil.Error:
+                    continue
+                if "cli.main" in argv[:-1]:
+                    role = argv[argv.index("cli.main") + 1]
+                    if "--robot" in argv[:-1]:
+                        role += "-" + argv[argv.index("--robot") + 1]
+                    procs[child.pid] = (child, role)
 
     def cpu_per_sim_s(self, marks: list[tuple[float, float]]) -> dict[str, float]:
         """CPU seconds per simulated second of each role (summed over its processes) over the
