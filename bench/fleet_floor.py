@@ -30,6 +30,7 @@ import argparse
 import json
 import os
 import resource
+import socket
 import statistics
 import subprocess
 import sys
@@ -52,6 +53,14 @@ def _cpu_stat() -> list[int]:
     """The machine's CPU time counters (``/proc/stat``'s first line, in clock ticks)."""
     with open("/proc/stat") as f:
         return [int(v) for v in f.readline().split()[1:]]
+
+
+def _free_port() -> int:
+    """A loopback TCP port free at this moment (each run listens on a fresh one: a port just
+    closed by the previous run may still be held)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def receiver(port: int, index: int, slot: int, work_us: float, seconds: float) -> dict:
@@ -91,7 +100,7 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
     """One run: ``n`` receivers answering ``seconds`` of 100 Hz periods (module docstring)."""
     import zenoh
 
-    port = port or 30000 + os.getpid() % 20000
+    port = port or _free_port()
     periods = round(seconds / PERIOD)
     env = dict(os.environ, ZENOH_RUNTIME=MINIMAL_RUNTIME)
     os.environ["ZENOH_RUNTIME"] = MINIMAL_RUNTIME  # before this process's session opens
