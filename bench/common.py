@@ -36,6 +36,14 @@ def load_average() -> tuple[float, float, float]:
         return (math.nan, math.nan, math.nan)
 
 
+def sorted_quantile(values: Sequence[float], q: float) -> float:
+    """The q-quantile (0 ≤ q < 1) of ``values`` sorted ascending, as the nearest lower rank
+    (NaN when empty): the benchmarks' latency p50 and p99."""
+    if not values:
+        return math.nan
+    return values[min(len(values) - 1, int(q * len(values)))]
+
+
 @dataclass(frozen=True)
 class Timing:
     """Median CPU and wall time per call [s] over ``runs`` runs of ``calls`` calls, and spreads."""

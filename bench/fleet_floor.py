@@ -1,7 +1,7 @@
 """The fleet size's floor (issue 17 item 5): N agent-like processes over zenoh at 100 Hz.
 
 ``bench/floor_probe.py`` measures one agent tick's floor; this measures the fleet's. A sim-like
-process (this one) publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` keys,
+process publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` keys,
 slot g at ``g / slots`` of the period (as the simulator's spread frames, architecture.md §3),
 after spending ``sender_work_us`` of CPU before each (the simulator's per-slot Python: its
 physics part, poses, encoding; 100 µs puts the sender, answers included, at about the
@@ -9,8 +9,9 @@ simulator's share of a core in a 30-robot fleet, 40 %). ``n`` receiver processes
 slot ``i % slots``, do what an STL agent's runtime does around its step: a ``FifoChannel`` read
 by the main thread, the newest of the queued frames taken, ``work_us`` of CPU (the agent's
 decode, step and encode), an answer of 12 bytes on a key of its own. Peers on loopback,
-multicast scouting off, the minimal zenoh runtime in every process: the fleet's transport with
-nothing of the fleet's code in it.
+multicast scouting off, the minimal zenoh runtime in every process (each a child of the caller,
+whose own environment and zenoh runtime stay as they are): the fleet's transport with nothing of
+the fleet's code in it.
 
 Measured, as the simulator measures a realtime fleet (``sim.stats``): the latency of each
 answer from its frame's publication, and the share of the (receiver, period) deadlines missed
@@ -41,6 +42,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.common import sorted_quantile  # noqa: E402
 from bench.floor_probe import _busy, _config  # noqa: E402
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
 
@@ -95,15 +97,13 @@ def receiver(port: int, index: int, slot: int, work_us: float, seconds: float) -
     return {"answered": answered, "cpu_us_per_tick": 1e6 * cpu / max(answered, 1)}
 
 
-def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
-                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0) -> dict:
-    """One run: ``n`` receivers answering ``seconds`` of 100 Hz periods (module docstring)."""
+def sender(port: int, n: int, slots: int, sender_work_us: float, seconds: float) -> dict:
+    """The sim-like process: listen, wait for ``go`` on stdin (every receiver connected), publish
+    ``seconds`` of periods, then ``end``; the deadlines and latencies of the answers, its own
+    CPU and the machine's idle and steal shares over the periods."""
     import zenoh
 
-    port = port or _free_port()
     periods = round(seconds / PERIOD)
-    env = dict(os.environ, ZENOH_RUNTIME=MINIMAL_RUNTIME)
-    os.environ["ZENOH_RUNTIME"] = MINIMAL_RUNTIME  # before this process's session opens
     arrivals: list[tuple[int, int, float]] = []
     lock = threading.Lock()
 
@@ -115,21 +115,13 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
                              int.from_bytes(payload[8:12], "little"), wall))
 
     session = zenoh.open(_config(f"tcp/127.0.0.1:{port}", None))
-    procs: list[subprocess.Popen] = []
     try:
         session.declare_subscriber("probe/fleet/cmd/*", on_answer)
         pubs = [session.declare_publisher(f"probe/fleet/frame/{g}") for g in range(slots)]
-        for i in range(n):
-            procs.append(subprocess.Popen(
-                [sys.executable, __file__, "--role", "receiver", "--port", str(port),
-                 "--index", str(i), "--slot", str(i % slots), "--work-us", str(work_us),
-                 "--seconds", str(seconds)], stdout=subprocess.PIPE, text=True, env=env))
-        started = time.monotonic()
-        for p in procs:
-            line = p.stdout.readline().strip() if p.stdout is not None else ""
-            if line != "ready" or time.monotonic() - started > READY_TIMEOUT:
-                raise RuntimeError(f"fleet floor: a receiver did not start ({line!r})")
-        settle = time.monotonic() + 10.0  # every receiver's subscription known to the sender
+        print("listening", flush=True)
+        if sys.stdin.readline().strip() != "go":
+            raise RuntimeError("fleet floor sender: no go")
+        settle = time.monotonic() + 10.0  # every receiver's subscription known here
         while (not all(pub.matching_status.matching for pub in pubs)
                and time.monotonic() < settle):
             time.sleep(0.01)
@@ -149,17 +141,8 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
         stat1, own1 = _cpu_stat(), resource.getrusage(resource.RUSAGE_SELF)
         for pub in pubs:
             pub.put(b"end")
-        rows = []
-        for p in procs:
-            out, _ = p.communicate(timeout=30.0)
-            lines = [line for line in out.splitlines() if line.startswith("{")]
-            if lines:
-                rows.append(json.loads(lines[-1]))
+        time.sleep(0.1)  # the ends on their way before the session closes
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
         session.close()
     with lock:
         got = {(k, i): wall for k, i, wall in arrivals}
@@ -175,26 +158,68 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
     latencies.sort()
     delta = [b - a for a, b in zip(stat0, stat1, strict=True)]
     total = sum(delta) or 1
-    nan = float("nan")
     return {
-        "n": n, "slots": slots, "work_us": work_us, "sender_work_us": sender_work_us,
         "periods": periods, "due": periods * n, "missed": missed,
         "missed_fraction": missed / (periods * n),
-        "latency_p50_ms": latencies[len(latencies) // 2] if latencies else nan,
-        "latency_p99_ms": (latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))]
-                           if latencies else nan),
-        "rx_cpu_us": (statistics.median(r["cpu_us_per_tick"] for r in rows) if rows else nan),
-        "receivers_reported": len(rows),
+        "latency_p50_ms": sorted_quantile(latencies, 0.5),
+        "latency_p99_ms": sorted_quantile(latencies, 0.99),
         "sender_cpu_pct": 100.0 * ((own1.ru_utime + own1.ru_stime)
                                    - (own0.ru_utime + own0.ru_stime)) / (periods * PERIOD),
         "idle_pct": 100.0 * delta[3] / total,
-        "steal_pct": 100.0 * delta[7] / total if len(delta) > 7 else nan,
+        "steal_pct": 100.0 * delta[7] / total if len(delta) > 7 else float("nan"),
+    }
+
+
+def _last_json(out: str) -> dict | None:
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    return json.loads(lines[-1]) if lines else None
+
+
+def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
+                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0) -> dict:
+    """One run: a sender and ``n`` receiver processes (module docstring), all on zenoh's minimal
+    runtime; this process only starts them and collects what they report."""
+    port = port or _free_port()
+    env = dict(os.environ, ZENOH_RUNTIME=MINIMAL_RUNTIME)
+    common = [sys.executable, __file__, "--port", str(port), "--seconds", str(seconds)]
+    tx = subprocess.Popen([*common, "--role", "sender", "--n", str(n), "--slots", str(slots),
+                           "--sender-work-us", str(sender_work_us)],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    procs: list[subprocess.Popen] = []
+    try:
+        if tx.stdout is None or tx.stdout.readline().strip() != "listening":
+            raise RuntimeError("fleet floor: the sender did not start")
+        for i in range(n):
+            procs.append(subprocess.Popen(
+                [*common, "--role", "receiver", "--index", str(i), "--slot", str(i % slots),
+                 "--work-us", str(work_us)], stdout=subprocess.PIPE, text=True, env=env))
+        started = time.monotonic()
+        for p in procs:
+            line = p.stdout.readline().strip() if p.stdout is not None else ""
+            if line != "ready" or time.monotonic() - started > READY_TIMEOUT:
+                raise RuntimeError(f"fleet floor: a receiver did not start ({line!r})")
+        tx_out, _ = tx.communicate("go\n", timeout=seconds + 60.0)
+        result = _last_json(tx_out)
+        if result is None:
+            raise RuntimeError("fleet floor: the sender reported nothing")
+        rows = [row for p in procs if (row := _last_json(p.communicate(timeout=30.0)[0]))]
+    finally:
+        for p in (tx, *procs):
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    return {
+        "n": n, "slots": slots, "work_us": work_us, "sender_work_us": sender_work_us,
+        **result,
+        "rx_cpu_us": (statistics.median(r["cpu_us_per_tick"] for r in rows) if rows
+                      else float("nan")),
+        "receivers_reported": len(rows),
     }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--role", choices=("receiver",))
+    parser.add_argument("--role", choices=("sender", "receiver"))
     parser.add_argument("--port", type=int, default=0)
     parser.add_argument("--index", type=int, default=0)
     parser.add_argument("--slot", type=int, default=0)
@@ -204,6 +229,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sender-work-us", type=float, default=100.0)
     parser.add_argument("--seconds", type=float, default=5.0)
     args = parser.parse_args(argv)
+    if args.role == "sender":
+        print(json.dumps(sender(args.port, args.n, args.slots, args.sender_work_us,
+                                args.seconds)), flush=True)
+        return 0
     if args.role == "receiver":
         print(json.dumps(receiver(args.port, args.index, args.slot, args.work_us[0],
                                   args.seconds)), flush=True)

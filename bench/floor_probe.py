@@ -58,6 +58,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.common import sorted_quantile  # noqa: E402
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
 
 VARIANTS = ("udp", "udp-relay", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo",
@@ -457,9 +458,8 @@ def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
     rtts.sort()
     return {"rx_cpu_us": rx_data["cpu_us_per_tick"], "ticks": rx_data["ticks"],
             "answered": len(rtts),
-            "rtt_p50_us": rtts[len(rtts) // 2] if rtts else float("nan"),
-            "rtt_p99_us": rtts[min(len(rtts) - 1, int(0.99 * len(rtts)))] if rtts
-            else float("nan")}
+            "rtt_p50_us": sorted_quantile(rtts, 0.5),
+            "rtt_p99_us": sorted_quantile(rtts, 0.99)}
 
 
 def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
