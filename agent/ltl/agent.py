@@ -48,13 +48,13 @@ from typing import Any
 import numpy as np
 
 from agent.errors import UnsatisfiableTask
+from agent.evolve import evolve
 from agent.ltl.buchi import Buchi, buchi_step
 from agent.ltl.planner import Plan, plan_robot, replan
 from agent.ltl.task import task_automaton
 from agent.ltl.transition_system import START, from_regions, from_scenario
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.events import NavEvent, RegionVisited, ReplanRequest
-from agent.nav.evolve import evolve
 from agent.nav.executor import Executor, ExecutorInputs, ExecutorState, target_at
 from agent.nav.grid_planner import path_length_function, with_penalised_edges
 from agent.scenario.model import Scenario

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from agent.evolve import evolve
 from agent.nav.coupling_limits import VelocityLimits
 from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
 from agent.nav.errors import InvalidPlanError, NoPathError
@@ -62,7 +63,6 @@ from agent.nav.events import (
     ReplanRequest,
     Stuck,
 )
-from agent.nav.evolve import evolve
 from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_arena
 from agent.nav.grid_planner import plan_path
 from agent.nav.polyline import remaining_vertices, vertices_length

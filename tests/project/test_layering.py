@@ -26,16 +26,17 @@ PURE = ("agent.ltl", "agent.stl", "agent.nav", "agent.control", "agent.scenario"
 # package -> project packages it may import (besides itself). Bottom to top.
 ALLOWED: dict[str, frozenset[str]] = {
     "agent.errors": frozenset(),
+    "agent.evolve": frozenset(),  # dataclasses.replace for the per-tick states, stdlib only
     "agent.protocol": frozenset({"agent.errors"}),
     "bus": frozenset({"agent.errors", "agent.protocol"}),
     # the pure cores: numbers in, numbers out; the scenario model is their shared data
-    **{core: frozenset({"agent.errors", *PURE}) - {core} for core in PURE},
-    "agent.runtime": frozenset({"agent.errors", "agent.protocol", "bus", *PURE}),
+    **{core: frozenset({"agent.errors", "agent.evolve", *PURE}) - {core} for core in PURE},
+    "agent.runtime": frozenset({"agent.errors", "agent.evolve", "agent.protocol", "bus", *PURE}),
     "sim": frozenset({"agent.errors", "agent.protocol", "bus", "agent.scenario"}),
     "coordinator": frozenset({"agent.errors", "agent.protocol", "bus", "agent.scenario",
                               "agent.ltl", "agent.stl"}),
-    "cli": frozenset({"agent.errors", "agent.protocol", "bus", *PURE, "agent.runtime", "sim",
-                      "coordinator"}),
+    "cli": frozenset({"agent.errors", "agent.evolve", "agent.protocol", "bus", *PURE,
+                      "agent.runtime", "sim", "coordinator"}),
 }
 
 # (importer, imported, why): arrows that must never appear.

@@ -1,4 +1,4 @@
-"""``agent.nav.evolve.evolve`` against ``dataclasses.replace`` (issue 17: the LTL step's states)."""
+"""``agent.evolve.evolve`` against ``dataclasses.replace`` (issue 17: per-tick agent states)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from agent.evolve import evolve
 from agent.ltl.agent import LtlState
-from agent.nav.evolve import evolve
 from agent.nav.executor import ExecutorState
+from agent.stl.agent import AgentState
+from agent.stl.funnel import Funnel, FunnelParams
 
 NAMES = st.sampled_from(["a", "b", "c"])
 CHANGES = st.fixed_dictionaries({}, optional={
@@ -63,10 +65,6 @@ def test_evolve_refuses_classes_whose_init_does_more_than_assign():
         def __post_init__(self):
             assert self.x >= 0
 
-    @dataclasses.dataclass(frozen=True, slots=True)
-    class Slotted:
-        x: int
-
     @dataclasses.dataclass(frozen=True)
     class Derived:
         x: int
@@ -84,7 +82,7 @@ def test_evolve_refuses_classes_whose_init_does_more_than_assign():
     class Mutable:
         x: int
 
-    for cls in (Checked, Slotted, Derived, Cached, Mutable):
+    for cls in (Checked, Derived, Cached, Mutable):
         with pytest.raises(TypeError, match=cls.__name__):
             evolve(cls(1), x=2)
 
@@ -95,3 +93,45 @@ def test_the_ltl_state_is_evolvable():
     state = LtlState(executor=ExecutorState(prefix=("a",), suffix=()), buchi_states=frozenset(),
                      plan=None)
     assert evolve(state, stepped=True).stepped is True and state.stepped is False
+
+
+FUNNEL = Funnel.init("G", 0.0, 10.0, 0.5, 0.2, 0.0, FunnelParams())
+STL_CHANGES = st.fixed_dictionaries({}, optional={
+    "k": st.integers(0, 5),
+    "active": st.booleans(),
+    "funnel": st.none() | st.just(FUNNEL),
+    "ce": st.integers(0, 9),
+    "c": st.integers(-1, 4),
+    "events": st.tuples(st.integers(0, 3), st.integers(0, 3), st.integers(0, 3)),
+    "follow": st.none() | st.integers(0, 4),
+    "peers": st.dictionaries(st.integers(0, 4), st.none(), max_size=2),
+    "rho_phi": st.floats(allow_nan=True),
+    "t_done": st.floats(allow_nan=False),
+    "announced": st.none() | st.tuples(st.integers(-1, 4), st.integers(0, 5), st.booleans()),
+    "orphaned": st.none() | st.tuples(st.integers(0, 4), st.integers(0, 5)),
+})
+
+
+@given(STL_CHANGES, STL_CHANGES)
+def test_evolve_equals_replace_on_the_slotted_stl_state(first, second):
+    base = AgentState(k=1, active=True, funnel=FUNNEL, rho_phi=0.25)
+    via_replace = dataclasses.replace(dataclasses.replace(base, **first), **second)
+    via_evolve = evolve(evolve(base, **first), **second)
+    assert type(via_evolve) is AgentState and not hasattr(via_evolve, "__dict__")
+    for f in dataclasses.fields(AgentState):  # every slot set, to the very object replace sets
+        assert getattr(via_evolve, f.name) is getattr(via_replace, f.name), f.name
+    assert base == AgentState(k=1, active=True, funnel=FUNNEL, rho_phi=0.25)  # untouched
+
+
+def test_evolve_of_a_slotted_class_keeps_it_frozen_and_checks_names():
+    @dataclasses.dataclass(frozen=True, slots=True)
+    class Slotted:
+        x: int
+        y: tuple = ()
+
+    state = evolve(Slotted(1, (2,)), x=3)
+    assert state == Slotted(3, (2,)) and evolve(state) == state and evolve(state) is not state
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        state.x = 4
+    with pytest.raises(TypeError, match=r"Slotted has no field \['z'\]"):
+        evolve(state, z=1)
