@@ -47,6 +47,12 @@ def test_gradient_equals_finite_differences(expr, s):
     # θ = 9e-255, where θ² underflows and ‖·‖'s gradient falls back to 0): skip states whose
     # squares underflow. [KNOWN] the evaluator's norm gradient under underflow is open.
     assume(all(v == 0.0 or abs(v) >= 1e-150 for v in s))
+    # Skip points where the central difference has not converged: next to a jump of the second
+    # derivative (x + |2x| at 0 inside a norm) its error is O(step), not O(step²): 2e-5 at a
+    # point whose gradient entry is exactly 0, found by a random run. A wrong gradient still
+    # fails: there both differences agree with each other and not with it.
+    fine = finite_difference(f, s, 1e-6)
+    assume(np.allclose(coarse, fine, rtol=1e-5, atol=1e-6))
     exact = np.zeros(9) if grad is None else np.array(grad)
     assert np.allclose(exact, coarse, rtol=1e-4, atol=1e-5), (exact, coarse)
 
