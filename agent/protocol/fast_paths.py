@@ -189,6 +189,26 @@ def encode_fast(msg: Any) -> bytes | None:
     return _encode_python(msg)
 
 
+def command_bytes(robot: Any, t: Any, seq: Any, u: Any) -> bytes | None:
+    """``encode_fast(Command(robot, t, seq, u))`` without building the message when the C codec
+    runs and the fields are exact ints, a float and a tuple of floats (an agent sends one command
+    a tick); ``None`` otherwise: build the ``Command`` and encode it."""
+    if _native is not None:
+        return _native.command_bytes(robot, t, seq, u)
+    return None
+
+
+def pose_map(rows: Any) -> dict:
+    """``{row[0]: row[1:] for row in rows}``: a frame's ``poses`` as {id: (x [m], y [m],
+    θ [rad])}, built in C when the codec runs and the rows are 4-tuples in a tuple (as every
+    decoder returns them)."""
+    if _native is not None:
+        poses = _native.pose_map(rows)
+        if poses is not None:
+            return poses
+    return {row[0]: row[1:] for row in rows}
+
+
 def _encode_python(msg: Any) -> bytes | None:
     kind = type(msg)
     if kind is Command:

@@ -38,6 +38,8 @@
  * fixstr keys, every int in msgpack's smallest form, every float as float64, tuples as arrays.
  * They take only exact ints (not bools, at most 64 bits), floats and tuples, and return None for
  * anything else (a list, a numpy scalar, ...), which the Python encoder then writes.
+ * ``command_bytes`` writes a command from its four fields (no message built), and ``pose_map``
+ * turns a frame's rows into the {id: (x, y, theta)} an STL agent steps on (round 15).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -517,21 +519,17 @@ static int fields_of(PyObject *msg, PyTypeObject *type, PyObject *const *slots, 
     return 0;
 }
 
-static PyObject *encode_command(PyObject *self, PyObject *msg) {
-    (void)self;
-    if (!W.ready || Py_TYPE(msg) != W.command_type)
-        Py_RETURN_NONE;
-    PyObject *f[4];
-    if (fields_of(msg, W.command_type, W.command_slots, f))
-        return NULL;
+/* The bytes of Command(robot, t, seq, u), or None (not exact ints, a float, a tuple of floats). */
+static PyObject *write_command(PyObject *robot_obj, PyObject *t_obj, PyObject *seq_obj,
+                               PyObject *u) {
     int64_t robot, seq;
     double t;
-    if (exact_int(f[0], &robot) || exact_float(f[1], &t) || exact_int(f[2], &seq)
-        || !PyTuple_CheckExact(f[3]))
+    if (exact_int(robot_obj, &robot) || exact_float(t_obj, &t) || exact_int(seq_obj, &seq)
+        || !PyTuple_CheckExact(u))
         Py_RETURN_NONE;
-    Py_ssize_t n = PyTuple_GET_SIZE(f[3]);
+    Py_ssize_t n = PyTuple_GET_SIZE(u);
     for (Py_ssize_t j = 0; j < n; j++)
-        if (!PyFloat_CheckExact(PyTuple_GET_ITEM(f[3], j)))
+        if (!PyFloat_CheckExact(PyTuple_GET_ITEM(u, j)))
             Py_RETURN_NONE;
     unsigned char *buf = PyMem_Malloc(96 + 9 * (size_t)n);  /* header <= 68 bytes */
     if (buf == NULL)
@@ -545,8 +543,60 @@ static PyObject *encode_command(PyObject *self, PyObject *msg) {
     put_str(&w, "seq"); put_int(&w, seq);
     put_str(&w, "u"); put_array(&w, n);
     for (Py_ssize_t j = 0; j < n; j++)
-        put_float(&w, PyFloat_AS_DOUBLE(PyTuple_GET_ITEM(f[3], j)));
+        put_float(&w, PyFloat_AS_DOUBLE(PyTuple_GET_ITEM(u, j)));
     return finish(buf, &w);
+}
+
+static PyObject *encode_command(PyObject *self, PyObject *msg) {
+    (void)self;
+    if (!W.ready || Py_TYPE(msg) != W.command_type)
+        Py_RETURN_NONE;
+    PyObject *f[4];
+    if (fields_of(msg, W.command_type, W.command_slots, f))
+        return NULL;
+    return write_command(f[0], f[1], f[2], f[3]);
+}
+
+/* command_bytes(robot, t, seq, u): encode_command(Command(robot, t, seq, u)) without building
+ * the message (the agent's loop sends one a tick). */
+static PyObject *command_bytes(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "command_bytes(robot, t, seq, u) takes 4 arguments");
+        return NULL;
+    }
+    if (!W.ready)
+        Py_RETURN_NONE;
+    return write_command(args[0], args[1], args[2], args[3]);
+}
+
+/* pose_map(rows) -> {id: (x, y, theta)} for a tuple of (id, x, y, theta) tuples, each value the
+ * row's slice [1:] (the same float objects); None when rows is not such a tuple. A later row
+ * with the same id replaces an earlier one, as a dict display does. */
+static PyObject *pose_map(PyObject *self, PyObject *rows) {
+    (void)self;
+    if (!PyTuple_CheckExact(rows))
+        Py_RETURN_NONE;
+    Py_ssize_t n = PyTuple_GET_SIZE(rows);
+    for (Py_ssize_t j = 0; j < n; j++) {
+        PyObject *row = PyTuple_GET_ITEM(rows, j);
+        if (!PyTuple_CheckExact(row) || PyTuple_GET_SIZE(row) != 4)
+            Py_RETURN_NONE;
+    }
+    PyObject *out = _PyDict_NewPresized(n);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t j = 0; j < n; j++) {
+        PyObject *row = PyTuple_GET_ITEM(rows, j);
+        PyObject *pose = PyTuple_GetSlice(row, 1, 4);
+        if (pose == NULL || PyDict_SetItem(out, PyTuple_GET_ITEM(row, 0), pose) < 0) {
+            Py_XDECREF(pose);
+            Py_DECREF(out);
+            return NULL;
+        }
+        Py_DECREF(pose);
+    }
+    return out;
 }
 
 static PyObject *encode_frame(PyObject *self, PyObject *msg) {
@@ -674,6 +724,10 @@ static PyMethodDef methods[] = {
      "encode_frame(frame) -> bytes | None (None: let the Python encoder write it)"},
     {"encode_command", encode_command, METH_O,
      "encode_command(command) -> bytes | None (None: let the Python encoder write it)"},
+    {"command_bytes", (PyCFunction)(void (*)(void))command_bytes, METH_FASTCALL,
+     "command_bytes(robot, t, seq, u) -> bytes | None: encode_command(Command(robot, t, seq, u))"},
+    {"pose_map", pose_map, METH_O,
+     "pose_map(rows) -> {id: (x, y, theta)} | None (None: rows are not 4-tuples in a tuple)"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -123,7 +123,9 @@ class AgentState:
     orphaned: tuple[int, int] | None = None
 
 
-@dataclass(frozen=True, slots=True)
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
+# (issue 17).
+@dataclass(slots=True)
 class StepInput:
     """``unreachable``: peers the runtime knows it cannot reach (liveliness token gone, or a
     message to them unanswered). [OUR CHOICE] The step forgets their status announcements, so
@@ -164,7 +166,9 @@ class LogRecord:
     recovered: bool = False  # a robustness recovery raised r in this step (agent.stl.recovery)
 
 
-@dataclass(frozen=True, slots=True)
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
+# (issue 17).
+@dataclass(slots=True)
 class StepOutput:
     u: tuple[float, float, float]  # world frame (v_x [m/s], v_y [m/s], ω [rad/s])
     messages: tuple[Message, ...]

@@ -237,3 +237,50 @@ def test_settings():
     assert fast_paths._load_native("native") is native
     with pytest.raises(CodecSettingError, match="expected one of auto, native, python"):
         fast_paths._load_native("fast")
+
+
+@settings(max_examples=300, deadline=None)
+@given(frames | commands | st.builds(Command, st.integers(0, 2 ** 63 - 1), st.floats(),
+                                     st.integers(-2 ** 63, 2 ** 63 - 1),
+                                     st.lists(st.floats(), max_size=20).map(tuple)))
+def test_command_bytes_are_the_encoders_bytes_of_the_command(msg):
+    """``command_bytes(robot, t, seq, u)`` (the agents' per-tick command, no message built) writes
+    what the encoder writes for ``Command(robot, t, seq, u)``."""
+    if type(msg) is MocapFrame:  # a frame's fields as a command's
+        msg = Command(msg.seq, msg.t, msg.seq, tuple(float(r[1]) for r in msg.poses))
+    want = codec._encode_generic(msg)
+    assert native.command_bytes(msg.robot, msg.t, msg.seq, msg.u) == want
+    assert fast_paths.command_bytes(msg.robot, msg.t, msg.seq, msg.u) == want
+
+
+def test_command_bytes_leave_other_types_to_the_caller():
+    for fields in ((True, 1.0, 2, (0.5,)), (1, 1, 2, (0.5,)), (1, 1.0, 2, [0.5]),
+                   (1, 1.0, 2 ** 64, (0.5,)), (1, 1.0, 2, (np.float64(0.5),)),
+                   (1, 1.0, 2, (0, 0.5))):
+        assert native.command_bytes(*fields) is None, fields
+    with pytest.raises(TypeError, match="4 arguments"):
+        native.command_bytes(1, 1.0, 2)
+
+
+ROWS = st.lists(st.tuples(st.integers(0, 40), st.floats(), st.floats(), st.floats()),
+                max_size=40).map(tuple)
+
+
+@settings(max_examples=300, deadline=None)
+@given(ROWS)
+def test_pose_map_is_the_comprehension_over_the_rows(rows):
+    """Ids repeated too (the last row wins, as in the comprehension); the values are the rows'
+    own float objects."""
+    want = {row[0]: row[1:] for row in rows}
+    for got in (native.pose_map(rows), fast_paths.pose_map(rows)):
+        assert type(got) is dict and list(got) == list(want)
+        for robot, pose in want.items():  # the very float objects (NaN != NaN for ==)
+            assert type(got[robot]) is tuple
+            assert all(a is b for a, b in zip(got[robot], pose, strict=True)), robot
+
+
+def test_pose_map_leaves_other_rows_to_python():
+    for rows in ([(1, 0.0, 0.0, 0.0)], ((1, 0.0, 0.0),), ([1, 0.0, 0.0, 0.0],), "rows"):
+        assert native.pose_map(rows) is None, rows
+    assert fast_paths.pose_map([(1, 0.0, 0.0, 0.0)]) == {1: (0.0, 0.0, 0.0)}
+    assert fast_paths.pose_map(([1, 0.5, 0.0, 0.0],)) == {1: [0.5, 0.0, 0.0]}
