@@ -17,7 +17,14 @@ from agent.protocol.messages import StlStatus
 from agent.runtime import stl_agent
 from agent.runtime.config import AgentConfig
 from agent.scenario import load_scenario
-from agent.stl.agent import StepInput, StlAgent, build_agents, single_agent, status_readers
+from agent.stl.agent import (
+    LogRecord,
+    StepInput,
+    StlAgent,
+    build_agents,
+    single_agent,
+    status_readers,
+)
 from agent.stl.harness import run_closed_loop
 from agent.stl.messages import CollabRelease, CollabRequest
 from agent.stl.sequencer import build_sequence
@@ -131,6 +138,39 @@ def test_two_agents_reproduce_stage2_of_the_pure_harness():
     for j in (3, 4):
         ours = np.array([row[j] for row in trajectory])
         np.testing.assert_allclose(ours, reference.trajectory.states[j], rtol=0, atol=1e-12)
+
+
+def test_the_quiet_tick_shortcut_of_events_drops_none(monkeypatch):
+    """``StlCore._events`` returns () at once on a tick with no repair, recovery, message,
+    change of follower or finished sub-task; on every tick of the stage-2 run (repairs, a
+    request, following, a release, completions) that is what the full ``_all_events`` says."""
+    checked = []
+    events = stl_agent.StlCore._events
+
+    def both(self, t, before, after, log, sent):
+        got = events(self, t, before, after, log, sent)
+        assert got == self._all_events(t, before, after, log, sent), t
+        checked.append(len(got))
+        return got
+
+    monkeypatch.setattr(stl_agent.StlCore, "_events", both)
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    loops = [stl_loop(network, FLEET, a)[0] for a in make_pair()]
+    sim.control("start")
+    drive(sim, loops, {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])},
+          round(30.0 * RATE), round(28.0 * RATE))
+    kinds = sim.kinds()
+    assert {"repair", "collab_request", "collab_follow", "collab_release",
+            "subtask_done"} <= set(kinds)
+    assert len(checked) > 5000 and 5 < sum(n > 0 for n in checked) < 100
+    # in the step a message comes with a repair or a finished sub-task; alone, it still counts
+    core = stl_agent.StlCore(make_pair()[0])
+    state = core.initial_state().agent
+    quiet = LogRecord(1.0, 0.1, 0.5, 0.0, 0.0, 0, 0, 0, None, 0)
+    assert core._events(1.0, state, state, quiet, ()) == ()
+    (event,) = core._events(1.0, state, state, quiet, (CollabRelease(3, 4, 0),))
+    assert event.kind == "collab_release" and event.data["receivers"] == [4]
 
 
 def test_a_dead_partner_means_stage_3():
