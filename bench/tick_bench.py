@@ -10,9 +10,11 @@ sub-steps with the tracking law of 5 robots, then ``World.mocap_poses``). CPU of
 (``time.thread_time``) beside wall, medians of ``--runs`` runs; warm caches.
 
 A real agent process is woken 100 times a second, and on a VM whose idle vCPUs halt it pays
-several times the warm figure (``docs/performance.md``, round 11). So the last two figures are
-one STL agent's whole tick (decode the frame, step, encode the command) along a replay of
-Scenario 1, back to back and after a 10 ms sleep before every tick, and their ratio. The figures
+several times the warm figure (``docs/performance.md``, round 11). So two figures are one STL
+agent's tick (decode the frame, step, encode the command) along a replay of Scenario 1, back to
+back and after a 10 ms sleep before every tick, and their ratio; the last two are the same for
+the agent's whole loop tick (``AgentLoop.run_once`` on the in-memory bus: channel, checks,
+inbox, step, publish) of one robot of a generated 30-robot fleet (round 15). The figures
 are those of the codec ``$TLFLEET_CODEC`` selects; where that is the C codec
 (``agent.protocol._wire``), every codec figure and the agent tick are given with the Python codec
 too (``*_python``), the ticks interleaved. No targets: the figures
@@ -25,6 +27,7 @@ import argparse
 import os
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -33,20 +36,26 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from agent.protocol import fast_paths  # noqa: E402
+from agent.protocol import fast_paths, keys  # noqa: E402
 from agent.protocol.codec import decode, encode  # noqa: E402
-from agent.protocol.messages import Clock, Command, MocapFrame  # noqa: E402
-from agent.runtime.loop import TickInput  # noqa: E402
+from agent.protocol.messages import Clock, Command, Control, MocapFrame  # noqa: E402
+from agent.runtime.inbox import MalformedCounter  # noqa: E402
+from agent.runtime.loop import AgentLoop, LoopConfig, TickInput  # noqa: E402
+from agent.runtime.peers import CollabLink  # noqa: E402
+from agent.runtime.process import plausibility  # noqa: E402
 from agent.runtime.stl_agent import StlCore  # noqa: E402
 from agent.scenario import load_scenario  # noqa: E402
 from agent.scenario.model import Scenario  # noqa: E402
 from agent.stl.agent import build_agents  # noqa: E402
 from bench.common import RESULTS, Figure, load_average, report, time_calls  # noqa: E402
+from bench.runtime_bench import generated_fleet  # noqa: E402
+from bus.fake import FakeNetwork  # noqa: E402
 from sim.world import World  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TICK = 0.01  # [s] Scenario 1's mocap period
 TIMED_ROBOT = 4  # the STL robot whose ticks are timed (its task couples it to robots 3 and 5)
+FLEET_SIZE, FLEET_ROBOT = 30, 7  # the generated fleet and the robot of the loop-tick figure
 
 
 def replay_frames(scenario: Scenario, ticks: int) -> list[bytes]:
@@ -87,6 +96,55 @@ def agent_ticks(core: StlCore, payloads: list[bytes], runs: int, sleep: float
             wall += time.perf_counter() - w0
         cpu_runs.append(cpu / len(payloads))
         wall_runs.append(wall / len(payloads))
+    return statistics.median(cpu_runs), statistics.median(wall_runs)
+
+
+def loop_ticks(scenario: Scenario, robot: int, payloads: list[bytes], skip: int, runs: int,
+               sleep: float) -> tuple[float, float]:
+    """Median over ``runs`` of the CPU and wall time [s] of one whole loop tick of ``robot``'s
+    STL agent: ``AgentLoop.run_once`` on the in-memory bus (read the frame from the loop's
+    channel, check it, the collaboration inbox, step, publish the command), the frame published
+    untimed before each, ``sleep`` [s] untimed before each; a fresh loop per run, the first
+    ``skip`` frames untimed."""
+    cpu_runs, wall_runs = [], []
+    fleet = "bench"
+    for _ in range(max(3, runs)):
+        network = FakeNetwork()
+        transport, sim = network.transport(f"agent{robot}"), network.transport("sim")
+        core = StlCore(build_agents(scenario, robots=[robot])[robot])
+        malformed = MalformedCounter(f"agent/{robot}")
+        link = CollabLink(transport, fleet, robot, core.agent.cfg.peers, malformed)
+        loop = AgentLoop(transport, LoopConfig(fleet, robot, **plausibility(scenario)), core,
+                         core.initial_state(), link=link, malformed=malformed)
+        sent: list[bytes] = []
+        network.transport("listener").subscribe(keys.cmd(fleet, robot),
+                                                lambda _k, p, sent=sent: sent.append(p))
+        loop.open()
+        try:
+            loop.ready()
+            sim.publish(keys.control(fleet), encode(Control(cmd="start", t0=0.0)))
+            cpu = wall = 0.0
+            answered_before = 0
+            for k, payload in enumerate(payloads):
+                if k == skip:
+                    answered_before = len(sent)
+                sim.publish(keys.mocap(fleet), payload)
+                if sleep and k >= skip:
+                    time.sleep(sleep)
+                c0, w0 = time.thread_time(), time.perf_counter()
+                loop.run_once(0.0)
+                if k >= skip:
+                    cpu += time.thread_time() - c0
+                    wall += time.perf_counter() - w0
+        finally:
+            loop.close()
+        timed = len(payloads) - skip
+        if len(sent) - answered_before != timed:  # each timed frame answered, or the figure
+            # times something else (frame 0 at t = 0 is the untimed preview nobody answers)
+            raise RuntimeError(f"loop tick: {len(sent) - answered_before} commands for the "
+                               f"{timed} timed frames")
+        cpu_runs.append(cpu / timed)
+        wall_runs.append(wall / timed)
     return statistics.median(cpu_runs), statistics.median(wall_runs)
 
 
@@ -159,6 +217,22 @@ def main(argv: list[str] | None = None) -> int:
                               wall=1e6 * slept[1],
                               note=f"{slept[0] / warm[0]:.1f}× the tick back to back: what a "
                                    "100 Hz agent pays on a VM whose idle vCPUs halt"))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"fleet{FLEET_SIZE}.toml"
+        path.write_text(generated_fleet(FLEET_SIZE, 10.0))
+        fleet = load_scenario(path)
+    skip = 100  # the generated tasks are active from then on
+    fleet_payloads = replay_frames(fleet, skip + (60 if args.quick else 300))
+    loop_warm = loop_ticks(fleet, FLEET_ROBOT, fleet_payloads, skip, args.runs, 0.0)
+    loop_cold = loop_ticks(fleet, FLEET_ROBOT, fleet_payloads, skip, args.runs, TICK)
+    figures.append(Figure("stl_loop_tick_us", f"STL agent's whole loop tick, robot {FLEET_ROBOT} "
+                          f"of a generated {FLEET_SIZE}-robot fleet, back to back",
+                          1e6 * loop_warm[0], "µs", wall=1e6 * loop_warm[1],
+                          note=f"AgentLoop.run_once on the in-memory bus, {what}; "
+                               f"{len(fleet_payloads) - skip} ticks"))
+    figures.append(Figure("stl_loop_tick_after_sleep_us", "  the same, after a 10 ms sleep each",
+                          1e6 * loop_cold[0], "µs", wall=1e6 * loop_cold[1],
+                          note=f"{loop_cold[0] / loop_warm[0]:.1f}× the tick back to back"))
     report("tick_bench", figures, args.out, load_before=load_before, quick=args.quick,
            extra={"runs": max(3, args.runs), "calls": calls})
     return 0

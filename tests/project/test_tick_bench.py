@@ -1,6 +1,7 @@
 """``bench/tick_bench.py`` runs in quick mode and writes the figures it promises (no timings are
 judged: the benchmark has no targets), including an STL agent's tick back to back and after a
-10 ms sleep (issue 17, docs/performance.md round 11)."""
+10 ms sleep (issue 17, docs/performance.md round 11), and one agent's whole loop tick of a
+30-robot fleet (round 15: the loop itself raises if a frame went unanswered)."""
 
 from __future__ import annotations
 
@@ -18,9 +19,12 @@ def test_quick_tick_bench_writes_every_figure(repo_root, tmp_path):
     assert completed.returncode == 0, completed.stderr
     figures = {f["key"]: f for f in json.loads(output.read_text())["figures"]}
     assert {"decode_frame_us", "world_tick_us", "stl_agent_tick_us",
-            "stl_agent_tick_after_sleep_us"} <= set(figures)
+            "stl_agent_tick_after_sleep_us", "stl_loop_tick_us",
+            "stl_loop_tick_after_sleep_us"} <= set(figures)
     assert all(f["value"] > 0 for f in figures.values())
     assert "× the tick back to back" in figures["stl_agent_tick_after_sleep_us"]["note"]
+    assert "× the tick back to back" in figures["stl_loop_tick_after_sleep_us"]["note"]
+    assert "30-robot fleet" in figures["stl_loop_tick_us"]["label"]
     assert "after a 10 ms sleep" in completed.stdout
     from agent.protocol.fast_paths import native_codec
 
