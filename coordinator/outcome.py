@@ -96,6 +96,7 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
                        ("flagged_event", "flagged event(s): claimed identity does not hold"),
                        ("resumed", "agent resume(s) after a freeze or partition"),
                        ("process_recovered", "process recovery(ies)"),
+                       ("token_blip", "liveliness blip(s): a token gone and back at once"),
                        ("agent_silent", "silent agent episode(s)"),
                        ("link_lost", "link loss(es)")):
         if kinds[kind]:

@@ -17,7 +17,8 @@ Protocol (architecture.md §1–§3, the runtime contract):
 
 Deaths are detected twice (token DELETE, ``Popen.poll()``) and reported once per process. The
 simulator exits by itself after ``sim_done``: its end counts as a death only when ``sim_done`` has
-not arrived ``end_grace`` later.
+not arrived ``end_grace`` later, and its lost token not at all when it comes back within that
+grace while the process runs (``Event(kind="token_blip")``: the link blinked).
 
 Issue 11: a ``sim_done`` ends the run only when it is plausible (:attr:`Supervisor.sim_done`: the
 simulator has ended, the frames reached the end of the run, or no newer frame followed it for
@@ -121,7 +122,9 @@ class Supervisor:
         self.tokens = expected_tokens(scenario)
         self.alive: set[str] = set()
         self.deaths: dict[str, Death] = {}
-        self._suspects: dict[str, tuple[float, str, int | None]] = {}
+        # finishers whose end may still be the mission's: name -> (wall [s monotonic] since,
+        # how, exit code, sim time [s] of the first sign)
+        self._suspects: dict[str, tuple[float, str, int | None, float]] = {}
         self.recovered: list[Death] = []  # deaths that came back (token declared again)
         self._sim_done_count = 0  # sim_done events judged so far
         self._sim_done_pending: tuple[float, float] | None = None  # (wall, sim time) of the last
@@ -185,6 +188,7 @@ class Supervisor:
                 self.alive.add(name)
                 if name in self.link_lost:
                     self._link_event("link_restored", name)
+                self._lift_suspicion(name)
                 self._maybe_recovered(name)
             else:
                 self.alive.discard(name)
@@ -200,7 +204,7 @@ class Supervisor:
             if code is not None and name not in self.deaths and not self.stopping:
                 self._suspect(name, f"exited with code {code}", code)
         now = self._clock()
-        for name, (since, how, code) in list(self._suspects.items()):
+        for name, (since, how, code, _t) in list(self._suspects.items()):
             if self.sim_done:
                 del self._suspects[name]  # the simulator ended the mission: not a death
             elif now - since >= self.config.end_grace:
@@ -215,10 +219,32 @@ class Supervisor:
         if name not in FINISHERS:
             self._died(name, how, returncode)
         elif not self.sim_done:
-            since, first_how, code = self._suspects.get(name, (self._clock(), how, returncode))
+            since, first_how, code, t = self._suspects.get(
+                name, (self._clock(), how, returncode, self.sim_time))
             if code is None and returncode is not None:  # prefer the exit code to the token
                 first_how, code = how, returncode
-            self._suspects[name] = (since, first_how, code)
+            self._suspects[name] = (since, first_how, code, t)
+
+    def _lift_suspicion(self, name: str) -> None:
+        """A finisher's token came back within ``end_grace`` while its process still runs: the
+        link blinked, nobody died. Seen when the coordinator's own session lapsed (a machine
+        starved past a short lease: every token goes and comes back at once); before, the
+        simulator was declared dead ``end_grace`` later and the run ended. Reported and
+        recorded as ``Event(kind="token_blip")``; an exit code seen meanwhile keeps it a
+        suspect."""
+        suspect = self._suspects.get(name)
+        child = self.children.get(name)
+        if (suspect is None or suspect[2] is not None
+                or (child is not None and child.returncode is not None)):
+            return
+        del self._suspects[name]
+        since, _how, _code, t = suspect
+        gone = self._clock() - since
+        self._report(f"{name}'s liveliness token went at t = {t:.2f} s and came back "
+                     f"{gone:.2f} s later, its process running: a link blip, not a death")
+        self.tap.recorder.on_event(Event(t=self.sim_time, source=COORDINATOR_SOURCE,
+                                         kind="token_blip",
+                                         data={"process": name, "lost_at": t, "lost_for": gone}))
 
     def _maybe_recovered(self, name: str) -> None:
         death = self.deaths.get(name)

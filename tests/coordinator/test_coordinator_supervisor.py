@@ -235,3 +235,55 @@ def test_the_last_frame_counts_when_it_arrives_while_sim_done_is_read(fleet):
     outcome = sup.supervise()
     assert outcome.reason == "sim_done"
     assert outcome.t_end == pytest.approx(4.9)
+
+
+def _blip(net, scenario, sup, peers, *, exit_code=None):
+    """The sim's token goes (its transport killed) and comes back 0.1 s later from a new one,
+    as when the coordinator's own session lapses and reconnects; ``exit_code``: the process
+    is seen to exit meanwhile. Returns the supervision's outcome once sim_done arrives."""
+    frame = MocapFrame(1.0, 100, ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0)))
+    peers["sim"].publish(keys.mocap(scenario.fleet), encode(frame))
+    sup.check()
+    peers["sim"].kill()
+    sup.check()
+    time.sleep(0.1)
+    if exit_code is not None:
+        sup.children["sim"].returncode = exit_code
+    back = declare(net, scenario, ["sim"])["sim"]
+    stop = threading.Event()
+    done = threading.Timer(sup.config.end_grace + 0.3, lambda: back.publish(
+        keys.event(scenario.fleet), encode(Event(5.0, "sim", "sim_done", {}))))
+    done.start()
+    threading.Timer(3.0, stop.set).start()  # bound: the run ends by itself well before
+    try:
+        return sup.supervise(stop)
+    finally:
+        done.cancel()
+        stop.set()
+
+
+def test_the_sims_token_gone_and_back_within_the_grace_is_a_blip_not_a_death(fleet):
+    """CI rehearsal on a starved machine: the coordinator lost every token at once (a 500 ms
+    lease lapsed), they came back 40 ms later, and the sim was declared dead ``end_grace``
+    later anyway, ending the run. A token back while the process runs lifts the suspicion."""
+    scenario, net, sup, _children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    outcome = _blip(net, scenario, sup, peers)
+    assert outcome.reason == "sim_done" and outcome.deaths == [], reports
+    (line,) = [r for r in reports if "blip" in r]
+    assert line.startswith("sim's liveliness token went at t = 1.00 s and came back 0.1"), line
+    assert sup.tap.recorder.event_kinds["token_blip"] == 1
+    assert sup.tap.recorder.event_kinds["process_died"] == 0
+
+
+def test_the_sims_token_back_after_its_process_exited_is_still_a_death(fleet):
+    scenario, net, sup, _children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    outcome = _blip(net, scenario, sup, peers, exit_code=-9)
+    assert outcome.reason == "sim_died", reports
+    assert [d.process for d in outcome.deaths] == ["sim"]
+    assert sup.tap.recorder.event_kinds["token_blip"] == 0
