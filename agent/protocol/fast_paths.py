@@ -24,6 +24,8 @@ same message — and ``None`` for anything else, and then these Python functions
 writes them: the same bytes as the Python encoder, for messages of exact ints, floats and
 tuples (``None`` otherwise, and the Python encoder writes them). A 5-robot frame is decoded in
 ≈ 43 µs instead of ≈ 100 µs after a 10 ms sleep (docs/performance.md, round 12).
+The same switch installs the C confirmation of a frame's fleet bounds
+(``_wire.frame_plausible``, :func:`agent.protocol.bounds.use_frame_check`; round 16).
 ``$TLFLEET_CODEC``: ``auto`` (default: C when built), ``native`` (C, an error when not built),
 ``python``; read once, at import (:func:`use_codec` switches later).
 """
@@ -45,6 +47,7 @@ from agent.protocol.bounds import (
     MAX_ROBOT_ID,
     MAX_SPEED,
     MAX_TIME,
+    use_frame_check,
 )
 from agent.protocol.messages import Clock, Command, MocapFrame
 from agent.protocol.wire import SCHEMA_VERSION, to_plain
@@ -79,6 +82,7 @@ def _load_native(setting: str) -> Any:
 
 
 _native = _load_native(os.environ.get("TLFLEET_CODEC", "auto"))
+use_frame_check(_native.frame_plausible if _native is not None else None)
 
 
 def native_codec() -> bool:
@@ -91,6 +95,7 @@ def use_codec(setting: str) -> None:
     ``python``): for benchmarks that time both in one run, and tests."""
     global _native
     _native = _load_native(setting)
+    use_frame_check(_native.frame_plausible if _native is not None else None)
 
 
 def _unpacked(name: str, data: Any) -> dict | None:

@@ -40,6 +40,9 @@
  * anything else (a list, a numpy scalar, ...), which the Python encoder then writes.
  * ``command_bytes`` writes a command from its four fields (no message built), and ``pose_map``
  * turns a frame's rows into the {id: (x, y, theta)} an STL agent steps on (round 15).
+ * ``frame_plausible`` runs FleetBounds.frame_problem's checks (agent/protocol/bounds.py) on a
+ * decoded frame and can only confirm it (round 16): False leaves the judgement and its wording
+ * to Python.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -599,6 +602,78 @@ static PyObject *pose_map(PyObject *self, PyObject *rows) {
     return out;
 }
 
+/* frame_plausible(t, seq, poses, due, t_max, rate, x_lo, x_hi, y_lo, y_hi, wrapped, limits)
+ * -> True when FleetBounds.frame_problem (agent/protocol/bounds.py) finds nothing wrong with the
+ * frame (t, seq, poses, due): the same comparisons on the same doubles, in the same order. False
+ * means "not confirmed" (a problem, or a value of another type than the decoders build): the
+ * Python check then decides and words the problem. ``limits`` is a dict of robot ids (empty:
+ * any id) or None; t_max .. wrapped are the bounds as exact floats. */
+static PyObject *frame_plausible(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 12) {
+        PyErr_SetString(PyExc_TypeError, "frame_plausible takes 12 arguments");
+        return NULL;
+    }
+    double t, b[7];
+    int64_t seq;
+    if (exact_float(args[0], &t) < 0 || exact_int(args[1], &seq) < 0)
+        Py_RETURN_FALSE;
+    for (int i = 0; i < 7; i++)
+        if (exact_float(args[4 + i], &b[i]) < 0)
+            Py_RETURN_FALSE;
+    const double t_max = b[0], rate = b[1], x_lo = b[2], x_hi = b[3], y_lo = b[4], y_hi = b[5],
+                 wrapped = b[6];
+    PyObject *poses = args[2], *due = args[3], *limits = args[11];
+    if (limits != Py_None && !PyDict_CheckExact(limits))
+        Py_RETURN_FALSE;
+    int check_ids = limits != Py_None && PyDict_GET_SIZE(limits) > 0;
+    /* FleetBounds._time_and_seq; seq / rate as Python divides an int by a float */
+    if (seq > (INT64_C(1) << 53) || seq < -(INT64_C(1) << 53))
+        Py_RETURN_FALSE;
+    if (!(0.0 <= t && t <= t_max))
+        Py_RETURN_FALSE;
+    double period = 1.0 / rate, lag = t - (double)seq / rate;
+    if (!(-0.5 * period - 1e-9 <= lag && lag < period))
+        Py_RETURN_FALSE;
+    if (!PyTuple_CheckExact(poses) || !PyTuple_CheckExact(due))
+        Py_RETURN_FALSE;
+    int64_t previous = -1;
+    for (Py_ssize_t j = 0; j < PyTuple_GET_SIZE(poses); j++) {
+        PyObject *row = PyTuple_GET_ITEM(poses, j);
+        int64_t robot;
+        double x, y, th;
+        if (!PyTuple_CheckExact(row) || PyTuple_GET_SIZE(row) != 4
+                || exact_int(PyTuple_GET_ITEM(row, 0), &robot) < 0
+                || exact_float(PyTuple_GET_ITEM(row, 1), &x) < 0
+                || exact_float(PyTuple_GET_ITEM(row, 2), &y) < 0
+                || exact_float(PyTuple_GET_ITEM(row, 3), &th) < 0)
+            Py_RETURN_FALSE;
+        if (check_ids) {
+            int known = PyDict_Contains(limits, PyTuple_GET_ITEM(row, 0));
+            if (known < 0)
+                return NULL;
+            if (!known)
+                Py_RETURN_FALSE;
+        }
+        if (robot <= previous)
+            Py_RETURN_FALSE;
+        previous = robot;
+        if (!(x_lo <= x && x <= x_hi && y_lo <= y && y <= y_hi))
+            Py_RETURN_FALSE;
+        if (!(-wrapped <= th && th <= wrapped))
+            Py_RETURN_FALSE;
+    }
+    if (check_ids)
+        for (Py_ssize_t j = 0; j < PyTuple_GET_SIZE(due); j++) {
+            int known = PyDict_Contains(limits, PyTuple_GET_ITEM(due, j));
+            if (known < 0)
+                return NULL;
+            if (!known)
+                Py_RETURN_FALSE;
+        }
+    Py_RETURN_TRUE;
+}
+
 static PyObject *encode_frame(PyObject *self, PyObject *msg) {
     (void)self;
     if (!W.ready || Py_TYPE(msg) != W.frame_type)
@@ -726,6 +801,9 @@ static PyMethodDef methods[] = {
      "encode_command(command) -> bytes | None (None: let the Python encoder write it)"},
     {"command_bytes", (PyCFunction)(void (*)(void))command_bytes, METH_FASTCALL,
      "command_bytes(robot, t, seq, u) -> bytes | None: encode_command(Command(robot, t, seq, u))"},
+    {"frame_plausible", (PyCFunction)(void (*)(void))frame_plausible, METH_FASTCALL,
+     "frame_plausible(t, seq, poses, due, t_max, rate, x_lo, x_hi, y_lo, y_hi, wrapped, limits) "
+     "-> bool: True when FleetBounds.frame_problem finds nothing (False: let it decide)"},
     {"pose_map", pose_map, METH_O,
      "pose_map(rows) -> {id: (x, y, theta)} | None (None: rows are not 4-tuples in a tuple)"},
     {NULL, NULL, 0, NULL},

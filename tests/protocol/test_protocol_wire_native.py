@@ -13,6 +13,7 @@ import math
 import struct
 import sys
 import tracemalloc
+import types
 
 import msgpack
 import numpy as np
@@ -20,7 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from agent.protocol import codec, fast_paths
+from agent.protocol import bounds, codec, fast_paths
 from agent.protocol.codec import SCHEMA_VERSION
 from agent.protocol.fast_paths import CodecSettingError
 from agent.protocol.messages import Command, MocapFrame
@@ -284,3 +285,88 @@ def test_pose_map_leaves_other_rows_to_python():
         assert native.pose_map(rows) is None, rows
     assert fast_paths.pose_map([(1, 0.0, 0.0, 0.0)]) == {1: (0.0, 0.0, 0.0)}
     assert fast_paths.pose_map(([1, 0.5, 0.0, 0.0],)) == {1: [0.5, 0.0, 0.0]}
+
+
+def _python_problem(fleet_bounds, frame):
+    """``FleetBounds.frame_problem`` with the C confirmation removed: the reference."""
+    saved = bounds._frame_plausible
+    bounds.use_frame_check(None)
+    try:
+        return fleet_bounds.frame_problem(frame)
+    finally:
+        bounds.use_frame_check(saved)
+
+
+@st.composite
+def bounds_and_frames(draw):
+    """Fleet bounds and frames whose every value sits near an edge of what they allow: times
+    around the seq's window, coordinates and headings at the box's and the wrap's limits and one
+    ulp beyond, ids unknown, repeated or out of order, non-finite values."""
+    rate = draw(st.sampled_from([100.0, 50.0, 30.0, 1000.0, 7.0]))
+    xmin = draw(st.floats(-10.0, 0.0))
+    ymin = draw(st.floats(-10.0, 0.0))
+    box = (xmin, xmin + draw(st.floats(0.1, 20.0)), ymin, ymin + draw(st.floats(0.1, 20.0)))
+    margin = draw(st.sampled_from([0.0, 0.5, 2.0]))
+    known = draw(st.sampled_from([(), (1, 2, 3), (0, 2, 5, 7, 9)]))
+    fb = bounds.FleetBounds(box, draw(st.floats(1.0, 500.0)), rate,
+                            {r: (0.2, 1.0) for r in known}, margin=margin)
+    lo_x, hi_x, lo_y, hi_y = box[0] - margin, box[1] + margin, box[2] - margin, box[3] + margin
+
+    def edge(lo, hi):
+        return st.floats(lo, hi) | st.sampled_from([lo, hi]) | st.sampled_from(
+            [math.nextafter(lo, -math.inf), math.nextafter(hi, math.inf), math.nan, math.inf,
+             -math.inf])
+
+    wrap = bounds._WRAPPED
+    ids = st.sampled_from(known) if known and draw(st.booleans()) else st.integers(-2, 10)
+    rows = draw(st.lists(st.tuples(ids, edge(lo_x, hi_x), edge(lo_y, hi_y), edge(-wrap, wrap)),
+                         max_size=6))
+    if draw(st.booleans()):  # mostly well-formed: ascending distinct ids
+        rows = sorted({r[0]: r for r in rows}.values())
+    last = int(fb.t_max * rate)
+    seq = draw(st.integers(-3, last + 3) | st.sampled_from([0, last, 2 ** 53, 2 ** 53 + 1,
+                                                             -(2 ** 53)]))
+    period = 1.0 / rate
+    lag_lo = -0.5 * period - 1e-9
+    lag = draw(st.sampled_from([lag_lo, math.nextafter(lag_lo, -math.inf), period,
+                                math.nextafter(period, -math.inf), 0.0])
+               | st.floats(-2 * period, 2 * period))
+    t = draw(st.sampled_from([seq / rate + lag] * 6 + [fb.t_max, math.nextafter(fb.t_max, math.inf),
+                                                     -0.0, math.nan]))
+    due = tuple(draw(st.lists(ids, max_size=3)))
+    return fb, MocapFrame(t, seq, tuple(rows), due)
+
+
+@settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(bounds_and_frames())
+def test_frame_plausible_confirms_exactly_the_frames_python_finds_nothing_wrong_with(case):
+    """On the values the decoders build (exact ints, floats, tuples) the C check is the Python
+    check: True exactly when ``frame_problem`` returns None; and ``frame_problem`` with it
+    installed says what it says without."""
+    fb, frame = case
+    want = _python_problem(fb, frame)
+    got = native.frame_plausible(frame.t, frame.seq, frame.poses, frame.due,
+                                 *fb._frame_check_args)
+    assert got is (want is None), (want, frame)
+    assert fb.frame_problem(frame) == want
+
+
+def test_frame_plausible_leaves_other_types_to_python():
+    fb = bounds.FleetBounds((-2.0, 2.0, -2.0, 2.0), 10.0, 100.0, {1: (0.2, 1.0), 2: (0.2, 1.0)})
+    good = MocapFrame(0.5, 50, ((1, 0.0, 0.0, 0.0), (2, 1.0, 1.0, 0.0)), (1,))
+    assert native.frame_plausible(good.t, good.seq, good.poses, good.due, *fb._frame_check_args)
+    for frame in (dataclasses.replace(good, poses=((1, 0, 0.0, 0.0), (2, 1.0, 1.0, 0.0))),
+                  dataclasses.replace(good, poses=([1, 0.0, 0.0, 0.0], (2, 1.0, 1.0, 0.0))),
+                  dataclasses.replace(good, poses=((True, 0.0, 0.0, 0.0),)),
+                  dataclasses.replace(good, poses=list(good.poses)),
+                  dataclasses.replace(good, due=[1]),
+                  dataclasses.replace(good, t=1),
+                  dataclasses.replace(good, seq=50.0)):
+        assert native.frame_plausible(frame.t, frame.seq, frame.poses, frame.due,
+                                      *fb._frame_check_args) is False, frame
+        assert fb.frame_problem(frame) == _python_problem(fb, frame)  # Python decides
+    # bounds that are no exact floats, or limits that are no dict: Python checks alone
+    assert bounds.FleetBounds((-2, 2, -2, 2), 10, 100, {1: (0.2, 1.0)})._frame_check_args \
+        is not None  # ints that are floats' values are passed as floats
+    assert bounds.FleetBounds((-2.0, 2.0, -2.0, 2.0), 10.0, 100.0,
+                              types.MappingProxyType({1: (0.2, 1.0)}))._frame_check_args is None
