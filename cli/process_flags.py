@@ -1,5 +1,5 @@
 """The OS scheduling flag of the fleet's processes (``tlfleet sim``, ``agent``, ``router``):
-``--sched {default,batch}`` (issue 17, docs/performance.md round 9).
+``--sched {default,batch,fifo}`` (issue 17, docs/performance.md rounds 9 and 16).
 
 ``batch`` puts the process under Linux's ``SCHED_BATCH`` before it opens its session, so every
 thread it starts (zenoh's included) inherits it. A batch task is never preempted by a task that
@@ -8,10 +8,22 @@ before. A lockstep tick is a chain of compute-then-wait — the simulator sends 
 peer, each agent steps and answers, the simulator steps the physics — and preemption on
 wake-up only interrupts the process whose output the others wait for: in Scenario 1 the frame's
 put took 0.3–0.7 ms instead of 0.03 ms in 19–31 % of the ticks, until the simulator itself was
-a batch task. ``tlfleet run`` asks for it in lockstep (``RunConfig.sched``). In realtime it made
-the latency tail worse (4 of 4 interleaved pairs), so a realtime run keeps ``default``.
-Lowering a process to ``SCHED_BATCH`` needs no privilege; where the OS has no such policy the
-process says so and runs as it is.
+a batch task. Lowering a process to ``SCHED_BATCH`` needs no privilege.
+
+``fifo`` (round 16) puts it under ``SCHED_FIFO`` at :data:`FIFO_PRIORITY`, the lowest real-time
+priority: it runs as soon as it wakes, before every ordinary process (the coordinator, a
+compiler, another user's job), and no task of its own priority preempts it. The fleet's
+processes block between their steps (a channel, a timed wait), so none holds a core for long,
+and the kernel keeps 5 % of every second for ordinary tasks anyway (``sched_rt_runtime_us``).
+Scenario 1 in lockstep: 13.6–14.5× real time against 8.7–9.4× under ``batch`` (5 of 5
+interleaved pairs). It needs root, ``CAP_SYS_NICE`` or an ``RLIMIT_RTPRIO`` ≥ 1
+(``coordinator.launcher.fifo_permitted``); without them the process says so and runs under
+``batch``.
+
+``tlfleet run`` asks for ``fifo`` in lockstep where it is permitted and ``batch`` elsewhere
+(``RunConfig.sched``). In realtime both made the latency tail worse or no better (round 9: batch
+in 4 of 4 pairs; round 16: fifo in 2 of 4), so a realtime run keeps ``default``. Where the OS has
+no such policy the process says so and runs as it is.
 """
 
 from __future__ import annotations
@@ -20,42 +32,61 @@ import argparse
 import logging
 import os
 
+from coordinator.launcher import FIFO_PRIORITY
+
 logger = logging.getLogger(__name__)
 
 #: ``--sched`` values
-POLICIES = ("default", "batch")
+POLICIES = ("default", "batch", "fifo")
 
 
 def add_process_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("process")
     group.add_argument("--sched", choices=POLICIES, default="default",
-                       help="OS scheduling: as started (default), or 'batch' (Linux "
-                            "SCHED_BATCH: not preempted when another process wakes up; "
-                            "`tlfleet run` uses it in lockstep, where it is faster)")
+                       help="OS scheduling: as started (default), 'batch' (Linux "
+                            "SCHED_BATCH: not preempted when another process wakes up) or "
+                            "'fifo' (SCHED_FIFO priority 1: runs as soon as it wakes, before "
+                            "ordinary processes; needs root or RLIMIT_RTPRIO, else batch); "
+                            "`tlfleet run` uses fifo or batch in lockstep, where they are faster")
 
 
 def apply_scheduling(policy: str) -> str | None:
     """Put this process under ``policy``: every thread it has (Linux sets the policy per thread;
     a library may have started some at import) and, by inheritance, every thread it starts from
-    now on. Returns why it could not, or None. ``default`` changes nothing."""
+    now on. Returns what did not go as asked (and, for a refused ``fifo``, that the process runs
+    under ``batch`` instead), or None. ``default`` changes nothing."""
     if policy not in POLICIES:
         raise ValueError(f"scheduling policy {policy!r}: expected one of {', '.join(POLICIES)}")
     if policy == "default":
         return None
-    batch = getattr(os, "SCHED_BATCH", None)
-    if batch is None or not hasattr(os, "sched_setscheduler"):
-        return "this OS has no SCHED_BATCH"
+    if policy == "fifo":
+        problem = _set_policy("SCHED_FIFO", FIFO_PRIORITY)
+        if problem is None:
+            return None
+        fallback = _set_policy("SCHED_BATCH", 0)
+        return (f"{problem} (needs root, CAP_SYS_NICE or an RLIMIT_RTPRIO >= {FIFO_PRIORITY}); "
+                + ("running under SCHED_BATCH instead" if fallback is None
+                   else f"and {fallback}; running with the OS default"))
+    problem = _set_policy("SCHED_BATCH", 0)
+    return None if problem is None else f"{problem}; running with the OS default"
+
+
+def _set_policy(name: str, priority: int) -> str | None:
+    """``os.<name>`` at ``priority`` on every thread of this process; why not, or None."""
+    policy = getattr(os, name, None)
+    if policy is None or not hasattr(os, "sched_setscheduler"):
+        return f"this OS has no {name}"
     try:
         threads = [int(tid) for tid in os.listdir("/proc/self/task")]
     except OSError:
         threads = [0]
     for tid in threads:
         try:
-            os.sched_setscheduler(tid, batch, os.sched_param(0))
+            os.sched_setscheduler(tid, policy, os.sched_param(priority))
         except ProcessLookupError:  # a thread that ended meanwhile
             continue
         except OSError as exc:
-            return f"sched_setscheduler(SCHED_BATCH) failed: {exc}"
+            return f"sched_setscheduler({name}) failed: {exc}"
     return None
 
 
@@ -63,5 +94,4 @@ def apply_process_flags(args: argparse.Namespace, source: str) -> None:
     """Apply ``--sched`` before the process opens its session (``source``: who logs it)."""
     problem = apply_scheduling(getattr(args, "sched", "default"))
     if problem is not None:
-        logger.warning("%s: --sched %s not applied: %s; running with the OS default", source,
-                       args.sched, problem)
+        logger.warning("%s: --sched %s not applied: %s", source, args.sched, problem)

@@ -30,6 +30,24 @@ from bus.transport import child_environment
 
 logger = logging.getLogger(__name__)
 
+FIFO_PRIORITY = 1  # SCHED_FIFO priority of `--sched fifo` (cli.process_flags): the lowest one
+
+
+def fifo_permitted() -> bool:
+    """Whether children started by this user may run under ``SCHED_FIFO`` at
+    :data:`FIFO_PRIORITY` as far as the user and limits tell (root, or a soft ``RLIMIT_RTPRIO``
+    that allows it). A container without ``CAP_SYS_NICE`` can still refuse: the child then runs
+    under ``SCHED_BATCH`` and says so (``cli.process_flags``)."""
+    if not hasattr(os, "SCHED_FIFO") or not hasattr(os, "sched_setscheduler"):
+        return False
+    if os.geteuid() == 0:
+        return True
+    import resource
+
+    soft, _hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
+    return soft == resource.RLIM_INFINITY or soft >= FIFO_PRIORITY
+
+
 
 class LaunchError(TlfleetError, RuntimeError):
     """A child that could not be started or did not come up in time."""

@@ -59,6 +59,7 @@ from coordinator.launcher import (
     Child,
     Launcher,
     LaunchError,
+    fifo_permitted,
     free_port,
     tlfleet_command,
     wait_for_port,
@@ -144,19 +145,23 @@ def peer_links(config: RunConfig) -> bool:
 
 
 #: ``RunConfig.sched`` values (``tlfleet run --sched``)
-SCHED_CHOICES = ("auto", "default", "batch")
+SCHED_CHOICES = ("auto", "default", "batch", "fifo")
 
 
 def child_sched(config: RunConfig) -> str:
     """``--sched`` of the router, the sim and the agents (:mod:`cli.process_flags`): ``auto``
-    is ``batch`` in lockstep (Linux ``SCHED_BATCH``: no process is preempted when another wakes
-    up; Scenario 1 lockstep ≈ 4–8 % faster, docs/performance.md round 9) and ``default`` in
-    realtime, where it made the latency tail worse."""
+    is ``fifo`` in lockstep where this user may ask for it (Linux ``SCHED_FIFO`` priority 1: a
+    process runs as soon as it wakes; Scenario 1 lockstep 1.5× faster, docs/performance.md
+    round 16), else ``batch`` (``SCHED_BATCH``: no process is preempted when another wakes up;
+    ≈ 4–8 % faster, round 9), and ``default`` in realtime, where both made the latency tail
+    worse or no better."""
     if config.sched not in SCHED_CHOICES:
         raise ValueError(f"RunConfig.sched {config.sched!r}: expected one of "
                          f"{', '.join(SCHED_CHOICES)}")
     if config.sched == "auto":
-        return "batch" if config.mode == "lockstep" else "default"
+        if config.mode != "lockstep":
+            return "default"
+        return "fifo" if fifo_permitted() else "batch"
     return config.sched
 
 
@@ -169,7 +174,8 @@ def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: 
     lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
     lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
         if role != "router" and peer_links(config) else ()
-    lease += ("--sched", "batch") if child_sched(config) == "batch" else ()
+    sched = child_sched(config)
+    lease += ("--sched", sched) if sched != "default" else ()
     if role == "router":
         return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
                                *secure, *lease)

@@ -1,7 +1,9 @@
 """OS scheduling of a run's processes (issue 17, ``cli.process_flags``): ``tlfleet run`` starts the
-router, the sim and the agents of a lockstep run under Linux's ``SCHED_BATCH`` (``--sched``),
-realtime runs as the OS starts them. Checked on the argv the runner builds, on the flags, and on
-the policy a real process ends up with (every thread it had and every thread it starts)."""
+router, the sim and the agents of a lockstep run under Linux's ``SCHED_FIFO`` where the user may
+ask for it and ``SCHED_BATCH`` elsewhere (``--sched``), realtime runs as the OS starts them.
+Checked on the argv the runner builds, on the flags, on the policy a real process ends up with
+(every thread it had and every thread it starts), and on a refused ``fifo`` (an unprivileged
+user) falling back to ``batch``."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from agent.scenario import load_scenario
+from coordinator import runner
 from coordinator.runner import RunConfig, child_sched, default_child_argv
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,16 +29,31 @@ def _sched_flag(argv: list[str]) -> str | None:
     return argv[argv.index("--sched") + 1] if "--sched" in argv else None
 
 
-@pytest.mark.parametrize(("mode", "sched", "expected"), [
-    ("lockstep", "auto", "batch"), ("realtime", "auto", "default"),
-    ("lockstep", "default", "default"), ("realtime", "batch", "batch")])
-def test_the_runner_asks_for_batch_scheduling_in_lockstep(mode, sched, expected):
+@pytest.mark.parametrize(("mode", "sched", "permitted", "expected"), [
+    ("lockstep", "auto", True, "fifo"), ("lockstep", "auto", False, "batch"),
+    ("realtime", "auto", True, "default"), ("lockstep", "default", True, "default"),
+    ("realtime", "batch", True, "batch"), ("lockstep", "fifo", False, "fifo")])
+def test_the_runner_asks_for_fifo_or_batch_scheduling_in_lockstep(monkeypatch, mode, sched,
+                                                                 permitted, expected):
+    monkeypatch.setattr(runner, "fifo_permitted", lambda: permitted)
     scenario = load_scenario(SCENARIO)
     config = RunConfig(SCENARIO, mode=mode, sched=sched)
     assert child_sched(config) == expected
     for role, robot in ROLES:
         argv = default_child_argv(role, config, scenario, robot, "tcp/127.0.0.1:7447")
-        assert _sched_flag(argv) == ("batch" if expected == "batch" else None), (role, argv)
+        assert _sched_flag(argv) == (None if expected == "default" else expected), (role, argv)
+
+
+def test_fifo_is_permitted_to_root_and_to_an_rtprio_limit():
+    from coordinator.launcher import fifo_permitted
+
+    if os.geteuid() == 0:
+        assert fifo_permitted()
+    else:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_RTPRIO)[0]
+        assert fifo_permitted() == (soft == resource.RLIM_INFINITY or soft >= 1)
 
 
 def test_a_bad_sched_value_is_refused_before_anything_starts(tmp_path):
@@ -60,8 +78,9 @@ def test_the_flags_of_run_and_of_the_fleet_processes():
         command.add_arguments(parser)
         assert parser.parse_args(positional).sched == "default"
         assert parser.parse_args([*positional, "--sched", "batch"]).sched == "batch"
+        assert parser.parse_args([*positional, "--sched", "fifo"]).sched == "fifo"
         with pytest.raises(SystemExit):
-            parser.parse_args([*positional, "--sched", "fifo"])
+            parser.parse_args([*positional, "--sched", "rr"])
 
 
 PROBE = """
@@ -81,20 +100,56 @@ print(json.dumps({{"problem": problem, "policies": policies}}))
 """
 
 
-@pytest.mark.skipif(not hasattr(os, "SCHED_BATCH"), reason="Linux scheduling policies")
-@pytest.mark.parametrize("policy", ["batch", "default"])
-def test_the_policy_reaches_every_thread_of_the_process(policy):
-    done = subprocess.run([sys.executable, "-c", PROBE.format(root=str(ROOT), policy=policy)],
+def _probe(policy: str, prelude: str = "") -> dict:
+    done = subprocess.run([sys.executable, "-c",
+                           prelude + PROBE.format(root=str(ROOT), policy=policy)],
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    out = json.loads(done.stdout)
+    return json.loads(done.stdout)
+
+
+@pytest.mark.needs_system  # fifo: root (a skip fails under TLFLEET_REQUIRE_SYSTEM=1)
+@pytest.mark.skipif(not hasattr(os, "SCHED_BATCH"), reason="Linux scheduling policies")
+@pytest.mark.parametrize("policy", ["batch", "default", "fifo"])
+def test_the_policy_reaches_every_thread_of_the_process(policy):
+    """fifo needs the right to it: root in CI, where a skip fails (tests/conftest.py)."""
+    if policy == "fifo":
+        from coordinator.launcher import fifo_permitted
+
+        if not fifo_permitted():
+            pytest.skip("SCHED_FIFO needs root or an RLIMIT_RTPRIO >= 1")
+    out = _probe(policy)
     assert out["problem"] is None
-    expected = os.SCHED_BATCH if policy == "batch" else os.sched_getscheduler(0)  # as started
+    expected = {"batch": os.SCHED_BATCH, "fifo": getattr(os, "SCHED_FIFO", -1),
+                "default": os.sched_getscheduler(0)}[policy]  # default: as started
     assert out["policies"] == {name: expected for name in ("main", "before", "after")}
+
+
+@pytest.mark.needs_system
+@pytest.mark.skipif(not hasattr(os, "SCHED_FIFO"), reason="Linux scheduling policies")
+def test_a_refused_fifo_runs_under_batch_and_says_why():
+    """An unprivileged user (root drops to nobody first, with no RLIMIT_RTPRIO): SCHED_FIFO is
+    refused, the process runs under SCHED_BATCH, every thread, and the problem names both."""
+    if os.geteuid() == 0:
+        # everything the probe imports is loaded first: nobody may not read this checkout
+        prelude = (f"import json, os, resource, sys, threading\nsys.path.insert(0, {str(ROOT)!r})"
+                   "\nimport cli.process_flags\n"
+                   "resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))\n"
+                   "os.setgid(65534)\nos.setuid(65534)\n")
+    else:
+        import resource
+
+        if resource.getrlimit(resource.RLIMIT_RTPRIO)[0] != 0:
+            pytest.skip("this user may ask for SCHED_FIFO")
+        prelude = ""
+    out = _probe("fifo", prelude)
+    assert out["problem"].startswith("sched_setscheduler(SCHED_FIFO) failed: "), out
+    assert out["problem"].endswith("running under SCHED_BATCH instead"), out
+    assert out["policies"] == {name: os.SCHED_BATCH for name in ("main", "before", "after")}
 
 
 def test_an_unknown_policy_is_a_value_error():
     from cli.process_flags import apply_scheduling
 
-    with pytest.raises(ValueError, match="'fifo'"):
-        apply_scheduling("fifo")
+    with pytest.raises(ValueError, match="'rr'"):
+        apply_scheduling("rr")
