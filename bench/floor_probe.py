@@ -34,7 +34,9 @@ runs it (``zenoh``: peers on loopback, minimal runtime, FIFO channels read by th
 thread). With 0 µs of work it is the round trip of the wake-ups alone. ``ltl_agents`` adds
 decimated agent-like processes (the LTL agents: ``ltl_work_us`` every ``divider``-th frame, at
 staggered phases, each on a key of its own as ``mocap_every``), whose ticks the sender waits
-for too.
+for too. Its processes run under the OS scheduling a lockstep ``tlfleet run`` gives the fleet's
+(``sched``, default :func:`lockstep_sched`: ``SCHED_FIFO`` where permitted, else
+``SCHED_BATCH``; ``cli.process_flags``), so the floor and the fleet are scheduled alike.
 
     .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
     .venv/bin/python bench/floor_probe.py --lockstep [--work-us 100] [--sim-work-us 150]
@@ -60,6 +62,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.common import sorted_quantile  # noqa: E402
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
+from cli.process_flags import POLICIES, apply_scheduling  # noqa: E402
 
 VARIANTS = ("udp", "udp-relay", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo",
             "zenoh-inline")
@@ -321,15 +324,24 @@ def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
     return {"frames_per_s": ticks / wall, "sender_cpu_us": 1e6 * cpu / ticks}
 
 
+def lockstep_sched() -> str:
+    """The ``--sched`` a lockstep ``tlfleet run`` gives its processes here (``auto``)."""
+    from coordinator.runner import RunConfig, child_sched
+
+    return child_sched(RunConfig(Path("-"), mode="lockstep"))
+
+
 def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
                    work_us: float = 100.0, sim_work_us: float = 150.0,
                    transports: tuple[str, ...] = ("udp", "zenoh"), base_port: int = 0,
-                   ltl_agents: int = 0, ltl_work_us: float = 1000.0, divider: int = 20
-                   ) -> dict[str, dict]:
+                   ltl_agents: int = 0, ltl_work_us: float = 1000.0, divider: int = 20,
+                   sched: str | None = None) -> dict[str, dict]:
     """The lockstep floor (module docstring): per transport, the median over ``runs`` of the
     frames per second and the speed-up over 100 Hz; the run lasts about ``seconds`` at 10×.
     ``ltl_agents`` decimated agents (``ltl_work_us`` per frame, due every ``divider`` frames,
-    staggered) add the LTL agents' shape."""
+    staggered) add the LTL agents' shape; every process runs under ``sched`` (None: the
+    fleet's, :func:`lockstep_sched`)."""
+    sched = sched or lockstep_sched()
     port = base_port or (20000 + (os.getpid() * 7) % 20000)
     ticks = int(seconds * 1000)
     out: dict[str, dict] = {}
@@ -339,20 +351,20 @@ def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
             ports = [port + 3 * i for i in range(agents + 1 + ltl_agents)]
             port += 3 * len(ports)
             rows.append(_lockstep_once(transport, ports, agents, ticks, work_us, sim_work_us,
-                                       ltl_agents, ltl_work_us, divider))
+                                       ltl_agents, ltl_work_us, divider, sched))
         ok = [r for r in rows if "error" not in r] or rows
         fps = statistics.median(r["frames_per_s"] for r in ok)
         out[transport] = {"frames_per_s": fps, "speedup": fps / 100.0,
                           "sender_cpu_us": statistics.median(r["sender_cpu_us"] for r in ok),
                           "agents": agents, "work_us": work_us, "sim_work_us": sim_work_us,
                           "ltl_agents": ltl_agents, "ltl_work_us": ltl_work_us,
-                          "divider": divider, "runs": rows}
+                          "divider": divider, "sched": sched, "runs": rows}
     return out
 
 
 def _lockstep_once(transport: str, ports: list[int], agents: int, ticks: int,
                    work_us: float, sim_work_us: float, ltl_agents: int = 0,
-                   ltl_work_us: float = 0.0, divider: int = 20) -> dict:
+                   ltl_work_us: float = 0.0, divider: int = 20, sched: str = "default") -> dict:
     """One lockstep probe: ``ports`` are the every-tick agents', the listener's, then the
     decimated agents'."""
     env = dict(os.environ)
@@ -374,14 +386,14 @@ def _lockstep_once(transport: str, ports: list[int], agents: int, ticks: int,
                         "--key", f"probe/every/{phases[i - agents - 1]}"]
             started.append(subprocess.Popen(
                 [sys.executable, __file__, "--variant", variant, "--port", str(p),
-                 "--ticks", str(10 * ticks + 10_000), *role],
+                 "--ticks", str(10 * ticks + 10_000), "--sched", sched, *role],
                 stdout=subprocess.PIPE, text=True, env=env))
             if started[-1].stdout is None or started[-1].stdout.readline().strip() != "ready":
                 return {"frames_per_s": nan, "sender_cpu_us": nan, "error": "did not start"}
         tx = subprocess.run([sys.executable, __file__, "--role", "lockstep-sender",
                              "--variant", variant, "--ports", *map(str, ports[:agents + 1]),
                              "--ltl-ports", *map(str, ports[agents + 1:]),
-                             "--divider", str(divider),
+                             "--divider", str(divider), "--sched", sched,
                              "--agents", str(agents), "--ticks", str(ticks),
                              "--sim-work-us", str(sim_work_us)],
                             capture_output=True, text=True, env=env, timeout=60 + ticks / 100)
@@ -500,14 +512,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ltl-work-us", type=float, default=1000.0)
     parser.add_argument("--lockstep", action="store_true",
                         help="the lockstep floor (lockstep_probe) instead of the echo variants")
+    parser.add_argument("--sched", choices=POLICIES, default=None,
+                        help="OS scheduling of a probe process (cli.process_flags); with "
+                             "--lockstep, of every process (default: what a lockstep "
+                             "`tlfleet run` uses here)")
     args = parser.parse_args(argv)
+    if args.role is not None and args.sched is not None:
+        problem = apply_scheduling(args.sched)
+        if problem:
+            print(f"--sched {args.sched}: {problem}", file=sys.stderr)
     transport = "udp" if args.variant in ("udp", "udp-relay") else "zenoh"
     if args.role == "listener":
         listener(transport, args.port)
         return 0
     if args.role == "lockstep-sender":
-        print(json.dumps(lockstep_sender(transport, args.ports, args.agents, args.ticks,
-                                         args.sim_work_us, args.ltl_ports, args.divider)))
+        result = lockstep_sender(transport, args.ports, args.agents, args.ticks,
+                                 args.sim_work_us, args.ltl_ports, args.divider)
+        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        print(json.dumps(result))
         return 0
     if args.lockstep:
         print(f"load average {os.getloadavg()[0]:.2f}")
@@ -516,9 +538,10 @@ def main(argv: list[str] | None = None) -> int:
                                     (agent_work, args.sim_work_us, args.ltl_agents),
                                     (0.0, 0.0, 0)):
             result = lockstep_probe(args.runs, args.seconds, args.agents, work, sim_work,
-                                    ltl_agents=ltl, ltl_work_us=args.ltl_work_us)
+                                    ltl_agents=ltl, ltl_work_us=args.ltl_work_us,
+                                    sched=args.sched)
             for name, row in result.items():
-                print(f"lockstep {name:<6} {args.agents} agents ({work:.0f} µs), "
+                print(f"lockstep {name:<6} ({row['sched']}) {args.agents} agents ({work:.0f} µs), "
                       f"{ltl} LTL-like ({row['ltl_work_us']:.0f} µs every "
                       f"{row['divider']}th), sim {sim_work:.0f} µs: "
                       f"{row['frames_per_s']:7.0f} frames/s = {row['speedup']:5.2f}× real time")

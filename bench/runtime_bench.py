@@ -557,7 +557,9 @@ def main(argv: list[str] | None = None) -> int:
                note="Scenario 1's shape with fixed work: a sim-like process (150 µs per "
                     "frame), 3 agent-like ones (100 µs), 2 decimated ones (1 ms every 20th "
                     "frame, staggered) and a listener that only records; minimal runtime, FIFO "
-                    "channels (bench/floor_probe.py --lockstep)"),
+                    "channels, every process scheduled as the fleet's ("
+                    + lockstep_floor.get("zenoh", {}).get("sched", "?")
+                    + "; bench/floor_probe.py --lockstep)"),
         Figure("lockstep_floor_udp", "  floor: the same shape over bare UDP, speed-up",
                lockstep_floor.get("udp", {}).get("speedup", nan), "×"),
         Figure("max_fleet", "largest STL fleet at 100 Hz with ≤ 1 % missed",

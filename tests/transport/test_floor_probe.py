@@ -15,7 +15,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from bench.floor_probe import lockstep_probe  # noqa: E402
+from bench.floor_probe import lockstep_probe, lockstep_sched  # noqa: E402
+from coordinator.runner import RunConfig, child_sched  # noqa: E402
 
 
 @pytest.mark.parametrize("transport", ["udp", "zenoh"])
@@ -30,6 +31,18 @@ def test_lockstep_floor_runs_and_waits_for_every_agent(transport):
     assert row["speedup"] == pytest.approx(row["frames_per_s"] / 100.0)
     assert row["sender_cpu_us"] > 0.0
     assert (row["agents"], row["work_us"], row["sim_work_us"]) == (2, work_us, 10.0)
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_BATCH"), reason="Linux scheduling policies")
+def test_the_lockstep_floor_is_scheduled_as_the_fleet():
+    """By default its processes take the policy a lockstep ``tlfleet run`` gives the fleet's
+    (fifo where permitted, else batch: round 16); asked for batch, the sender runs under it."""
+    assert lockstep_sched() == child_sched(RunConfig(ROOT / "x.toml", mode="lockstep"))
+    result = lockstep_probe(runs=1, seconds=0.1, agents=1, work_us=10.0, sim_work_us=10.0,
+                            transports=("udp",), sched="batch")
+    row = result["udp"]
+    assert row["sched"] == "batch"
+    assert [r.get("policy") for r in row["runs"]] == [os.SCHED_BATCH], row["runs"]
 
 
 @pytest.mark.parametrize("transport", ["udp", "zenoh"])
