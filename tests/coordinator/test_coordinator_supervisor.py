@@ -237,6 +237,14 @@ def test_the_last_frame_counts_when_it_arrives_while_sim_done_is_read(fleet):
     assert outcome.t_end == pytest.approx(4.9)
 
 
+def _started(net, scenario, sup):
+    """The three tokens declared, the fleet ready and started; the peers by name."""
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    return peers
+
+
 def _blip(net, scenario, sup, peers, *, exit_code=None):
     """The sim's token goes (its transport killed) and comes back 0.1 s later from a new one,
     as when the coordinator's own session lapses and reconnects; ``exit_code``: the process
@@ -267,10 +275,7 @@ def test_the_sims_token_gone_and_back_within_the_grace_is_a_blip_not_a_death(fle
     lease lapsed), they came back 40 ms later, and the sim was declared dead ``end_grace``
     later anyway, ending the run. A token back while the process runs lifts the suspicion."""
     scenario, net, sup, _children, reports = fleet
-    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
-    sup.wait_ready()
-    sup.start()
-    outcome = _blip(net, scenario, sup, peers)
+    outcome = _blip(net, scenario, sup, _started(net, scenario, sup))
     assert outcome.reason == "sim_done" and outcome.deaths == [], reports
     (line,) = [r for r in reports if "blip" in r]
     assert line.startswith("sim's liveliness token went at t = 1.00 s and came back 0.1"), line
@@ -280,10 +285,7 @@ def test_the_sims_token_gone_and_back_within_the_grace_is_a_blip_not_a_death(fle
 
 def test_the_sims_token_back_after_its_process_exited_is_still_a_death(fleet):
     scenario, net, sup, _children, reports = fleet
-    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
-    sup.wait_ready()
-    sup.start()
-    outcome = _blip(net, scenario, sup, peers, exit_code=-9)
+    outcome = _blip(net, scenario, sup, _started(net, scenario, sup), exit_code=-9)
     assert outcome.reason == "sim_died", reports
     assert [d.process for d in outcome.deaths] == ["sim"]
     assert sup.tap.recorder.event_kinds["token_blip"] == 0
