@@ -48,7 +48,6 @@ def fifo_permitted() -> bool:
     return soft == resource.RLIM_INFINITY or soft >= FIFO_PRIORITY
 
 
-
 class LaunchError(TlfleetError, RuntimeError):
     """A child that could not be started or did not come up in time."""
 

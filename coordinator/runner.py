@@ -151,7 +151,7 @@ SCHED_CHOICES = ("auto", "default", "batch", "fifo")
 def child_sched(config: RunConfig) -> str:
     """``--sched`` of the router, the sim and the agents (:mod:`cli.process_flags`): ``auto``
     is ``fifo`` in lockstep where this user may ask for it (Linux ``SCHED_FIFO`` priority 1: a
-    process runs as soon as it wakes; Scenario 1 lockstep 1.5× faster, docs/performance.md
+    process runs as soon as it wakes; Scenario 1 lockstep ≈ 1.4× faster, docs/performance.md
     round 16), else ``batch`` (``SCHED_BATCH``: no process is preempted when another wakes up;
     ≈ 4–8 % faster, round 9), and ``default`` in realtime, where both made the latency tail
     worse or no better."""
