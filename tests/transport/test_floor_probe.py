@@ -75,3 +75,25 @@ def test_the_inline_echo_answers_every_frame_from_zenohs_thread():
     assert row.get("error") is None
     assert row["ticks"] == 50 and row["answered"] == 50
     assert math.isfinite(row["rx_cpu_us"]) and row["rx_cpu_us"] >= 30.0  # the busy work alone
+
+
+def test_a_busy_port_moves_the_echo_probe_on_and_never_ends_the_benchmark(monkeypatch):
+    """The probe's ports overlap the ephemeral range, where the OS may have given one to a
+    fleet's connection: the next ports are tried, and after them an error row, not a raise."""
+    import bench.floor_probe as fp
+
+    tried = []
+
+    def run_pair(variant, port, seconds, work_us):
+        tried.append(port)
+        if port < 30006:
+            raise RuntimeError(f"floor probe receiver ({variant}) did not start")
+        return {"rx_cpu_us": 1.0, "ticks": 1, "answered": 1, "rtt_p50_us": 1.0, "rtt_p99_us": 1.0}
+
+    monkeypatch.setattr(fp, "run_pair", run_pair)
+    assert fp._pair_on_a_free_port("udp", 30000, 0.1, 30.0)["answered"] == 1
+    assert tried == [30000, 30003, 30006]
+    tried.clear()
+    row = fp._pair_on_a_free_port("udp", 20000, 0.1, 30.0)
+    assert tried == [20000, 20003, 20006]
+    assert math.isnan(row["rx_cpu_us"]) and "did not start on 3 ports from 20000" in row["error"]
