@@ -10,8 +10,9 @@ slot ``i % slots``, do what an STL agent's runtime does around its step: a ``Fif
 by the main thread, the newest of the queued frames taken, ``work_us`` of CPU (the agent's
 decode, step and encode), an answer of 12 bytes on a key of its own. Peers on loopback,
 multicast scouting off, the minimal zenoh runtime in every process (each a child of the caller,
-whose own environment and zenoh runtime stay as they are): the fleet's transport with nothing of
-the fleet's code in it.
+whose own environment and zenoh runtime stay as they are), every process under the OS scheduling
+a realtime ``tlfleet run`` gives the fleet's (``SCHED_FIFO`` where permitted;
+``floor_probe.realtime_sched``): the fleet's transport with nothing of the fleet's code in it.
 
 Measured, as the simulator measures a realtime fleet (``sim.stats``): the latency of each
 answer from its frame's publication, and the share of the (receiver, period) deadlines missed
@@ -43,8 +44,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench.common import sorted_quantile  # noqa: E402
-from bench.floor_probe import _busy, _config  # noqa: E402
+from bench.floor_probe import _busy, _config, realtime_sched  # noqa: E402
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
+from cli.process_flags import POLICIES, apply_scheduling  # noqa: E402
 
 PERIOD = 0.01  # [s] the mocap period at 100 Hz
 FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
@@ -176,12 +178,16 @@ def _last_json(out: str) -> dict | None:
 
 
 def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
-                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0) -> dict:
+                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0,
+                sched: str | None = None) -> dict:
     """One run: a sender and ``n`` receiver processes (module docstring), all on zenoh's minimal
-    runtime; this process only starts them and collects what they report."""
+    runtime and under ``sched`` (None: what a realtime ``tlfleet run`` gives the fleet's); this
+    process only starts them and collects what they report."""
     port = port or _free_port()
+    sched = sched or realtime_sched()
     env = dict(os.environ, ZENOH_RUNTIME=MINIMAL_RUNTIME)
-    common = [sys.executable, __file__, "--port", str(port), "--seconds", str(seconds)]
+    common = [sys.executable, __file__, "--port", str(port), "--seconds", str(seconds),
+              "--sched", sched]
     tx = subprocess.Popen([*common, "--role", "sender", "--n", str(n), "--slots", str(slots),
                            "--sender-work-us", str(sender_work_us)],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
@@ -210,7 +216,7 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
                 p.wait()
     return {
         "n": n, "slots": slots, "work_us": work_us, "sender_work_us": sender_work_us,
-        **result,
+        "sched": sched, **result,
         "rx_cpu_us": (statistics.median(r["cpu_us_per_tick"] for r in rows) if rows
                       else float("nan")),
         "receivers_reported": len(rows),
@@ -228,10 +234,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--work-us", type=float, nargs="+", default=[30.0, 250.0])
     parser.add_argument("--sender-work-us", type=float, default=100.0)
     parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--sched", choices=POLICIES, default=None,
+                        help="OS scheduling of every process (cli.process_flags; default: what "
+                             "a realtime `tlfleet run` uses here)")
     args = parser.parse_args(argv)
+    if args.role is not None and args.sched is not None:
+        problem = apply_scheduling(args.sched)
+        if problem:
+            print(f"--sched {args.sched}: {problem}", file=sys.stderr)
     if args.role == "sender":
-        print(json.dumps(sender(args.port, args.n, args.slots, args.sender_work_us,
-                                args.seconds)), flush=True)
+        result = sender(args.port, args.n, args.slots, args.sender_work_us, args.seconds)
+        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        print(json.dumps(result), flush=True)
         return 0
     if args.role == "receiver":
         print(json.dumps(receiver(args.port, args.index, args.slot, args.work_us[0],
@@ -239,8 +253,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     print(f"load average {os.getloadavg()[0]:.2f}")
     for work in args.work_us:
-        row = fleet_probe(args.n, args.slots, work, args.sender_work_us, args.seconds)
-        print(f"{row['n']} agent-like processes, {work:.0f} µs of work each, {row['slots']} "
+        row = fleet_probe(args.n, args.slots, work, args.sender_work_us, args.seconds,
+                          sched=args.sched)
+        print(f"{row['n']} agent-like processes ({row['sched']}), {work:.0f} µs of work each, "
+              f"{row['slots']} "
               f"slots, sender {row['sender_work_us']:.0f} µs a slot: missed "
               f"{100 * row['missed_fraction']:.2f} %, latency p50 {row['latency_p50_ms']:.2f} "
               f"ms p99 {row['latency_p99_ms']:.2f} ms, receiver CPU {row['rx_cpu_us']:.0f} "

@@ -22,6 +22,9 @@ blocking ``recv``: the agents' pattern), ``zenoh-inline`` (minimal runtime, the 
 answer inside a ``Callback(indirect=False)`` on zenoh's own thread: no Python thread is woken
 at all; measured in round 13 at 0.86–0.89× the FIFO pattern's CPU, not adopted, see
 docs/performance.md). Zenoh variants run peer to peer on loopback (multicast scouting off).
+Every process runs under the OS scheduling a realtime ``tlfleet run`` gives the fleet's
+(:func:`realtime_sched`: ``SCHED_FIFO`` where permitted), so the latency floor and the fleet's
+latency are measured alike.
 
 **The lockstep floor** (:func:`lockstep_probe`): the lockstep fleet's shape with nothing of the
 fleet's own in it. A sim-like process publishes a frame to ``agents`` agent-like processes and
@@ -326,9 +329,18 @@ def lockstep_sender(transport: str, ports: list[int], agents: int, ticks: int,
 
 def lockstep_sched() -> str:
     """The ``--sched`` a lockstep ``tlfleet run`` gives its processes here (``auto``)."""
+    return _run_sched("lockstep")
+
+
+def realtime_sched() -> str:
+    """The ``--sched`` a realtime ``tlfleet run`` gives its processes here (``auto``)."""
+    return _run_sched("realtime")
+
+
+def _run_sched(mode: str) -> str:
     from coordinator.runner import RunConfig, child_sched
 
-    return child_sched(RunConfig(Path("-"), mode="lockstep"))
+    return child_sched(RunConfig(Path("-"), mode=mode))
 
 
 def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
@@ -429,16 +441,17 @@ def relay(port: int, ticks: int) -> None:
             sock.sendto(data, receiver_at)
 
 
-def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
+def run_pair(variant: str, port: int, seconds: float, work_us: float,
+             sched: str = "default") -> dict:
     """One sender (this process's child) and one receiver process (and the relay between
-    them for ``udp-relay``)."""
+    them for ``udp-relay``), each under ``sched`` (``cli.process_flags``)."""
     ticks = int(seconds * 100)
     env = dict(os.environ)
     env.pop("ZENOH_RUNTIME", None)
     if not variant.startswith("udp") and variant != "zenoh-default":
         env["ZENOH_RUNTIME"] = MINIMAL_RUNTIME
     common = [sys.executable, __file__, "--variant", variant, "--port", str(port),
-              "--ticks", str(ticks), "--work-us", str(work_us)]
+              "--ticks", str(ticks), "--work-us", str(work_us), "--sched", sched]
     # the receiver binds (UDP) or listens (zenoh) first, then the relay; the sender starts once
     # they are ready
     started = []
@@ -469,7 +482,7 @@ def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
     rtts = json.loads(tx_out.strip().splitlines()[-1])["rtt_us"]
     rtts.sort()
     return {"rx_cpu_us": rx_data["cpu_us_per_tick"], "ticks": rx_data["ticks"],
-            "answered": len(rtts),
+            "answered": len(rtts), "policy": rx_data.get("policy"),
             "rtt_p50_us": sorted_quantile(rtts, 0.5),
             "rtt_p99_us": sorted_quantile(rtts, 0.99)}
 
@@ -477,13 +490,14 @@ def run_pair(variant: str, port: int, seconds: float, work_us: float) -> dict:
 PORT_ATTEMPTS = 3  # ports tried per run: the probe's range overlaps the ephemeral ports
 
 
-def _pair_on_a_free_port(variant: str, port: int, seconds: float, work_us: float) -> dict:
+def _pair_on_a_free_port(variant: str, port: int, seconds: float, work_us: float,
+                         sched: str = "default") -> dict:
     """``run_pair`` from ``port``, the next ports when a receiver cannot listen (a port the OS
     gave a fleet's connection meanwhile); after :data:`PORT_ATTEMPTS` an error row (its figures
     nan), so one busy port does not end a benchmark of minutes."""
     for attempt in range(PORT_ATTEMPTS):
         try:
-            return run_pair(variant, port + 3 * attempt, seconds, work_us)
+            return run_pair(variant, port + 3 * attempt, seconds, work_us, sched)
         except RuntimeError as exc:
             problem = str(exc)
     nan = float("nan")
@@ -492,19 +506,23 @@ def _pair_on_a_free_port(variant: str, port: int, seconds: float, work_us: float
 
 
 def probe(runs: int = 3, seconds: float = 3.0, work_us: float = 30.0,
-          variants: tuple[str, ...] = VARIANTS, base_port: int = 0) -> dict[str, dict]:
-    """Medians per variant (see the module docstring)."""
+          variants: tuple[str, ...] = VARIANTS, base_port: int = 0,
+          sched: str | None = None) -> dict[str, dict]:
+    """Medians per variant (see the module docstring); every process runs under ``sched``
+    (None: what a realtime ``tlfleet run`` gives the fleet's, :func:`realtime_sched`)."""
+    sched = sched or realtime_sched()
     port = base_port or (20000 + os.getpid() % 20000)
     out: dict[str, dict] = {}
     for variant in variants:
         rows = []
         for _ in range(max(1, runs)):
-            rows.append(_pair_on_a_free_port(variant, port, seconds, work_us))
+            rows.append(_pair_on_a_free_port(variant, port, seconds, work_us, sched))
             port += 3 * PORT_ATTEMPTS  # sender, receiver, relay per attempt
         ok = [r for r in rows if "error" not in r] or rows
         out[variant] = {key: statistics.median(r[key] for r in ok)
                         for key in ("rx_cpu_us", "rtt_p50_us", "rtt_p99_us")}
         out[variant]["runs"] = rows
+        out[variant]["sched"] = sched
     return out
 
 
@@ -530,9 +548,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--lockstep", action="store_true",
                         help="the lockstep floor (lockstep_probe) instead of the echo variants")
     parser.add_argument("--sched", choices=POLICIES, default=None,
-                        help="OS scheduling of a probe process (cli.process_flags); with "
-                             "--lockstep, of every process (default: what a lockstep "
-                             "`tlfleet run` uses here)")
+                        help="OS scheduling of every process of the probe "
+                             "(cli.process_flags; default: what `tlfleet run` uses here, "
+                             "realtime for the echo variants, lockstep with --lockstep)")
     args = parser.parse_args(argv)
     if args.role is not None and args.sched is not None:
         problem = apply_scheduling(args.sched)
@@ -564,8 +582,9 @@ def main(argv: list[str] | None = None) -> int:
                       f"{row['frames_per_s']:7.0f} frames/s = {row['speedup']:5.2f}× real time")
         return 0
     if args.role == "receiver":
-        print(json.dumps(receiver(args.variant, args.port, args.ticks, args.work_us,
-                                  args.key)))
+        result = receiver(args.variant, args.port, args.ticks, args.work_us, args.key)
+        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        print(json.dumps(result))
         return 0
     if args.role == "relay":
         relay(args.port, args.ticks)
@@ -574,8 +593,9 @@ def main(argv: list[str] | None = None) -> int:
         rtts = sender(args.variant, args.port, args.ticks, lambda: None)
         print(json.dumps({"rtt_us": rtts}))
         return 0
-    result = probe(args.runs, args.seconds, args.work_us)
-    print(f"load average {os.getloadavg()[0]:.2f}")
+    result = probe(args.runs, args.seconds, args.work_us, sched=args.sched)
+    print(f"load average {os.getloadavg()[0]:.2f}; every process under --sched "
+          f"{next(iter(result.values()))['sched']}")
     for variant, row in result.items():
         print(f"{variant:<14} receiver CPU {row['rx_cpu_us']:7.0f} µs/tick   round trip p50 "
               f"{row['rtt_p50_us']:7.0f} µs  p99 {row['rtt_p99_us']:7.0f} µs")

@@ -35,12 +35,15 @@ not arrived when the sim steps past tick k) and from the coordinator's run recor
   the real agent tick to physics is visible; and the round trip's p99 over bare UDP, directly
   and through a relay process (the realtime fleet's shape: sim → router → agent → router →
   sim), the floor of the latency p99 on this machine at this moment; and the lockstep
-  fleet's shape with the fleet's code replaced by fixed work (``floor_probe.lockstep_probe``:
+  fleet's shape with the fleet's code taken out (``floor_probe.lockstep_probe`` with no work:
   a sim-like process, 3 agent-like ones, 2 decimated LTL-like ones and a listener, over
-  zenoh and over bare UDP), the speed-up that shape allows at this moment, beside the real
-  fleet's; and the fleet size's floor (``bench/fleet_floor.py``): the target's 30 agent-like
-  processes answering a sim-like process's spread frames over zenoh, with 30, 150 and 250 µs
-  of work per tick, and the deadlines they miss (with ``fleet`` and ``floor``);
+  zenoh and over bare UDP, scheduled as the fleet), the speed-up the wake-ups and the
+  transport alone allow at this moment, beside the real fleet's (until round 16 the probe
+  spent round 9's per-frame costs, which the C kernels since made larger than the fleet's own
+  and the "floor" slower than the fleet); and the fleet size's floor
+  (``bench/fleet_floor.py``): the target's 30 agent-like processes answering a sim-like
+  process's spread frames over zenoh, with 30, 150 and 250 µs of work per tick, and the
+  deadlines they miss (with ``fleet`` and ``floor``);
 * a latency histogram (``latency_histogram_ms``, from ``sim_stats``) of every realtime run.
 
 Besides, for every run, the CPU time of each child process per wall second of the supervised
@@ -510,7 +513,8 @@ def main(argv: list[str] | None = None) -> int:
     floor = floor_probe(runs=runs, seconds=2.0 if args.quick else 3.0) \
         if "floor" not in args.skip else {}
     lockstep_floor = lockstep_probe(runs=runs, seconds=1.0 if args.quick else 3.0,
-                                    ltl_agents=2, ltl_work_us=1000.0, divider=20) \
+                                    work_us=0.0, sim_work_us=0.0, ltl_agents=2,
+                                    ltl_work_us=0.0, divider=20) \
         if "floor" not in args.skip and "lockstep" not in args.skip else {}
     fleet_floor = {work: [fleet_probe(TARGETS["max_fleet"], FLEET_FLOOR_SLOTS, work,
                                       FLEET_FLOOR_SENDER_US, 3.0 if args.quick else 5.0)
@@ -575,10 +579,11 @@ def main(argv: list[str] | None = None) -> int:
                cores / cpu_sim if cpu_sim > 0 else nan, "×"),
         Figure("lockstep_floor_zenoh", "  floor: the lockstep shape over zenoh, speed-up",
                lockstep_floor.get("zenoh", {}).get("speedup", nan), "×",
-               note="Scenario 1's shape with fixed work: a sim-like process (150 µs per "
-                    "frame), 3 agent-like ones (100 µs), 2 decimated ones (1 ms every 20th "
-                    "frame, staggered) and a listener that only records; minimal runtime, FIFO "
-                    "channels, every process scheduled as the fleet's ("
+               note="Scenario 1's shape with no work: a sim-like process, 3 agent-like "
+                    "ones, 2 decimated ones (every 20th frame, staggered) and a listener that "
+                    "only records, each answering at once: the wake-ups and the transport "
+                    "alone; minimal runtime, FIFO channels, every process scheduled as the "
+                    "fleet's ("
                     + lockstep_floor.get("zenoh", {}).get("sched", "?")
                     + "; bench/floor_probe.py --lockstep)"),
         Figure("lockstep_floor_udp", "  floor: the same shape over bare UDP, speed-up",

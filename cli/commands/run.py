@@ -88,11 +88,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "unsecured run links the sim and the agents as zenoh peers; "
                              "architecture.md §1)")
     parser.add_argument("--sched", choices=SCHED_CHOICES, default="auto",
-                        help="OS scheduling of the router, sim and agents: in lockstep "
-                             "'fifo' (Linux SCHED_FIFO priority 1, where this user may: root "
-                             "or RLIMIT_RTPRIO) else 'batch' (SCHED_BATCH, no preemption on "
-                             "wake-up), the OS default in realtime (auto, the default); or one "
-                             "of them for both; --hosts runs keep their own")
+                        help="OS scheduling of the router, sim and agents: 'fifo' (Linux "
+                             "SCHED_FIFO priority 1) where this user may (root or "
+                             "RLIMIT_RTPRIO), else 'batch' (SCHED_BATCH, no preemption on "
+                             "wake-up) in lockstep and the OS default in realtime (auto, the "
+                             "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
 

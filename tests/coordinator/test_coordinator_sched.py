@@ -1,6 +1,6 @@
 """OS scheduling of a run's processes (issue 17, ``cli.process_flags``): ``tlfleet run`` starts the
-router, the sim and the agents of a lockstep run under Linux's ``SCHED_FIFO`` where the user may
-ask for it and ``SCHED_BATCH`` elsewhere (``--sched``), realtime runs as the OS starts them.
+router, the sim and the agents under Linux's ``SCHED_FIFO`` where the user may ask for it, and
+elsewhere a lockstep run under ``SCHED_BATCH`` and a realtime run as the OS starts it (``--sched``).
 Checked on the argv the runner builds, on the flags, on the policy a real process ends up with
 (every thread it had and every thread it starts), and on a refused ``fifo`` (an unprivileged
 user) falling back to ``batch``."""
@@ -31,10 +31,11 @@ def _sched_flag(argv: list[str]) -> str | None:
 
 @pytest.mark.parametrize(("mode", "sched", "permitted", "expected"), [
     ("lockstep", "auto", True, "fifo"), ("lockstep", "auto", False, "batch"),
-    ("realtime", "auto", True, "default"), ("lockstep", "default", True, "default"),
+    ("realtime", "auto", True, "fifo"), ("realtime", "auto", False, "default"),
+    ("lockstep", "default", True, "default"),
     ("realtime", "batch", True, "batch"), ("lockstep", "fifo", False, "fifo")])
-def test_the_runner_asks_for_fifo_or_batch_scheduling_in_lockstep(monkeypatch, mode, sched,
-                                                                 permitted, expected):
+def test_the_runner_asks_for_fifo_where_permitted_and_batch_in_lockstep_else(
+        monkeypatch, mode, sched, permitted, expected):
     monkeypatch.setattr(runner, "fifo_permitted", lambda: permitted)
     scenario = load_scenario(SCENARIO)
     config = RunConfig(SCENARIO, mode=mode, sched=sched)

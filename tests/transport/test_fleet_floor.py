@@ -10,10 +10,14 @@ import os
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from bench.fleet_floor import fleet_probe  # noqa: E402
+from bench.floor_probe import realtime_sched  # noqa: E402
+from coordinator.runner import RunConfig, child_sched  # noqa: E402
 
 
 def _port(offset: int) -> int:
@@ -34,9 +38,22 @@ def test_quick_receivers_answer_every_period_of_their_slot():
 
 def test_receivers_slower_than_the_period_miss_most_deadlines():
     """20 ms of work per frame: a receiver answers at most every other period, each answer more
-    than one period after its frame, so at least half the deadlines are missed."""
+    than one period after its frame, so at least half the deadlines are missed. (As ordinary
+    processes: two real-time ones spinning 20 ms a period would hold both cores.)"""
     row = fleet_probe(n=2, slots=1, work_us=20_000.0, sender_work_us=10.0, seconds=0.5,
-                      port=_port(1))
+                      port=_port(1), sched="default")
     assert row["receivers_reported"] == 2
     assert row["missed_fraction"] >= 0.5
     assert row["latency_p50_ms"] > 10.0
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_BATCH"), reason="Linux scheduling policies")
+def test_the_fleet_floor_is_scheduled_as_the_realtime_fleet():
+    """By default its processes take the policy a realtime ``tlfleet run`` gives the fleet's
+    (fifo where permitted, else the OS default: round 17); asked for batch, they run under it."""
+    assert realtime_sched() == child_sched(RunConfig(ROOT / "x.toml", mode="realtime"))
+    row = fleet_probe(n=1, slots=1, work_us=10.0, sender_work_us=10.0, seconds=0.2,
+                      port=_port(2), sched="batch")
+    assert row["sched"] == "batch" and row["policy"] == os.SCHED_BATCH, row
+    assert fleet_probe(n=1, slots=1, work_us=10.0, sender_work_us=10.0, seconds=0.2,
+                       port=_port(3))["sched"] == realtime_sched()

@@ -77,6 +77,22 @@ def test_the_inline_echo_answers_every_frame_from_zenohs_thread():
     assert math.isfinite(row["rx_cpu_us"]) and row["rx_cpu_us"] >= 30.0  # the busy work alone
 
 
+@pytest.mark.skipif(not hasattr(os, "SCHED_BATCH"), reason="Linux scheduling policies")
+def test_the_echo_probe_is_scheduled_as_the_realtime_fleet():
+    """By default its processes take the policy a realtime ``tlfleet run`` gives the fleet's
+    (fifo where permitted, else the OS default: round 17), so the latency floor and the fleet's
+    latency are measured alike; asked for batch, the receiver runs under it."""
+    from bench.floor_probe import probe, realtime_sched
+
+    assert realtime_sched() == child_sched(RunConfig(ROOT / "x.toml", mode="realtime"))
+    base = 40500 + 9 * (os.getpid() % 2000)
+    row = probe(runs=1, seconds=0.2, variants=("udp",), base_port=base, sched="batch")["udp"]
+    assert row["sched"] == "batch"
+    assert [r.get("policy") for r in row["runs"]] == [os.SCHED_BATCH], row["runs"]
+    assert probe(runs=1, seconds=0.2, variants=("udp",),
+                 base_port=base + 9)["udp"]["sched"] == realtime_sched()
+
+
 def test_a_busy_port_moves_the_echo_probe_on_and_never_ends_the_benchmark(monkeypatch):
     """The probe's ports overlap the ephemeral range, where the OS may have given one to a
     fleet's connection: the next ports are tried, and after them an error row, not a raise."""
@@ -84,7 +100,7 @@ def test_a_busy_port_moves_the_echo_probe_on_and_never_ends_the_benchmark(monkey
 
     tried = []
 
-    def run_pair(variant, port, seconds, work_us):
+    def run_pair(variant, port, seconds, work_us, sched="default"):
         tried.append(port)
         if port < 30006:
             raise RuntimeError(f"floor probe receiver ({variant}) did not start")
