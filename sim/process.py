@@ -217,6 +217,9 @@ class SimProcess:
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
         self.phases = control_phases(scenario)
+        # (divider, phase) of each robot with divider ≥ 2: the ticks it is due on are shared
+        self._slow_schedules = tuple((d, self.phases.get(r, 0))
+                                     for r, d in sorted(self.dividers.items()) if d > 1)
         schedules = keys.frame_schedules((d, self.phases[r]) for r, d in self.dividers.items())
         self._every = tuple((d, p, keys.mocap_every(scenario.fleet, d, p)) for d, p in schedules)
         # frame offsets (Scenario.frame_offset, architecture.md §3): in realtime each robot's
@@ -297,11 +300,12 @@ class SimProcess:
                 self.stats.wall_time = self._now() - started
                 self._report_step()  # a stop between a step and the next frame
             self._report_malformed(force=True)
+            summary = self.summary()  # once: at fleet scale it is not free (stats._split)
             if self.started:
-                self._event("sim_stats", **self.summary())
+                self._event("sim_stats", **summary)
             if self.done:
                 self._event("sim_done", ticks=self.stats.ticks)
-            self._log_summary()
+            self._log_summary(summary)
             return 0
         finally:
             for handle in reversed(handles):
@@ -709,9 +713,9 @@ class SimProcess:
         self.timing.frame_published(k, published, offset=offset)
 
     def _shared_tick(self, seq: int) -> bool:
-        """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks)."""
-        return any(self.dividers[r] > 1
-                   for r in due_robots(seq, self.dividers, self.dividers, self.phases))
+        """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks;
+        ``due_robots``' rule, ``seq % d == phase``, over those robots only)."""
+        return any(seq % divider == phase for divider, phase in self._slow_schedules)
 
     def _event(self, kind: str, **data: object) -> None:
         self._event_at(self.t, kind, **data)
@@ -758,11 +762,11 @@ class SimProcess:
                                   shared=self._shared_tick),
         }
 
-    def _log_summary(self) -> None:
+    def _log_summary(self, summary: dict[str, object]) -> None:
         s = self.stats
         rate = s.ticks / s.wall_time if s.wall_time > 0 else float("nan")
         logger.info("sim finished: %d ticks in %.2f s wall (%.0f ticks/s); %s", s.ticks,
-                    s.wall_time, rate, self.summary())
+                    s.wall_time, rate, summary)
 
 
 def run_sim(transport: Transport, scenario: Scenario, config: SimConfig,
