@@ -36,7 +36,7 @@ class Channel(Protocol):
     A callback subscriber hands every sample from the transport's thread to the process's loop
     (a thread wake-up per sample); a channel is read by the loop itself. ``recv(timeout)``
     returns the oldest queued ``(key, payload)``, or ``None`` when ``timeout`` [s] passed
-    (coarse: the zenoh channel's timer ticks every :data:`CHANNEL_TICK`) or ``wake()`` was
+    (at most :data:`CHANNEL_TICK` late on a zenoh channel) or ``wake()`` was
     called (from any thread); ``recv(0.0)`` never blocks. A wake-up queued before samples is
     skipped (the caller is awake anyway). A sample without payload (a zenoh DELETE) reads as a
     wake-up. Created by ``subscribe_channel(key_expr, wake_key=None, capacity=None)`` of the
@@ -53,7 +53,8 @@ class Channel(Protocol):
     def close(self) -> None: ...
 
 
-#: [s] how often a zenoh channel's timer thread checks whether a blocked ``recv`` is due back
+#: [s] how often a zenoh channel's timer thread looks for a blocked ``recv`` while it finds none
+#: (a ``recv`` it finds blocked is woken at its deadline)
 CHANNEL_TICK = 0.05
 
 

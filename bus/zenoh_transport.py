@@ -238,10 +238,13 @@ class ZenohChannel:
     ``recv`` blocks in zenoh's own ``recv`` on the calling thread, so a sample wakes that thread
     directly. zenoh's ``recv`` has no timeout: ``wake()`` puts a session-local DELETE on the key
     (``allowed_destination=SESSION_LOCAL``: it reaches only this session's subscribers, never
-    the network), and a timer thread calls it once a blocked ``recv`` is past its deadline (it
-    ticks every :data:`bus.transport.CHANNEL_TICK`, and only checks a number). The timer
-    starts with the first ``recv`` that may block: a channel only polled with ``recv(0.0)``
-    (the coordinator's recorder) has none.
+    the network), and a timer thread calls it once a blocked ``recv`` is past its deadline. The
+    timer sleeps until the deadline of the ``recv`` it finds blocked (then, if a newer ``recv``
+    has a later one, until that), and :data:`bus.transport.CHANNEL_TICK` when it finds none: a
+    reader that blocks in slices of T s is visited every T s, not 1 / CHANNEL_TICK times a
+    second (issue 17 round 17: an agent's timer thread woke 20 times a second, ≈ 70 µs of CPU
+    each). The timer starts with the first ``recv`` that may block: a channel only polled with
+    ``recv(0.0)`` (the coordinator's recorder) has none.
     """
 
     CAPACITY = 1024  # samples queued at most: a full channel holds up zenoh's reader of the link
@@ -265,11 +268,17 @@ class ZenohChannel:
     def _tick(self) -> None:
         from bus.transport import CHANNEL_TICK
 
-        while not self._closed.wait(CHANNEL_TICK):
+        pause = CHANNEL_TICK
+        while not self._closed.wait(pause):
             deadline = self._deadline
-            if deadline is not None and time.monotonic() >= deadline:
+            if deadline is None:  # no recv blocked: look again later
+                pause = CHANNEL_TICK
+                continue
+            pause = deadline - time.monotonic()
+            if pause <= 0.0:
                 self._deadline = None
                 self.wake()
+                pause = CHANNEL_TICK
 
     def recv(self, timeout: float) -> tuple[str, bytes] | None:
         woken = False

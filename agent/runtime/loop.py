@@ -82,7 +82,10 @@ class LoopConfig:
     robot: int
     divider: int = 1  # mocap ticks per control period: round(mocap_rate / control_rate)
     stale_after: float = 0.5  # no frame for this long → zero command
-    wait_slice: float = 0.05  # longest single block, so stop and staleness are noticed
+    # longest single block: a stop by signal (or a ``stop`` event) is noticed within it; the
+    # loop blocks only until its next staleness check is due (``AgentLoop.block_for``), and a
+    # Control(stop) or a frame wakes it at once
+    wait_slice: float = 0.25
     bounds: FleetBounds | None = None  # plausibility of frames (None: codec checks only)
     max_jump: int | None = None  # [ticks] FrameGate of the mocap stream (None: no gate)
     resume_settle: float = 0.02  # after a freeze: wait this long for newer backlog frames
@@ -322,9 +325,29 @@ class AgentLoop:
     def run(self, stop: threading.Event | None = None) -> int:
         """Loop until ``Control(stop)`` or ``stop``; returns the exit code (0)."""
         while not (stop is not None and stop.is_set()):
-            if not self.run_once(self.config.wait_slice):
+            if not self.run_once(self.block_for()):
                 break
         return 0
+
+    def block_for(self) -> float:
+        """[s] how long the next wait may block: until the staleness check of ``_check_stale``
+        is next due (the frame limit, the heartbeat's silence limit, or the next zero command
+        while stale; at least 1 ms), at most ``wait_slice``. Frames arrive far more often, so a
+        steady loop is woken by them, and a zenoh channel's timer only at these deadlines
+        (issue 17 round 17: 4 instead of 20 timer wake-ups a second)."""
+        config = self.config
+        if not self.started or self._last_frame_wall is None:
+            return config.wait_slice
+        if self._stale:
+            due = self._stale_sent + config.stale_after
+        else:
+            due = self._last_frame_wall + self._stale_limit
+            if config.watches_clock:
+                heard = self._last_frame_wall
+                if self._last_clock_wall is not None:
+                    heard = max(heard, self._last_clock_wall)
+                due = min(due, heard + config.stale_after)
+        return min(config.wait_slice, max(due - self.clock(), 0.001))
 
     def run_once(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` [s] for input and handle it; False once stopped."""

@@ -172,6 +172,9 @@ def test_a_decimated_loop_with_heartbeat_notices_a_silent_simulator_within_stale
         publish(network, keys.clock(FLEET), Clock(k / 100, k, "lockstep"))
         loop.run_once(0.0)
     assert loop.stats.stale_episodes == 0  # 0.09 s after the frame, the sim is still heard
+    # the next check: the heartbeat's silence limit (0.15 s after the last Clock), before the
+    # frame limit (0.15 + 2·19/100 s after the frame)
+    assert loop.block_for() == pytest.approx(0.15)
     clock.advance(0.14)  # 0.14 s of silence: not yet
     loop.run_once(0.0)
     assert loop.stats.stale_episodes == 0

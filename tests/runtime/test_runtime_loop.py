@@ -143,6 +143,38 @@ def test_stale_mocap_means_zero_command_until_frames_return():
     assert sim.kinds() == ["stale_mocap", "stale_mocap"] and loop.stats.stale_episodes == 2
 
 
+def test_the_loop_blocks_until_its_next_staleness_check_and_at_most_wait_slice():
+    """``block_for`` (issue 17 round 17): a wait ends when ``_check_stale`` can next act — the
+    frame limit, then every zero command while stale — so a zenoh channel's timer need wake no
+    more often; never longer than ``wait_slice``, never less than 1 ms."""
+    network = FakeNetwork()
+    sim = FakeSim(network, FLEET)
+    loop, _, clock = make_loop(network, stale_after=0.5)
+    assert loop.block_for() == loop.config.wait_slice == 0.25  # before start: the slice
+    sim.control("start")
+    sim.frame(1.0, 100, POSES, due=[1])
+    loop.run_once(0.0)
+    assert loop.block_for() == 0.25
+    clock.advance(0.39)
+    assert loop.block_for() == pytest.approx(0.11)
+    clock.advance(0.109)  # 1 ms before the limit: not stale yet
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 0 and loop.block_for() == pytest.approx(0.001)
+    clock.advance(0.002)  # 1 ms past it: stale, a zero command
+    loop.run_once(0.0)
+    assert loop.stats.stale_episodes == 1 and loop.stats.stale_commands == 1
+    assert loop.block_for() == 0.25
+    clock.advance(0.4)
+    assert loop.block_for() == pytest.approx(0.1)  # the next zero command
+    clock.advance(0.099)
+    loop.run_once(0.0)
+    assert loop.stats.stale_commands == 1
+    clock.advance(0.002)
+    assert loop.block_for() == 0.001
+    loop.run_once(0.0)
+    assert loop.stats.stale_commands == 2
+
+
 def test_no_stale_commands_before_start():
     network = FakeNetwork()
     sim = FakeSim(network, FLEET)

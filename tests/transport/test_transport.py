@@ -180,6 +180,62 @@ def test_zenoh_channel_is_read_by_the_calling_thread(loopback_pair):
     other.close()
 
 
+class _CountingEvent(threading.Event):
+    """A ``threading.Event`` that records every ``wait`` timeout: the channel timer's sleeps."""
+
+    def __init__(self):
+        super().__init__()
+        self.waits: list[float | None] = []
+
+    def wait(self, timeout=None):
+        self.waits.append(timeout)
+        return super().wait(timeout)
+
+
+@pytest.mark.system
+def test_zenoh_channel_timer_wakes_at_the_deadline_and_sleeps_through_a_steady_reader(
+        loopback_pair):
+    """Issue 17 round 17: a blocked ``recv`` is woken at its deadline (at most ``CHANNEL_TICK``
+    late), and while samples keep a reader that blocks in 0.25 s slices busy, the timer sleeps
+    until each slice's deadline instead of looking every ``CHANNEL_TICK`` (20 times a second)."""
+    import time
+
+    from bus.transport import CHANNEL_TICK
+
+    a, b = loopback_pair
+    channel = a.subscribe_channel("test/timer")
+    channel._closed = timer_sleeps = _CountingEvent()  # before the timer thread starts
+    try:
+        began = time.monotonic()
+        assert channel.recv(0.3) is None
+        assert 0.29 <= time.monotonic() - began < 0.3 + CHANNEL_TICK + 1.0
+        got, deadline = None, time.monotonic() + 10
+        while got is None and time.monotonic() < deadline:  # until the subscription is known
+            b.publish("test/timer", b"x")
+            got = channel.recv(0.05)
+        stop = threading.Event()
+
+        def publish_every_10_ms() -> None:
+            for _ in range(500):  # at most 5 s
+                if stop.wait(0.01):
+                    return
+                b.publish("test/timer", b"x")
+
+        publisher = threading.Thread(target=publish_every_10_ms, daemon=True)
+        publisher.start()
+        time.sleep(0.1)
+        before, began, received = len(timer_sleeps.waits), time.monotonic(), 0
+        while time.monotonic() - began < 1.0 and received < 1000:
+            received += channel.recv(0.25) is not None
+        looks = len(timer_sleeps.waits) - before
+        stop.set()
+        publisher.join(5.0)
+        assert received >= 20  # the reader was kept busy
+        assert looks <= 8, looks  # 1 s / 0.25 s and a margin; a fixed 50 ms tick looks 20 times
+    finally:
+        channel.close()
+
+
 class _SpySession:
     """Records what ZenohTransport passes to zenoh's ``get``."""
 
