@@ -363,9 +363,10 @@ class SimProcess:
         while not self.stopping:
             if pacer is not None and k > 0:
                 # wait on the stop event, not on the command channel: a zenoh channel's recv
-                # times out only at its timer's tick (bus.transport.CHANNEL_TICK, 50 ms), which
-                # made every paced tick last ≈ 45 ms (a 10 s run at --max-speed 2 took 49 s);
-                # no command can come before the tick it answers is published
+                # may time out up to its timer's tick late (bus.transport.CHANNEL_TICK, 50 ms;
+                # until round 17 always at a tick, which made every paced tick last ≈ 45 ms: a
+                # 10 s run at --max-speed 2 took 49 s); no command can come before the tick it
+                # answers is published
                 while not self.stopping and (left := pacer.remaining()) > 0.0:
                     self._pump(0.0)
                     self.stop_event.wait(min(left, self.config.poll))

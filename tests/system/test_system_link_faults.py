@@ -67,10 +67,10 @@ def agent_stats(run_dir, robot):
                 if e["source"] == f"agent/{robot}")
 
 
-STALE_AFTER = 0.1  # [s] --stale-after of the two-robot host runs: an agent checks every 50 ms
-#                    (its wait slice) and a zenoh channel's timed wait ends only at its timer's
-#                    50 ms tick, so mocap is called stale within STALE_AFTER + ≈ 0.1 s of the
-#                    last message from the sim (0.15 gave 0.153–0.223 s): 0.1 holds 0.2 s
+STALE_AFTER = 0.1  # [s] --stale-after of the two-robot host runs: an agent blocks until its
+#                    staleness check is due and a zenoh channel's timer wakes it at most 50 ms
+#                    late, so mocap is called stale within STALE_AFTER + 0.05 s of the last
+#                    message from the sim (0.100–0.115 s measured): 0.1 holds 0.2 s
 
 
 def two_robots_on_hosts(tmp_path, spec: str, duration: float, prefix: str,
