@@ -44,9 +44,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench.common import sorted_quantile  # noqa: E402
-from bench.floor_probe import _busy, _config, realtime_sched  # noqa: E402
+from bench.floor_probe import (  # noqa: E402
+    _busy,
+    _config,
+    current_policy,
+    realtime_sched,
+    schedule_role,
+)
 from bus.transport import MINIMAL_RUNTIME  # noqa: E402
-from cli.process_flags import POLICIES, apply_scheduling  # noqa: E402
+from cli.process_flags import POLICIES  # noqa: E402
 
 PERIOD = 0.01  # [s] the mocap period at 100 Hz
 FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
@@ -238,13 +244,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="OS scheduling of every process (cli.process_flags; default: what "
                              "a realtime `tlfleet run` uses here)")
     args = parser.parse_args(argv)
-    if args.role is not None and args.sched is not None:
-        problem = apply_scheduling(args.sched)
-        if problem:
-            print(f"--sched {args.sched}: {problem}", file=sys.stderr)
+    if args.role is not None:
+        schedule_role(args.sched)
     if args.role == "sender":
         result = sender(args.port, args.n, args.slots, args.sender_work_us, args.seconds)
-        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        result["policy"] = current_policy()
         print(json.dumps(result), flush=True)
         return 0
     if args.role == "receiver":
@@ -256,8 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         row = fleet_probe(args.n, args.slots, work, args.sender_work_us, args.seconds,
                           sched=args.sched)
         print(f"{row['n']} agent-like processes ({row['sched']}), {work:.0f} µs of work each, "
-              f"{row['slots']} "
-              f"slots, sender {row['sender_work_us']:.0f} µs a slot: missed "
+              f"{row['slots']} slots, sender {row['sender_work_us']:.0f} µs a slot: missed "
               f"{100 * row['missed_fraction']:.2f} %, latency p50 {row['latency_p50_ms']:.2f} "
               f"ms p99 {row['latency_p99_ms']:.2f} ms, receiver CPU {row['rx_cpu_us']:.0f} "
               f"µs/tick, sender {row['sender_cpu_pct']:.0f} % of a core, idle "

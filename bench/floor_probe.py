@@ -343,6 +343,20 @@ def _run_sched(mode: str) -> str:
     return child_sched(RunConfig(Path("-"), mode=mode))
 
 
+def schedule_role(sched: str | None) -> None:
+    """A probe's child process takes ``--sched`` (``cli.process_flags``), saying why it could
+    not; the policy it then runs under is :func:`current_policy`."""
+    if sched is not None:
+        problem = apply_scheduling(sched)
+        if problem:
+            print(f"--sched {sched}: {problem}", file=sys.stderr)
+
+
+def current_policy() -> int:
+    """This process's OS scheduling policy (``os.SCHED_*``; -1 where the OS has none)."""
+    return os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+
+
 def lockstep_probe(runs: int = 3, seconds: float = 3.0, agents: int = 3,
                    work_us: float = 100.0, sim_work_us: float = 150.0,
                    transports: tuple[str, ...] = ("udp", "zenoh"), base_port: int = 0,
@@ -552,10 +566,8 @@ def main(argv: list[str] | None = None) -> int:
                              "(cli.process_flags; default: what `tlfleet run` uses here, "
                              "realtime for the echo variants, lockstep with --lockstep)")
     args = parser.parse_args(argv)
-    if args.role is not None and args.sched is not None:
-        problem = apply_scheduling(args.sched)
-        if problem:
-            print(f"--sched {args.sched}: {problem}", file=sys.stderr)
+    if args.role is not None:
+        schedule_role(args.sched)
     transport = "udp" if args.variant in ("udp", "udp-relay") else "zenoh"
     if args.role == "listener":
         listener(transport, args.port)
@@ -563,7 +575,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "lockstep-sender":
         result = lockstep_sender(transport, args.ports, args.agents, args.ticks,
                                  args.sim_work_us, args.ltl_ports, args.divider)
-        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        result["policy"] = current_policy()
         print(json.dumps(result))
         return 0
     if args.lockstep:
@@ -583,7 +595,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.role == "receiver":
         result = receiver(args.variant, args.port, args.ticks, args.work_us, args.key)
-        result["policy"] = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else -1
+        result["policy"] = current_policy()
         print(json.dumps(result))
         return 0
     if args.role == "relay":
