@@ -157,6 +157,11 @@ class TransportConfig:
     ``direct_callbacks``: subscriber callbacks run on zenoh's network thread
     (``Callback(indirect=False)``) instead of a Python thread per subscriber, saving one thread
     wake-up per sample; they must then be quick and never block.
+    ``block_when_congested``: this session's publications block while a link's send queue is
+    full (zenoh ``CongestionControl.BLOCK``, carried with each sample to every hop) instead of
+    being dropped after zenoh's ``wait_before_drop`` (1 ms; 50 ms for a fragmented sample). Off
+    for the fleet's processes, so a slow receiver never holds up a robot's loop; for tools and
+    tests that must not lose a sample (the fuzz test's intruder counts what every receiver got).
     """
 
     mode: str = "client"  # "client" | "peer" | "router"
@@ -167,6 +172,7 @@ class TransportConfig:
     extra: dict[str, Any] = field(default_factory=dict)  # zenoh config path -> JSON value
     runtime: str | None = DEFAULT_RUNTIME
     direct_callbacks: bool = False
+    block_when_congested: bool = False
     zenoh_config: Path | None = None  # a zenohd-style JSON5 file under these settings
     #                                   (bus.zenoh_config)
 

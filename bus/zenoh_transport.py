@@ -41,9 +41,11 @@ def init_log(spec: str) -> None:
 class ZenohTransport:
     """:class:`Transport` over an open zenoh session (stack-notes.md §1)."""
 
-    def __init__(self, session: Any, direct_callbacks: bool = False):
+    def __init__(self, session: Any, direct_callbacks: bool = False,
+                 block_when_congested: bool = False):
         self._session = session
         self._direct = direct_callbacks
+        self._block = block_when_congested
         self._closing = threading.Event()
         self._publishers: dict[str, Any] = {}
         self._entities: list[Any] = []
@@ -94,12 +96,19 @@ class ZenohTransport:
         import zenoh
 
         cls.apply_runtime(config)
-        return cls(zenoh.open(cls.zenoh_config(config)), config.direct_callbacks)
+        return cls(zenoh.open(cls.zenoh_config(config)), config.direct_callbacks,
+                   config.block_when_congested)
 
     def publish(self, key: str, payload: bytes) -> None:
         publisher = self._publishers.get(key)
         if publisher is None:
-            publisher = self._session.declare_publisher(key)
+            if self._block:
+                import zenoh
+
+                publisher = self._session.declare_publisher(
+                    key, congestion_control=zenoh.CongestionControl.BLOCK)
+            else:
+                publisher = self._session.declare_publisher(key)
             self._publishers[key] = publisher
         publisher.put(payload)
 

@@ -246,6 +246,41 @@ class _SpySession:
         self.gets.append(options)
 
 
+class _SpyPublisherSession:
+    """Records what ZenohTransport passes to zenoh's ``declare_publisher``."""
+
+    def __init__(self) -> None:
+        self.declared: list[tuple[str, dict]] = []
+        self.puts: list[tuple[str, bytes]] = []
+
+    def declare_publisher(self, key_expr, **options):
+        self.declared.append((key_expr, options))
+        puts = self.puts
+
+        class Publisher:
+            def put(self, payload):
+                puts.append((key_expr, payload))
+
+        return Publisher()
+
+
+def test_block_when_congested_declares_blocking_publishers_once_per_key():
+    """A session opened with ``block_when_congested`` (the fuzz test's intruder) publishes with
+    CongestionControl.BLOCK; the fleet's default leaves zenoh's (DROP) in place."""
+    import zenoh
+
+    blocking, default = _SpyPublisherSession(), _SpyPublisherSession()
+    for session, block in ((blocking, True), (default, False)):
+        transport = ZenohTransport(session, block_when_congested=block)
+        transport.publish("t/a", b"1")
+        transport.publish("t/a", b"2")
+        transport.publish("t/b", b"3")
+        assert session.puts == [("t/a", b"1"), ("t/a", b"2"), ("t/b", b"3")]
+    assert blocking.declared == [("t/a", {"congestion_control": zenoh.CongestionControl.BLOCK}),
+                                 ("t/b", {"congestion_control": zenoh.CongestionControl.BLOCK})]
+    assert default.declared == [("t/a", {}), ("t/b", {})]
+
+
 def test_droppable_queries_use_congestion_control_drop():
     """Issue 13: a query's default congestion control (BLOCK) can hold the caller until zenoh
     closes a blackholed link; ``droppable`` asks zenoh to drop instead (the replies follow the
