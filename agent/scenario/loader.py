@@ -13,7 +13,8 @@ File layout (every section but ``robots`` is optional)::
     [ltl]     suffix_weight, control_rate, stagger      (LtlParams)
     [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate, hold_f_above_r,
               complete_f_on_satisfaction, recovery   (StlParams; recovery: docs/coupling.md)
-    [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog, spread_frames
+    [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog, spread_frames,
+              frame_slots
               (SimParams)
     [navigation] coupling_aware, coupling_share   (NavParams, docs/coupling.md)
     [[regions]] name, center = [x, y], radius, labels = [...]

@@ -240,6 +240,12 @@ class SimParams:
     # (Scenario.frame_offset), so the agents compute one after another instead of all at once
     # at the tick (architecture.md §3, issue 17). Lockstep samples every frame at the tick.
     spread_frames: bool = True
+    # Realtime, spread frames: the distinct frame instants a mocap period has at most. A fleet
+    # with more slots than this shares them, ⌈m / frame_slots⌉ robots an instant
+    # (Scenario.frame_offset): every instant wakes the simulator and costs it a publication,
+    # which at 30 robots outweighed spreading their compute over ten instants (issue 17,
+    # round 18). Scenario 1 (4 slots) is unaffected.
+    frame_slots: int = 5
 
 
 @dataclass(frozen=True)
@@ -310,7 +316,10 @@ class Scenario:
         s = ⌊j·S/m⌋: one per robot due every tick (id order, slots 0 …) and, when the fleet has
         robots with divider ≥ 2 (LTL robots, whose ticks ``control_phase`` already spreads), one
         more, the last, which they share. Scenario 1 (S = 10): STL robots 3, 4, 5 at 0, 2 and 5
-        ms of each 10, LTL robots 1 and 2 at 7. 0 without ``spread_frames`` or with S = 1.
+        ms of each 10, LTL robots 1 and 2 at 7. A fleet with m > K = ``sim.frame_slots`` shares
+        K slots, slot j in ⌊j·K/m⌋ (consecutive ids together, the LTL robots in the last):
+        s = ⌊⌊j·K/m⌋·S/K⌋ — a generated 30-robot fleet (K = 5) at 0, 2, 4, 6 and 8 ms, six
+        robots each. 0 without ``spread_frames`` or with S = 1.
         Lockstep ignores it: its frames are all the tick's. Computed here only: the simulator's
         schedule, the frame keys and the agent's loop all use it."""
         steps = self.substeps_per_tick
@@ -319,6 +328,8 @@ class Scenario:
         every = sorted(r.id for r in self.robots if self.control_divider(r.id) == 1)
         slots = len(every) + (len(every) < len(self.robots))
         slot = every.index(robot_id) if self.control_divider(robot_id) == 1 else slots - 1
+        if slots > self.sim.frame_slots:
+            slot, slots = slot * self.sim.frame_slots // slots, self.sim.frame_slots
         return slot * steps // slots
 
     def every_tick_offsets(self) -> tuple[int, ...]:

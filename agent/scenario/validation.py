@@ -82,7 +82,8 @@ KNOWN_KEYS = frozenset({
     "suffix_weight", "control_rate", "stagger", "eta", "n_stage1", "delta", "zeta_l", "r1",
     "r_sense",
     "beta", "hold_f_above_r", "complete_f_on_satisfaction", "physics_rate", "mocap_rate",
-    "disturbance", "mocap_noise", "seed", "watchdog", "spread_frames", "max_v", "max_omega",
+    "disturbance", "mocap_noise", "seed", "watchdog", "spread_frames", "frame_slots",
+    "max_v", "max_omega",
     "acc_v", "acc_omega", "max_lin", "max_ang", "acc_lin", "acc_ang",
 })
 

@@ -66,6 +66,8 @@ BAD = [
     ("ltl.stagger", "yes", "ltl.stagger", "expected true or false, got string 'yes'"),
     ("sim.seed", -1, "sim.seed", "expected a number ≥ 0, got -1"),
     ("sim.spread_frames", 1, "sim.spread_frames", "expected true or false, got integer 1"),
+    ("sim.frame_slots", 0, "sim.frame_slots", "expected a positive number, got 0"),
+    ("sim.frame_slots", 2.5, "sim.frame_slots", "expected an integer, got number 2.5"),
     ("sim.mocap_rate", "fast", "sim.mocap_rate", "expected a number, got string 'fast'"),
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
     ("regions.0.name", "true", "regions[0].name", "'true' is not a valid proposition name"),

@@ -59,12 +59,44 @@ def test_frame_offsets_spread_the_every_tick_robots_and_put_the_ltl_robots_mid_t
     coarse = replace(s1, sim=replace(s1.sim, physics_rate=100.0))  # one physics step a tick
     assert [coarse.frame_offset(r.id) for r in coarse.robots] == [0] * 5
     many = scenario(*(omni(i, 0.5 * i, 0.0) for i in range(1, 31)))
-    assert [many.frame_offset(i) for i in range(1, 31)] == [i // 3 for i in range(30)]
+    # 30 slots share sim.frame_slots = 5 instants, six consecutive robots each
+    assert [many.frame_offset(i) for i in range(1, 31)] == [2 * (i // 6) for i in range(30)]
+    assert many.every_tick_offsets() == (2, 4, 6, 8)
+    ten = replace(many, sim=replace(many.sim, frame_slots=10))  # one instant a physics step
+    assert [ten.frame_offset(i) for i in range(1, 31)] == [i // 3 for i in range(30)]
     assert [_fleet().frame_offset(i) for i in (1, 2, 3)] == [6, 0, 3]
     alone = scenario(omni(1, 0.0, 0.0), unicycle(2, 1.0, 1.0))  # one slot each: mid-tick
     assert [alone.frame_offset(i) for i in (1, 2)] == [0, 5]
     with pytest.raises(KeyError):
         s1.frame_offset(9)
+
+
+@pytest.mark.parametrize("n_stl, n_ltl", [(3, 2), (4, 0), (5, 0), (6, 1), (12, 2), (30, 0),
+                                          (29, 3)])
+@pytest.mark.parametrize("frame_slots", [1, 2, 3, 5, 7, 10])
+def test_frame_slots_bound_the_instants_and_share_them_evenly(n_stl, n_ltl, frame_slots):
+    """``sim.frame_slots`` = K: at most K distinct offsets; the every-tick robots in id order
+    keep their order and fill the instants evenly (group sizes differ by at most one, the LTL
+    robots' shared slot counting as one member of the last); a fleet with at most K slots has
+    the offsets it had without the bound."""
+    robots = [unicycle(i, -3.0 + 0.5 * i, -2.0) for i in range(1, n_ltl + 1)]
+    robots += [omni(n_ltl + j, -3.0 + 0.3 * j, 1.0) for j in range(1, n_stl + 1)]
+    bounded = scenario(*robots)
+    bounded = replace(bounded, sim=replace(bounded.sim, frame_slots=frame_slots))
+    free = replace(bounded, sim=replace(bounded.sim, frame_slots=10 ** 6))
+    offsets = {r.id: bounded.frame_offset(r.id) for r in bounded.robots}
+    slots = n_stl + (n_ltl > 0)
+    if slots <= frame_slots:
+        assert offsets == {r.id: free.frame_offset(r.id) for r in free.robots}
+    assert len(set(offsets.values())) <= min(frame_slots, slots)
+    every = [offsets[n_ltl + j] for j in range(1, n_stl + 1)]
+    assert every == sorted(every) and every[0] == 0
+    members = every + ([offsets[1]] if n_ltl else [])
+    assert all(offsets[i] == offsets[1] for i in range(1, n_ltl + 1))  # the LTL robots' slot
+    if n_ltl:
+        assert offsets[1] == max(offsets.values())  # is the last
+    sizes = sorted(members.count(o) for o in set(members))
+    assert sizes[-1] - sizes[0] <= 1, sizes
 
 
 def test_frame_keys_by_offset():
