@@ -242,9 +242,10 @@ class SimParams:
     spread_frames: bool = True
     # Realtime, spread frames: the distinct frame instants a mocap period has at most. A fleet
     # with more slots than this shares them, ⌈m / frame_slots⌉ robots an instant
-    # (Scenario.frame_offset): every instant wakes the simulator and costs it a publication,
-    # which at 30 robots outweighed spreading their compute over ten instants (issue 17,
-    # round 18). Scenario 1 (4 slots) is unaffected.
+    # (Scenario.frame_offset): every instant wakes the simulator and costs it a publication.
+    # Five instants against ten: the simulator 5-13 points of a core less; a 20-robot fleet
+    # 5-23 points less; at 30 robots, saturated, the missed deadlines split with the hour
+    # (docs/performance.md, issue 17 round 18). Scenario 1 (4 slots) is unaffected.
     frame_slots: int = 5
 
 
