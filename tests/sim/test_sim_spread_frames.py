@@ -139,11 +139,11 @@ def _run(scen, *, silent: tuple[int, ...] = (), mode: str = "realtime"):
     with SimRun(net, scen, mode=mode) as run:
         observer.start_mission()
         assert run.join() == 0
-    return observer, agents
+    return observer, agents, run.process.timing
 
 
 def test_realtime_frames_are_sampled_at_each_robots_offset():
-    observer, agents = _run(_fleet())
+    observer, agents, timing = _run(_fleet())
     ticks = {f.seq: f for f in observer.frames if f.t > 0.0 or f.due}
     assert sorted(ticks) == list(range(1, 46))  # (tick 0 looks like the preview frame)
     assert all(abs(f.t - f.seq * PERIOD) < 1e-12 for f in ticks.values())  # mocap: the ticks
@@ -165,16 +165,22 @@ def test_realtime_frames_are_sampled_at_each_robots_offset():
     stats = observer.events_of("sim_stats")[0].data
     # deadlines: robot 2 ticks 1..44; robot 3 ticks 1..43 (tick 44's closes after the end);
     # robot 1 ticks 20 and 40. The fake answers inside the publication: nothing is missed, and
-    # each latency counts from the frame answered, not from the tick frame 3 or 6 ms before.
+    # each latency counts from the frame answered, not from the tick frame 3 or 6 ms before
+    # (from the tick, robot 3's latencies would be about 3 ms and robot 1's about 6 ms: below
+    # half of that, with a margin for the tick frame going out late). The median and the least,
+    # not the tail: one preemption of the sim's thread on a loaded machine makes a single
+    # latency long (this test, then with p99 < 3 ms for both, failed once at load 20; the
+    # failing line was not captured). Counting from the tick frame fails these (checked).
     assert (stats["due"], stats["missed"]) == (44 + 43 + 2, 0)
-    assert stats["latency_p99_ms_by_robot"]["3"] < 3.0
-    assert stats["latency_p99_ms_by_robot"]["1"] < 3.0
+    assert len(timing.robot_latencies[3]) >= 43 and len(timing.robot_latencies[1]) >= 2
+    assert np.median(timing.robot_latencies[3]) < 0.0015
+    assert min(timing.robot_latencies[1]) < 0.003
     bounds = FleetBounds((-5.0, 5.0, -5.0, 5.0), 0.45, 100.0)
     assert all(bounds.frame_problem(f) is None for f in at3 + ltl)
 
 
 def test_a_silent_agent_at_an_offset_misses_each_deadline_once():
-    observer, _ = _run(_fleet(), silent=(3,))
+    observer, _, _ = _run(_fleet(), silent=(3,))
     stats = observer.events_of("sim_stats")[0].data
     assert stats["missed_by_robot"] == {"3": 43}
     assert stats["missed"] == 43
