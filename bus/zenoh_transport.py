@@ -45,7 +45,11 @@ class ZenohTransport:
                  block_when_congested: bool = False):
         self._session = session
         self._direct = direct_callbacks
-        self._block = block_when_congested
+        self._publisher_options: dict[str, Any] = {}
+        if block_when_congested:
+            import zenoh
+
+            self._publisher_options["congestion_control"] = zenoh.CongestionControl.BLOCK
         self._closing = threading.Event()
         self._publishers: dict[str, Any] = {}
         self._entities: list[Any] = []
@@ -102,13 +106,7 @@ class ZenohTransport:
     def publish(self, key: str, payload: bytes) -> None:
         publisher = self._publishers.get(key)
         if publisher is None:
-            if self._block:
-                import zenoh
-
-                publisher = self._session.declare_publisher(
-                    key, congestion_control=zenoh.CongestionControl.BLOCK)
-            else:
-                publisher = self._session.declare_publisher(key)
+            publisher = self._session.declare_publisher(key, **self._publisher_options)
             self._publishers[key] = publisher
         publisher.put(payload)
 
