@@ -1,17 +1,20 @@
 """The fleet size's floor (issue 17 item 5): N agent-like processes over zenoh at 100 Hz.
 
 ``bench/floor_probe.py`` measures one agent tick's floor; this measures the fleet's. A sim-like
-process publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` keys,
-slot g at ``g / slots`` of the period (as the simulator's spread frames, architecture.md §3),
-after spending ``sender_work_us`` of CPU before each (the simulator's per-slot Python: its
-physics part, poses, encoding; 100 µs puts the sender, answers included, at about the
-simulator's share of a core in a 30-robot fleet, 40 %). ``n`` receiver processes, receiver i on
-slot ``i % slots``, do what an STL agent's runtime does around its step: a ``FifoChannel`` read
-by the main thread, the newest of the queued frames taken, ``work_us`` of CPU (the agent's
-decode, step and encode), an answer of 12 bytes on a key of its own. Peers on loopback,
-multicast scouting off, the minimal zenoh runtime in every process (each a child of the caller,
-whose own environment and zenoh runtime stay as they are), every process under the OS scheduling
-a realtime ``tlfleet run`` gives the fleet's (``SCHED_FIFO`` where permitted;
+process publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` keys, slot g at
+``g / slots`` of the period (as the simulator's spread frames, architecture.md §3), after spending
+``sender_work_us`` of CPU before each (the simulator's per-slot Python: its physics part, poses,
+encoding). The defaults are a 30-robot fleet's shape since ``[sim] frame_slots`` = 5: five slots,
+and 450 µs a slot, which puts the sender, answers included, at the simulator's share of a core
+there, 41–42 % (38–43 % measured; ten slots of 100 µs, rounds 14–17's shape, cost the same).
+``n`` receiver processes, receiver i on slot ``slot_of(i, n, slots)``
+(consecutive receivers together, as ``Scenario.frame_offset`` groups robots when a fleet has more
+of them than ``[sim] frame_slots``), do what an STL agent's runtime does around its step: a
+``FifoChannel`` read by the main thread, the newest of the queued frames taken, ``work_us`` of CPU
+(the agent's decode, step and encode), an answer of 12 bytes on a key of its own. Peers on
+loopback, multicast scouting off, the minimal zenoh runtime in every process (each a child of the
+caller, whose own environment and zenoh runtime stay as they are), every process under the OS
+scheduling a realtime ``tlfleet run`` gives the fleet's (``SCHED_FIFO`` where permitted;
 ``floor_probe.realtime_sched``): the fleet's transport with nothing of the fleet's code in it.
 
 Measured, as the simulator measures a realtime fleet (``sim.stats``): the latency of each
@@ -22,8 +25,8 @@ sender's share of a core, and the machine's idle and steal shares during the run
 what zenoh and the wake-ups alone allow; with the agent's measured Python per tick it is what
 that Python costs at fleet scale.
 
-    .venv/bin/python bench/fleet_floor.py [--n 30] [--slots 10] [--work-us 30 250]
-                                          [--sender-work-us 100] [--seconds 5]
+    .venv/bin/python bench/fleet_floor.py [--n 30] [--slots 5] [--work-us 30 250]
+                                          [--sender-work-us 450] [--seconds 5]
 """
 
 from __future__ import annotations
@@ -71,6 +74,12 @@ def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
+
+
+def slot_of(index: int, n: int, slots: int) -> int:
+    """The slot of receiver ``index`` of ``n``: ⌊index·slots/n⌋ when ``n`` ≥ ``slots`` (the
+    fleet's grouping, ``Scenario.frame_offset``), else ``index``."""
+    return index * slots // n if n >= slots else index
 
 
 def receiver(port: int, index: int, slot: int, work_us: float, seconds: float) -> dict:
@@ -158,7 +167,7 @@ def sender(port: int, n: int, slots: int, sender_work_us: float, seconds: float)
     for k in range(periods):
         for i in range(n):
             wall = got.get((k, i))
-            sent = published[(k, i % slots)]
+            sent = published[(k, slot_of(i, n, slots))]
             if wall is None or wall - sent > PERIOD:
                 missed += 1
             if wall is not None:
@@ -183,8 +192,8 @@ def _last_json(out: str) -> dict | None:
     return json.loads(lines[-1]) if lines else None
 
 
-def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
-                sender_work_us: float = 100.0, seconds: float = 5.0, port: int = 0,
+def fleet_probe(n: int = 30, slots: int = 5, work_us: float = 30.0,
+                sender_work_us: float = 450.0, seconds: float = 5.0, port: int = 0,
                 sched: str | None = None) -> dict:
     """One run: a sender and ``n`` receiver processes (module docstring), all on zenoh's minimal
     runtime and under ``sched`` (None: what a realtime ``tlfleet run`` gives the fleet's); this
@@ -203,8 +212,9 @@ def fleet_probe(n: int = 30, slots: int = 10, work_us: float = 30.0,
             raise RuntimeError("fleet floor: the sender did not start")
         for i in range(n):
             procs.append(subprocess.Popen(
-                [*common, "--role", "receiver", "--index", str(i), "--slot", str(i % slots),
-                 "--work-us", str(work_us)], stdout=subprocess.PIPE, text=True, env=env))
+                [*common, "--role", "receiver", "--index", str(i),
+                 "--slot", str(slot_of(i, n, slots)), "--work-us", str(work_us)],
+                stdout=subprocess.PIPE, text=True, env=env))
         started = time.monotonic()
         for p in procs:
             line = p.stdout.readline().strip() if p.stdout is not None else ""
@@ -236,9 +246,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--index", type=int, default=0)
     parser.add_argument("--slot", type=int, default=0)
     parser.add_argument("--n", type=int, default=30)
-    parser.add_argument("--slots", type=int, default=10)
+    parser.add_argument("--slots", type=int, default=5)
     parser.add_argument("--work-us", type=float, nargs="+", default=[30.0, 250.0])
-    parser.add_argument("--sender-work-us", type=float, default=100.0)
+    parser.add_argument("--sender-work-us", type=float, default=450.0)
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--sched", choices=POLICIES, default=None,
                         help="OS scheduling of every process (cli.process_flags; default: what "

@@ -90,14 +90,13 @@ SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"latency_p99_ms": 2.0, "missed_fraction": 0.001, "lockstep_speedup": 10.0,
            "max_fleet": 30}
 FLEET_MISS_LIMIT = 0.01
-# the fleet-size floor (bench/fleet_floor.py): the sim's slots a period at 30 robots as of
-# rounds 14-17 (one per physics step; since round 18 the fleet shares [sim] frame_slots = 5, so
-# this floor's sender wakes twice as often as the fleet's simulator), its Python per slot
-# (the sender then costs about the sim's 40 % of a core), the
+# the fleet-size floor (bench/fleet_floor.py): a 30-robot fleet's frame instants a period
+# ([sim] frame_slots = 5 since round 18; rounds 14-17 had ten, one per physics step), its Python
+# per instant (450 µs puts the sender at the simulator's 41-42 % of a core there), the
 # agent-like work per tick: the floor's 30 µs, 150 µs, and 250 µs, about what a generated fleet's
 # STL agent spends per tick in its own Python from cold caches (decode, checks, step, encode)
-FLEET_FLOOR_SLOTS = 10
-FLEET_FLOOR_SENDER_US = 100.0
+FLEET_FLOOR_SLOTS = 5
+FLEET_FLOOR_SENDER_US = 450.0
 FLEET_FLOOR_WORK_US = (30.0, 150.0, 250.0)
 
 

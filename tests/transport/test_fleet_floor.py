@@ -15,13 +15,33 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from bench.fleet_floor import fleet_probe  # noqa: E402
+from agent.scenario import load_scenario  # noqa: E402
+from bench.fleet_floor import fleet_probe, slot_of  # noqa: E402
 from bench.floor_probe import realtime_sched  # noqa: E402
+from bench.runtime_bench import FLEET_FLOOR_SLOTS, generated_fleet  # noqa: E402
 from coordinator.runner import RunConfig, child_sched  # noqa: E402
 
 
 def _port(offset: int) -> int:
     return 41000 + 7 * (os.getpid() % 3000) + offset
+
+
+@pytest.mark.parametrize("n", [5, 7, 20, 30, 31])
+def test_the_floors_receivers_share_slots_as_the_fleets_robots_share_frame_instants(n, tmp_path):
+    """Receivers on one slot are exactly the generated fleet's robots on one frame instant
+    (``Scenario.frame_offset`` with ``[sim] frame_slots`` = the floor's slots), in the same
+    order of instants."""
+    path = tmp_path / "fleet.toml"
+    path.write_text(generated_fleet(n, 10.0))
+    scenario = load_scenario(path)
+    assert scenario.sim.frame_slots == FLEET_FLOOR_SLOTS  # the default the floor follows
+    offsets = [scenario.frame_offset(i + 1) for i in range(n)]
+    slots = [slot_of(i, n, FLEET_FLOOR_SLOTS) for i in range(n)]
+    assert len(set(slots)) == min(n, FLEET_FLOOR_SLOTS)
+    for i in range(n):
+        for j in range(n):
+            assert (slots[i] == slots[j]) == (offsets[i] == offsets[j]), (i, j)
+            assert (slots[i] < slots[j]) == (offsets[i] < offsets[j]), (i, j)
 
 
 def test_quick_receivers_answer_every_period_of_their_slot():
