@@ -7,10 +7,10 @@ process publishes, every 10 ms period, one 250-byte frame per slot: ``slots`` ke
 encoding). The defaults are a 30-robot fleet's shape since ``[sim] frame_slots`` = 5: five slots,
 and 450 µs a slot, which puts the sender, answers included, at the simulator's share of a core
 there, 41–42 % (38–43 % measured; ten slots of 100 µs, rounds 14–17's shape, cost the same).
-``n`` receiver processes, receiver i on slot ``slot_of(i, n, slots)``
-(consecutive receivers together, as ``Scenario.frame_offset`` groups robots when a fleet has more
-of them than ``[sim] frame_slots``), do what an STL agent's runtime does around its step: a
-``FifoChannel`` read by the main thread, the newest of the queued frames taken, ``work_us`` of CPU
+``n`` receiver processes, receiver i on slot ``slot_of(i, n, slots)`` (consecutive receivers
+together, as ``Scenario.frame_offset`` groups robots when a fleet has more of them than ``[sim]
+frame_slots``), do what an STL agent's runtime does around its step: a ``FifoChannel`` read by
+the main thread, the newest of the queued frames taken, ``work_us`` of CPU
 (the agent's decode, step and encode), an answer of 12 bytes on a key of its own. Peers on
 loopback, multicast scouting off, the minimal zenoh runtime in every process (each a child of the
 caller, whose own environment and zenoh runtime stay as they are), every process under the OS
@@ -60,6 +60,10 @@ from cli.process_flags import POLICIES  # noqa: E402
 PERIOD = 0.01  # [s] the mocap period at 100 Hz
 FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
 READY_TIMEOUT = 60.0  # [s] for every receiver to start (30 processes importing zenoh)
+#: a 30-robot fleet's shape since ``[sim] frame_slots`` = 5 (round 18): its frame instants a period,
+#: and the sender's CPU before each [µs] that puts it at the simulator's share of a core there
+SLOTS = 5
+SENDER_WORK_US = 450.0
 
 
 def _cpu_stat() -> list[int]:
@@ -192,8 +196,8 @@ def _last_json(out: str) -> dict | None:
     return json.loads(lines[-1]) if lines else None
 
 
-def fleet_probe(n: int = 30, slots: int = 5, work_us: float = 30.0,
-                sender_work_us: float = 450.0, seconds: float = 5.0, port: int = 0,
+def fleet_probe(n: int = 30, slots: int = SLOTS, work_us: float = 30.0,
+                sender_work_us: float = SENDER_WORK_US, seconds: float = 5.0, port: int = 0,
                 sched: str | None = None) -> dict:
     """One run: a sender and ``n`` receiver processes (module docstring), all on zenoh's minimal
     runtime and under ``sched`` (None: what a realtime ``tlfleet run`` gives the fleet's); this
@@ -246,9 +250,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--index", type=int, default=0)
     parser.add_argument("--slot", type=int, default=0)
     parser.add_argument("--n", type=int, default=30)
-    parser.add_argument("--slots", type=int, default=5)
+    parser.add_argument("--slots", type=int, default=SLOTS)
     parser.add_argument("--work-us", type=float, nargs="+", default=[30.0, 250.0])
-    parser.add_argument("--sender-work-us", type=float, default=450.0)
+    parser.add_argument("--sender-work-us", type=float, default=SENDER_WORK_US)
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--sched", choices=POLICIES, default=None,
                         help="OS scheduling of every process (cli.process_flags; default: what "

@@ -77,6 +77,8 @@ sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
 from bench.common import Figure, load_average, report  # noqa: E402
+from bench.fleet_floor import SENDER_WORK_US as FLEET_FLOOR_SENDER_US  # noqa: E402
+from bench.fleet_floor import SLOTS as FLEET_FLOOR_SLOTS  # noqa: E402
 from bench.fleet_floor import fleet_probe  # noqa: E402
 from bench.floor_probe import lockstep_probe  # noqa: E402
 from bench.floor_probe import probe as floor_probe  # noqa: E402
@@ -90,13 +92,10 @@ SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"latency_p99_ms": 2.0, "missed_fraction": 0.001, "lockstep_speedup": 10.0,
            "max_fleet": 30}
 FLEET_MISS_LIMIT = 0.01
-# the fleet-size floor (bench/fleet_floor.py): a 30-robot fleet's frame instants a period
-# ([sim] frame_slots = 5 since round 18; rounds 14-17 had ten, one per physics step), its Python
-# per instant (450 µs puts the sender at the simulator's 41-42 % of a core there), the
-# agent-like work per tick: the floor's 30 µs, 150 µs, and 250 µs, about what a generated fleet's
-# STL agent spends per tick in its own Python from cold caches (decode, checks, step, encode)
-FLEET_FLOOR_SLOTS = 5
-FLEET_FLOOR_SENDER_US = 450.0
+# the fleet-size floor (bench/fleet_floor.py; its shape, a 30-robot fleet's five frame instants and
+# the simulator's share of a core, is that module's SLOTS and SENDER_WORK_US): the agent-like
+# work per tick: the floor's 30 µs, 150 µs, and 250 µs, about what a generated fleet's STL agent
+# spends per tick in its own Python from cold caches (decode, checks, step, encode)
 FLEET_FLOOR_WORK_US = (30.0, 150.0, 250.0)
 
 

@@ -16,9 +16,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from agent.scenario import load_scenario  # noqa: E402
-from bench.fleet_floor import fleet_probe, slot_of  # noqa: E402
+from bench.fleet_floor import SLOTS, fleet_probe, slot_of  # noqa: E402
 from bench.floor_probe import realtime_sched  # noqa: E402
-from bench.runtime_bench import FLEET_FLOOR_SLOTS, generated_fleet  # noqa: E402
+from bench.runtime_bench import generated_fleet  # noqa: E402
 from coordinator.runner import RunConfig, child_sched  # noqa: E402
 
 
@@ -34,10 +34,10 @@ def test_the_floors_receivers_share_slots_as_the_fleets_robots_share_frame_insta
     path = tmp_path / "fleet.toml"
     path.write_text(generated_fleet(n, 10.0))
     scenario = load_scenario(path)
-    assert scenario.sim.frame_slots == FLEET_FLOOR_SLOTS  # the default the floor follows
+    assert scenario.sim.frame_slots == SLOTS  # the default the floor follows
     offsets = [scenario.frame_offset(i + 1) for i in range(n)]
-    slots = [slot_of(i, n, FLEET_FLOOR_SLOTS) for i in range(n)]
-    assert len(set(slots)) == min(n, FLEET_FLOOR_SLOTS)
+    slots = [slot_of(i, n, SLOTS) for i in range(n)]
+    assert len(set(slots)) == min(n, SLOTS)
     for i in range(n):
         for j in range(n):
             assert (slots[i] == slots[j]) == (offsets[i] == offsets[j]), (i, j)
