@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 PY     := $(BIN)/python
 
-.PHONY: run test bench lint clean compose-run system-deps
+.PHONY: run test test-fast test-full bench lint clean compose-run system-deps
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -13,7 +13,7 @@ $(PY):
 # Reinstall whenever the build changes (pyproject.toml, setup.py, the C tracking law and DWA).
 NATIVE := sim/tracking.c sim/tracking.h sim/_tracking_build.py \
           agent/nav/dwa_kernel.c agent/nav/dwa_kernel.h agent/nav/_dwa_build.py \
-          agent/protocol/wire_kernel.c
+          bus/protocol/wire_kernel.c
 $(VENV)/.installed: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e .
 	touch $@
@@ -27,6 +27,15 @@ run: $(VENV)/.installed
 
 test: $(VENV)/.installed-test
 	$(PY) -m pytest
+
+# The inner loop: every unit, property and closed-loop test, no process-starting or system test
+# (about 2 minutes on 2 cores).
+test-fast: $(VENV)/.installed-test
+	$(PY) -m pytest -m "not slow and not system and not needs_system"
+
+# The whole suite with every Hypothesis property at its full budget (tests/hypothesis_budget.py).
+test-full: $(VENV)/.installed-test
+	TLFLEET_HYPOTHESIS=full $(PY) -m pytest
 
 # Scenario 1 in lockstep as a docker compose fleet, images built offline (docker/compose-run.sh):
 # writes runs/compose-scenario1-<time>/, prints the report, leaves no container, network or dockerd.

@@ -1,18 +1,29 @@
-"""The one part of the build ``pyproject.toml`` cannot say: the optional C accelerators.
+"""What ``pyproject.toml`` cannot say: the package layout and the optional C accelerators.
 
-* ``sim._tracking`` (``sim/tracking.c``, built by cffi from ``sim/_tracking_build.py``) makes the
-  simulator's physics step several times cheaper (issue 17);
-* ``agent.nav._dwa`` (``agent/nav/dwa_kernel.c``, from ``agent/nav/_dwa_build.py``) does the
-  LTL agents' DWA rollouts and costs (issue 17);
-* ``agent.protocol._wire`` (``agent/protocol/wire_kernel.c``, a CPython extension: it builds the
-  messages itself) decodes the per-tick ``MocapFrame`` and ``Command`` (issue 17).
+**Layout.** Everything installs under one import package, ``tlfleet``, whose folder is the
+repository's root: ``agent/`` is ``tlfleet.agent``, ``bus/`` is ``tlfleet.bus``, and so on for
+``sim/``, ``coordinator/`` and ``cli/`` (``package_dir = {"tlfleet": "."}``). Only those five
+folders and the root's ``__init__.py`` are packages of the distribution; ``tests/``, ``bench/``,
+``docker/`` and ``scenarios/`` beside them are not installed.
 
-All are optional: without a C compiler the build warns and the package installs without them,
-and ``sim.world``, ``agent.nav.dwa`` and ``agent.protocol.fast_paths`` run the same work in
-Python, with the same results to the last bit."""
+**Accelerators.** All are optional: without a C compiler the build warns and the package installs
+without them, and ``tlfleet.sim.world``, ``tlfleet.agent.nav.dwa`` and
+``tlfleet.bus.protocol.fast_paths`` run the same work in Python, with the same results to the
+last bit.
 
-from setuptools import Extension, setup
+* ``tlfleet.sim._tracking`` (``sim/tracking.c``, built by cffi from ``sim/_tracking_build.py``)
+  makes the simulator's physics step several times cheaper;
+* ``tlfleet.agent.nav._dwa`` (``agent/nav/dwa_kernel.c``, from ``agent/nav/_dwa_build.py``) does
+  the LTL agents' DWA rollouts and costs;
+* ``tlfleet.bus.protocol._wire`` (``bus/protocol/wire_kernel.c``, a CPython extension: it builds
+  the messages itself) decodes the per-tick ``MocapFrame`` and ``Command``.
+"""
+
+from setuptools import Extension, find_packages, setup
 from setuptools.command.build_ext import build_ext
+from setuptools.command.build_py import build_py
+
+LAYER_FOLDERS = ("agent", "bus", "sim", "coordinator", "cli")
 
 
 class OptionalBuildExt(build_ext):
@@ -33,7 +44,19 @@ class OptionalBuildExt(build_ext):
                       "instead (same results, slower)")
 
 
-setup(cffi_modules=["sim/_tracking_build.py:ffibuilder", "agent/nav/_dwa_build.py:ffibuilder"],
-      ext_modules=[Extension("agent.protocol._wire", ["agent/protocol/wire_kernel.c"],
+class BuildPy(build_py):
+    """``build_py`` that leaves this file out of the ``tlfleet`` package: the root is the package's
+    folder, and the build script is not one of its modules."""
+
+    def find_package_modules(self, package: str, package_dir: str) -> list[tuple[str, str, str]]:
+        return [module for module in super().find_package_modules(package, package_dir)
+                if (module[0], module[1]) != ("tlfleet", "setup")]
+
+
+found = find_packages(include=[*LAYER_FOLDERS, *(f"{folder}.*" for folder in LAYER_FOLDERS)])
+setup(packages=["tlfleet", *(f"tlfleet.{package}" for package in found)],
+      package_dir={"tlfleet": "."},
+      cffi_modules=["sim/_tracking_build.py:ffibuilder", "agent/nav/_dwa_build.py:ffibuilder"],
+      ext_modules=[Extension("tlfleet.bus.protocol._wire", ["bus/protocol/wire_kernel.c"],
                              extra_compile_args=["-O2"])],
-      cmdclass={"build_ext": OptionalBuildExt})
+      cmdclass={"build_ext": OptionalBuildExt, "build_py": BuildPy})

@@ -26,11 +26,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from agent.protocol.codec import decode, encode  # noqa: E402
-from agent.protocol.messages import BackfillReply, BackfillRequest, MocapFrame  # noqa: E402
+from tlfleet.bus.protocol.codec import decode, encode  # noqa: E402
+from tlfleet.bus.protocol.messages import BackfillReply, BackfillRequest, MocapFrame  # noqa: E402
+from tlfleet.coordinator.record.frame_merge import FrameMerger  # noqa: E402
+from tlfleet.sim.frame_ring import FrameRing  # noqa: E402
+
 from bench.common import RESULTS, Figure, load_average, report, time_calls  # noqa: E402
-from coordinator.frame_merge import FrameMerger  # noqa: E402
-from sim.frame_ring import FrameRing  # noqa: E402
 
 
 def frames_of(n: int, robots: int = 5) -> list[MocapFrame]:

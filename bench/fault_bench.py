@@ -7,9 +7,10 @@ Each fault kind is injected ``--runs`` times (≥ 3) into the two-robot system-t
 100 Hz), with the fault tests' knobs: zenoh lease 500 ms on every process, the simulator's
 watchdog 0.15 s and LTL robots at 10 Hz (``tests/system/test_system_link_faults.py`` says why):
 
-* **cut** — ``cut:robot2@3+2`` on one namespace host (``coordinator.hosts_run.run_on_hosts``; root);
+* **cut** — ``cut:robot2@3+2`` on one namespace host
+  (``tlfleet.coordinator.run_hosts.run_on_hosts``; root);
 * **partition** — ``partition:robot2,sim@3+2``: only robot 2's agent and the simulator lose each
-  other; both keep the router (the peer layout of ``coordinator.hosts``; root);
+  other; both keep the router (the peer layout of ``tlfleet.coordinator.launch.netns_hosts``; root);
 * **freeze** — ``freeze:robot2@3+2`` (SIGSTOP/SIGCONT), processes on loopback;
 * **restart** — ``restart:robot2@3`` (SIGKILL, same argv again), processes on loopback.
 
@@ -26,8 +27,8 @@ Figures per kind, medians over the runs (from ``events.jsonl`` and ``trajectory.
 * **commands lost**: the commands the agents say they published (``agent_stats``) minus those
   the simulator received (``sim_stats``), and **commands ignored** as too old by the simulator;
   not countable for a restart (the killed process's counters die with it);
-* **contacts** (robot–robot) and **corrupted files** (``coordinator.rundir.read_run(strict=True)``
-  failing), summed over the runs.
+* **contacts** (robot–robot) and **corrupted files**
+  (``tlfleet.coordinator.record.rundir.read_run(strict=True)`` failing), summed over the runs.
 
 Targets (issue 13): detection ≤ 1 s, stopped ≤ 0.2 s, recovery ≤ 1 s, 0 contacts, 0 corrupted.
 Nothing here is CPU-bound: the figures are wall/sim times of a realtime fleet on a shared 2-core
@@ -55,12 +56,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from common import RESULTS, Figure, load_average, report  # noqa: E402
-
-from agent.scenario.faults import parse_fault  # noqa: E402
-from coordinator import rundir  # noqa: E402
-from coordinator.hosts_run import run_on_hosts  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.agent.model.faults import parse_fault  # noqa: E402
+from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.coordinator.record import rundir  # noqa: E402
+from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
+from tlfleet.coordinator.run_hosts import run_on_hosts  # noqa: E402
 
 TWO = ROOT / "tests" / "system" / "two_robots.toml"
 LEASE_MS = 500

@@ -5,10 +5,10 @@
 
 For each deployment, Scenario 1 is run ``--runs`` times (≥ 3) in lockstep and in realtime:
 
-* **local** — ``tlfleet run`` (``coordinator.runner.run_fleet``: router, sim and agents as
+* **local** — ``tlfleet run`` (``tlfleet.coordinator.run.run_fleet``: router, sim and agents as
   processes on loopback);
-* **hosts3** — ``tlfleet run --hosts 3`` (``coordinator.hosts_run.run_on_hosts``: three network
-  namespaces joined by a bridge, one router each, routers connected; root only);
+* **hosts3** — ``tlfleet run --hosts 3`` (``tlfleet.coordinator.run_hosts.run_on_hosts``: three
+  network namespaces joined by a bridge, one router each, routers connected; root only);
 * **compose** — ``docker/compose-run.sh`` on a compose file written by ``tlfleet compose``
   (one container per process on one compose network; the image must be buildable offline, see
   README "docker compose").
@@ -42,10 +42,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from coordinator.compose import ComposeConfig, write_compose  # noqa: E402
-from coordinator.hosts_run import run_on_hosts  # noqa: E402
-from coordinator.rundir import read_events  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
+from tlfleet.coordinator.compose import ComposeConfig, write_compose  # noqa: E402
+from tlfleet.coordinator.record.rundir import read_events  # noqa: E402
+from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
+from tlfleet.coordinator.run_hosts import run_on_hosts  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 DEPLOYMENTS = ("local", "hosts3", "compose")

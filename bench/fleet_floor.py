@@ -17,7 +17,7 @@ caller, whose own environment and zenoh runtime stay as they are), every process
 scheduling a realtime ``tlfleet run`` gives the fleet's (``SCHED_FIFO`` where permitted;
 ``floor_probe.realtime_sched``): the fleet's transport with nothing of the fleet's code in it.
 
-Measured, as the simulator measures a realtime fleet (``sim.stats``): the latency of each
+Measured, as the simulator measures a realtime fleet (``tlfleet.sim.stats``): the latency of each
 answer from its frame's publication, and the share of the (receiver, period) deadlines missed
 (no answer within one period of the frame); the receivers' CPU per tick (median), the
 sender's share of a core, and the machine's idle and steal shares during the run
@@ -46,6 +46,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from tlfleet.bus.transport import MINIMAL_RUNTIME  # noqa: E402
+from tlfleet.cli.process_flags import POLICIES  # noqa: E402
+
 from bench.common import sorted_quantile  # noqa: E402
 from bench.floor_probe import (  # noqa: E402
     _busy,
@@ -54,8 +57,6 @@ from bench.floor_probe import (  # noqa: E402
     realtime_sched,
     schedule_role,
 )
-from bus.transport import MINIMAL_RUNTIME  # noqa: E402
-from cli.process_flags import POLICIES  # noqa: E402
 
 PERIOD = 0.01  # [s] the mocap period at 100 Hz
 FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
@@ -255,8 +256,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sender-work-us", type=float, default=SENDER_WORK_US)
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--sched", choices=POLICIES, default=None,
-                        help="OS scheduling of every process (cli.process_flags; default: what "
-                             "a realtime `tlfleet run` uses here)")
+                        help="OS scheduling of every process (tlfleet.cli.process_flags; "
+                             "default: what a realtime `tlfleet run` uses here)")
     args = parser.parse_args(argv)
     if args.role is not None:
         schedule_role(args.sched)

@@ -15,7 +15,7 @@ fleet's shape, sim → router → agent → router → sim, with nothing but the
 work in it, so its p99 is the floor of the fleet's frame → command latency on this machine),
 ``zenoh-default`` (today's agent pattern before issue 17: a Python callback thread per
 subscriber hands the payload to the main thread through a condition variable, zenoh's default
-runtime), ``zenoh-minimal`` (the same with ``bus.transport.MINIMAL_RUNTIME``),
+runtime), ``zenoh-minimal`` (the same with ``tlfleet.bus.transport.MINIMAL_RUNTIME``),
 ``zenoh-direct`` (minimal runtime, ``Callback(indirect=False)``: the callback runs on zenoh's
 thread), ``zenoh-fifo`` (minimal runtime, a ``FifoChannel`` read by the main thread with a
 blocking ``recv``: the agents' pattern), ``zenoh-inline`` (minimal runtime, the work and the
@@ -39,7 +39,7 @@ decimated agent-like processes (the LTL agents: ``ltl_work_us`` every ``divider`
 staggered phases, each on a key of its own as ``mocap_every``), whose ticks the sender waits
 for too. Its processes run under the OS scheduling a lockstep ``tlfleet run`` gives the fleet's
 (``sched``, default :func:`lockstep_sched`: ``SCHED_FIFO`` where permitted, else
-``SCHED_BATCH``; ``cli.process_flags``), so the floor and the fleet are scheduled alike.
+``SCHED_BATCH``; ``tlfleet.cli.process_flags``), so the floor and the fleet are scheduled alike.
 
     .venv/bin/python bench/floor_probe.py [--runs 3] [--seconds 3]
     .venv/bin/python bench/floor_probe.py --lockstep [--work-us 100] [--sim-work-us 150]
@@ -63,9 +63,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from tlfleet.bus.transport import MINIMAL_RUNTIME  # noqa: E402
+from tlfleet.cli.process_flags import POLICIES, apply_scheduling  # noqa: E402
+
 from bench.common import sorted_quantile  # noqa: E402
-from bus.transport import MINIMAL_RUNTIME  # noqa: E402
-from cli.process_flags import POLICIES, apply_scheduling  # noqa: E402
 
 VARIANTS = ("udp", "udp-relay", "zenoh-default", "zenoh-minimal", "zenoh-direct", "zenoh-fifo",
             "zenoh-inline")
@@ -338,14 +339,14 @@ def realtime_sched() -> str:
 
 
 def _run_sched(mode: str) -> str:
-    from coordinator.runner import RunConfig, child_sched
+    from tlfleet.coordinator.run import RunConfig, child_sched
 
     return child_sched(RunConfig(Path("-"), mode=mode))
 
 
 def schedule_role(sched: str | None) -> None:
-    """A probe's child process takes ``--sched`` (``cli.process_flags``), saying why it could
-    not; the policy it then runs under is :func:`current_policy`."""
+    """A probe's child process takes ``--sched`` (``tlfleet.cli.process_flags``), saying why it
+    could not; the policy it then runs under is :func:`current_policy`."""
     if sched is not None:
         problem = apply_scheduling(sched)
         if problem:
@@ -458,7 +459,7 @@ def relay(port: int, ticks: int) -> None:
 def run_pair(variant: str, port: int, seconds: float, work_us: float,
              sched: str = "default") -> dict:
     """One sender (this process's child) and one receiver process (and the relay between
-    them for ``udp-relay``), each under ``sched`` (``cli.process_flags``)."""
+    them for ``udp-relay``), each under ``sched`` (``tlfleet.cli.process_flags``)."""
     ticks = int(seconds * 100)
     env = dict(os.environ)
     env.pop("ZENOH_RUNTIME", None)
@@ -563,7 +564,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="the lockstep floor (lockstep_probe) instead of the echo variants")
     parser.add_argument("--sched", choices=POLICIES, default=None,
                         help="OS scheduling of every process of the probe "
-                             "(cli.process_flags; default: what `tlfleet run` uses here, "
+                             "(tlfleet.cli.process_flags; default: what `tlfleet run` uses here, "
                              "realtime for the echo variants, lockstep with --lockstep)")
     args = parser.parse_args(argv)
     if args.role is not None:

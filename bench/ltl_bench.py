@@ -7,7 +7,7 @@ Measures, as medians over several runs, CPU time (``time.thread_time``) beside w
    scenarios' formulas;
 2. end-to-end planning time (parse + translate + product + search) for every LTL robot of the
    three scenarios with straight-line weights, and **Algorithm 1 as the agent runs it**
-   (``agent.runtime.ltl_agent.LtlCore.plan``: the map weights of the global planner, whose
+   (``tlfleet.agent.runtime.ltl_agent.LtlCore.plan``: the map weights of the global planner, whose
    region-to-region path lengths are computed once per map when the core is built, issue 17
    item 3; target ≤ 5 ms CPU for every robot), plus the same with the map built inside the timing
    (what one ``tlfleet plan`` call pays);
@@ -45,14 +45,15 @@ _ROOT_ARG = next((sys.argv[i + 1] for i, a in enumerate(sys.argv[:-1]) if a == "
 CODE_ROOT = Path(_ROOT_ARG).resolve() if _ROOT_ARG else ROOT
 sys.path.insert(0, str(CODE_ROOT))
 
-from agent.ltl.buchi import translate  # noqa: E402
-from agent.ltl.parser import parse  # noqa: E402
-from agent.ltl.planner import plan, plan_robot, replan  # noqa: E402
-from agent.ltl.transition_system import from_regions, from_scenario  # noqa: E402
-from agent.nav.grid_planner import path_length_function  # noqa: E402
-from agent.runtime.ltl_agent import LtlCore  # noqa: E402
-from agent.scenario import load_scenario  # noqa: E402
-from agent.scenario.model import Region  # noqa: E402
+from tlfleet.agent.ltl.buchi import translate  # noqa: E402
+from tlfleet.agent.ltl.parser import parse  # noqa: E402
+from tlfleet.agent.ltl.planner import plan, plan_robot, replan  # noqa: E402
+from tlfleet.agent.ltl.transition_system import from_regions, from_scenario  # noqa: E402
+from tlfleet.agent.model.scenario import Region  # noqa: E402
+from tlfleet.agent.nav.grid_planner import path_length_function  # noqa: E402
+from tlfleet.agent.runtime.ltl_agent import LtlCore  # noqa: E402
+from tlfleet.agent.scenario import load_scenario  # noqa: E402
+
 from bench.common import Figure, load_average, print_table, time_calls  # noqa: E402
 
 ALGORITHM1_TARGET_MS = 5.0

@@ -24,13 +24,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))  # the closed-loop test harnesses
 
-from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control  # noqa: E402
-from agent.nav.executor import Executor, ExecutorInputs  # noqa: E402
-from agent.nav.grid import grid_from_arena  # noqa: E402
-from agent.nav.grid_planner import path_length_function, plan_path  # noqa: E402
-from agent.nav.harness import ExecutorController, SimRobot, simulate  # noqa: E402
-from agent.scenario.model import Arena, RectObstacle, Region, Robot, Scenario  # noqa: E402
+from nav_harness import ExecutorController, SimRobot, simulate  # noqa: E402
+from tlfleet.agent.model.scenario import Arena, RectObstacle, Region, Robot, Scenario  # noqa: E402
+from tlfleet.agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control  # noqa: E402
+from tlfleet.agent.nav.executor import Executor, ExecutorInputs  # noqa: E402
+from tlfleet.agent.nav.grid import grid_from_arena  # noqa: E402
+from tlfleet.agent.nav.grid_planner import path_length_function, plan_path  # noqa: E402
 
 DEFAULT_OUTPUT = ROOT / "bench" / "results" / "nav_bench.json"
 
@@ -150,11 +151,11 @@ def bench_ltl_agent_replay(runs: int, sim_seconds: float, kernel: str = "auto",
     their start poses. CPU per call, percentiles over every step of ``runs`` replays (the step
     is on the fleet's latency path; the re-plan runs after the command is sent). ``kernel`` is
     the DWA's (``DwaConfig.kernel``); ``suffix`` ends the figures' names."""
-    from agent.nav.executor import ExecutorConfig
-    from agent.protocol.messages import MocapFrame
-    from agent.runtime.loop import TickInput
-    from agent.runtime.ltl_agent import LtlCore
-    from agent.scenario import load_scenario
+    from tlfleet.agent.nav.executor import ExecutorConfig
+    from tlfleet.agent.runtime.loop import TickInput
+    from tlfleet.agent.runtime.ltl_agent import LtlCore
+    from tlfleet.agent.scenario import load_scenario
+    from tlfleet.bus.protocol.messages import MocapFrame
 
     scenario = load_scenario(ROOT / "scenarios" / "scenario1.toml")
     ltl = [r.id for r in scenario.robots if r.kind == "unicycle"]

@@ -2,11 +2,12 @@
 
     .venv/bin/python bench/runtime_bench.py [--quick] [--runs N] [--out FILE.json]
 
-Every fleet is started by ``coordinator.runner.run_fleet`` (router + sim + one process per agent,
-exactly as ``tlfleet run``); the figures come from the simulator's ``sim_stats`` event
-(``sim.stats``: latency = command arrival at the sim − publication of the frame it answers, on the
-sim's own clock; a control deadline of robot r at tick k is missed when its ``Command(seq=k)`` has
-not arrived when the sim steps past tick k) and from the coordinator's run record. Medians over
+Every fleet is started by ``tlfleet.coordinator.run.run_fleet`` (router + sim + one process per
+agent, exactly as ``tlfleet run``); the figures come from the simulator's ``sim_stats`` event
+(``tlfleet.sim.stats``: latency = command arrival at the sim − publication of the frame it answers,
+on the sim's own clock; a control deadline of robot r at tick k is missed when its
+``Command(seq=k)`` has not arrived when the sim steps past tick k) and from the coordinator's run
+record. Medians over
 ``--runs`` runs (≥ 3):
 
 * ``latency_p50_ms`` / ``latency_p99_ms``: Scenario 1 in realtime (target p99 ≤ 2 ms), over
@@ -50,7 +51,7 @@ Besides, for every run, the CPU time of each child process per wall second of th
 phase (``psutil`` user + system, sampled every 0.25 s; ``cpu_pct``: mean per role, % of one
 core). Wall-clock figures (latency, missed deadlines) depend on whatever else the machine runs;
 CPU per process much less so, which makes it the figure to compare changes with on a shared
-machine. Realtime tick 0 owes no command (``sim.stats``), so a run misses nothing by
+machine. Realtime tick 0 owes no command (``tlfleet.sim.stats``), so a run misses nothing by
 construction.
 """
 
@@ -75,18 +76,19 @@ import psutil
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from agent.scenario import load_scenario  # noqa: E402
+from tlfleet.agent.scenario import load_scenario  # noqa: E402
+from tlfleet.coordinator.launch.processes import FIFO_PRIORITY, fifo_permitted  # noqa: E402
+from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.coordinator.record.rundir import read_events  # noqa: E402
+from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
+from tlfleet.coordinator.run_hosts import run_on_hosts  # noqa: E402
+
 from bench.common import Figure, load_average, report  # noqa: E402
 from bench.fleet_floor import SENDER_WORK_US as FLEET_FLOOR_SENDER_US  # noqa: E402
 from bench.fleet_floor import SLOTS as FLEET_FLOOR_SLOTS  # noqa: E402
 from bench.fleet_floor import fleet_probe  # noqa: E402
 from bench.floor_probe import lockstep_probe  # noqa: E402
 from bench.floor_probe import probe as floor_probe  # noqa: E402
-from coordinator.hosts_run import run_on_hosts  # noqa: E402
-from coordinator.launcher import FIFO_PRIORITY, fifo_permitted  # noqa: E402
-from coordinator.rundir import read_events  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.supervisor import SupervisorConfig  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"latency_p99_ms": 2.0, "missed_fraction": 0.001, "lockstep_speedup": 10.0,
@@ -182,8 +184,8 @@ class CpuSampler:
                     argv = child.cmdline()
                 except psutil.Error:
                     continue
-                if "cli.main" in argv[:-1]:
-                    role = argv[argv.index("cli.main") + 1]
+                if "tlfleet.cli" in argv[:-1]:
+                    role = argv[argv.index("tlfleet.cli") + 1]
                     if "--robot" in argv[:-1]:
                         role += "-" + argv[argv.index("--robot") + 1]
                     procs[child.pid] = (child, role)
@@ -308,14 +310,14 @@ def run_figures(run_dir: Path, stl_ids: set[int], cpu: dict[str, float]) -> dict
 
 def run_on_two_hosts(scenario: Path, duration: float, out: Path, *, insecure: bool) -> dict:
     """One realtime run of ``scenario`` over two network-namespace hosts, one zenoh router each,
-    the routers connected (``tlfleet run --hosts 2``, :func:`coordinator.hosts_run.run_on_hosts`:
-    the sim and the coordinator on host 0, robot number j on host j mod 2, so every frame to and
-    every command from the robots of host 1 crosses both routers). Secured (mutual TLS and each
-    router's access control, the default of ``--hosts``) unless ``insecure`` (plain TCP). Root
-    only. Its figures from ``run.json`` and the sim's ``sim_stats``, as :func:`run_once`; CPU
-    per process over the realtime phase (located from the sim process's CPU: it works until the
-    duration has run), as % of a core and as CPU-s per sim-s (realtime: one sim second per wall
-    second)."""
+    the routers connected (``tlfleet run --hosts 2``,
+    :func:`tlfleet.coordinator.run_hosts.run_on_hosts`: the sim and the coordinator on host 0, robot
+    number j on host j mod 2, so every frame to and every command from the robots of host 1 crosses
+    both routers). Secured (mutual TLS and each router's access control, the default of ``--hosts``)
+    unless ``insecure`` (plain TCP). Root only. Its figures from ``run.json`` and the sim's
+    ``sim_stats``, as :func:`run_once`; CPU per process over the realtime phase (located from the
+    sim process's CPU: it works until the duration has run), as % of a core and as CPU-s per sim-s
+    (realtime: one sim second per wall second)."""
     stl_ids = {r.id for r in load_scenario(scenario).robots if r.is_stl}
     load_before = os.getloadavg()
     with CpuSampler(period=0.5) as sampler:

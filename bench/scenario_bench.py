@@ -4,16 +4,17 @@
         [--modes lockstep realtime] [--coupling on off] [--scenarios 1 2 3 recovery]
         [--keep DIR] [--rebuild DIR...] [--out FILE.json]
 
-Every run is a real fleet (``coordinator.runner.run_fleet``: router, sim and one process per robot,
-as ``tlfleet run``); its report (``coordinator.report.build_report``) gives the robustness of each
-STL sub-task from the trajectory, the verdicts and held fractions (``coordinator.verdicts``), the
-LTL visits, contacts and stationary episodes. The goals checked per run:
+Every run is a real fleet (``tlfleet.coordinator.run.run_fleet``: router, sim and one process per
+robot, as ``tlfleet run``); its report (``tlfleet.coordinator.report.run_report.build_report``)
+gives the robustness of each STL sub-task from the trajectory, the verdicts and held fractions
+(``tlfleet.coordinator.report.task_verdicts``), the LTL visits, contacts and stationary episodes.
+The goals checked per run:
 
 * S1: every sub-task ≥ its paper bound and within 0.05 of the best achievable of
   ``scenarios.md``; 0 contacts. Beside the goals of φ′3, φ′4, φ′5, their joint optimum
-  (``coordinator.joint_optimum``, docs/coupling.md §3): ρ′4 + (ρ′3 + ρ′5)/2 ≤ −0.9 from the
-  scenario's geometry, each task's bound given the other two's ρ of the run, the distance to it,
-  and φ′4's bound given robots 3 and 5's recorded trajectories (min over [5, 30] of
+  (``tlfleet.coordinator.report.joint_optimum``, docs/coupling.md §3): ρ′4 + (ρ′3 + ρ′5)/2 ≤ −0.9
+  from the scenario's geometry, each task's bound given the other two's ρ of the run, the distance
+  to it, and φ′4's bound given robots 3 and 5's recorded trajectories (min over [5, 30] of
   1 − ‖z3 − z5‖/2), which tells how far the least-violating solution is from what was possible.
   The three goals (best − 0.05) leave zero slack on that plane;
 * S2: ρ(φ3), ρ(φ4) ≥ −0.2; both LTL tasks accepting with every region visited ≥ 2 times;
@@ -22,8 +23,8 @@ LTL visits, contacts and stationary episodes. The goals checked per run:
   regions visited; 0 contacts;
 * recovery (``bench/recovery_case.toml``, coupling-aware limits off in the file; here ``--coupling
   on``/``off`` switches ``[stl] recovery`` instead, off being the paper's Algorithm 2 as a
-  contrast): after a forced slowdown (the escort cannot keep up; repairs lower r̄ below 0) the leader
-  stops, and the escort's ρ^ψ, recomputed from the trajectory, is ≥ 0 again within 10 s; 0
+  contrast): after a forced slowdown (the escort cannot keep up; repairs lower r̄ below 0) the
+  leader stops, and the escort's ρ^ψ, recomputed from the trajectory, is ≥ 0 again within 10 s; 0
   contacts.
 
 Each run directory gets ``bench_run.json`` (case, seed, mode, coupling, clean, wall time, load
@@ -52,14 +53,14 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
-
-from agent.scenario.loader import load_scenario  # noqa: E402
-from agent.stl.monitor import read_trajectory_csv  # noqa: E402
-from agent.stl.robustness import participants, psi_array  # noqa: E402
-from coordinator.joint_optimum import find_pinches  # noqa: E402
-from coordinator.report import build_report  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.agent.scenario.loader import load_scenario  # noqa: E402
+from tlfleet.agent.stl.monitor import read_trajectory_csv  # noqa: E402
+from tlfleet.agent.stl.parser import robot_subtasks  # noqa: E402
+from tlfleet.agent.stl.robustness import participants, psi_array  # noqa: E402
+from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.coordinator.report.joint_optimum import find_pinches  # noqa: E402
+from tlfleet.coordinator.report.run_report import build_report  # noqa: E402
+from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
 
 CASES = {"1": ROOT / "scenarios" / "scenario1.toml", "2": ROOT / "scenarios" / "scenario2.toml",
          "3": ROOT / "scenarios" / "scenario3.toml",
@@ -173,7 +174,7 @@ def recovery_goal(scenario, data: dict, traj) -> dict:
     trajectory, is ≥ 0 again within RECOVERY_WITHIN of the leader's stop (its last sample faster
     than LEADER_STOPPED), after a slowdown that really lowered r (least r in force < 0)."""
     (escort,) = [r for r in scenario.robots if r.is_stl]
-    (phi,) = escort.stl_trees
+    (phi,) = robot_subtasks(escort)
     (leader,) = [j for j in participants(phi.body) if scenario.robot(j).is_ltl]
     xy = traj.states[leader][:, :2]
     speed = np.hypot(*np.diff(xy, axis=0).T) / np.diff(traj.t)
@@ -193,9 +194,10 @@ def recovery_goal(scenario, data: dict, traj) -> dict:
 
 
 def joint_rows(scenario, data: dict, traj) -> list[dict]:
-    """Per pinch of the scenario (``coordinator.joint_optimum``; Scenario 1's φ′3, φ′4, φ′5), each
-    task's ρ, its goal (best of scenarios.md − S1_GAP), and its jointly achievable bound given the
-    other two tasks' ρ of this run (for the leader also given robots j and k's trajectories)."""
+    """Per pinch of the scenario (``tlfleet.coordinator.report.joint_optimum``; Scenario 1's φ′3,
+    φ′4, φ′5), each task's ρ, its goal (best of scenarios.md − S1_GAP), and its jointly achievable
+    bound given the other two tasks' ρ of this run (for the leader also given robots j and k's
+    trajectories)."""
     entry = {int(rid): {s["index"]: s for s in e["subtasks"]} for rid, e in data["stl"].items()}
     out = []
     for pinch in find_pinches(scenario):

@@ -5,7 +5,7 @@ accepted per case (issue 11's before/after table).
     python bench/scenario_corpus.py --root /tmp/base     # another checkout (e.g. main's)
 
 Each case (``tests/scenario/broken_corpus.py``) is written to a temporary directory and loaded
-by ``agent.scenario.load_scenario`` of ``--root`` in its own subprocess (30 s timeout, 2 GiB
+by ``tlfleet.agent.scenario.load_scenario`` of ``--root`` in its own subprocess (30 s timeout, 2 GiB
 address-space limit, so /dev/zero or a hang cannot take the machine down):
 
 * **specific** — a ``ScenarioError`` naming the expected field path with the expected reason;
@@ -40,8 +40,8 @@ LOADER = """
 import json, sys
 sys.setrecursionlimit(1000)
 try:
-    from agent.errors import ScenarioError
-    from agent.scenario import load_scenario
+    from tlfleet.bus.errors import ScenarioError
+    from tlfleet.agent.scenario import load_scenario
     try:
         load_scenario(sys.argv[1])
         print(json.dumps({"status": "accepted"}))

@@ -3,7 +3,7 @@
     .venv/bin/python bench/security_bench.py [--quick] [--runs N] [--baseline TRAJECTORY.csv]
                                              [--out FILE.json]
 
-Scenario 1 through ``coordinator.runner.run_fleet`` (router, sim and one process per robot, as
+Scenario 1 through ``tlfleet.coordinator.run.run_fleet`` (router, sim and one process per robot, as
 ``tlfleet run``), plain and secured (``secure=`` a key directory of ``tlfleet keys``) in
 alternation — plain, secured, plain, secured … — so that the load the other users of a shared
 machine put on it falls on both alike. Per pair and as medians over ``--runs`` (≥ 3):
@@ -13,7 +13,7 @@ machine put on it falls on both alike. Per pair and as medians over ``--runs`` (
 * realtime frame→command latency p99 (the sim's ``sim_stats``), secured / plain (target ≤ 1.1);
 * CPU per process role (``psutil`` user + system per wall second, % of one core) — the figure
   least disturbed by the machine's load; the router pays for TLS, the ACL and reading its own
-  ACL trace (``bus.acl_log``);
+  ACL trace (``tlfleet.sim.router.denials``);
 * attribution: a third lockstep run per pair, secured with the router's ACL trace off
   (``RUST_LOG=warn`` in the children's environment: zenoh's own filter wins over the router's,
   so no denial is logged) — what the denial log costs, beside TLS and the ACL themselves;
@@ -42,12 +42,11 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from common import Figure, figure_records, load_average  # noqa: E402
 from runtime_bench import CpuSampler  # noqa: E402
-
-from agent.scenario import load_scenario  # noqa: E402
-from coordinator.keys import write_keys  # noqa: E402
-from coordinator.rundir import read_events  # noqa: E402
-from coordinator.runner import RunConfig, run_fleet  # noqa: E402
-from coordinator.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.agent.scenario import load_scenario  # noqa: E402
+from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.coordinator.record.rundir import read_events  # noqa: E402
+from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
+from tlfleet.coordinator.security.authority import write_keys  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TARGETS = {"lockstep_speedup_ratio": 0.9, "latency_p99_ratio": 1.1}

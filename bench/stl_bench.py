@@ -30,12 +30,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))  # the closed-loop test harnesses
 
-from agent.scenario.loader import load_scenario  # noqa: E402
-from agent.stl.agent import StepInput, build_agents  # noqa: E402
-from agent.stl.harness import run_closed_loop  # noqa: E402
-from agent.stl.monitor import Trajectory, task_robustness  # noqa: E402
-from agent.stl.syntax import Temporal  # noqa: E402
+from stl_harness import run_closed_loop  # noqa: E402
+from tlfleet.agent.policy.stl import StepInput, build_agents  # noqa: E402
+from tlfleet.agent.scenario.loader import load_scenario  # noqa: E402
+from tlfleet.agent.stl.monitor import Trajectory, task_robustness  # noqa: E402
+from tlfleet.agent.stl.syntax import Temporal  # noqa: E402
+
 from bench.common import Figure, load_average, report, time_calls  # noqa: E402
 
 TARGETS = {"step_us": 50.0, "monitor_ms": 3.0}

@@ -16,8 +16,8 @@ back and after a 10 ms sleep before every tick, and their ratio; the last two ar
 the agent's whole loop tick (``AgentLoop.run_once`` on the in-memory bus: channel, checks,
 inbox, step, publish) of one robot of a generated 30-robot fleet (round 15). The figures
 are those of the codec ``$TLFLEET_CODEC`` selects; where that is the C codec
-(``agent.protocol._wire``), every codec figure and the agent tick are given with the Python codec
-too (``*_python``), the ticks interleaved. No targets: the figures
+(``tlfleet.bus.protocol._wire``), every codec figure and the agent tick are given with the Python
+codec too (``*_python``), the ticks interleaved. No targets: the figures
 compare trees (run this file from each checkout), codecs and hours.
 """
 
@@ -36,21 +36,22 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from agent.protocol import fast_paths, keys  # noqa: E402
-from agent.protocol.codec import decode, encode  # noqa: E402
-from agent.protocol.messages import Clock, Command, Control, MocapFrame  # noqa: E402
-from agent.runtime.inbox import MalformedCounter  # noqa: E402
-from agent.runtime.loop import AgentLoop, LoopConfig, TickInput  # noqa: E402
-from agent.runtime.peers import CollabLink  # noqa: E402
-from agent.runtime.process import plausibility  # noqa: E402
-from agent.runtime.stl_agent import StlCore  # noqa: E402
-from agent.scenario import load_scenario  # noqa: E402
-from agent.scenario.model import Scenario  # noqa: E402
-from agent.stl.agent import build_agents  # noqa: E402
+from tlfleet.agent.model.scenario import Scenario  # noqa: E402
+from tlfleet.agent.policy.stl import build_agents  # noqa: E402
+from tlfleet.agent.runtime.inbox import MalformedCounter  # noqa: E402
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig, TickInput  # noqa: E402
+from tlfleet.agent.runtime.peers import CollabLink  # noqa: E402
+from tlfleet.agent.runtime.process import plausibility  # noqa: E402
+from tlfleet.agent.runtime.stl_agent import StlCore  # noqa: E402
+from tlfleet.agent.scenario import load_scenario  # noqa: E402
+from tlfleet.bus.fake import FakeNetwork  # noqa: E402
+from tlfleet.bus.protocol import fast_paths, keys  # noqa: E402
+from tlfleet.bus.protocol.codec import decode, encode  # noqa: E402
+from tlfleet.bus.protocol.messages import Clock, Command, Control, MocapFrame  # noqa: E402
+from tlfleet.sim.world import World  # noqa: E402
+
 from bench.common import RESULTS, Figure, load_average, report, time_calls  # noqa: E402
 from bench.runtime_bench import generated_fleet  # noqa: E402
-from bus.fake import FakeNetwork  # noqa: E402
-from sim.world import World  # noqa: E402
 
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
 TICK = 0.01  # [s] Scenario 1's mocap period

@@ -1,30 +1,11 @@
-"""The bus: the bottom layer every tlfleet process talks through (architecture.md §4).
+"""The ground floor every tlfleet process stands on (docs/architecture.md §4).
 
-It holds the :class:`~bus.transport.Transport` interface, the Zenoh implementation
-(:mod:`bus.zenoh_transport`, the only importer of zenoh in the tree), the in-memory fake for tests
-(:mod:`bus.fake`) and the process signal handling (:mod:`bus.signals`). It sits directly above the
-protocol (``agent.protocol``: messages, codec, key builders) and below the simulator, the agent
-runtime and the coordinator, which share nothing else.
+* ``errors`` — the error hierarchy every layer raises (stdlib only);
+* ``protocol`` — the wire protocol: typed messages, their one MessagePack codec, key expressions;
+* ``transport`` — the :class:`~tlfleet.bus.transport.Transport` interface the processes talk
+  through, and key-expression matching; ``fake`` — its in-memory stand-in for tests;
+  ``signals`` — SIGINT/SIGTERM handling shared by every process;
+* ``zenoh`` — the Eclipse Zenoh implementation (the only package importing zenoh).
+
+Nothing here imports any other tlfleet package.
 """
-
-from bus.transport import (
-    AliveCallback,
-    Closeable,
-    QueryHandler,
-    RepliesCallback,
-    SampleCallback,
-    Transport,
-    TransportConfig,
-    open_transport,
-)
-
-__all__ = [
-    "AliveCallback",
-    "Closeable",
-    "QueryHandler",
-    "RepliesCallback",
-    "SampleCallback",
-    "Transport",
-    "TransportConfig",
-    "open_transport",
-]

@@ -1,6 +1,7 @@
 """An in-memory bus for tests: synchronous, deterministic delivery between fake transports.
 
-:class:`FakeTransport` implements :class:`bus.transport.Transport` (style.md §4, after dora-rs'
+:class:`FakeTransport` implements :class:`tlfleet.bus.transport.Transport` (style.md §4, after
+dora-rs'
 ``MockNode``), so agent and simulator tests run with no sockets; ``kill()`` simulates a process
 dying (its liveliness tokens go, nothing more is delivered to or from it).
 """
@@ -11,14 +12,14 @@ import queue
 import threading
 from typing import Any
 
-from agent.protocol.keys import key_matches
-from bus.transport import (
+from tlfleet.bus.transport import (
     AliveCallback,
     Closeable,
     Handle,
     QueryHandler,
     RepliesCallback,
     SampleCallback,
+    key_matches,
 )
 
 
@@ -75,7 +76,7 @@ class FakeNetwork:
 
 
 class FakeChannel:
-    """:class:`bus.transport.Channel` of the fake bus: a FIFO queue filled by deliveries."""
+    """:class:`tlfleet.bus.transport.Channel` of the fake bus: a FIFO queue filled by deliveries."""
 
     def __init__(self) -> None:
         self._queue: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
@@ -128,9 +129,9 @@ class FakeTransport:
 
     def subscribe_channel(self, key_expr: str, wake_key: str | None = None,
                           capacity: int | None = None) -> FakeChannel:
-        """A :class:`bus.transport.Channel` of ``key_expr``: deliveries are queued for ``recv``
-        (``wake_key`` is zenoh's concern: the fake's wake-up never travels; its queue has no
-        ``capacity``)."""
+        """A :class:`tlfleet.bus.transport.Channel` of ``key_expr``: deliveries are queued for
+        ``recv`` (``wake_key`` is zenoh's concern: the fake's wake-up never travels; its queue has
+        no ``capacity``)."""
         del wake_key, capacity
         channel = FakeChannel()
         channel._handle = self.subscribe(key_expr, channel._put)

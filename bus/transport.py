@@ -3,7 +3,8 @@
 :class:`Transport` (style.md §4, after dora-rs' ``MockNode``) is what a process needs from its
 middleware: publish/subscribe for poses and commands, ``serve``/``query`` for stage-2
 collaboration, liveliness tokens for presence (architecture.md §1–§2). Two implementations share
-it: :class:`bus.zenoh_transport.ZenohTransport` for real and :class:`bus.fake.FakeTransport` for
+it: :class:`tlfleet.bus.zenoh.transport.ZenohTransport` for real (opened by
+:func:`tlfleet.bus.zenoh.transport.open_transport`) and :class:`tlfleet.bus.fake.FakeTransport` for
 tests.
 
 Callbacks receive ``(key, payload)`` on a transport thread (zenoh) or synchronously inside the
@@ -15,10 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
-
-if TYPE_CHECKING:
-    from bus.zenoh_transport import ZenohTransport
+from typing import Any, Protocol
 
 SampleCallback = Callable[[str, bytes], None]
 QueryHandler = Callable[[bytes], bytes | None]
@@ -73,7 +71,7 @@ class Transport(Protocol):
     # millisecond instead of waiting for room (zenoh's congestion control DROP; its replies
     # follow the query's). A query that must not hold its caller (an agent's control loop,
     # issue 13) is droppable: a dropped query is a query without replies, which its sender
-    # already handles; the default waits, up to the link's close (bus.zenoh_config).
+    # already handles; the default waits, up to the link's close (tlfleet.bus.zenoh.config).
     def query_async(self, key_expr: str, payload: bytes, timeout: float,
                     on_done: RepliesCallback, *, droppable: bool = False) -> None: ...
 
@@ -141,7 +139,7 @@ def child_environment(env: Mapping[str, str]) -> dict[str, str]:
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.
 #: Its single worker also receives: one link lost to a partition (RX_WORKERS) stops the process,
 #: so tlfleet uses it only for the sim and agents of a run over loopback peer links (lockstep
-#: or realtime, coordinator.runner.peer_links), which no fault or partition reaches.
+#: or realtime, tlfleet.coordinator.run.peer_links), which no fault or partition reaches.
 MINIMAL_RUNTIME = ("(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), "
                    "net: (handover: app), acc: (handover: app))")
 
@@ -174,19 +172,21 @@ class TransportConfig:
     direct_callbacks: bool = False
     block_when_congested: bool = False
     zenoh_config: Path | None = None  # a zenohd-style JSON5 file under these settings
-    #                                   (bus.zenoh_config)
+    #                                   (tlfleet.bus.zenoh.config)
 
 
-def open_transport(config: TransportConfig) -> ZenohTransport:
-    """Open a zenoh session from a :class:`TransportConfig`."""
-    from bus.zenoh_transport import ZenohTransport
+def key_matches(key_expr: str, key: str) -> bool:
+    """Zenoh key-expression matching of a concrete ``key``: ``*`` is one chunk, ``**`` any number
+    of chunks (zero included)."""
+    return _match(key_expr.split("/"), key.split("/"))
 
-    return ZenohTransport.open(config)
 
-
-def check_config(config: TransportConfig) -> None:
-    """Build the session config without opening it: a bad ``--zenoh-config`` raises
-    ``ZenohConfigError`` (file and key named) before anything starts."""
-    from bus.zenoh_transport import ZenohTransport
-
-    ZenohTransport.zenoh_config(config)
+def _match(pattern: list[str], chunks: list[str]) -> bool:
+    if not pattern:
+        return not chunks
+    head, rest = pattern[0], pattern[1:]
+    if head == "**":
+        return any(_match(rest, chunks[i:]) for i in range(len(chunks) + 1))
+    if not chunks:
+        return False
+    return (head == "*" or head == chunks[0]) and _match(rest, chunks[1:])

@@ -29,7 +29,7 @@ def non_negative_float(text: str) -> float:
 def fault_spec(text: str):
     """``--fault KIND:TARGET@T[+D]`` (issue 13): parsed at once, so a bad part is a usage
     error naming it, before anything starts."""
-    from agent.scenario.faults import FaultSpecError, parse_fault
+    from tlfleet.agent.model.faults import FaultSpecError, parse_fault
 
     try:
         return parse_fault(text)

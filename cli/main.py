@@ -1,4 +1,4 @@
-"""The ``tlfleet`` command line: one sub-command per module in ``cli.commands``.
+"""The ``tlfleet`` command line: one sub-command per module in ``tlfleet.cli.commands``.
 
 Each command module exposes ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
 Modules are imported only when their command runs, so ``tlfleet agent`` never pays for the
@@ -14,27 +14,27 @@ import os
 import sys
 from collections.abc import Sequence
 
-from agent.errors import TlfleetError
+from tlfleet.bus.errors import TlfleetError
 
-# command name -> (module, one-line help). Kept here so `tlfleet --help` lists them without imports.
+# command name -> (module in tlfleet.cli.commands, one-line help). Kept here so `tlfleet --help`
+# lists them without imports.
 COMMANDS: dict[str, tuple[str, str]] = {
-    "check": ("cli.commands.check", "validate a scenario file and summarise it"),
-    "translate": ("cli.commands.translate", "LTL formula to Büchi automaton"),
-    "plan": ("cli.commands.plan", "optimal prefix–suffix plans of the LTL robots"),
-    "monitor": ("cli.commands.monitor", "STL robustness of a recorded trajectory"),
-    "router": ("cli.commands.router", "run a zenoh router for a fleet"),
-    "sim": ("cli.commands.sim", "run the pymunk simulator process of a scenario"),
-    "agent": ("cli.commands.agent", "run the agent process of one robot"),
-    "run": ("cli.commands.run", "launch, supervise and record a whole fleet"),
-    "keys": ("cli.commands.keys", "write a fleet CA, per-process certificates and the router's "
-                                  "ACL policy"),
-    "supervise": ("cli.commands.supervise",
+    "check": ("check", "validate a scenario file and summarise it"),
+    "translate": ("translate", "LTL formula to Büchi automaton"),
+    "plan": ("plan", "optimal prefix–suffix plans of the LTL robots"),
+    "monitor": ("monitor", "STL robustness of a recorded trajectory"),
+    "router": ("router", "run a zenoh router for a fleet"),
+    "sim": ("sim", "run the pymunk simulator process of a scenario"),
+    "agent": ("agent", "run the agent process of one robot"),
+    "run": ("run", "launch, supervise and record a whole fleet"),
+    "keys": ("keys", "write a fleet CA, per-process certificates and the router's ACL policy"),
+    "supervise": ("supervise",
                   "join a running fleet: wait for it, start, supervise and record the run"),
-    "compose": ("cli.commands.compose", "write the docker compose file of a scenario's fleet"),
-    "compose-faults": ("cli.commands.compose_faults", "the host's side of a compose fleet's "
-                                                      "faults (run by compose-run.sh)"),
-    "report": ("cli.commands.report", "regenerate report.md/json and figures of a run"),
-    "replay": ("cli.commands.replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "compose": ("compose", "write the docker compose file of a scenario's fleet"),
+    "compose-faults": ("compose_faults", "the host's side of a compose fleet's faults (run by "
+                                         "compose-run.sh)"),
+    "report": ("report", "regenerate report.md/json and figures of a run"),
+    "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
 }
 
 
@@ -69,7 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     module = None
     if chosen in COMMANDS:
         try:  # importing reads settings from the environment ($TLFLEET_CODEC)
-            module = importlib.import_module(COMMANDS[chosen][0])
+            module = importlib.import_module(f"tlfleet.cli.commands.{COMMANDS[chosen][0]}")
         except TlfleetError as exc:
             print(f"tlfleet {chosen}: {exc}", file=sys.stderr)
             return 1

@@ -17,7 +17,8 @@ processes block between their steps (a channel, a timed wait), so none holds a c
 and the kernel keeps 5 % of every second for ordinary tasks anyway (``sched_rt_runtime_us``).
 Scenario 1 in lockstep: 13.6–14.5× real time against 8.7–9.4× under ``batch`` (5 of 5
 interleaved pairs). It needs root, ``CAP_SYS_NICE`` or an ``RLIMIT_RTPRIO`` ≥ 1
-(``coordinator.launcher.fifo_permitted``); without them the process says so and runs under
+(``tlfleet.coordinator.launch.processes.fifo_permitted``); without them the process says so and runs
+under
 ``batch``.
 
 ``tlfleet run`` asks for ``fifo`` where it is permitted, in either mode (``RunConfig.sched``):
@@ -35,7 +36,7 @@ import argparse
 import logging
 import os
 
-from coordinator.launcher import FIFO_PRIORITY
+from tlfleet.coordinator.launch.processes import FIFO_PRIORITY
 
 logger = logging.getLogger(__name__)
 

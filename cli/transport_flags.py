@@ -4,7 +4,7 @@ turned into a :class:`bus.TransportConfig`.
 
 ``--secure DIR`` (a key directory of ``tlfleet keys``) puts every endpoint on ``tls/`` with mutual
 authentication as the process's identity, and gives a router the directory's access-control
-policy (:func:`bus.security.secure_transport`).
+policy (:func:`tlfleet.bus.zenoh.security.secure_transport`).
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME, TransportConfig
+from tlfleet.bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME, TransportConfig
 
-#: ``--zenoh-runtime`` values: zenoh's thread pools with :data:`bus.transport.RX_WORKERS`
-#: receive workers, or :data:`bus.transport.MINIMAL_RUNTIME`
+#: ``--zenoh-runtime`` values: zenoh's thread pools with :data:`tlfleet.bus.transport.RX_WORKERS`
+#: receive workers, or :data:`tlfleet.bus.transport.MINIMAL_RUNTIME`
 RUNTIMES = {"default": DEFAULT_RUNTIME, "minimal": MINIMAL_RUNTIME}
 
 
@@ -59,7 +59,7 @@ def transport_config(args: argparse.Namespace, identity: str | None = None) -> T
     secure = getattr(args, "secure", None)
     if secure is None:
         return config
-    from bus.security import secure_transport
+    from tlfleet.bus.zenoh.security import secure_transport
 
     if identity is None:
         raise SystemExit("--secure: this command has no process identity")

@@ -1,21 +1,23 @@
 """The coordinator's own part of a run, with or without the launcher (issue 12 §1).
 
-``tlfleet run`` (:mod:`coordinator.runner`) launches the router, the simulator and the agents and
-then does what this module does; ``tlfleet supervise`` (:func:`supervise_fleet`) does only this,
+``tlfleet run`` (:mod:`tlfleet.coordinator.run`) launches the router, the simulator and the agents
+and then does what this module does; ``tlfleet supervise`` (:func:`supervise_fleet`) does only this,
 joining a fleet whose processes were started elsewhere (by hand, on other machines, as compose
 services). Both go through the same three pieces, so both record, judge and report alike:
 
 1. :func:`prepare_run` — load the scenario (``ScenarioError`` first; with ``secure`` the keys are
    checked), create the run directory, copy the scenario, write the first ``run.json``;
 2. :class:`Supervision` — over an open client session: declare ``alive/coordinator/0``,
-   subscribe the recorder tap with its plausibility checks (issue 11, :mod:`coordinator.trust`),
-   watch the agents' health (:mod:`coordinator.health`), wait for the liveliness token of every
-   process the scenario needs (saying which ones are still missing, every ``waiting_period``),
-   send ``Control(start)``, supervise until the end of the mission and send ``Control(stop)``
-   (:mod:`coordinator.supervisor`); :meth:`Supervision.close` is guarded step by step
-   (:class:`coordinator.cleanup.Cleanup`);
+   subscribe the recorder tap with its plausibility checks (issue 11,
+   :mod:`tlfleet.coordinator.record.trust`), watch the agents' health
+   (:mod:`tlfleet.coordinator.live.health`), wait for the liveliness token of every process the
+   scenario needs (saying which ones are still missing, every ``waiting_period``), send
+   ``Control(start)``, supervise until the end of the mission and send ``Control(stop)``
+   (:mod:`tlfleet.coordinator.live.supervisor`); :meth:`Supervision.close` is guarded step by step
+   (:class:`tlfleet.coordinator.launch.cleanup.Cleanup`);
 3. :func:`finish_run` — the closing fields of ``run.json``, then ``summary.txt`` with the run's
-   verdict (:mod:`coordinator.outcome`), the report and ``run.rrd`` (:mod:`coordinator.outputs`).
+   verdict (:mod:`tlfleet.coordinator.live.verdict`), the report and ``run.rrd``
+   (:mod:`tlfleet.coordinator.report.outputs`).
 
 A client session to an endpoint with no router fails within ``connect_timeout`` (default 1 s)
 with a :class:`SuperviseError` that names the endpoint.
@@ -31,22 +33,24 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agent.errors import TlfleetError
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.plausibility import max_jump_ticks
-from agent.scenario import Scenario, load_scenario
-from agent.scenario.faults import Fault
-from bus.security import fingerprints, secure_transport
-from bus.transport import Transport, TransportConfig, open_transport
-from bus.zenoh_config import clean_reason
-from coordinator.cleanup import Cleanup
-from coordinator.health import Health
-from coordinator.outcome import Verdict, classify, mission_event_kinds
-from coordinator.outputs import OutputSettings, write_outputs
-from coordinator.recorder import Recorder, RecorderTap
-from coordinator.rundir import RunFiles, default_run_dir
-from coordinator.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
+from tlfleet.agent.model import Scenario
+from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.plausibility import max_jump_ticks
+from tlfleet.bus.transport import Transport, TransportConfig
+from tlfleet.bus.zenoh.config import clean_reason
+from tlfleet.bus.zenoh.security import fingerprints, secure_transport
+from tlfleet.bus.zenoh.transport import open_transport
+from tlfleet.coordinator.launch.cleanup import Cleanup
+from tlfleet.coordinator.live.health import Health
+from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
+from tlfleet.coordinator.live.verdict import Verdict, classify, mission_event_kinds
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
+from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
 
 logger = logging.getLogger(__name__)
 
@@ -83,8 +87,10 @@ class SuperviseConfig:
     grpc_port: int = 0
     web_port: int = 0
     faults: tuple[Fault, ...] = ()  # issue 13: injected with the actuator of fault_plan
-    fault_plan: Path | None = None  # coordinator.fault_hosts (written by tlfleet run --hosts)
-    fault_handoff: Path | None = None  # coordinator.fault_compose: the host's executor's directory
+    # tlfleet.coordinator.faults.on_hosts (written by tlfleet run --hosts)
+    fault_plan: Path | None = None
+    # tlfleet.coordinator.faults.handoff: the host's executor's directory
+    fault_handoff: Path | None = None
 
 
 @dataclass
@@ -107,18 +113,21 @@ class RunResult:
     summary_text: str = ""
     summary: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
-    report: Any = None  # coordinator.report.Report, when written
+    report: Any = None  # tlfleet.coordinator.report.run_report.Report, when written
     rrd: Path | None = None  # run.rrd, when written
-    viewer: Any = None  # coordinator.visual.LiveView, still serving (close() it)
+    viewer: Any = None  # tlfleet.coordinator.report.viewer.LiveView, still serving (close() it)
     verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
 
 
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
     """The scenario (``ScenarioError`` names file and field); with ``secure``, its key directory
-    checked against it (``KeyError`` of :mod:`coordinator.keys`): both before anything starts."""
+    checked against it (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): both before
+    anything starts."""
     scenario = load_scenario(scenario_path)
     if secure is not None:
-        from coordinator.keys import check_keys  # cryptography: imported for secured runs only
+        from tlfleet.coordinator.security.authority import (
+            check_keys,  # cryptography: imported for secured runs only
+        )
 
         check_keys(scenario, secure)
     return scenario
@@ -141,7 +150,7 @@ def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mo
         "secure": secure is not None,
     }
     if secure is not None:
-        from coordinator.acl import identities
+        from tlfleet.coordinator.security.policy import identities
 
         info["keys"] = str(Path(secure).resolve())
         info["fingerprints"] = fingerprints(secure, identities(scenario))
@@ -279,7 +288,7 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
                lingering: tuple[str, ...] = (), viewer: Any = None, note: Say, say: Say,
                ) -> RunResult:
     """Step 3: ``clean`` into ``run.json``, then the summary, the verdict, the report and
-    ``run.rrd`` (:func:`coordinator.outputs.write_outputs`).
+    ``run.rrd`` (:func:`tlfleet.coordinator.report.outputs.write_outputs`).
 
     ``codes``: the launched children's exit codes after ``Control(stop)``; ``final``: after the
     clean-up; ``lingering``: processes not started here whose tokens outlived ``Control(stop)``.
@@ -367,7 +376,7 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     codes: dict[str, int | None] = {}
     viewer = None
     if config.viewer:
-        from coordinator.outputs import start_viewer
+        from tlfleet.coordinator.report.outputs import start_viewer
 
         viewer = start_viewer(prepared.scenario, config, say)
     session: Supervision | None = None
@@ -408,12 +417,13 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
 def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fault, ...]:
     """The run's faults (the scenario's and ``config.faults``), checked before connecting; they
     need the fault plan of the launcher that placed the fleet (issue 13), or in a compose fleet
-    the host's executor announced in the handoff directory (:mod:`coordinator.fault_compose`)."""
-    from coordinator.faults import run_faults
+    the host's executor announced in the handoff directory
+    (:mod:`tlfleet.coordinator.faults.handoff`)."""
+    from tlfleet.coordinator.faults.plan import run_faults
 
     faults = run_faults(scenario, config.faults, config.duration)
     if faults and config.fault_handoff is not None:  # a compose fleet: the host injects them
-        from coordinator.fault_compose import check_compose_fault, wait_for_executor
+        from tlfleet.coordinator.faults.handoff import check_compose_fault, wait_for_executor
 
         for fault in faults:
             check_compose_fault(fault)
@@ -424,7 +434,7 @@ def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fau
                              "--hosts N --fault …`): supervise alone does not know the fleet's "
                              "processes and links (in compose: --fault-handoff DIR)")
     if faults:
-        from coordinator.fault_hosts import HostsActuator
+        from tlfleet.coordinator.faults.on_hosts import HostsActuator
 
         actuator = HostsActuator.from_file(config.fault_plan)
         for fault in faults:
@@ -434,14 +444,14 @@ def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fau
 
 def hosts_schedule(faults: tuple[Fault, ...], config: SuperviseConfig, session: Supervision,
                    say: Say) -> Any:
-    from coordinator.fault_schedule import FaultScheduler
+    from tlfleet.coordinator.faults.schedule import FaultScheduler
 
     if config.fault_handoff is not None:
-        from coordinator.fault_compose import ComposeActuator
+        from tlfleet.coordinator.faults.handoff import ComposeActuator
 
         actuator: Any = ComposeActuator(config.fault_handoff, session.supervisor)
     else:
-        from coordinator.fault_hosts import HostsActuator
+        from tlfleet.coordinator.faults.on_hosts import HostsActuator
 
         assert config.fault_plan is not None
         actuator = HostsActuator.from_file(config.fault_plan, session.supervisor)

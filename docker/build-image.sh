@@ -9,7 +9,7 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 IMAGE=${1:-${TLFLEET_IMAGE:-tlfleet:local}}
 BASE=${TLFLEET_BASE_IMAGE:-local/tlfleet-base:bookworm}
 cd "$ROOT"
-SOURCES=$( (find agent bus cli coordinator sim -name '*.py' -print0 | sort -z | xargs -0 sha256sum
+SOURCES=$( (find __init__.py setup.py agent bus cli coordinator sim -name '*.py' -print0 | sort -z | xargs -0 sha256sum
             sha256sum pyproject.toml docker/Dockerfile; "${PYTHON:-.venv/bin/python}" -m pip freeze \
             --exclude-editable --disable-pip-version-check) | sha256sum | cut -c1-16)
 if [[ $(docker image inspect -f '{{index .Config.Labels "tlfleet.sources"}}' "$IMAGE" 2>/dev/null || true) == "$SOURCES" ]]; then

@@ -50,7 +50,7 @@ if grep -q '"--secure", "/fleet/keys"' "$FILE" && [[ -z ${TLFLEET_KEYS:-} ]]; th
   # the scenario the file mounts, relative to the file's directory
   SCEN=$(grep -o '"[^"]*:/fleet/scenario.toml:ro"' "$FILE" | head -1 | sed 's/^"//; s#:/fleet/scenario.toml:ro"$##')
   OWN_KEYS=$(mktemp -d "${TMPDIR:-/tmp}/tlfleet-compose-keys-XXXXXX")   # mode 0700
-  "${PYTHON:-python3}" -m cli.main keys "$(dirname "$FILE")/$SCEN" --out "$OWN_KEYS" --force \
+  "${PYTHON:-python3}" -m tlfleet.cli keys "$(dirname "$FILE")/$SCEN" --out "$OWN_KEYS" --force \
     --host router >/dev/null
   export TLFLEET_KEYS=$OWN_KEYS
 fi
@@ -60,7 +60,7 @@ mkdir -p "$OUT/logs"
 OUT_ABS=$(cd "$OUT" && pwd)
 export TLFLEET_OUT=$OUT_ABS   # the coordinator's /out: the run directory
 if grep -q '"--fault-handoff", "/out/logs/faults"' "$FILE"; then
-  "${PYTHON:-python3}" -m cli.main compose-faults --dir "$OUT_ABS/logs/faults" --project "$PROJECT" \
+  "${PYTHON:-python3}" -m tlfleet.cli compose-faults --dir "$OUT_ABS/logs/faults" --project "$PROJECT" \
     --parent $$ --max-wall 7200 >"$OUT_ABS/logs/compose-faults.log" 2>&1 &
   EXECUTOR=$!
 fi

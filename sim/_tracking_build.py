@@ -1,4 +1,4 @@
-"""Build-time only: cffi's API-mode builder of ``sim._tracking``, the C tracking law
+"""Build-time only: cffi's API-mode builder of ``tlfleet.sim._tracking``, the C tracking law
 (``sim/tracking.c``; ``setup.py`` names it in ``cffi_modules``). ``world.py`` uses the built
 module when it is there and the same law in Python when it is not (no C compiler at install
 time); the two are equal to the last bit (tests/sim/test_sim_tracking_native.py)."""
@@ -13,7 +13,7 @@ HEADER = (HERE / "tracking.h").read_text()
 ffibuilder = FFI()
 ffibuilder.cdef(HEADER)
 ffibuilder.set_source(
-    "sim._tracking",
+    "tlfleet.sim._tracking",
     '#include "tracking.h"\n',
     sources=[str(Path("sim") / "tracking.c")],
     include_dirs=[str(Path("sim"))],

@@ -1,10 +1,11 @@
 """Commands have an age (issue 11): a command is stamped with the sim time ``t`` of the frame it
-answers (``Command.t``, agent.runtime.loop), and the simulator applies it only while it is fresh.
+answers (``Command.t``, tlfleet.agent.runtime.loop), and the simulator applies it only while it is
+fresh.
 
 At tick k (sim time t_k) a command of robot r is *stale* when t_k − ``Command.t`` exceeds r's
 bound: ``max_age`` [s] when given, else ``periods`` control periods of r (d_r / mocap_rate each,
-``sim.lockstep.control_dividers``), and never less than ``floor`` [s]. A stale command is not
-applied and does not re-arm the command watchdog, so a robot whose agent froze, or whose link
+``tlfleet.sim.lockstep.control_dividers``), and never less than ``floor`` [s]. A stale command is
+not applied and does not re-arm the command watchdog, so a robot whose agent froze, or whose link
 was cut, stops after ``SimParams.watchdog`` instead of replaying commands computed from old poses
 when the backlog arrives. In lockstep every accepted command answers the current tick (age 0),
 so this never triggers there.
@@ -15,7 +16,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
-from agent.protocol.messages import Command
+from tlfleet.bus.protocol.messages import Command
 
 DEFAULT_PERIODS = 5.0  # control periods
 FLOOR = 0.05  # [s]

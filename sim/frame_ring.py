@@ -5,13 +5,13 @@ simulator publishes until it is back never reaches the coordinator's recorder (f
 notes §5.3: "once the lease expires, samples published while the transport is down are lost").
 The simulator keeps its last frames here, exactly as published (the encoded ``MocapFrame``
 payload, so keeping one costs a deque append and no encoding), and answers the recorder's
-``BackfillRequest`` on ``sim/backfill`` with the ones it missed (``agent.protocol.messages``).
+``BackfillRequest`` on ``sim/backfill`` with the ones it missed (``tlfleet.bus.protocol.messages``).
 
 The ring is bounded twice: at most ``max_frames`` frames and ``max_bytes`` bytes of payload
 (the oldest go first; the newest frame is always kept). :func:`ring_size` turns the simulator's
 ``backfill_seconds`` (default :data:`BACKFILL_SECONDS`) into the frame bound. A frame older than
 the ring's span is gone for good: a reply covers it without a frame, and the recorder names it
-as an unrecoverable gap (``coordinator.recorder``).
+as an unrecoverable gap (``tlfleet.coordinator.record.recorder``).
 
 Thread-safe: the simulator's loop appends, a zenoh thread answers queries; one lock, held for
 an append or for a copy of the ring's references.
@@ -24,8 +24,8 @@ import math
 import threading
 from collections import deque
 
-from agent.protocol.bounds import BACKFILL_REPLY_BYTES, BACKFILL_REPLY_FRAMES
-from agent.protocol.messages import BackfillReply, BackfillRequest
+from tlfleet.bus.protocol.bounds import BACKFILL_REPLY_BYTES, BACKFILL_REPLY_FRAMES
+from tlfleet.bus.protocol.messages import BackfillReply, BackfillRequest
 
 #: [s] sim time of frames the simulator keeps by default: the fault tests cut the simulator's
 #: link for 2 s and lose ≈ 2.5 s of frames (the cut, then zenoh's reconnect); 10 s covers a cut of

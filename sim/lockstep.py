@@ -26,8 +26,8 @@ import enum
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
-from agent.protocol.messages import Command
-from agent.scenario.model import Scenario
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.bus.protocol.messages import Command
 
 
 def control_dividers(scenario: Scenario) -> dict[int, int]:

@@ -1,6 +1,6 @@
 """The simulator process: the pymunk world behind the tlfleet protocol (architecture.md §1–§3).
 
-One loop on the main thread owns the :class:`~sim.world.World` and every piece of state. The
+One loop on the main thread owns the :class:`~tlfleet.sim.world.World` and every piece of state. The
 transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
 callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
 channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
@@ -16,12 +16,12 @@ Protocol (architecture.md §3 and the issue-5 contract):
   ``Clock(t_k, k, mode)`` (the frame first: the lockstep fleet waits for it, issue 17);
   - **lockstep**: before tick 0 the loop waits (at most ``tick_timeout``) until it has seen
     every robot's agent alive; ``due`` = the live agents' robots due at k
-    (:func:`sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall
+    (:func:`tlfleet.sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall
     timeout ``tick_timeout`` → one ``deadline_miss`` event per missing robot; a dead agent is
     dropped at once), applies them, then steps the physics by one mocap period;
   - **realtime**: ``due = ()``; the loop steps the physics once per mocap period of wall time
-    (:class:`sim.clock.Pacer`) with the newest command of each robot; control deadlines count
-    from tick 1 (tick 0 looks like the preview frame, which agents do not answer); with
+    (:class:`tlfleet.sim.clock.Pacer`) with the newest command of each robot; control deadlines
+    count from tick 1 (tick 0 looks like the preview frame, which agents do not answer); with
     ``SimParams.spread_frames`` (default) each robot's frames are sampled at its offset s_r
     (``Scenario.frame_offset``): the tick frame goes on ``mocap`` only, and at each offset s ≥ 1
     of the period the loop applies the commands that came so far, steps the physics to
@@ -36,17 +36,18 @@ Protocol (architecture.md §3 and the issue-5 contract):
   (``sim_stats`` only), also with 0.
 
 A ``seq = 0`` command that arrives before the sim has processed the start is an agent's answer
-to a republished initial frame and is held for tick 0 (``sim.lockstep``, "early answers").
+to a republished initial frame and is held for tick 0 (``tlfleet.sim.lockstep``, "early answers").
 
-Commands have an age (issue 11, :mod:`sim.command_age`): in realtime a command older than its
-robot's bound (``SimConfig.max_command_age``; default 5 control periods) is not applied, counted in
+Commands have an age (issue 11, :mod:`tlfleet.sim.command_age`): in realtime a command older than
+its robot's bound (``SimConfig.max_command_age``; default 5 control periods) is not applied, counted
+in
 ``sim_stats`` (``stale_commands``) and reported once per episode as ``Event(stale_command)``; the
 watchdog then stops the robot. A decoded command outside the fleet's bounds
-(:class:`agent.protocol.bounds.FleetBounds`: time/seq disagreement, speeds far above the robot's
-limits) is treated like a malformed one.
+(:class:`tlfleet.bus.protocol.bounds.FleetBounds`: time/seq disagreement, speeds far above the
+robot's limits) is treated like a malformed one.
 
-Backfill (issue 13, :mod:`sim.frame_ring`): every tick's frame is also kept, as published, in a
-ring of the last ``backfill_seconds`` of frames (bounded in bytes too), and the queryable
+Backfill (issue 13, :mod:`tlfleet.sim.frame_ring`): every tick's frame is also kept, as published,
+in a ring of the last ``backfill_seconds`` of frames (bounded in bytes too), and the queryable
 ``sim/backfill`` answers a recorder's ``BackfillRequest`` with the frames it missed while a link
 was cut. The handler runs on a zenoh thread and touches only the ring (thread-safe); a request
 that does not decode is counted as malformed like any payload. The ring's counters are in
@@ -71,12 +72,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from agent.errors import TlfleetError
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import (
+from tlfleet.agent.model import Scenario
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import (
     BackfillRequest,
     Clock,
     Command,
@@ -85,13 +87,13 @@ from agent.protocol.messages import (
     MocapFrame,
     TimeMode,
 )
-from agent.scenario import Scenario, load_scenario
-from bus.signals import install_signal_handlers
-from bus.transport import Channel, Closeable, Transport, TransportConfig, open_transport
-from sim.clock import Pacer, TickClock
-from sim.command_age import CommandAge
-from sim.frame_ring import BACKFILL_BYTES, BACKFILL_SECONDS, FrameRing, ring_size
-from sim.lockstep import (
+from tlfleet.bus.signals import install_signal_handlers
+from tlfleet.bus.transport import Channel, Closeable, Transport, TransportConfig
+from tlfleet.bus.zenoh.transport import open_transport
+from tlfleet.sim.clock import Pacer, TickClock
+from tlfleet.sim.command_age import CommandAge
+from tlfleet.sim.frame_ring import BACKFILL_BYTES, BACKFILL_SECONDS, FrameRing, ring_size
+from tlfleet.sim.lockstep import (
     LatestCommands,
     LockstepCollector,
     Offer,
@@ -99,8 +101,8 @@ from sim.lockstep import (
     control_phases,
     due_robots,
 )
-from sim.stats import TimingStats
-from sim.world import WALL, World, WorldConfig, native_tracking_available
+from tlfleet.sim.stats import TimingStats
+from tlfleet.sim.world import WALL, World, WorldConfig, native_tracking_available
 
 logger = logging.getLogger(__name__)
 
@@ -207,13 +209,13 @@ class SimProcess:
         self.world = World.from_scenario(scenario, np.random.default_rng(config.seed),
                                          config.world)
         if self.world.config.native_tracking:
-            logger.info("tracking law: C (sim._tracking)")
+            logger.info("tracking law: C (tlfleet.sim._tracking)")
         elif native_tracking_available():
             logger.info("tracking law: Python (tracking = %r)", self.world.config.tracking)
         else:
-            logger.warning("the C tracking law (sim._tracking) was not built at install time (no "
-                           "C compiler?): running the Python law, the same results, about 3x "
-                           "slower physics")
+            logger.warning("the C tracking law (tlfleet.sim._tracking) was not built at install "
+                           "time (no C compiler?): running the Python law, the same results, "
+                           "about 3x slower physics")
         self.clock = TickClock(scenario.sim.mocap_rate)
         self.dividers = control_dividers(scenario)
         self.phases = control_phases(scenario)
@@ -363,8 +365,8 @@ class SimProcess:
         while not self.stopping:
             if pacer is not None and k > 0:
                 # wait on the stop event, not on the command channel: a zenoh channel's recv
-                # may time out up to its timer's tick late (bus.transport.CHANNEL_TICK, 50 ms;
-                # until round 17 always at a tick, which made every paced tick last ≈ 45 ms: a
+                # may time out up to its timer's tick late (tlfleet.bus.transport.CHANNEL_TICK, 50
+                # ms; until round 17 always at a tick, which made every paced tick last ≈ 45 ms: a
                 # 10 s run at --max-speed 2 took 49 s); no command can come before the tick it
                 # answers is published
                 while not self.stopping and (left := pacer.remaining()) > 0.0:
@@ -443,8 +445,8 @@ class SimProcess:
             self._close_deadlines(self.clock.time(k + 1))
             pacer.advance()
             # Tick 0 owes no command: its frame (t = 0, seq = 0, due = ()) cannot be told from
-            # the preview frame, which agents never answer (agent.runtime.loop), so counting it
-            # would charge every robot one missed deadline per run.
+            # the preview frame, which agents never answer (tlfleet.agent.runtime.loop), so counting
+            # it would charge every robot one missed deadline per run.
             due = due_robots(k, self.dividers, self.alive, self.phases) if k > 0 else ()
             self._advance(k, self.latest.take(), due)
             k += 1
@@ -540,7 +542,7 @@ class SimProcess:
         self._stepped = offset
 
     def _apply(self, commands: list[Command], t: float) -> None:
-        """Set the commands (realtime: the fresh ones, :mod:`sim.command_age`) from sim time
+        """Set the commands (realtime: the fresh ones, :mod:`tlfleet.sim.command_age`) from sim time
         ``t`` [s] on."""
         if self.config.mode == "realtime":
             commands, started = self.ages.fresh(commands, t)
@@ -554,7 +556,7 @@ class SimProcess:
 
     def _report_step(self) -> None:
         """Report the step :meth:`_advance` made last, once: tick k's missed deadlines
-        (``sim.stats``), the robots the watchdog stopped at t_k and the contacts of the step
+        (``tlfleet.sim.stats``), the robots the watchdog stopped at t_k and the contacts of the step
         to t_{k+1}, as events stamped with those times, in that order."""
         if self._unreported is None:
             return
@@ -714,7 +716,7 @@ class SimProcess:
         self.timing.frame_published(k, published, offset=offset)
 
     def _shared_tick(self, seq: int) -> bool:
-        """A robot with control divider ≥ 2 is due at tick ``seq`` (sim.stats: shared ticks;
+        """A robot with control divider ≥ 2 is due at tick ``seq`` (tlfleet.sim.stats: shared ticks;
         ``due_robots``' rule, ``seq % d == phase``, over those robots only)."""
         return any(seq % divider == phase for divider, phase in self._slow_schedules)
 
@@ -743,8 +745,8 @@ class SimProcess:
     def summary(self) -> dict[str, object]:
         """The run's counters: published as ``Event(kind="sim_stats")`` at the end.
 
-        ``missed``/``due`` count control deadlines (``sim.stats``); ``latency_*_ms`` are frame
-        publication → command arrival at the sim; ``ignored`` counts commands by reason.
+        ``missed``/``due`` count control deadlines (``tlfleet.sim.stats``); ``latency_*_ms`` are
+        frame publication → command arrival at the sim; ``ignored`` counts commands by reason.
         """
         s = self.stats
         counts = self.lockstep.counts + self.latest.counts

@@ -28,7 +28,7 @@ the body with Chipmunk's getters and setters: what ``body.velocity_func`` and th
 properties do, without a ``Vec2d`` per read and a Python ``__setattr__`` per write (half the
 physics time); and one such callback per physics step runs the law of every robot
 (:meth:`World._install_tracking`, issue 17), instead of one per robot. That one callback runs
-the law in C (``sim/tracking.c``, built at install time as ``sim._tracking``; several times
+the law in C (``sim/tracking.c``, built at install time as ``tlfleet.sim._tracking``; several times
 cheaper than 5 Python laws) or, where the extension was not built or
 ``WorldConfig.tracking = "python"``, in Python (:meth:`SimRobot.track`): the same IEEE operations
 in the same order, so both give the same trajectories to the last bit (tests/sim). The law's
@@ -54,12 +54,11 @@ import numpy as np
 import pymunk
 from pymunk._chipmunk_cffi import ffi as _ffi
 from pymunk._chipmunk_cffi import lib as _cp
-
-from agent.errors import TlfleetError
-from agent.scenario.model import DiscObstacle, RectObstacle, Robot, Scenario
+from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle, Robot, Scenario
+from tlfleet.bus.errors import TlfleetError
 
 try:  # the C tracking law (setup.py builds it where a C compiler is; optional)
-    from sim import _tracking as _native
+    from tlfleet.sim import _tracking as _native
 except ImportError:  # pragma: no cover - depends on the install
     _native = None
 
@@ -84,7 +83,7 @@ _sqrt, _cos, _sin = math.sqrt, math.cos, math.sin
 
 
 def native_tracking_available() -> bool:
-    """Whether the C tracking law (``sim._tracking``) was built at install time."""
+    """Whether the C tracking law (``tlfleet.sim._tracking``) was built at install time."""
     return _native is not None
 
 
@@ -112,8 +111,8 @@ class WorldConfig:
     wall_radius: float = 0.05  # [m] thickness/2 of the arena's wall segments (outside the arena)
     collision_slop: float = 0.001  # [m] allowed overlap (pymunk's default 0.1 is pixel-scale)
     solver_iterations: int = 10
-    # where the tracking law runs: "native" (C, sim._tracking), "python", or "auto" (C when it
-    # was built); the same trajectories either way. Default: $TLFLEET_TRACKING, else "auto".
+    # where the tracking law runs: "native" (C, tlfleet.sim._tracking), "python", or "auto" (C when
+    # it was built); the same trajectories either way. Default: $TLFLEET_TRACKING, else "auto".
     tracking: str = field(default_factory=_default_tracking)
 
     def __post_init__(self) -> None:
@@ -124,7 +123,7 @@ class WorldConfig:
         if self.tracking == "native" and _native is None:
             raise TrackingConfigError(
                 "WorldConfig.tracking (or $TLFLEET_TRACKING) = 'native', but the C tracking law "
-                "(sim._tracking) was not built: reinstall with a C compiler")
+                "(tlfleet.sim._tracking) was not built: reinstall with a C compiler")
 
     @property
     def native_tracking(self) -> bool:

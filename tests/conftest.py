@@ -2,7 +2,8 @@
 
 Hypothesis: the ``ci`` profile (selected when the CI environment variable is set, as it is for
 ``.ci/run``) derandomises example generation, so a CI run is reproducible; local runs use the
-default profile and explore new examples every time.
+``dev`` profile and explore new examples every time. Either runs a quarter of each property's
+budget (``tests/hypothesis_budget.py``); ``TLFLEET_HYPOTHESIS=full`` runs all of it.
 """
 
 from __future__ import annotations
@@ -12,11 +13,14 @@ from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
+from hypothesis_budget import examples
 
+DEFAULT_BUDGET = 100  # Hypothesis's own default number of examples
 settings.register_profile(
-    "ci", derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    "ci", derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow],
+    max_examples=examples(DEFAULT_BUDGET),
 )
-settings.register_profile("dev", deadline=None)
+settings.register_profile("dev", deadline=None, max_examples=examples(DEFAULT_BUDGET))
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 ROOT = Path(__file__).resolve().parent.parent

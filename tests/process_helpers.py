@@ -8,8 +8,7 @@ import signal
 import subprocess
 
 import psutil
-
-from coordinator.launcher import free_port
+from tlfleet.coordinator.launch.processes import free_port
 
 __all__ = ["free_port", "kill_group", "processes_mentioning"]
 

@@ -2,15 +2,15 @@
 
     u_mix,i = β_i·ū_col,i + ū_nom,i,        ū_mix,i = saturate(u_mix,i)
 
-with the separate linear/angular saturation of ``agent.control.saturation``. Velocities in m/s and
-rad/s, world frame.
+with the separate linear/angular saturation of ``tlfleet.agent.control.saturation``. Velocities in
+m/s and rad/s, world frame.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from agent.control.saturation import saturate
+from tlfleet.agent.control.saturation import saturate
 
 
 def mix(u_nom_bar: tuple[float, float, float], u_col_bar: tuple[float, float, float], beta: float,

@@ -24,7 +24,7 @@ so unions and inclusion tests are single int operations.
 
 from __future__ import annotations
 
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     And,
     Atom,
     Const,
@@ -37,7 +37,7 @@ from agent.ltl.formula import (
     Release,
     Until,
 )
-from agent.ltl.guards import TRUE_CUBE, Cube, cube_and, cube_implies
+from tlfleet.agent.ltl.guards import TRUE_CUBE, Cube, cube_and, cube_implies
 
 StateSet = int  # bitmask over Vwaa.states
 Transition = tuple[Cube, StateSet]

@@ -13,8 +13,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from agent.errors import LtlError, TlfleetError
-from agent.ltl.buchi import Buchi, translate
+from tlfleet.agent.ltl.buchi import Buchi, translate
+from tlfleet.bus.errors import LtlError, TlfleetError
 
 
 @dataclass(frozen=True)

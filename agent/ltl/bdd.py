@@ -117,7 +117,8 @@ def _mk(v: int, low: Bdd, high: Bdd) -> Bdd:
 
 def node(i: int, low: Bdd, high: Bdd) -> Bdd:
     """The guard "if atom ``i`` then ``high`` else ``low``", for ``low`` and ``high`` over atoms
-    after ``i`` only (so the node is in order; :mod:`agent.ltl.truth_table` builds BDDs so)."""
+    after ``i`` only (so the node is in order; :mod:`tlfleet.agent.ltl.truth_table` builds BDDs
+    so)."""
     if low.var <= i or high.var <= i:
         raise ValueError(f"bdd.node: children must not test atom {i} or an earlier one")
     return _mk(i, low, high)

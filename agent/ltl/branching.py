@@ -20,8 +20,8 @@ from __future__ import annotations
 
 from collections import deque
 
-from agent.ltl.bdd import FALSE
-from agent.ltl.tgba import Tgba
+from tlfleet.agent.ltl.bdd import FALSE
+from tlfleet.agent.ltl.tgba import Tgba
 
 
 def postpone_branching(tgba: Tgba, limit: int) -> Tgba | None:

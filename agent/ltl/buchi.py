@@ -2,26 +2,26 @@
 
 ``translate(f)`` runs, with no external tool:
 
-1. parsing and simplification into negation normal form (``agent.ltl.rewrite``);
-2. the very weak alternating automaton of Gastin & Oddoux (``agent.ltl.alternating``);
+1. parsing and simplification into negation normal form (``tlfleet.agent.ltl.rewrite``);
+2. the very weak alternating automaton of Gastin & Oddoux (``tlfleet.agent.ltl.alternating``);
 3. the transition-based generalised Büchi automaton with GO's simplifications
-   (``agent.ltl.tgba``);
-4. direct simulation on the TGBA (``agent.ltl.tgba_simulation``), then SCC-aware
-   degeneralisation into a state-based Büchi automaton (``agent.ltl.degeneralize``), for the two
-   sound markings of the TGBA (lazy/eager, see ``build_tgba``) and both orders of the marks,
+   (``tlfleet.agent.ltl.tgba``);
+4. direct simulation on the TGBA (``tlfleet.agent.ltl.tgba_simulation``), then SCC-aware
+   degeneralisation into a state-based Büchi automaton (``tlfleet.agent.ltl.degeneralize``), for the
+   two sound markings of the TGBA (lazy/eager, see ``build_tgba``) and both orders of the marks,
    keeping the smaller;
 5. removal of useless states (unreachable, or unable to reach an accepting cycle), a
    bisimulation quotient (equal acceptance, equal guarded edges to equal classes), and the
    merging of *transient* states (on no cycle, so visited at most once and their acceptance
    is irrelevant) into a state with the same outgoing edges; direct-simulation rounds
-   (``agent.ltl.simulation``); on small automata, the removal of states that fair simulation
+   (``tlfleet.agent.ltl.simulation``); on small automata, the removal of states that fair simulation
    proves unnecessary, each removal checked by a fair-simulation game
-   (``agent.ltl.fair_simulation``);
+   (``tlfleet.agent.ltl.fair_simulation``);
 6. for obligation formulas, the minimal weak DBA when it is smaller and provably equivalent
-   (``agent.ltl.wdba``).
+   (``tlfleet.agent.ltl.wdba``).
 
 The result ``A = (Q, 2^AP, Δ, Q0, F)`` has states ``0..num_states-1``; ``edges[q]`` lists
-``(q', guard)`` with guards over ``atoms`` (see ``agent.ltl.guards``).
+``(q', guard)`` with guards over ``atoms`` (see ``tlfleet.agent.ltl.guards``).
 """
 
 from __future__ import annotations
@@ -32,25 +32,25 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-from agent.ltl.bdd import TRUE, disjoin
-from agent.ltl.branching import postpone_branching
-from agent.ltl.degeneralize import degeneralize, mark_order_matters
-from agent.ltl.fair_simulation import remove_fair_little_brothers
-from agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
-from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
-from agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
-from agent.ltl.parser import parse
-from agent.ltl.printer import to_string
-from agent.ltl.rewrite import normalize
-from agent.ltl.simulation import (
+from tlfleet.agent.ltl.bdd import TRUE, disjoin
+from tlfleet.agent.ltl.branching import postpone_branching
+from tlfleet.agent.ltl.degeneralize import degeneralize, mark_order_matters
+from tlfleet.agent.ltl.fair_simulation import remove_fair_little_brothers
+from tlfleet.agent.ltl.formula import Atom, Formula, Not, children, recursion_headroom
+from tlfleet.agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
+from tlfleet.agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.printer import to_string
+from tlfleet.agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.simulation import (
     is_deterministic,
     reduce_by_simulation,
     saturate_acceptance,
     single_initial,
 )
-from agent.ltl.tgba import build_tgba
-from agent.ltl.tgba_simulation import reduce_tgba
-from agent.ltl.wdba import accepts_constant, minimize_obligation
+from tlfleet.agent.ltl.tgba import build_tgba
+from tlfleet.agent.ltl.tgba_simulation import reduce_tgba
+from tlfleet.agent.ltl.wdba import accepts_constant, minimize_obligation
 
 Edge = tuple[int, Guard]
 REVERSED_DEGEN_MAX_STATES = 32
@@ -136,8 +136,9 @@ def _atoms_in_order(f: Formula) -> tuple[str, ...]:
 def translate(formula: Formula | str) -> Buchi:
     """Translate an LTL formula (tree or Spot-syntax text) into a small state-based Büchi automaton.
 
-    Raises :class:`agent.errors.FormulaSyntaxError` for text that does not parse. (A scenario's
-    task may also name an HOA file: :func:`agent.ltl.task.task_automaton` tells them apart.)
+    Raises :class:`tlfleet.bus.errors.FormulaSyntaxError` for text that does not parse. (A
+    scenario's task may also name an HOA file: :func:`tlfleet.agent.ltl.task.task_automaton` tells
+    them apart.)
     """
     with recursion_headroom(), _collector_paused():
         candidates = translation_candidates(formula, only_best=True)
@@ -164,7 +165,7 @@ def _collector_paused():
 
 def translation_candidates(formula: Formula | str, only_best: bool = False) -> list[Buchi]:
     """Equivalent automata of ``formula``: the smallest of the TGBA variants (the one or two
-    markings of ``build_tgba``, each also with postponed branching, ``agent.ltl.branching``,
+    markings of ``build_tgba``, each also with postponed branching, ``tlfleet.agent.ltl.branching``,
     when it has several initial states)
     fully reduced by simulation, first; then every variant with the cheap reductions only.
 

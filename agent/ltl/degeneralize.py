@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from collections import deque
 
-from agent.ltl.bdd import disjoin
-from agent.ltl.graphs import strongly_connected_components
-from agent.ltl.guards import Guard
-from agent.ltl.tgba import Tgba
+from tlfleet.agent.ltl.bdd import disjoin
+from tlfleet.agent.ltl.graphs import strongly_connected_components
+from tlfleet.agent.ltl.guards import Guard
+from tlfleet.agent.ltl.tgba import Tgba
 
 
 def degeneralize(

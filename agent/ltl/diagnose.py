@@ -14,11 +14,11 @@ Four causes, checked in order:
 
 from __future__ import annotations
 
-from agent.ltl.buchi import Buchi, buchi_step
-from agent.ltl.emptiness import find_accepting_lasso
-from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
-from agent.ltl.guards import Cube
-from agent.ltl.transition_system import TransitionSystem
+from tlfleet.agent.ltl.buchi import Buchi, buchi_step
+from tlfleet.agent.ltl.emptiness import find_accepting_lasso
+from tlfleet.agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
+from tlfleet.agent.ltl.guards import Cube
+from tlfleet.agent.ltl.transition_system import TransitionSystem
 
 
 def _names(mask: int, atoms: tuple[str, ...]) -> list[str]:

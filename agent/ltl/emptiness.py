@@ -13,8 +13,8 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 
-from agent.ltl.buchi import Buchi
-from agent.ltl.graphs import bfs_path, nontrivial, reachable, strongly_connected_components
+from tlfleet.agent.ltl.buchi import Buchi
+from tlfleet.agent.ltl.graphs import bfs_path, nontrivial, reachable, strongly_connected_components
 
 Lasso = tuple[tuple[frozenset[str], ...], tuple[frozenset[str], ...]]
 

@@ -27,7 +27,7 @@ Automata are the translator's tuples ``(n, initial, accepting, edges)`` with BDD
 
 from __future__ import annotations
 
-from agent.ltl.bdd import FALSE, TRUE, disjoin
+from tlfleet.agent.ltl.bdd import FALSE, TRUE, disjoin
 
 MAX_STATES = 10
 """Largest automaton (states) for which the games are played (positions: states²)."""

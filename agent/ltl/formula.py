@@ -22,7 +22,7 @@ class Formula:
     __slots__ = ()
 
     def __str__(self) -> str:
-        from agent.ltl.printer import to_string
+        from tlfleet.agent.ltl.printer import to_string
 
         return to_string(self)
 
@@ -178,7 +178,7 @@ def size(f: Formula) -> int:
 def recursion_headroom(frames: int = 20_000):
     """Raise Python's recursion limit to at least ``frames`` for the passes over one formula.
 
-    The parser caps nesting at ``agent.ltl.parser.MAX_DEPTH`` levels; the recursive passes
+    The parser caps nesting at ``tlfleet.agent.ltl.parser.MAX_DEPTH`` levels; the recursive passes
     (rewriting, the alternating automaton) use a handful of Python frames per level, which on
     Python ≥ 3.11 do not consume C stack, so a few thousand frames are safe.
     """

@@ -7,8 +7,8 @@ Two representations:
 
 * a **cube** (conjunction of literals) is the pair ``(pos, neg)`` of disjoint atom bitmasks; the
   alternating-automaton construction works on cubes;
-* a **guard** on an automaton edge is a reduced ordered BDD (``agent.ltl.bdd``): canonical, so
-  equal guards are the same object; union ``|``, intersection ``&``, difference ``-`` and
+* a **guard** on an automaton edge is a reduced ordered BDD (``tlfleet.agent.ltl.bdd``): canonical,
+  so equal guards are the same object; union ``|``, intersection ``&``, difference ``-`` and
   complement ``~`` cost in the size of the diagrams, not in the 2ⁿ letters, and
   ``guard.holds(v)`` evaluates it on a letter in at most ``n`` steps. (Until issue 16 a guard was
   a 2ⁿ-bit truth table, limited to 20 atoms.)
@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-from agent.errors import LtlError
-from agent.ltl import bdd
-from agent.ltl.bdd import FALSE, TRUE, Bdd
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.bdd import FALSE, TRUE, Bdd
+from tlfleet.bus.errors import LtlError
 
 Cube = tuple[int, int]
 Guard = Bdd

@@ -7,9 +7,9 @@ Boolean expressions over AP indices (``[0&!1 | 2]``), so the output can be fed t
 
 from __future__ import annotations
 
-from agent.ltl.bdd import FALSE, TRUE, disjoin
-from agent.ltl.buchi import Buchi
-from agent.ltl.guards import cube_to_string
+from tlfleet.agent.ltl.bdd import FALSE, TRUE, disjoin
+from tlfleet.agent.ltl.buchi import Buchi
+from tlfleet.agent.ltl.guards import cube_to_string
 
 
 def _quote(text: str) -> str:

@@ -1,14 +1,14 @@
 """Reading Büchi automata in the Hanoi Omega-Automata format, HOA v1 (docs/ltl.md "Tools").
 
 So that a user can plan with an automaton produced by another tool (Spot's ``ltl2tgba``,
-``autfilt``, Owl …): ``read_hoa(text)`` returns an :class:`agent.ltl.buchi.Buchi`.
+``autfilt``, Owl …): ``read_hoa(text)`` returns an :class:`tlfleet.agent.ltl.buchi.Buchi`.
 
 Supported: ``Acceptance: 1 Inf(0)`` (Büchi) or ``0 t`` (all runs accept), state-based or
 transition-based marks (transition marks are moved onto a copy of the target state: a run sees
 infinitely many marked edges iff it visits infinitely many marked copies), explicit labels
 (``[0 & !1 | t]``) or implicit labels (one edge per letter, in valuation order), several
 ``Start:`` lines, aliases (``Alias: @a 0&1``). Anything else — generalised or parity
-acceptance, alternation (``Start: 0&1``) — is refused with a :class:`agent.errors.LtlError`
+acceptance, alternation (``Start: 0&1``) — is refused with a :class:`tlfleet.bus.errors.LtlError`
 naming the line. Format: https://adl.github.io/hoaf/
 """
 
@@ -17,10 +17,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from agent.errors import LtlError
-from agent.ltl import bdd
-from agent.ltl.bdd import FALSE, TRUE, Bdd
-from agent.ltl.buchi import Buchi
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.bdd import FALSE, TRUE, Bdd
+from tlfleet.agent.ltl.buchi import Buchi
+from tlfleet.bus.errors import LtlError
 
 
 def _fail(source: str, line: int, what: str) -> LtlError:
@@ -227,11 +227,12 @@ def read_hoa(text: str, source: str = "<hoa>"):
 
 HOA_TASK_PREFIX = "hoa:"
 """A scenario task ``ltl = { hoa = "file.hoa" }`` is carried as the text ``hoa:<absolute path>``
-(``agent.scenario.loader``); :func:`agent.ltl.task.task_automaton` reads the file."""
+(``tlfleet.agent.scenario.loader``); :func:`tlfleet.agent.ltl.task.task_automaton` reads the
+file."""
 
 
 def read_hoa_file(path: str | Path):
-    """:func:`read_hoa` of a file; unreadable files are an :class:`agent.errors.LtlError`."""
+    """:func:`read_hoa` of a file; unreadable files are an :class:`tlfleet.bus.errors.LtlError`."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

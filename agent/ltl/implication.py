@@ -8,10 +8,10 @@ implication of Spot's formula simplifier. It answers ``False`` when no rule appl
 
 ``contradict(f, g)`` proves ``f ∧ g`` unsatisfiable: ``f ⇒ ¬g`` or ``g ⇒ ¬f``, with ``¬`` the
 dual in negation normal form (:func:`negate`). The TGBA construction uses it to drop transitions
-into conjunctions of VWAA states that no word satisfies (``agent.ltl.tgba``).
+into conjunctions of VWAA states that no word satisfies (``tlfleet.agent.ltl.tgba``).
 
 The rules, each a one-line argument on words (``e`` eventual: ``e ≡ F e``; ``u`` universal:
-``u ≡ G u``; ``agent.ltl.rewrite``):
+``u ≡ G u``; ``tlfleet.agent.ltl.rewrite``):
 
 * ``f ⇒ f``; ``f ⇒ true``; ``false ⇒ g``;
 * ``f ⇒ g1 ∧ g2`` if both hold; ``f1 ∨ f2 ⇒ g`` if both hold; ``f ⇒ g1 ∨ g2`` if ``f ⇒ g1`` or
@@ -27,7 +27,7 @@ The rules, each a one-line argument on words (``e`` eventual: ``e ≡ F e``; ``u
 
 from __future__ import annotations
 
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     And,
     Atom,
     Const,
@@ -41,7 +41,7 @@ from agent.ltl.formula import (
     Until,
     children,
 )
-from agent.ltl.rewrite import is_eventual, is_universal
+from tlfleet.agent.ltl.rewrite import is_eventual, is_universal
 
 
 def negate(f: Formula) -> Formula:

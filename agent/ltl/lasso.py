@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     And,
     Atom,
     Const,
@@ -30,7 +30,7 @@ from agent.ltl.formula import (
     WeakUntil,
     Xor,
 )
-from agent.ltl.parser import parse
+from tlfleet.agent.ltl.parser import parse
 
 
 class _Word:

@@ -24,7 +24,7 @@ import re
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from agent.errors import LtlSyntaxError
+from tlfleet.bus.errors import LtlSyntaxError
 
 __all__ = ["Token", "is_bare_atom", "tokenize"]
 

@@ -11,12 +11,12 @@ Binding, loosest to tightest, exactly as Spot's ``parsetl.yy`` declares it::
     F G X !        prefix, tighter than every binary operator: F a U b = (F a) U b
 
 plus ``X[n]``, ``F[n:m]``, ``G[n:m]`` (Spot's sugar, expanded into nested ``X``), postfix
-``=0``/``=1`` on atoms (Wring), and the tokens of :mod:`agent.ltl.lexer`.
+``=0``/``=1`` on atoms (Wring), and the tokens of :mod:`tlfleet.agent.ltl.lexer`.
 
 The parser is operator-precedence with explicit stacks (no recursion), so nesting depth is
 limited only by :data:`MAX_DEPTH`, which keeps every later recursive pass (printing,
 rewriting, translation) far from Python's recursion limit; deeper formulas get a clear
-:class:`agent.errors.LtlSyntaxError` rather than a ``RecursionError``. ``&`` and ``|`` build
+:class:`tlfleet.bus.errors.LtlSyntaxError` rather than a ``RecursionError``. ``&`` and ``|`` build
 flattened n-ary nodes, as Spot does (a conjunction of 1 000 atoms is depth 2).
 """
 
@@ -24,9 +24,8 @@ from __future__ import annotations
 
 from types import MappingProxyType
 
-from agent.errors import LtlSyntaxError
-from agent.ltl import lexer as lx
-from agent.ltl.formula import (
+from tlfleet.agent.ltl import lexer as lx
+from tlfleet.agent.ltl.formula import (
     FALSE,
     TRUE,
     And,
@@ -48,7 +47,8 @@ from agent.ltl.formula import (
     conj,
     disj,
 )
-from agent.ltl.lexer import Token, tokenize
+from tlfleet.agent.ltl.lexer import Token, tokenize
+from tlfleet.bus.errors import LtlSyntaxError
 
 __all__ = ["BINARY_PRECEDENCE", "MAX_DEPTH", "Token", "atoms", "parse", "tokenize"]
 
@@ -206,7 +206,7 @@ class _Parser:
 def parse(text: str) -> Formula:
     """Parse ``text`` (Spot syntax, docs/ltl.md) into an immutable formula tree.
 
-    Raises :class:`agent.errors.LtlSyntaxError` (a ``FormulaSyntaxError``) whose one-line
+    Raises :class:`tlfleet.bus.errors.LtlSyntaxError` (a ``FormulaSyntaxError``) whose one-line
     message names the formula, the 1-based column and what was expected there.
     """
     if not isinstance(text, str):

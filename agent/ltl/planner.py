@@ -23,16 +23,16 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from agent.errors import UnsatisfiableTask
-from agent.ltl.buchi import Buchi, buchi_step, translate
-from agent.ltl.diagnose import explain_unsatisfiable
-from agent.ltl.formula import Formula
-from agent.ltl.parser import parse
-from agent.ltl.product import ProductGraph, explore
-from agent.ltl.search import optimal_lasso
-from agent.ltl.task import is_hoa_task, task_automaton
-from agent.ltl.transition_system import Distance, TransitionSystem, from_scenario
-from agent.scenario.model import Scenario
+from tlfleet.agent.ltl.buchi import Buchi, buchi_step, translate
+from tlfleet.agent.ltl.diagnose import explain_unsatisfiable
+from tlfleet.agent.ltl.formula import Formula
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.product import ProductGraph, explore
+from tlfleet.agent.ltl.search import optimal_lasso
+from tlfleet.agent.ltl.task import is_hoa_task, robot_formula, task_automaton
+from tlfleet.agent.ltl.transition_system import Distance, TransitionSystem, from_scenario
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.bus.errors import UnsatisfiableTask
 
 __all__ = ["Plan", "Timings", "buchi_step", "plan", "plan_robot", "replan"]
 
@@ -179,8 +179,8 @@ def plan(
 ) -> Plan:
     """Optimal plan of ``task`` (formula, text, or an already translated automaton) on ``ts``.
 
-    Raises :class:`agent.errors.UnsatisfiableTask` when no accepting run exists, with what is
-    missing, and :class:`agent.errors.FormulaSyntaxError` for text that does not parse.
+    Raises :class:`tlfleet.bus.errors.UnsatisfiableTask` when no accepting run exists, with what is
+    missing, and :class:`tlfleet.bus.errors.FormulaSyntaxError` for text that does not parse.
     """
     buchi, t_parse, t_translate = _automaton(task)
     pairs = [(ts.initial, q) for q in buchi.initial]
@@ -230,7 +230,7 @@ def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = No
     if robot.ltl is None:
         raise ValueError(f"robot {robot_id} has no LTL task")
     ts = from_scenario(scenario, robot_id, distance)
-    buchi, t_parse, t_translate = _automaton(robot.ltl_tree if buchi is None else buchi)
+    buchi, t_parse, t_translate = _automaton(robot_formula(robot) if buchi is None else buchi)
     pairs = [(ts.initial, q) for q in buchi.initial]
     try:
         return _search(

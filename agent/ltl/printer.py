@@ -1,6 +1,6 @@
 """Printer for LTL formulas in Spot syntax (ltl-planning.md §1; docs/ltl.md).
 
-The printer uses Spot's precedence table (``agent.ltl.parser.BINARY_PRECEDENCE``) and adds
+The printer uses Spot's precedence table (``tlfleet.agent.ltl.parser.BINARY_PRECEDENCE``) and adds
 parentheses only where Spot's parser would otherwise read a different tree, so printed formulas
 paste into Spot/ltlfilt unchanged and ``parse(to_string(f)) == f`` for every tree the parser
 builds. Atoms that Spot would not read back as that one atom (``"door open"``, ``Fa``, ``true``)
@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from functools import lru_cache
 from types import MappingProxyType
 
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     And,
     Atom,
     Binary,
@@ -32,7 +32,7 @@ from agent.ltl.formula import (
     WeakUntil,
     Xor,
 )
-from agent.ltl.lexer import is_bare_atom
+from tlfleet.agent.ltl.lexer import is_bare_atom
 
 # Binding strength, as in Spot's parser: larger binds tighter.
 _ARROW, _OR, _XOR, _AND, _TEMPORAL, _UNARY, _PRIMARY = 1, 2, 3, 4, 6, 7, 8

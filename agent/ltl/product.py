@@ -11,8 +11,8 @@ from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from agent.ltl.buchi import Buchi
-from agent.ltl.transition_system import TransitionSystem
+from tlfleet.agent.ltl.buchi import Buchi
+from tlfleet.agent.ltl.transition_system import TransitionSystem
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ Every rule is an equivalence; the property tests compare automata with exact las
 
 from __future__ import annotations
 
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     FALSE,
     TRUE,
     And,

@@ -21,7 +21,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from agent.ltl.graphs import nontrivial, strongly_connected_components
+from tlfleet.agent.ltl.graphs import nontrivial, strongly_connected_components
 
 Succ = Sequence[Sequence[tuple[int, float]]]
 

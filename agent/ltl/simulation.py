@@ -1,7 +1,7 @@
 """Reductions of a state-based Büchi automaton by direct simulation (ltl-planning.md §2, "Small").
 
 All work on the tuple ``(n, initial, accepting, edges)`` with ``edges[q]`` a list of
-``(dst, guard)`` (BDD guards, ``agent.ltl.guards``) and preserve the language:
+``(dst, guard)`` (BDD guards, ``tlfleet.agent.ltl.guards``) and preserve the language:
 
 * :func:`single_initial` — one initial state: a fresh state with the union of the initial
   states' edges (the old ones disappear when nothing else enters them);
@@ -19,9 +19,9 @@ All work on the tuple ``(n, initial, accepting, edges)`` with ``edges[q]`` a lis
 
 from __future__ import annotations
 
-from agent.ltl.bdd import FALSE, disjoin
-from agent.ltl.graphs import nontrivial, strongly_connected_components
-from agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
+from tlfleet.agent.ltl.bdd import FALSE, disjoin
+from tlfleet.agent.ltl.graphs import nontrivial, strongly_connected_components
+from tlfleet.agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
 
 MAX_SIMULATION_STATES = 128
 """Larger automata skip the (quadratic) simulation; robot missions stay far below."""
@@ -84,7 +84,7 @@ def direct_simulation(n, accepting, edges, tables: bool = False) -> list[set[int
     reads every letter ``p`` reads, and moves to an accepting state on every letter on which
     ``p`` does" (each necessary: a move of ``p`` into an accepting state is answered by a
     move into a state simulating it, accepting too). Guards are BDDs, or truth tables (ints,
-    ``agent.ltl.truth_table``) when ``tables``."""
+    ``tlfleet.agent.ltl.truth_table``) when ``tables``."""
     if tables:
         reads = [union_of_tables(g for _d, g in out) for out in edges]
         into = [union_of_tables(g for d, g in out if d in accepting) for out in edges]
@@ -117,7 +117,7 @@ def refine_simulation(n, sim: list[set[int]], edges, tables: bool = False) -> li
     drop ``q`` from ``sim[p]`` while some edge ``p –g,M→ d`` has letters that no edge
     ``q –g',M'→ d'`` with ``d' ∈ sim[d]`` and ``M ⊆ M'`` reads. The cover "letters on which ``q``
     answers ``(d, M)``" is cached until ``sim[d]`` shrinks. Shared by the state-based reduction
-    here and the TGBA one (``agent.ltl.tgba_simulation``). Guards are BDDs, or truth tables
+    here and the TGBA one (``tlfleet.agent.ltl.tgba_simulation``). Guards are BDDs, or truth tables
     (ints) when ``tables``: then inclusion is ``not a & ~b``, with no call."""
     version = [0] * n
     cache: dict[tuple[int, int, int], tuple[int, object]] = {}
@@ -182,7 +182,7 @@ def reduce_by_simulation(n, initial, accepting, edges, atoms: int | None = None)
     """Quotient by simulation equivalence, then drop edges to strictly simulated brothers.
 
     With ``atoms`` (the number of atoms the guards range over) the work is done on truth
-    tables when there are few (``agent.ltl.truth_table``); the result is the same."""
+    tables when there are few (``tlfleet.agent.ltl.truth_table``); the result is the same."""
     if n > MAX_SIMULATION_STATES or n == 0 or is_deterministic(initial, edges):
         return n, initial, accepting, edges
     algebra = guard_algebra(atoms) if atoms is not None else BddAlgebra()

@@ -18,8 +18,8 @@ Reductions applied, all language-preserving:
 * states with the same outgoing transitions (guard, destination class, acceptance) are merged
   (GO §4.2, iterated to a bisimulation quotient);
 * transitions into a conjunction of VWAA states that contains two provably contradictory ones
-  (``G !p`` and ``F p``; ``p`` and ``!p``: syntactic implication, ``agent.ltl.implication``) are
-  dropped: no word satisfies that conjunction, so no accepting run goes there. A dropped
+  (``G !p`` and ``F p``; ``p`` and ``!p``: syntactic implication, ``tlfleet.agent.ltl.implication``)
+  are dropped: no word satisfies that conjunction, so no accepting run goes there. A dropped
   transition only dominates transitions whose targets contain its own, dropped too, so dropping
   them after the domination steps above is the same as before.
 """
@@ -29,11 +29,11 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from agent.ltl.alternating import Vwaa, is_acceptance_state
-from agent.ltl.formula import Formula, children
-from agent.ltl.guards import Guard
-from agent.ltl.implication import Conflicts
-from agent.ltl.truth_table import BddAlgebra, guard_algebra
+from tlfleet.agent.ltl.alternating import Vwaa, is_acceptance_state
+from tlfleet.agent.ltl.formula import Formula, children
+from tlfleet.agent.ltl.guards import Guard
+from tlfleet.agent.ltl.implication import Conflicts
+from tlfleet.agent.ltl.truth_table import BddAlgebra, guard_algebra
 
 # A partial product of a TGBA state's transitions, (cube, targets, bad) with bad the bitmask of
 # acceptance marks whose chosen transition was not good, packed into one int (see _Layout).

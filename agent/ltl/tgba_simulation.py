@@ -17,10 +17,10 @@ as truth tables (the same relation).
 
 from __future__ import annotations
 
-from agent.ltl.bdd import FALSE, Bdd, disjoin
-from agent.ltl.simulation import refine_simulation, union_of_tables
-from agent.ltl.tgba import Tgba
-from agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
+from tlfleet.agent.ltl.bdd import FALSE, Bdd, disjoin
+from tlfleet.agent.ltl.simulation import refine_simulation, union_of_tables
+from tlfleet.agent.ltl.tgba import Tgba
+from tlfleet.agent.ltl.truth_table import BddAlgebra, TableAlgebra, guard_algebra
 
 MAX_TGBA_SIMULATION_STATES = 32
 """Larger TGBA skip the (quadratic) simulation."""
@@ -38,7 +38,7 @@ def tgba_simulation(n: int, edges: list[dict[tuple[int, int], Bdd]], num_marks: 
                     tables: bool = False) -> list[set[int]]:
     """``sim[p]`` = the states ``q`` with ``p ≼ q``; ``edges[p]`` maps ``(dst, marks)`` to a
     guard (BDDs, or truth tables when ``tables``). Greatest fixpoint
-    (``agent.ltl.simulation.refine_simulation``) from "``q`` reads every letter ``p`` reads,
+    (``tlfleet.agent.ltl.simulation.refine_simulation``) from "``q`` reads every letter ``p`` reads,
     and for each mark ``j``, every letter on which ``p`` takes an edge marked ``j``" (both
     necessary: an edge of ``p`` is answered on the same letter with at least its marks)."""
     if tables:
@@ -70,7 +70,7 @@ def reduce_tgba(tgba: Tgba, atoms: int | None = None) -> Tgba:
     """Quotient by simulation equivalence and little-brother pruning (see module docstring).
 
     With ``atoms`` (the number of atoms the guards range over) the simulation runs on truth
-    tables when there are few (``agent.ltl.truth_table``); the result is the same."""
+    tables when there are few (``tlfleet.agent.ltl.truth_table``); the result is the same."""
     n = tgba.num_states
     if (n < 2 or n > MAX_TGBA_SIMULATION_STATES or tgba.deterministic
             or _is_deterministic(tgba)):

@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
-from agent.scenario.model import Region, Scenario
+from tlfleet.agent.model.scenario import Region, Scenario
 
 Point = tuple[float, float]
 Distance = Callable[[Point, Point], float | None]

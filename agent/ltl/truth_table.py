@@ -3,11 +3,11 @@
 Over ``n`` atoms a guard is a set of the 2ⁿ letters; as a Python int with one bit per letter,
 ``&``, ``|`` and ``& ~`` are single machine-word loops and an empty guard is ``0``. For the few
 atoms of most formulas (≤ :data:`MAX_TABLE_ATOMS`) this is several times cheaper than the BDD
-operations of :mod:`agent.ltl.bdd` in the inner loops of :func:`agent.ltl.tgba.build_tgba`
-(per-letter domination, grouping, bisimulation) and of the direct simulation
-(:mod:`agent.ltl.simulation`); the finished automaton's guards are converted
-to the canonical BDDs, so the result is the same automaton, edge for edge. Beyond that many atoms
-the construction keeps the BDDs (a table grows as 2ⁿ, issue 16: "symbolic guards").
+operations of :mod:`tlfleet.agent.ltl.bdd` in the inner loops of
+:func:`tlfleet.agent.ltl.tgba.build_tgba` (per-letter domination, grouping, bisimulation) and of the
+direct simulation (:mod:`tlfleet.agent.ltl.simulation`); the finished automaton's guards are
+converted to the canonical BDDs, so the result is the same automaton, edge for edge. Beyond that
+many atoms the construction keeps the BDDs (a table grows as 2ⁿ, issue 16: "symbolic guards").
 
 Both algebras offer ``false``, ``true``, ``cube(pos, neg)``, ``to_bdd(guard)`` and
 ``from_bdd(bdd)``; guards of
@@ -21,8 +21,8 @@ on: :meth:`TableAlgebra.to_bdd` is the Shannon expansion read off the halves.
 
 from __future__ import annotations
 
-from agent.ltl import bdd
-from agent.ltl.bdd import Bdd
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.bdd import Bdd
 
 MAX_TABLE_ATOMS = 10
 """Most atoms for which guards are built as truth tables (2¹⁰ = 1024-bit ints)."""

@@ -15,7 +15,7 @@ classes of ω-automata", as Spot's ``minimize_obligation`` uses it:
    formula is not an obligation the check fails and ``A`` is kept.
 
 Automata are the translator's tuples ``(n, initial, accepting, edges)`` with
-``edges[q] = [(q', guard), …]`` and BDD guards (``agent.ltl.bdd``). Every step is bounded
+``edges[q] = [(q', guard), …]`` and BDD guards (``tlfleet.agent.ltl.bdd``). Every step is bounded
 (``max_states``, letter classes); ``None`` means "not applicable or not smaller".
 """
 
@@ -24,8 +24,8 @@ from __future__ import annotations
 import random
 from collections import deque
 
-from agent.ltl.bdd import FALSE, TRUE, Bdd, pick_valuation
-from agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
+from tlfleet.agent.ltl.bdd import FALSE, TRUE, Bdd, pick_valuation
+from tlfleet.agent.ltl.graphs import nontrivial, reachable, strongly_connected_components
 
 MAX_CLASSES = 256
 """Letter classes per subset before the construction gives up."""

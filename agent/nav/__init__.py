@@ -2,7 +2,7 @@
 
 What the LTL agent runtime uses::
 
-    from agent.nav.executor import Executor, ExecutorInputs
+    from tlfleet.agent.nav.executor import Executor, ExecutorInputs
     executor = Executor.from_scenario(scenario, robot_id)        # static grid + DWA + limits
     state = executor.initial_state(plan.prefix, plan.suffix)     # region names from the planner
     state, out = executor.step(state, ExecutorInputs(t, (x, y, θ), others))   # at 5 Hz
@@ -14,7 +14,7 @@ What the LTL agent runtime uses::
 
 Edge weights for the LTL transition system (ltl-planning.md §3)::
 
-    from agent.nav.grid_planner import path_length_function
+    from tlfleet.agent.nav.grid_planner import path_length_function
     distance = path_length_function(scenario)     # distance(p, q) -> path length [m], cached
 
 Modules:
@@ -25,6 +25,5 @@ Modules:
 * ``executor``      plan executor: visits, cycles, re-planning, stuck recovery (pure step)
 * ``events``        the executor's events and progress record
 * ``polyline``      distances to and points along paths
-* ``harness``       closed-loop unicycle simulation for tests and benchmarks
 * ``errors``        ``NoPathError``, ``InvalidPlanError``
 """

@@ -1,4 +1,4 @@
-"""Build-time only: cffi's API-mode builder of ``agent.nav._dwa``, the DWA's per-sample
+"""Build-time only: cffi's API-mode builder of ``tlfleet.agent.nav._dwa``, the DWA's per-sample
 arithmetic in C (``agent/nav/dwa_kernel.c``; ``setup.py`` names it in ``cffi_modules``).
 ``dwa.py`` uses the built module when it is there and the same arithmetic in numpy when it is not
 (no C compiler at install time); the two are equal to the last bit where numpy's sin, cos and
@@ -14,7 +14,7 @@ HEADER = (HERE / "dwa_kernel.h").read_text()
 ffibuilder = FFI()
 ffibuilder.cdef(HEADER)
 ffibuilder.set_source(
-    "agent.nav._dwa",
+    "tlfleet.agent.nav._dwa",
     '#include "dwa_kernel.h"\n',
     sources=[str(Path("agent") / "nav" / "dwa_kernel.c")],
     include_dirs=[str(Path("agent") / "nav")],

@@ -3,9 +3,9 @@
 Beyond the paper (issue 15). Each :class:`CouplingConstraint` bounds the unicycle command
 (v [m/s], ω [rad/s]) of an LTL robot that an STL task of another robot depends on:
 ``a_v·|v| + a_ω·|ω| ≤ bound``. The constraints of one control step are derived from the coupled
-predicates' gradients by ``agent.stl.coupling`` (navigation does not depend on the STL core) and
-applied to the DWA's admissible set by ``agent.nav.dwa.dwa_control`` (its step 5) and to the
-executor's recovery rotations.
+predicates' gradients by ``tlfleet.agent.policy.coupling`` (navigation does not depend on the STL
+core) and applied to the DWA's admissible set by ``tlfleet.agent.nav.dwa.dwa_control`` (its step 5)
+and to the executor's recovery rotations.
 """
 
 from __future__ import annotations
@@ -67,5 +67,6 @@ class VelocityLimits:
 
     @staticmethod
     def of(rows) -> VelocityLimits:
-        """From ``(a_v, a_ω, bound, source)`` rows (``agent.stl.coupling.CouplingModel.limits``)."""
+        """From ``(a_v, a_ω, bound, source)`` rows
+        (``tlfleet.agent.policy.coupling.CouplingModel.limits``)."""
         return VelocityLimits(tuple(CouplingConstraint(*row) for row in rows))

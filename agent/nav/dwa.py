@@ -29,8 +29,8 @@ Each control period ``Δt`` [s] (0.2 s at 5 Hz):
    The ``front`` terms use the path extended by ``forward_point_distance`` past the goal and the
    look-ahead point that much further on (ROS instead drops them near the goal), so alignment
    never holds the robot short of its goal.
-5. **Coupling limits** (optional, ``agent.nav.coupling_limits``, docs/coupling.md): the window
-   is first clipped to the limits' largest admissible |v| and |ω|, and a sample whose
+5. **Coupling limits** (optional, ``tlfleet.agent.nav.coupling_limits``, docs/coupling.md): the
+   window is first clipped to the limits' largest admissible |v| and |ω|, and a sample whose
    ``a_v·|v| + a_ω·|ω|`` exceeds a constraint's bound is inadmissible. When no collision-free
    sample meets them (the robot still moves faster than the limits), the collision-free samples
    of least excess are kept: the robot slows down as fast as its accelerations allow.
@@ -45,16 +45,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from agent.errors import TlfleetError
-from agent.nav import dwa_native
-from agent.nav.coupling_limits import VelocityLimits
-from agent.nav.grid import OccupancyGrid
-from agent.nav.polyline import (
+from tlfleet.agent.nav import dwa_native
+from tlfleet.agent.nav.coupling_limits import VelocityLimits
+from tlfleet.agent.nav.grid import OccupancyGrid
+from tlfleet.agent.nav.polyline import (
     distance_to_polyline_xy,
     point_along_vertices,
     remaining_vertices,
 )
+from tlfleet.bus.errors import TlfleetError
 
 KERNEL_CHOICES = ("auto", "native", "python")
 
@@ -65,7 +64,7 @@ class DwaKernelError(TlfleetError, ValueError):
 
 
 def native_kernel_available() -> bool:
-    """Whether the DWA's C kernel (``agent.nav._dwa``) was built at install time."""
+    """Whether the DWA's C kernel (``tlfleet.agent.nav._dwa``) was built at install time."""
     return dwa_native.available()
 
 
@@ -97,8 +96,8 @@ class DwaConfig:
     collision_margin: float = 0.03  # [m] beyond the robot radius, rollouts closer are rejected
     carrot_distance: float = 0.8  # [m] look-ahead along the global path for the goal term
     speed_bias: float = 2.0  # weight of the speed term (ours; ROS has none)
-    # where the cycle runs: "native" (C, agent.nav._dwa), "python" (numpy), or "auto" (C when
-    # it was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
+    # where the cycle runs: "native" (C, tlfleet.agent.nav._dwa), "python" (numpy), or "auto" (C
+    # when it was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
     kernel: str = field(default_factory=_default_kernel)
 
     def __post_init__(self) -> None:
@@ -109,7 +108,7 @@ class DwaConfig:
         if self.kernel == "native" and not dwa_native.available():
             raise DwaKernelError(
                 "DwaConfig.kernel (or $TLFLEET_DWA) = 'native', but the DWA's C kernel "
-                "(agent.nav._dwa) was not built: reinstall with a C compiler")
+                "(tlfleet.agent.nav._dwa) was not built: reinstall with a C compiler")
         for name in (
             "max_vel_x",
             "max_rot_vel",
@@ -431,8 +430,8 @@ def _control_native(pose: Sequence[float], velocity: Sequence[float], path: np.n
                     grid: OccupancyGrid, robot_radius: float, others: MovingDiscs,
                     config: DwaConfig, limits: VelocityLimits | None,
                     scores: dict | None = None) -> DwaResult:
-    """``dwa_control`` in C (``agent.nav.dwa_native``); ``scores``, when given, receives every
-    sample's least clearance, cost and excess over the coupling limits (tests)."""
+    """``dwa_control`` in C (``tlfleet.agent.nav.dwa_native``); ``scores``, when given, receives
+    every sample's least clearance, cost and excess over the coupling limits (tests)."""
     return DwaResult(*dwa_native.control(pose, velocity, path, grid, robot_radius, others, config,
                                          limits, _times(config.sim_time, config.sim_dt), scores))
 

@@ -1,4 +1,5 @@
-"""The DWA cycle in C: the bridge from ``agent.nav.dwa`` to ``agent.nav._dwa`` (issue 17).
+"""The DWA cycle in C: the bridge from ``tlfleet.agent.nav.dwa`` to ``tlfleet.agent.nav._dwa``
+(issue 17).
 
 ``agent/nav/dwa_kernel.c`` runs a whole cycle of ``dwa.dwa_control`` with the numpy kernel's
 floating-point operations in the same order (docs/performance.md, *the DWA in C*); cffi builds it
@@ -17,18 +18,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 try:  # optional: the install builds it where a C compiler is
-    from agent.nav import _dwa as _native
+    from tlfleet.agent.nav import _dwa as _native
 except ImportError:  # pragma: no cover - depends on the install
     _native = None
 
 if TYPE_CHECKING:
-    from agent.nav.coupling_limits import VelocityLimits
-    from agent.nav.dwa import DwaConfig, MovingDiscs
-    from agent.nav.grid import OccupancyGrid
+    from tlfleet.agent.nav.coupling_limits import VelocityLimits
+    from tlfleet.agent.nav.dwa import DwaConfig, MovingDiscs
+    from tlfleet.agent.nav.grid import OccupancyGrid
 
 
 def available() -> bool:
-    """Whether the C kernel (``agent.nav._dwa``) was built at install time."""
+    """Whether the C kernel (``tlfleet.agent.nav._dwa``) was built at install time."""
     return _native is not None
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from agent.errors import TlfleetError
+from tlfleet.bus.errors import TlfleetError
 
 
 class NoPathError(TlfleetError):

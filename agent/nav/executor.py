@@ -2,8 +2,8 @@
 
 ltl-planning.md §6 and paper §III-A. The plan is the projection on regions of the optimal
 prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``, with the planner's
-conventions (``agent.ltl.planner``): ``prefix[0]`` may be the virtual ``"start"`` state, and a
-name equal to the previous one means "stay". Each step (5 Hz):
+conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` may be the virtual ``"start"`` state, and
+a name equal to the previous one means "stay". Each step (5 Hz):
 
 1. **Visits.** The current target counts as visited when the robot is inside the region or within
    ``xy_goal_tolerance`` of its centre; the executor then advances (stays pass at once, without a
@@ -47,12 +47,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-
-from agent.evolve import evolve
-from agent.nav.coupling_limits import VelocityLimits
-from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
-from agent.nav.errors import InvalidPlanError, NoPathError
-from agent.nav.events import (
+from tlfleet.agent.evolve import evolve
+from tlfleet.agent.model.scenario import Region, Scenario
+from tlfleet.agent.nav.coupling_limits import VelocityLimits
+from tlfleet.agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control
+from tlfleet.agent.nav.errors import InvalidPlanError, NoPathError
+from tlfleet.agent.nav.events import (
     CycleCompleted,
     NavEvent,
     NoPathFound,
@@ -63,10 +63,14 @@ from agent.nav.events import (
     ReplanRequest,
     Stuck,
 )
-from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_arena
-from agent.nav.grid_planner import plan_path
-from agent.nav.polyline import remaining_vertices, vertices_length
-from agent.scenario.model import Region, Scenario
+from tlfleet.agent.nav.grid import (
+    DEFAULT_MARGIN,
+    DEFAULT_RESOLUTION,
+    OccupancyGrid,
+    grid_from_arena,
+)
+from tlfleet.agent.nav.grid_planner import plan_path
+from tlfleet.agent.nav.polyline import remaining_vertices, vertices_length
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +113,7 @@ class ExecutorConfig:
 class ExecutorInputs:
     """One tick's inputs: time [s], own pose (x, y, θ), the other robots of the pose frame as
     rows ``(id, x, y, θ)`` (K, 4), optionally a new plan ``(prefix, suffix)`` and the coupling
-    limits of this tick (``agent.nav.coupling_limits``; they bound every command, recovery
+    limits of this tick (``tlfleet.agent.nav.coupling_limits``; they bound every command, recovery
     rotations included)."""
 
     t: float
@@ -383,7 +387,7 @@ class Executor:
     def _visit(self, s: ExecutorState, pose: np.ndarray, t: float, events: list) -> ExecutorState:
         """Advance over every target the robot is currently in (bounded by the plan length).
 
-        The planner's conventions (agent.ltl.planner): ``prefix[0]`` may be the virtual
+        The planner's conventions (tlfleet.agent.ltl.planner): ``prefix[0]`` may be the virtual
         ``"start"`` state, passed at once; a name equal to the previous one means "stay", passed
         at once without counting a new visit.
         """

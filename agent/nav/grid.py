@@ -24,8 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from agent.scenario.model import Arena, DiscObstacle, RectObstacle, Scenario
+from tlfleet.agent.model.scenario import Arena, DiscObstacle, RectObstacle, Scenario
 
 DEFAULT_RESOLUTION = 0.05  # [m], ltl-planning.md §6
 DEFAULT_MARGIN = 0.05  # [m], added to the robot radius when inflating

@@ -21,11 +21,15 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from agent.nav.errors import NoPathError
-from agent.nav.grid import DEFAULT_MARGIN, DEFAULT_RESOLUTION, OccupancyGrid, grid_from_scenario
-from agent.nav.polyline import polyline_length
-from agent.scenario.model import Scenario
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.nav.errors import NoPathError
+from tlfleet.agent.nav.grid import (
+    DEFAULT_MARGIN,
+    DEFAULT_RESOLUTION,
+    OccupancyGrid,
+    grid_from_scenario,
+)
+from tlfleet.agent.nav.polyline import polyline_length
 
 log = logging.getLogger(__name__)
 

@@ -7,7 +7,7 @@
 * ``inbox``: thread-safe hand-over from transport callbacks (latest frame, controls, collab
   messages, malformed counting);
 * ``collab`` / ``peers``: STL collaboration messages on the wire and their query/reply link;
-* ``ltl_agent`` / ``stl_agent``: the pure policies (``agent.ltl.agent``, ``agent.stl.agent``)
-  adapted to the loop, and their process ``main``; ``process``: what every agent process does
-  around its loop.
+* ``ltl_agent`` / ``stl_agent``: the pure policies (``tlfleet.agent.policy.ltl``,
+  ``tlfleet.agent.policy.stl``) adapted to the loop, and their process ``main``; ``process``: what
+  every agent process does around its loop.
 """

@@ -1,7 +1,8 @@
 """Conversions between the STL core's collaboration messages and the wire protocol.
 
-``agent.stl.messages`` (what the pure step reads and writes) ↔ ``agent.protocol.messages``
-(what travels on ``robot/<id>/collab``, stl-funnel.md §7.5, architecture.md §2):
+``tlfleet.agent.stl.messages`` (what the pure step reads and writes) ↔
+``tlfleet.bus.protocol.messages`` (what travels on ``robot/<id>/collab``, stl-funnel.md §7.5,
+architecture.md §2):
 
 =====================  =================================================================
 core message           ``CollabMessage`` kind and fields
@@ -13,7 +14,7 @@ core message           ``CollabMessage`` kind and fields
                        all_done
 =====================  =================================================================
 
-The funnel travels whole: ``agent.stl.funnel.Funnel`` and the protocol's ``FunnelWire`` have
+The funnel travels whole: ``tlfleet.agent.stl.funnel.Funnel`` and the protocol's ``FunnelWire`` have
 the same twelve fields (kind, a, b [s], ρ_opt, ρ_max, r, γ_0, γ_∞, l [1/s], t* [s], t_r [s], ζ_u).
 """
 
@@ -22,16 +23,16 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from agent.protocol.codec import ProtocolError
-from agent.protocol.messages import CollabMessage, FunnelWire
-from agent.stl.funnel import Funnel
-from agent.stl.messages import (
+from tlfleet.agent.stl.funnel import Funnel
+from tlfleet.agent.stl.messages import (
     CollabRelease,
     CollabRequest,
     CollabUpdate,
     Message,
     StatusAnnounce,
 )
+from tlfleet.bus.protocol.codec import ProtocolError
+from tlfleet.bus.protocol.messages import CollabMessage, FunnelWire
 
 _FUNNEL_FIELDS = tuple(f.name for f in dataclasses.fields(Funnel))  # = FunnelWire's (tested)
 

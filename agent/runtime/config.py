@@ -1,13 +1,13 @@
 """The typed configuration of one agent process (style.md §6, §10): what ``tlfleet agent`` gives
-:func:`agent.runtime.process.main`, with no argparse in sight."""
+:func:`tlfleet.agent.runtime.process.main`, with no argparse in sight."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from agent.errors import TlfleetError
-from bus.transport import TransportConfig
+from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.transport import TransportConfig
 
 
 class AgentConfigError(TlfleetError, ValueError):

@@ -15,7 +15,8 @@ from ``window`` seconds before the loss onwards are published again, each with
 events in question are published in the moments between a resumption and the notice.
 
 Delivery is therefore at least once; the coordinator's recorder drops a replayed event it has
-already recorded (:mod:`coordinator.event_dedup`) and records the others with their mark, so
+already recorded (:mod:`tlfleet.coordinator.record.replay_dedup`) and records the others with their
+mark, so
 ``events.jsonl`` says which ones came late. Events older than the window, or pushed out of the
 ring, are not replayed: the bound is :data:`CAPACITY` events and ``window`` seconds.
 """
@@ -29,10 +30,10 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import EVENT_REPLAYED, Event
-from bus.transport import Closeable, Transport
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import EVENT_REPLAYED, Event
+from tlfleet.bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 

@@ -9,7 +9,7 @@ only store bytes and return (stack-notes.md §0, §1.7). Everything here is buil
   callback validates a frame before storing it (issue 11), so garbage never displaces a valid
   frame: the slot holds the newest *valid* frame, with its decoded message.
 * :class:`CollabInbox`: decoded collaboration messages for the pure STL step, handed over with the
-  deterministic one-step latency of the pure harness (``agent.stl.harness``, latency 1).
+  deterministic one-step latency of the pure harness (``stl_harness``, latency 1).
 * :class:`MalformedCounter`: counts undecodable or implausible payloads per key and per claimed
   source, logs them rate-limited and queues ``Event(kind="malformed_message")`` for the loop to
   publish; it never raises.
@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from agent.protocol.messages import Event
+from tlfleet.bus.protocol.messages import Event
 
 logger = logging.getLogger(__name__)
 
@@ -141,7 +141,7 @@ class CollabInbox:
     :meth:`take_before` hands over, in a fixed order, every message sent at a sim time earlier than
     the frame being processed. A message sent during tick k therefore reaches its receiver at tick
     k + 1 whatever the order in which the agents process tick k: the one-step latency of
-    ``agent.stl.harness.run_closed_loop(latency_steps=1)``, deterministic in lockstep. The order is
+    ``stl_harness.run_closed_loop(latency_steps=1)``, deterministic in lockstep. The order is
     (send time, sender id, arrival), which is the harness's order (agents step in ascending ids).
     """
 

@@ -1,6 +1,6 @@
 """The one loop of an agent process: decode → pure ``step`` → encode/publish (style.md §3).
 
-:class:`AgentLoop` is transport-agnostic (a :class:`~bus.transport.Transport`: zenoh in
+:class:`AgentLoop` is transport-agnostic (a :class:`~tlfleet.bus.transport.Transport`: zenoh in
 processes, ``FakeNetwork`` in tests) and core-agnostic: the LTL and the STL agents are a
 :class:`Core` each, whose ``step(state, TickInput) -> (state, TickOutput)`` holds all the logic.
 The loop implements the time protocol of architecture.md §3 (contract of issue 5):
@@ -38,15 +38,15 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   ``Event(malformed_message)``; they never end the loop;
 * (issue 11) a mocap frame is decoded and checked in the transport callback, before it reaches
   the mailbox: undecodable, outside the fleet's bounds (``LoopConfig.bounds``) or an implausible
-  sequence jump (``LoopConfig.max_jump``, :class:`agent.protocol.plausibility.FrameGate`) → counted
-  and dropped, so garbage never displaces the newest valid frame; a frame older than the last one
-  handled is ignored;
+  sequence jump (``LoopConfig.max_jump``, :class:`tlfleet.bus.protocol.plausibility.FrameGate`) →
+  counted and dropped, so garbage never displaces the newest valid frame; a frame older than the
+  last one handled is ignored;
 * (issue 11) resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
   previous one (the process was frozen, or the link cut) first drains the backlog the transport
   delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
   ``Event(resumed)``;
 * events: the last ones are published again, marked ``replayed``, when the coordinator's
-  liveliness token goes and returns (the link was down: :mod:`agent.runtime.event_log`).
+  liveliness token goes and returns (the link was down: :mod:`tlfleet.agent.runtime.event_log`).
 """
 
 from __future__ import annotations
@@ -60,16 +60,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.fast_paths import command_bytes
-from agent.protocol.messages import Clock, CollabMessage, Command, Control, Event, MocapFrame
-from agent.protocol.plausibility import FrameGate, Verdict
-from agent.runtime.event_log import EventLog
-from agent.runtime.inbox import Mailbox, MalformedCounter
-from agent.runtime.peers import CollabLink
-from bus.transport import Channel, Closeable, Transport
+from tlfleet.agent.runtime.event_log import EventLog
+from tlfleet.agent.runtime.inbox import Mailbox, MalformedCounter
+from tlfleet.agent.runtime.peers import CollabLink
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.fast_paths import command_bytes
+from tlfleet.bus.protocol.messages import Clock, CollabMessage, Command, Control, Event, MocapFrame
+from tlfleet.bus.protocol.plausibility import FrameGate, Verdict
+from tlfleet.bus.transport import Channel, Closeable, Transport
 
 logger = logging.getLogger(__name__)
 
@@ -317,7 +317,7 @@ class AgentLoop:
 
     def publish_event(self, event: Event) -> None:
         """Publish ``event``; it is published again if the coordinator's token goes and comes
-        back soon after (:mod:`agent.runtime.event_log`)."""
+        back soon after (:mod:`tlfleet.agent.runtime.event_log`)."""
         self.events.publish(event)
 
     # the loop --------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
-"""The LTL agent process: the pure :class:`agent.ltl.agent.LtlAgent` inside the agent loop.
+"""The LTL agent process: the pure :class:`tlfleet.agent.policy.ltl.LtlAgent` inside the agent loop.
 
-:class:`LtlCore` adapts it to the loop's :class:`~agent.runtime.loop.Core` interface: a due mocap
-frame → :class:`~agent.ltl.agent.LtlStepInput` (own pose, every other row), the step's notices →
+:class:`LtlCore` adapts it to the loop's :class:`~tlfleet.agent.runtime.loop.Core` interface: a due
+mocap frame → :class:`~tlfleet.agent.policy.ltl.LtlStepInput` (own pose, every other row), the
+step's notices →
 ``Event`` messages from ``agent/<id>``, its progress → an ``LtlStatus`` every due frame (≤ 10 Hz
 of sim time). All decisions are the pure agent's (style.md §3).
 
@@ -13,16 +14,15 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-
-from agent.ltl.agent import Distance, LtlAgent, LtlState, LtlStepInput, Notice
-from agent.ltl.planner import Plan
-from agent.nav.dwa import DwaConfig, native_kernel_available
-from agent.nav.events import ReplanRequest
-from agent.nav.executor import Executor
-from agent.protocol.messages import Event, LtlStatus
-from agent.runtime.config import AgentConfig
-from agent.runtime.loop import TickInput, TickOutput
-from agent.scenario.model import Scenario
+from tlfleet.agent.ltl.planner import Plan
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.nav.dwa import DwaConfig, native_kernel_available
+from tlfleet.agent.nav.events import ReplanRequest
+from tlfleet.agent.nav.executor import Executor
+from tlfleet.agent.policy.ltl import Distance, LtlAgent, LtlState, LtlStepInput, Notice
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.runtime.loop import TickInput, TickOutput
+from tlfleet.bus.protocol.messages import Event, LtlStatus
 
 logger = logging.getLogger(__name__)
 
@@ -51,7 +51,7 @@ class LtlCore:
         return self._event(self.agent.coupling_notice())
 
     def plan(self) -> Plan:
-        """Algorithm 1; raises :class:`agent.errors.UnsatisfiableTask`."""
+        """Algorithm 1; raises :class:`tlfleet.bus.errors.UnsatisfiableTask`."""
         return self.agent.plan()
 
     def initial_state(self, plan: Plan) -> tuple[LtlState, Event]:
@@ -89,9 +89,9 @@ class LtlCore:
 
 
 def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) -> int:
-    """The LTL agent process of ``config.robot`` (see ``cli.commands.agent``);
-    ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
-    from agent.runtime.process import run_agent
+    """The LTL agent process of ``config.robot`` (see ``tlfleet.cli.commands.agent``);
+    ``transport`` and ``stop`` are for tests (see ``tlfleet.agent.runtime.process.run_agent``)."""
+    from tlfleet.agent.runtime.process import run_agent
 
     def build(_transport, _malformed, _publish):
         core = LtlCore(scenario, config.robot)
@@ -108,10 +108,10 @@ def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) 
 
 def _log_dwa_kernel(robot: int, dwa: DwaConfig) -> None:
     if dwa.native:
-        logger.info("robot %d: DWA kernel: C (agent.nav._dwa)", robot)
+        logger.info("robot %d: DWA kernel: C (tlfleet.agent.nav._dwa)", robot)
     elif native_kernel_available():
         logger.info("robot %d: DWA kernel: numpy (kernel = %r)", robot, dwa.kernel)
     else:
-        logger.warning("robot %d: the DWA's C kernel (agent.nav._dwa) was not built at install "
-                       "time (no C compiler?): running its numpy form, the same commands, a "
-                       "slower step", robot)
+        logger.warning("robot %d: the DWA's C kernel (tlfleet.agent.nav._dwa) was not built at "
+                       "install time (no C compiler?): running its numpy form, the same "
+                       "commands, a slower step", robot)

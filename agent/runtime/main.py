@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from agent.errors import TlfleetError
-from agent.runtime.config import AgentConfig, AgentConfigError
-from agent.scenario import load_scenario
-from agent.scenario.model import Scenario
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.runtime.config import AgentConfig, AgentConfigError
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import TlfleetError
 
 
 def main(config: AgentConfig, scenario: Scenario | None = None) -> int:
     """``tlfleet agent``: the process of ``config.robot``, dispatched on its task — an LTL robot
-    runs :mod:`agent.runtime.ltl_agent` (plan, then navigation), an STL robot
-    :mod:`agent.runtime.stl_agent` (funnel control with stage-2 collaboration). Exit codes: 0
-    after a clean stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault."""
+    runs :mod:`tlfleet.agent.runtime.ltl_agent` (plan, then navigation), an STL robot
+    :mod:`tlfleet.agent.runtime.stl_agent` (funnel control with stage-2 collaboration). Exit codes:
+    0 after a clean stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault."""
     if scenario is None:
         if config.scenario is None:
             raise TlfleetError("agent: no scenario given")
@@ -22,9 +22,9 @@ def main(config: AgentConfig, scenario: Scenario | None = None) -> int:
         raise AgentConfigError(f"scenario {scenario.name!r} has no robot {config.robot} "
                                f"(robots: {known})")
     if scenario.robot(config.robot).is_ltl:
-        from agent.runtime import ltl_agent
+        from tlfleet.agent.runtime import ltl_agent
 
         return ltl_agent.main(config, scenario)
-    from agent.runtime import stl_agent
+    from tlfleet.agent.runtime import stl_agent
 
     return stl_agent.main(config, scenario)

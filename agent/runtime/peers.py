@@ -3,7 +3,7 @@
 One :class:`CollabLink` per STL agent process:
 
 * serves the queryable ``robot/<own id>/collab``: decodes a ``CollabMessage``, converts it to the
-  core's message, appends it to the :class:`~agent.runtime.inbox.CollabInbox` and replies
+  core's message, appends it to the :class:`~tlfleet.agent.runtime.inbox.CollabInbox` and replies
   ``CollabReply(accepted=True)``; a malformed payload is counted and answered
   ``CollabReply(False, reason)`` (architecture.md §2);
 * sends each outgoing message by query to ``robot/<receiver>/collab``, all of a step's queries in
@@ -30,12 +30,12 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
-from agent.protocol import keys
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import CollabMessage, CollabReply
-from agent.runtime.collab import from_wire
-from agent.runtime.inbox import CollabInbox, MalformedCounter
-from bus.transport import Closeable, Transport
+from tlfleet.agent.runtime.collab import from_wire
+from tlfleet.agent.runtime.inbox import CollabInbox, MalformedCounter
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import CollabMessage, CollabReply
+from tlfleet.bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 _NOBODY: frozenset[int] = frozenset()

@@ -17,19 +17,20 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from agent.errors import TlfleetError
-from agent.protocol import keys
-from agent.protocol.bounds import MAX_TIME, FleetBounds
-from agent.protocol.codec import encode
-from agent.protocol.messages import Event
-from agent.protocol.plausibility import max_jump_ticks
-from agent.runtime.config import AgentConfig
-from agent.runtime.inbox import MalformedCounter
-from agent.runtime.loop import AgentLoop, Core, LoopConfig
-from agent.runtime.peers import CollabLink
-from agent.scenario.model import Scenario
-from bus.signals import install_signal_handlers
-from bus.transport import Transport, open_transport
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.runtime.inbox import MalformedCounter
+from tlfleet.agent.runtime.loop import AgentLoop, Core, LoopConfig
+from tlfleet.agent.runtime.peers import CollabLink
+from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import MAX_TIME, FleetBounds
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Event
+from tlfleet.bus.protocol.plausibility import max_jump_ticks
+from tlfleet.bus.signals import install_signal_handlers
+from tlfleet.bus.transport import Transport
+from tlfleet.bus.zenoh.transport import open_transport
 
 logger = logging.getLogger(__name__)
 
@@ -66,7 +67,7 @@ def frame_subscription(scenario: Scenario, robot: int) -> dict[str, Any]:
 def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
               transport: Transport | None = None, stop: threading.Event | None = None) -> int:
     """Run one agent process; 0 on a clean stop, 1 on a fault: ``build`` raising a
-    :class:`~agent.errors.TlfleetError` (e.g. an unsatisfiable LTL task) or returning None, or
+    :class:`~tlfleet.bus.errors.TlfleetError` (e.g. an unsatisfiable LTL task) or returning None, or
     the loop failing; each is reported as ``Event(kind="fault", data={"error": ...})``.
 
     ``transport`` and ``stop`` are for tests (a fake transport, a stop event they control);

@@ -1,6 +1,6 @@
-"""The STL agent: the pure funnel agent of ``agent.stl.agent`` behind the runtime loop.
+"""The STL agent: the pure funnel agent of ``tlfleet.agent.policy.stl`` behind the runtime loop.
 
-:class:`StlCore` wraps one :class:`~agent.stl.agent.StlAgent` (built with
+:class:`StlCore` wraps one :class:`~tlfleet.agent.policy.stl.StlAgent` (built with
 ``build_agents(scenario, robots=[id])[id]``; stl-funnel.md §6–§9, §12, paper Alg. 2) into the
 loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of its own:
 
@@ -12,14 +12,14 @@ loop's ``step(state, TickInput) -> (state, TickOutput)``, adding no decision of 
   command), an ``StlStatus`` at most every ``status_period`` [s] of sim time (≤ 10 Hz), and
   events read off the step's ``LogRecord`` and messages: ``critical_event`` and ``repair``
   (data: stage, r, …), ``recovery`` (a robustness recovery raised r: r, r_before, ρ, …;
-  ``agent.stl.recovery``), ``collab_request``, ``collab_release``, ``collab_follow`` (the agent
-  starts or stops following a requester), ``subtask_done`` and ``peers_unreachable`` (the set
+  ``tlfleet.agent.stl.recovery``), ``collab_request``, ``collab_release``, ``collab_follow`` (the
+  agent starts or stops following a requester), ``subtask_done`` and ``peers_unreachable`` (the set
   of peers the runtime cannot reach changed: ``peers``, ``lost``, ``back``).
 
 ``main(config, scenario)`` is the process (``tlfleet agent SCENARIO --robot ID`` for an STL
 robot); its
-:class:`~agent.runtime.peers.CollabLink` serves ``robot/<id>/collab``, and its agent announces
-its status only to the robots that read it (``agent.stl.agent.status_readers``).
+:class:`~tlfleet.agent.runtime.peers.CollabLink` serves ``robot/<id>/collab``, and its agent
+announces its status only to the robots that read it (``tlfleet.agent.policy.stl.status_readers``).
 """
 
 from __future__ import annotations
@@ -27,15 +27,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from agent.protocol.fast_paths import pose_map
-from agent.protocol.messages import Event, StlStatus
-from agent.runtime.collab import to_wire
-from agent.runtime.config import AgentConfig
-from agent.runtime.loop import TickInput, TickOutput
-from agent.runtime.peers import CollabLink
-from agent.scenario.model import Scenario
-from agent.stl.agent import AgentState, LogRecord, StepInput, StlAgent, build_agents
-from agent.stl.messages import CollabRelease, CollabRequest
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.policy.stl import AgentState, LogRecord, StepInput, StlAgent, build_agents
+from tlfleet.agent.runtime.collab import to_wire
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.runtime.loop import TickInput, TickOutput
+from tlfleet.agent.runtime.peers import CollabLink
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest
+from tlfleet.bus.protocol.fast_paths import pose_map
+from tlfleet.bus.protocol.messages import Event, StlStatus
 
 STATUS_PERIOD = 0.1  # [s] sim time: StlStatus at ≤ 10 Hz (architecture.md §2)
 _EPS = 1e-9  # [s] so that frames at exactly k·0.1 s count as due despite float sums
@@ -52,7 +52,7 @@ class StlRuntimeState:
 
 
 class StlCore:
-    """One STL agent as a loop :class:`~agent.runtime.loop.Core`."""
+    """One STL agent as a loop :class:`~tlfleet.agent.runtime.loop.Core`."""
 
     def __init__(self, agent: StlAgent, status_period: float = STATUS_PERIOD):
         self.agent = agent
@@ -157,9 +157,9 @@ def _status(robot: int, log: LogRecord, state: AgentState) -> StlStatus:
 
 
 def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) -> int:
-    """The STL agent process of ``config.robot`` (see ``cli.commands.agent``);
-    ``transport`` and ``stop`` are for tests (see ``agent.runtime.process.run_agent``)."""
-    from agent.runtime.process import run_agent
+    """The STL agent process of ``config.robot`` (see ``tlfleet.cli.commands.agent``);
+    ``transport`` and ``stop`` are for tests (see ``tlfleet.agent.runtime.process.run_agent``)."""
+    from tlfleet.agent.runtime.process import run_agent
 
     def build(transport, malformed, _publish_fault):
         agent = build_agents(scenario, robots=[config.robot])[config.robot]

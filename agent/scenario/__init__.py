@@ -1,36 +1,10 @@
-"""Scenario files: the typed model (``model``) and the validating TOML loader (``loader``).
+"""Scenario files: TOML in, a checked :class:`~tlfleet.agent.model.Scenario` out.
 
-Pure code (stdlib + the formula parsers); usable by the agents, the simulator and the coordinator
-without any of them importing the coordinator.
+``loader`` reads and validates a file (file, field path and reason on every error), ``validation``
+checks sizes, rates, geometry and task satisfiability, ``stl_checks`` the STL sub-tasks' windows
+and suprema. It sits above the cores because checking a task means parsing and translating it.
 """
 
-from agent.scenario.loader import load_scenario, parse_scenario
-from agent.scenario.model import (
-    Arena,
-    DiscObstacle,
-    LtlParams,
-    OmniLimits,
-    RectObstacle,
-    Region,
-    Robot,
-    Scenario,
-    SimParams,
-    StlParams,
-    UnicycleLimits,
-)
+from tlfleet.agent.scenario.loader import load_scenario, parse_scenario
 
-__all__ = [
-    "Arena",
-    "DiscObstacle",
-    "LtlParams",
-    "OmniLimits",
-    "RectObstacle",
-    "Region",
-    "Robot",
-    "Scenario",
-    "SimParams",
-    "StlParams",
-    "UnicycleLimits",
-    "load_scenario",
-    "parse_scenario",
-]
+__all__ = ["load_scenario", "parse_scenario"]

@@ -21,7 +21,7 @@ File layout (every section but ``robots`` is optional)::
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
     [[faults]]  spec = "cut:robot3@20+3" | kind, target (targets for a partition), at, duration
-                (issue 13, agent/scenario/faults.py)
+                (issue 13, agent/model/faults.py)
 """
 
 from __future__ import annotations
@@ -34,9 +34,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from agent.errors import FormulaSyntaxError, ScenarioError
-from agent.scenario import validation
-from agent.scenario.faults import (
+from tlfleet.agent.model.faults import (
     Fault,
     FaultSpecError,
     check_duration,
@@ -46,7 +44,7 @@ from agent.scenario.faults import (
     parse_kind,
     parse_targets,
 )
-from agent.scenario.model import (
+from tlfleet.agent.model.scenario import (
     Arena,
     DiscObstacle,
     LtlParams,
@@ -60,10 +58,12 @@ from agent.scenario.model import (
     StlParams,
     UnicycleLimits,
 )
+from tlfleet.agent.scenario import validation
+from tlfleet.bus.errors import FormulaSyntaxError, ScenarioError
 
 if TYPE_CHECKING:
-    from agent.ltl.formula import Formula
-    from agent.stl.syntax import Temporal
+    from tlfleet.agent.ltl.formula import Formula
+    from tlfleet.agent.stl.syntax import Temporal
 
 ATOM_RE = re.compile(r"[a-z_][a-z0-9_]*\Z")
 FLEET_RE = re.compile(r"[A-Za-z0-9_-]+\Z")
@@ -128,15 +128,12 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
         where = f"robots[{index}]"
-        # parsed here, once: the scenario carries the trees (Robot.ltl_tree / stl_trees)
         if robot.ltl is not None:
-            object.__setattr__(robot, "parsed_ltl",
-                               _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl"))
-        object.__setattr__(robot, "parsed_stl", tuple(
+            _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
+        for k, text in enumerate(robot.stl):
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
-            for k, text in enumerate(robot.stl)))
     validation.check_tasks(scenario, source)  # issue 11: satisfiability, STL windows
-    from agent.scenario.stl_checks import check_stl_tasks
+    from tlfleet.agent.scenario.stl_checks import check_stl_tasks
 
     check_stl_tasks(scenario, source)
     return scenario
@@ -311,9 +308,9 @@ def _check_start_poses(scenario: Scenario, source: str) -> None:
 
 def _hoa_task(table: _Table) -> str:
     """``ltl = { hoa = "file.hoa" }``: a Büchi automaton from another tool (docs/ltl.md), carried
-    as ``hoa:<absolute path>`` (``agent.ltl.hoa_reader.HOA_TASK_PREFIX``); the path is relative
-    to the scenario file."""
-    from agent.ltl.hoa_reader import HOA_TASK_PREFIX
+    as ``hoa:<absolute path>`` (``tlfleet.agent.ltl.hoa_reader.HOA_TASK_PREFIX``); the path is
+    relative to the scenario file."""
+    from tlfleet.agent.ltl.hoa_reader import HOA_TASK_PREFIX
 
     sub = table.table("ltl")
     name = sub.string("hoa")
@@ -327,10 +324,12 @@ def _hoa_task(table: _Table) -> str:
 
 def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> Formula | None:
     """Parse the LTL task (or read its HOA automaton) and check every proposition it uses is
-    carried by some region; the parsed formula (None for a HOA task: it has no formula)."""
-    from agent.errors import LtlError
-    from agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa_file
-    from agent.ltl.parser import atoms, parse
+    carried by some region; the parsed formula (None for a HOA task: it has no formula). The
+    parse is the process's one parse of this text (:func:`tlfleet.agent.ltl.task.task_formula`)."""
+    from tlfleet.agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa_file
+    from tlfleet.agent.ltl.parser import atoms
+    from tlfleet.agent.ltl.task import task_formula
+    from tlfleet.bus.errors import LtlError
 
     formula = None
     if text.startswith(HOA_TASK_PREFIX):
@@ -340,7 +339,7 @@ def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> F
             raise ScenarioError(source, f"{where}.hoa", str(exc)) from None
     else:
         try:
-            formula = parse(text)
+            formula = task_formula(text)
             used = atoms(formula)
         except FormulaSyntaxError as exc:
             raise ScenarioError(source, where, f"LTL syntax error at column {exc.column}: "
@@ -359,12 +358,16 @@ def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str
 
     Syntax errors and unknown robot ids become ``ScenarioError`` naming the field and the column.
     Concavity warnings need to know which robots are LTL (exogenous), so they are issued when the
-    agents are built (``agent.stl.agent.build_agents``), not here.
+    agents are built (``tlfleet.agent.policy.stl.build_agents``), not here.
     """
-    from agent.stl.parser import parse_task
+    from tlfleet.agent.stl.parser import parse_task, parsed_task
+    from tlfleet.agent.stl.syntax import robots_of
 
     try:
-        return parse_task(text, robot_ids)
+        tree = parsed_task(text)  # the process's one parse of this text
+        if robots_of(tree) <= frozenset(robot_ids):
+            return tree
+        return parse_task(text, robot_ids)  # raises, naming the unknown robot at its column
     except FormulaSyntaxError as exc:
         raise ScenarioError(source, where, f"STL task error at column {exc.column}: "
                                            f"{exc.reason} in {text!r}") from None

@@ -2,7 +2,7 @@
 when an agent exits, and what runs but cannot mean what it says.
 
 Rejections (``ScenarioError`` with the file, the field path and the reason), called by the
-loader (``agent.scenario.loader.parse_scenario``):
+loader (``tlfleet.agent.scenario.loader.parse_scenario``):
 
 * a sub-task whose ψ does not involve its own robot's state (stl-funnel.md §6.1: the control law
   uses ∂ρ/∂x_i, identically zero then);
@@ -17,7 +17,7 @@ loader (``agent.scenario.loader.parse_scenario``):
 Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
 * a window that ends (or starts) after the scenario's duration: its verdict will be "not
-  evaluated" (``coordinator.verdicts``);
+  evaluated" (``tlfleet.coordinator.report.task_verdicts``);
 * a predicate whose robustness is unbounded above, with no ``rho_opt`` override;
 * a non-concave literal in the controlled states (paper Assumption 1);
 * a G sub-task whose window opens at t = 0 while its predicate is violated at the start poses:
@@ -26,14 +26,15 @@ Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
 from __future__ import annotations
 
-from agent.errors import ScenarioError
-from agent.scenario.model import Scenario
-from agent.stl.analysis import literal_sup, non_concave_literals
-from agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.stl.analysis import literal_sup, non_concave_literals
+from tlfleet.agent.stl.parser import robot_subtasks
+from tlfleet.agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
+from tlfleet.bus.errors import ScenarioError
 
 # The loader runs these checks in every process that loads a scenario: they use the syntax tree
-# and the analysis only (no numpy), and mirror agent.stl.sequencer's rules (§9): consecutive G
-# sub-tasks with the same window merge; otherwise b(k) <= a(k+1); phase_start_times[k] >= b(k).
+# and the analysis only (no numpy), and mirror tlfleet.agent.stl.sequencer's rules (§9): consecutive
+# G sub-tasks with the same window merge; otherwise b(k) <= a(k+1); phase_start_times[k] >= b(k).
 
 
 def _merged_windows(formulas: list[Temporal]) -> tuple[list[tuple[float, float]], int | None]:
@@ -52,7 +53,7 @@ def _merged_windows(formulas: list[Temporal]) -> tuple[list[tuple[float, float]]
 
 def _formulas(scenario: Scenario, index: int) -> list[Temporal]:
     robot = scenario.robots[index]
-    return list(robot.stl_trees)  # parsed once by the loader
+    return list(robot_subtasks(robot))
 
 
 def check_stl_tasks(scenario: Scenario, source: str) -> None:
@@ -130,7 +131,7 @@ def stl_warnings(scenario: Scenario) -> list[str]:
                            f"controlled states (paper Assumption 1): the funnel guarantees do "
                            f"not apply to it")
             if k == 0 and phi.op == "G" and phi.a <= 0.0:
-                from agent.stl.sequencer import build_sequence  # numpy: only for warnings
+                from tlfleet.agent.stl.sequencer import build_sequence  # numpy: only for warnings
 
                 task = build_sequence(robot.id, [phi], robot_ids=scenario.robot_ids,
                                       warn=False, eta=scenario.stl.eta,

@@ -1,7 +1,7 @@
 """The scenario checks that close the holes of issue 11, called by the loader (architecture.md §5).
 
-Every problem is a :class:`~agent.errors.ScenarioError` naming the file, the field path and the
-reason; no input — however large, deep, strange or hostile — gives a traceback:
+Every problem is a :class:`~tlfleet.bus.errors.ScenarioError` naming the file, the field path and
+the reason; no input — however large, deep, strange or hostile — gives a traceback:
 
 * **the file** (:func:`read_text`): only regular files (not /dev/zero, a FIFO, a directory), at
   most :data:`MAX_FILE_BYTES`, UTF-8; TOML nesting deeper than :data:`MAX_DEPTH` (or deep enough
@@ -39,7 +39,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from agent.errors import FormulaSyntaxError, ScenarioError
+from tlfleet.bus.errors import FormulaSyntaxError, ScenarioError
 
 MAX_FILE_BYTES = 1 << 20  # 1 MiB: the paper's scenarios are ~3 kB
 MAX_DEPTH = 16  # nesting of tables and arrays (a scenario needs 4)
@@ -287,15 +287,15 @@ def check_geometry(scenario: Any, source: str) -> None:
 
 @functools.lru_cache(maxsize=256)
 def _ltl_empty(text: str) -> bool:
-    from agent.ltl.emptiness import is_empty
-    from agent.ltl.task import task_automaton
+    from tlfleet.agent.ltl.emptiness import is_empty
+    from tlfleet.agent.ltl.task import task_automaton
 
     return is_empty(task_automaton(text))
 
 
 def check_ltl(text: str, source: str, where: str) -> None:
     """At most :data:`MAX_LTL_ATOMS` propositions, and a non-empty language (translated now)."""
-    from agent.ltl.parser import atoms, parse
+    from tlfleet.agent.ltl.parser import atoms, parse
 
     try:
         names = atoms(parse(text))
@@ -317,7 +317,7 @@ def check_stl_windows(robot: Any, index: int, duration: float, robot_ids: Any,
                       source: str) -> None:
     """Ordered, non-overlapping windows inside the run; phases not starting after their
     window opened."""
-    from agent.stl.parser import parse_task
+    from tlfleet.agent.stl.parser import parse_task
 
     where = f"robots[{index}]"
     windows = []

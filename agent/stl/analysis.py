@@ -18,7 +18,7 @@ e.g. robot 1 in Scenario 3) are treated as time-varying parameters, i.e. constan
 
 A predicate μ (robustness h) is certified when h is constant, affine or concave; a negated predicate
 ¬μ (robustness −h) when h is constant, affine or convex. Anything else is reported by
-:func:`non_concave_literals` (and warned about by ``agent.stl.task``). ``dist(...) >= c`` is
+:func:`non_concave_literals` (and warned about by ``tlfleet.agent.stl.task``). ``dist(...) >= c`` is
 therefore reported (convex, not concave), ``dist(...) <= c`` is not.
 
 Supremum
@@ -35,7 +35,7 @@ import math
 from collections.abc import Iterable
 from typing import Literal
 
-from agent.stl.syntax import (
+from tlfleet.agent.stl.syntax import (
     BinOp,
     Call,
     Const,

@@ -1,8 +1,9 @@
 """ψ compiled once into straight-line Python: the control step's ρ^ψ and ∂ρ^ψ/∂x̄ (issue 17).
 
-The generic evaluator (``agent.stl.evaluate.compile_expr`` + ``agent.stl.robustness.CompiledPsi``)
-walks a tree of closures at every step, allocating a tuple and a full-length gradient list per
-node. Here the same tree is translated **once per sub-task** into the source of one function
+The generic evaluator (``tlfleet.agent.stl.evaluate.compile_expr`` +
+``tlfleet.agent.stl.robustness.CompiledPsi``) walks a tree of closures at every step, allocating a
+tuple and a full-length gradient list per node. Here the same tree is translated **once per
+sub-task** into the source of one function
 ``value_grad(s) -> (ρ, ∂ρ/∂s)`` over the stacked state ``s = [x_j1, y_j1, θ_j1, …]`` (m, rad) and
 compiled with :func:`compile`; it computes
 
@@ -18,7 +19,7 @@ zero (a gradient entry no state enters, e.g. ∂/∂θ of a distance) and multip
 literals ±1.0 (exact in IEEE 754). Adding a structural zero ``x·0.0`` can only change the sign
 of an exact zero result (or give NaN where the generic gives ±∞·0), so every non-zero value and
 gradient entry is bit-identical to the generic one; the control law cannot tell −0.0 from 0.0
-(``agent.stl.control_law`` squares the gradient, and eq. (6) adds β·ū_col), which keeps the
+(``tlfleet.agent.stl.control_law`` squares the gradient, and eq. (6) adds β·ū_col), which keeps the
 lockstep trajectories byte-identical. ``tests/stl/test_stl_compiled.py`` checks
 compiled = generic (to 1e-12, and bit-for-bit on non-zero entries) on random states and random
 expression trees.
@@ -33,9 +34,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from agent.stl.evaluate import COMPONENT_INDEX, Grad
-from agent.stl.robustness import CompiledPsi
-from agent.stl.syntax import (
+from tlfleet.agent.stl.evaluate import COMPONENT_INDEX, Grad
+from tlfleet.agent.stl.robustness import CompiledPsi
+from tlfleet.agent.stl.syntax import (
     BinOp,
     Call,
     Const,
@@ -50,7 +51,7 @@ from agent.stl.syntax import (
     predicate_function,
 )
 
-_TINY = 1e-150  # as agent.stl.evaluate: below this norm the gradient is taken as 0
+_TINY = 1e-150  # as tlfleet.agent.stl.evaluate: below this norm the gradient is taken as 0
 _ONE = "1.0"  # the literal 1.0 (a unit gradient entry); products with it are exact identities
 
 SparseGrad = dict[int, str]  # stacked-state index -> Python expression; missing = structural zero
@@ -114,7 +115,7 @@ def _times(a: str, g: str) -> str:
 
 
 def _lin(em: _Emitter, a: str, ga: SparseGrad, b: str, gb: SparseGrad) -> SparseGrad:
-    """a·ga + b·gb entry by entry, as ``agent.stl.evaluate._lin`` computes it."""
+    """a·ga + b·gb entry by entry, as ``tlfleet.agent.stl.evaluate._lin`` computes it."""
     out: SparseGrad = {}
     for k in sorted(ga.keys() | gb.keys()):
         if k in ga and k in gb:
@@ -346,7 +347,8 @@ _NAMESPACE = {"_hypot": math.hypot, "_sin": math.sin, "_cos": math.cos, "_exp": 
 
 class StraightLinePsi:
     """ψ of one sub-task with a generated ``value_grad`` (module docstring); the generic
-    :class:`~agent.stl.robustness.CompiledPsi` is kept as ``reference`` and serves the rest."""
+    :class:`~tlfleet.agent.stl.robustness.CompiledPsi` is kept as ``reference`` and serves the
+    rest."""
 
     __slots__ = ("eta", "reference", "robots", "source", "value_grad")
 

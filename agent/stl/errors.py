@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from agent.errors import TlfleetError
+from tlfleet.bus.errors import TlfleetError
 
 
 class StlTaskError(TlfleetError, ValueError):
@@ -17,4 +17,4 @@ class FunnelInvariantError(TlfleetError, RuntimeError):
 
 class StlConcavityWarning(UserWarning):
     """A predicate whose robustness is not certified concave (paper Assumption 1), so the funnel
-    guarantees do not apply to it (see ``agent.stl.analysis`` for the rule)."""
+    guarantees do not apply to it (see ``tlfleet.agent.stl.analysis`` for the rule)."""

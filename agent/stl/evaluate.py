@@ -23,8 +23,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-
-from agent.stl.syntax import BinOp, Call, Const, Expr, Neg, Position, StateVar, VecLit
+from tlfleet.agent.stl.syntax import BinOp, Call, Const, Expr, Neg, Position, StateVar, VecLit
 
 Grad = list[float] | None
 ScalarFn = Callable[[Sequence[float]], tuple[float, Grad]]

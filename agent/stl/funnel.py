@@ -19,8 +19,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
-
-from agent.stl.errors import FunnelInvariantError
+from tlfleet.agent.stl.errors import FunnelInvariantError
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from agent.stl.funnel import Funnel
+from tlfleet.agent.stl.funnel import Funnel
 
 
 @dataclass(frozen=True, slots=True)

@@ -25,14 +25,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-
-from agent.errors import TlfleetError
-from agent.stl.robustness import CompiledPsi, participants, psi_array
-from agent.stl.syntax import Temporal
-from agent.stl.task import Task
+from tlfleet.agent.stl.parser import robot_subtasks
+from tlfleet.agent.stl.robustness import CompiledPsi, participants, psi_array
+from tlfleet.agent.stl.syntax import Temporal
+from tlfleet.agent.stl.task import Task
+from tlfleet.bus.errors import TlfleetError
 
 if TYPE_CHECKING:
-    from agent.scenario import Scenario
+    from tlfleet.agent.model import Scenario
 
 
 class TrajectoryFileError(TlfleetError, ValueError):
@@ -199,15 +199,15 @@ def evaluate_trajectory(scenario: Scenario, traj: Trajectory, trajectory_path: s
     of a loaded scenario on a loaded trajectory: ``{robot id: {"subtasks": [{"task", "window",
     "robustness"}], "robustness": min}}`` (``trajectory_path`` only
     names the file in errors)."""
-    from agent.stl.errors import StlTaskError
-    from agent.stl.sequencer import merge_and_check
-    from agent.stl.syntax import robots_of, to_text
+    from tlfleet.agent.stl.errors import StlTaskError
+    from tlfleet.agent.stl.sequencer import merge_and_check
+    from tlfleet.agent.stl.syntax import robots_of, to_text
 
     report: dict = {}
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         if not robot.is_stl:
             continue
-        tasks = merge_and_check(robot.id, list(robot.stl_trees))
+        tasks = merge_and_check(robot.id, list(robot_subtasks(robot)))
         missing = sorted(frozenset().union(*(robots_of(t) for t in tasks)) - set(traj.states))
         if missing:
             raise StlTaskError(f"{trajectory_path}: no columns for robot {missing[0]}, which robot "

@@ -21,13 +21,14 @@ there.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from agent.errors import FormulaSyntaxError
-from agent.stl.syntax import (
+from tlfleet.agent.model.scenario import Robot
+from tlfleet.agent.stl.syntax import (
     COMPARISONS,
     FUNCTIONS,
     And,
@@ -46,6 +47,7 @@ from agent.stl.syntax import (
     Top,
     VecLit,
 )
+from tlfleet.bus.errors import FormulaSyntaxError
 
 _TOKEN_RE = re.compile(
     r"\s*(?:(?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
@@ -351,6 +353,18 @@ def parse_task(text: str, robot_ids: Iterable[int] | None = None) -> Temporal:
     """
     ids = None if robot_ids is None else frozenset(robot_ids)
     return _Parser(text, ids).task()
+
+
+@functools.lru_cache(maxsize=512)
+def parsed_task(text: str) -> Temporal:
+    """:func:`parse_task` without the robot check, once per process and text (trees are
+    immutable, so every user shares one): for tasks the scenario loader has already checked."""
+    return parse_task(text)
+
+
+def robot_subtasks(robot: Robot) -> tuple[Temporal, ...]:
+    """The STL sub-tasks of ``robot`` as formula trees, in order (:func:`parsed_task`)."""
+    return tuple(parsed_task(text) for text in robot.stl)
 
 
 def parse_psi(text: str, robot_ids: Iterable[int] | None = None) -> Psi:

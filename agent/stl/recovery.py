@@ -69,7 +69,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from agent.stl.funnel import Funnel, FunnelParams
+from tlfleet.agent.stl.funnel import Funnel, FunnelParams
 
 
 @dataclass(frozen=True)

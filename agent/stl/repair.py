@@ -1,8 +1,8 @@
 """Stage rules of the detection-and-repair scheme (paper Alg. 2; stl-funnel.md §7.4, §15).
 
 The repair computation itself (R1–R10 with guards and post-repair checks) is
-``agent.stl.funnel.Funnel.repair``; this module decides which stage a critical event gets and holds
-the collaboration options.
+``tlfleet.agent.stl.funnel.Funnel.repair``; this module decides which stage a critical event gets
+and holds the collaboration options.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from agent.stl.messages import StatusAnnounce
-from agent.stl.task import Task
+from tlfleet.agent.stl.messages import StatusAnnounce
+from tlfleet.agent.stl.task import Task
 
 
 @dataclass(frozen=True)

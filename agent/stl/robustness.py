@@ -13,9 +13,8 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-
-from agent.stl.evaluate import Grad, compile_expr, evaluate_array
-from agent.stl.syntax import Not, Predicate, Psi, literals, predicate_function, robots_of
+from tlfleet.agent.stl.evaluate import Grad, compile_expr, evaluate_array
+from tlfleet.agent.stl.syntax import Not, Predicate, Psi, literals, predicate_function, robots_of
 
 
 def smooth_and(values: Sequence[float], eta: float) -> float:

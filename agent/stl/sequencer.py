@@ -12,10 +12,10 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
-from agent.stl.errors import StlTaskError
-from agent.stl.parser import parse_task
-from agent.stl.syntax import And, Temporal, literals
-from agent.stl.task import Task, build_task
+from tlfleet.agent.stl.errors import StlTaskError
+from tlfleet.agent.stl.parser import parse_task
+from tlfleet.agent.stl.syntax import And, Temporal, literals
+from tlfleet.agent.stl.task import Task, build_task
 
 
 def merge_and_check(owner: int, formulas: Sequence[Temporal]) -> list[Temporal]:

@@ -1,7 +1,7 @@
 """One STL sub-task ready to run: window, ψ, participants, V_ctrl, ρ_opt and compiled ψ.
 
 stl-funnel.md §2 (participants vs. V_ctrl), §3 (ρ_opt default: LSE_η of the conjunct suprema,
-override allowed), paper Assumption 1 (concavity warning, rule in ``agent.stl.analysis``).
+override allowed), paper Assumption 1 (concavity warning, rule in ``tlfleet.agent.stl.analysis``).
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
-from agent.stl.analysis import literal_sup, non_concave_literals
-from agent.stl.compiled import StraightLinePsi
-from agent.stl.errors import StlConcavityWarning, StlTaskError
-from agent.stl.parser import parse_task
-from agent.stl.robustness import CompiledPsi, participants, smooth_and
-from agent.stl.syntax import Psi, Temporal, Top, literals, to_text
+from tlfleet.agent.stl.analysis import literal_sup, non_concave_literals
+from tlfleet.agent.stl.compiled import StraightLinePsi
+from tlfleet.agent.stl.errors import StlConcavityWarning, StlTaskError
+from tlfleet.agent.stl.parser import parse_task
+from tlfleet.agent.stl.robustness import CompiledPsi, participants, smooth_and
+from tlfleet.agent.stl.syntax import Psi, Temporal, Top, literals, to_text
 
 logger = logging.getLogger(__name__)
 

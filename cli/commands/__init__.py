@@ -1,1 +1,1 @@
-"""Sub-commands of the tlfleet CLI (see cli.main)."""
+"""Sub-commands of the tlfleet CLI (see tlfleet.cli.main)."""

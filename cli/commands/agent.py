@@ -1,9 +1,9 @@
 """``tlfleet agent SCENARIO --robot ID``: the agent process of one robot (architecture.md §1).
 
-A thin wrapper: the flags become an :class:`~agent.runtime.config.AgentConfig` and
-:func:`agent.runtime.main.main` runs the robot's LTL or STL agent. Exit codes: 0 after a clean
-stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault (e.g. an unsatisfiable LTL task, reported
-as ``Event(kind="fault")`` first).
+A thin wrapper: the flags become an :class:`~tlfleet.agent.runtime.config.AgentConfig` and
+:func:`tlfleet.agent.runtime.main.main` runs the robot's LTL or STL agent. Exit codes: 0 after a
+clean stop (``Control(stop)``, SIGINT, SIGTERM), 1 on a fault (e.g. an unsatisfiable LTL task,
+reported as ``Event(kind="fault")`` first).
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from agent.runtime.config import AgentConfig, AgentConfigError
-from cli.process_flags import add_process_arguments, apply_process_flags
-from cli.transport_flags import add_transport_arguments, transport_config
+from tlfleet.agent.runtime.config import AgentConfig, AgentConfigError
+from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "agent"
 HELP = "run the agent process of one robot"
@@ -48,7 +48,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agent.runtime.main import main
+    from tlfleet.agent.runtime.main import main
 
     config = config_from_args(args)
     apply_process_flags(args, f"agent/{args.robot}")

@@ -1,8 +1,8 @@
 """``tlfleet check SCENARIO``: validate a scenario file and print a one-screen summary.
 
-Rejections exit 1 with file, field path and reason (``agent.scenario.loader``,
-``agent.scenario.stl_checks``); warnings (a window beyond the duration, a non-concave predicate, a
-G task violated at the start poses from t = 0) are printed after the summary, exit 0.
+Rejections exit 1 with file, field path and reason (``tlfleet.agent.scenario.loader``,
+``tlfleet.agent.scenario.stl_checks``); warnings (a window beyond the duration, a non-concave
+predicate, a G task violated at the start poses from t = 0) are printed after the summary, exit 0.
 """
 
 from __future__ import annotations
@@ -10,9 +10,10 @@ from __future__ import annotations
 import argparse
 import math
 
-from agent.ltl.task import task_automaton
-from agent.scenario import Scenario, load_scenario
-from agent.scenario.stl_checks import stl_warnings
+from tlfleet.agent.ltl.task import task_automaton
+from tlfleet.agent.model import Scenario
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.agent.scenario.stl_checks import stl_warnings
 
 NAME = "check"
 HELP = "validate a scenario file and summarise it"

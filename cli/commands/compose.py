@@ -1,19 +1,19 @@
 """``tlfleet compose SCENARIO [--out DIR|FILE.yaml] [--lockstep|--realtime] [--insecure]
 [--lease-ms MS] [--fault SPEC …] [--fault-subnet CIDR]``: write the docker compose file of a
-scenario's fleet (:mod:`coordinator.compose`), secured by default (mutual TLS, the router's
+scenario's fleet (:mod:`tlfleet.coordinator.compose`), secured by default (mutual TLS, the router's
 access control; keys from ``${TLFLEET_KEYS}``). With faults (``--fault`` or the scenario's
 ``[[faults]]``) the coordinator hands them to the host's executor that ``make compose-run``
-starts (:mod:`coordinator.fault_compose`). An invalid scenario or a fault a compose fleet cannot
-do (a partition, a host) exits 1 before anything is written."""
+starts (:mod:`tlfleet.coordinator.faults.handoff`). An invalid scenario or a fault a compose fleet
+cannot do (a partition, a host) exits 1 before anything is written."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from cli.arg_types import fault_spec
-from cli.run_flags import add_mode_arguments
-from coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
+from tlfleet.cli.arg_types import fault_spec
+from tlfleet.cli.run_flags import add_mode_arguments
+from tlfleet.coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
 
 NAME = "compose"
 HELP = "write the docker compose file of a scenario's fleet"

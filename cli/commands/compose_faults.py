@@ -1,8 +1,8 @@
 """``tlfleet compose-faults --dir RUN/logs/faults --project P [--parent PID] [--max-wall S]``: the
-host's side of the faults of a compose fleet (:mod:`coordinator.fault_docker`): answers the
-coordinator's requests with docker commands on project P's containers until ``--parent`` is gone
-or ``--max-wall`` seconds have passed (``docker/compose-run.sh`` starts it in the background and
-stops it in its clean-up). Stops on SIGINT/SIGTERM, undoing what is still in effect."""
+host's side of the faults of a compose fleet (:mod:`tlfleet.coordinator.faults.docker_executor`):
+answers the coordinator's requests with docker commands on project P's containers until ``--parent``
+is gone or ``--max-wall`` seconds have passed (``docker/compose-run.sh`` starts it in the background
+and stops it in its clean-up). Stops on SIGINT/SIGTERM, undoing what is still in effect."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import argparse
 import logging
 from pathlib import Path
 
-from bus.signals import stop_on_signals
-from cli.arg_types import positive_float
+from tlfleet.bus.signals import stop_on_signals
+from tlfleet.cli.arg_types import positive_float
 
 NAME = "compose-faults"
 HELP = "the host's side of a compose fleet's faults (docker commands; run by compose-run.sh)"
@@ -29,9 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from coordinator.fault_docker import Executor, serve
+    from tlfleet.coordinator.faults.docker_executor import Executor, serve
 
-    logging.getLogger("coordinator.fault_docker").setLevel(logging.INFO)
+    logging.getLogger("tlfleet.coordinator.faults.docker_executor").setLevel(logging.INFO)
     with stop_on_signals() as stop:
         handled = serve(args.dir, Executor(args.project), parent=args.parent,
                         max_wall=args.max_wall, stop=stop.is_set)

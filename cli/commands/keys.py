@@ -1,6 +1,6 @@
 """``tlfleet keys SCENARIO --out DIR [--force] [--host NAME] [--days N] [--mesh]``: a fleet CA,
 one key pair and certificate per process and the router's access-control policy
-(``coordinator.keys``)."""
+(``tlfleet.coordinator.security.authority``)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agent.scenario import load_scenario
-    from coordinator.keys import write_keys
+    from tlfleet.agent.scenario import load_scenario
+    from tlfleet.coordinator.security.authority import write_keys
 
     keyset = write_keys(load_scenario(args.scenario), args.out, force=args.force,
                         hosts=tuple(args.host), days=args.days, mesh=args.mesh)

@@ -17,8 +17,8 @@ import json
 import math
 import sys
 
-from agent.scenario import load_scenario
-from agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
 
 NAME = "monitor"
 HELP = "STL robustness of a recorded trajectory"

@@ -15,9 +15,9 @@ import argparse
 import json
 import sys
 
-from agent.ltl.planner import Plan, plan_robot
-from agent.nav.grid_planner import path_length_function
-from agent.scenario import load_scenario
+from tlfleet.agent.ltl.planner import Plan, plan_robot
+from tlfleet.agent.nav.grid_planner import path_length_function
+from tlfleet.agent.scenario import load_scenario
 
 NAME = "plan"
 HELP = "compute the optimal prefix–suffix plan of each LTL robot"

@@ -1,7 +1,8 @@
 """``tlfleet replay RUN_DIR [--out FILE.rrd] [--every N] [--viewer]``: re-log a run to rerun.
 
 Reads ``scenario.toml``, ``trajectory.csv``, ``status.csv`` and ``events.jsonl`` of the run
-directory (architecture.md §6) and logs them with :mod:`coordinator.visual` to ``--out`` (default
+directory (architecture.md §6) and logs them with :mod:`tlfleet.coordinator.report.viewer` to
+``--out`` (default
 ``RUN_DIR/run.rrd``): every N-th trajectory row (and the last), every status and event. With
 ``--viewer`` the recording is also served (gRPC + web viewer on 127.0.0.1) and the command prints
 the viewer's URL and keeps serving until Ctrl-C.
@@ -16,7 +17,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from agent.errors import TlfleetError
+from tlfleet.bus.errors import TlfleetError
 
 NAME = "replay"
 HELP = "re-log a finished run to rerun (run.rrd, --viewer)"
@@ -54,29 +55,29 @@ def run(args: argparse.Namespace) -> int:
     run_dir: Path = args.run_dir
     if not run_dir.is_dir():
         raise TlfleetError(f"{run_dir}: not a run directory")
-    from bus.signals import stop_on_signals, wait_for_signal
-    from coordinator import visual  # rerun: 0.9 s, paid only here
-    from coordinator.launcher import free_port
+    from tlfleet.bus.signals import stop_on_signals, wait_for_signal
+    from tlfleet.coordinator.launch.processes import free_port
+    from tlfleet.coordinator.report import viewer  # rerun: 0.9 s, paid only here
 
     if not args.viewer:
-        result = visual.replay_run(run_dir, args.out, every=args.every)
+        result = viewer.replay_run(run_dir, args.out, every=args.every)
         print(f"{result.path}: {result.frames} frames, {result.statuses} statuses, "
               f"{result.events} events, sim time {result.t_first:g}–{result.t_last:g} s")
         return 0
 
-    data = visual.load_run(run_dir)  # errors before anything is served or written
-    recording = visual.new_recording()
+    data = viewer.load_run(run_dir)  # errors before anything is served or written
+    recording = viewer.new_recording()
     out = args.out if args.out is not None else run_dir / "run.rrd"
     with stop_on_signals() as stop:
         try:
             try:
-                url = visual.serve(recording, data.scenario,
-                                   args.grpc_port or free_port(visual.HOST),
-                                   args.web_port or free_port(visual.HOST), save=out)
+                url = viewer.serve(recording, data.scenario,
+                                   args.grpc_port or free_port(viewer.HOST),
+                                   args.web_port or free_port(viewer.HOST), save=out)
             except (OSError, RuntimeError) as exc:  # a port taken
                 raise TlfleetError(f"cannot serve the viewer: {exc}") from None
             with recording:  # on exit: run.rrd finalised (footer), the gRPC server goes on
-                log = visual.log_run(data, recording, every=args.every)
+                log = viewer.log_run(data, recording, every=args.every)
             print(f"{out}: {log.frames} frames, {len(data.statuses)} statuses, "
                   f"{len(data.events)} events, sim time {log.t_first:g}–{log.t_last:g} s")
             print(f"viewer: {url}", flush=True)

@@ -1,9 +1,10 @@
 """``tlfleet report RUN_DIR [--no-figures] [--json]``: regenerate a run's report and figures.
 
 Writes ``report.md``, ``report.json`` and (unless ``--no-figures``) the PNG figures into the run
-directory (``coordinator.report.write_report``), then prints the console table and the paths, or
-with ``--json`` the report data. A directory that is not a run directory is a one-line error and
-exit code 1 (raised as :class:`coordinator.report.RunDirectoryError`, printed by the CLI).
+directory (``tlfleet.coordinator.report.run_report.write_report``), then prints the console table
+and the paths, or with ``--json`` the report data. A directory that is not a run directory is a
+one-line error and exit code 1 (raised as
+:class:`tlfleet.coordinator.report.run_report.RunDirectoryError`, printed by the CLI).
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from coordinator.report import write_report
-    from coordinator.rundir import json_ready
+    from tlfleet.coordinator.record.rundir import json_ready
+    from tlfleet.coordinator.report.run_report import write_report
 
     report = write_report(args.run_dir, figures=not args.no_figures)
     if args.json:

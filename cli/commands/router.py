@@ -1,13 +1,14 @@
-"""``tlfleet router --listen tcp/127.0.0.1:7447``: the fleet's zenoh router (``bus.router``)."""
+"""``tlfleet router --listen tcp/127.0.0.1:7447``: the fleet's zenoh router
+(``tlfleet.sim.router.process``)."""
 
 from __future__ import annotations
 
 import argparse
 import threading
 
-from bus.router import RouterConfig, RouterConfigError
-from cli.process_flags import add_process_arguments, apply_process_flags
-from cli.transport_flags import add_transport_arguments, transport_config
+from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
+from tlfleet.sim.router.process import RouterConfig, RouterConfigError
 
 NAME = "router"
 HELP = "run a zenoh router for a fleet"
@@ -22,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
-    from bus.router import main
+    from tlfleet.sim.router.process import main
 
     try:
         config = RouterConfig(fleet=args.fleet, transport=transport_config(args, "router"))

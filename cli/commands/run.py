@@ -2,16 +2,16 @@
 (and ``--quiet``, ``--no-report``, ``--no-figures``, ``--no-rrd``, ``--secure DIR``).
 
 Validates the scenario (an invalid file exits 1 before any process starts), launches router → sim
-→ agents, supervises and records the run (:mod:`coordinator.runner`), shows a progress bar in sim
-time on stderr when it is a terminal. At the end the run directory gets ``summary.txt``,
-``report.md``/``report.json`` with the PNG figures (:mod:`coordinator.report`) and ``run.rrd``
-(rerun); the command prints the report table, the paths of the report, figures and ``run.rrd``,
-and the run directory last. ``--viewer`` also serves the run live to a web viewer on 127.0.0.1
-(its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
+→ agents, supervises and records the run (:mod:`tlfleet.coordinator.run`), shows a progress bar in
+sim time on stderr when it is a terminal. At the end the run directory gets ``summary.txt``,
+``report.md``/``report.json`` with the PNG figures (:mod:`tlfleet.coordinator.report.run_report`)
+and ``run.rrd`` (rerun); the command prints the report table, the paths of the report, figures and
+``run.rrd``, and the run directory last. ``--viewer`` also serves the run live to a web viewer on
+127.0.0.1 (its URL is printed on stderr) and keeps serving after the run until Ctrl-C.
 
-Exit codes (the run's verdict, :mod:`coordinator.outcome`, printed last as ``outcome: …``): 0
-clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost, a
-process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
+Exit codes (the run's verdict, :mod:`tlfleet.coordinator.live.verdict`, printed last as ``outcome:
+…``): 0 clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost,
+a process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
 missed deadlines, watchdog stops, stale commands, malformed input, flagged events, silent or
 recovered agents: listed); 130 interrupted (a message says so).
 """
@@ -23,15 +23,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from bus.signals import stop_on_signals, wait_for_signal
-from cli.arg_types import fault_spec, positive_float
-from cli.run_flags import add_mode_arguments, add_output_arguments
-from cli.transport_flags import add_zenoh_config_argument
-from coordinator.runner import SCHED_CHOICES, RunConfig, RunResult, run_fleet
-from coordinator.supervisor import SupervisorConfig
+from tlfleet.bus.signals import stop_on_signals, wait_for_signal
+from tlfleet.cli.arg_types import fault_spec, positive_float
+from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
+from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.coordinator.live.supervisor import SupervisorConfig
+from tlfleet.coordinator.run import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 
 if TYPE_CHECKING:
-    from coordinator.visual import LiveView
+    from tlfleet.coordinator.report.viewer import LiveView
 
 NAME = "run"
 HELP = "launch, supervise and record a whole fleet"
@@ -81,8 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "run on namespace hosts (root) — README \"Faults\"")
     parser.add_argument("--hosts", type=int, default=0, metavar="N",
                         help="run across N network-namespace hosts, one zenoh router each, "
-                             "routers connected (root only; coordinator.hosts); secured by "
-                             "default with keys made for the run (or --secure DIR)")
+                             "routers connected (root only); secured by default with keys "
+                             "made for the run (or --secure DIR)")
     parser.add_argument("--via-router", dest="direct_links", action="store_false",
                         help="send frames and commands through the router too (by default an "
                              "unsecured run links the sim and the agents as zenoh peers; "
@@ -157,7 +157,7 @@ def print_outputs(result: RunResult) -> None:
 def run_hosts(args: argparse.Namespace) -> int:
     """``--hosts N``: launch on N namespace hosts, then ``tlfleet supervise`` on host 0 (it
     prints the report and the run directory)."""
-    from coordinator.hosts_run import run_on_hosts
+    from tlfleet.coordinator.run_hosts import run_on_hosts
 
     extra = ["--quiet"] if args.quiet else []
     for flag, value in (("--duration", args.duration), ("--seed", args.seed),
@@ -181,18 +181,20 @@ def run_hosts(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     if not args.hosts:
-        from coordinator.faults import hosts_for
+        from tlfleet.coordinator.faults.plan import hosts_for
 
         args.hosts = hosts_for(Path(args.scenario), args.faults, args.duration)
         if args.hosts:
             print(f"tlfleet run: link faults: running on {args.hosts} namespace host(s) "
-                  "(coordinator.hosts)", file=sys.stderr, flush=True)
+                  "(tlfleet.coordinator.launch.netns_hosts)", file=sys.stderr, flush=True)
     if args.hosts:
         return run_hosts(args)
     duration = args.duration
     wall_timeout = args.wall_timeout
     if wall_timeout is None:
-        from agent.scenario import load_scenario  # validated here first: exit 1 before launching
+        from tlfleet.agent.scenario import (
+            load_scenario,  # validated here first: exit 1 before launching
+        )
 
         sim_time = duration or load_scenario(args.scenario).duration
         paced = sim_time / args.max_speed if args.max_speed else 0.0  # [s] wall, at least

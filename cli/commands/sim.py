@@ -1,7 +1,8 @@
 """``tlfleet sim SCENARIO``: run the pymunk simulator process of a scenario (architecture.md §1).
 
 The process publishes the clock, mocap frames and events, reads the agents' commands and runs
-until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM (``sim.process``).
+until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM
+(``tlfleet.sim.process``).
 """
 
 from __future__ import annotations
@@ -9,9 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cli.arg_types import non_negative_float, positive_float
-from cli.process_flags import add_process_arguments, apply_process_flags
-from cli.transport_flags import add_transport_arguments, transport_config
+from tlfleet.cli.arg_types import non_negative_float, positive_float
+from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
 HELP = "run the pymunk simulator process of a scenario"
@@ -47,8 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_process_arguments(parser)
 
 
-def process_config(args: argparse.Namespace):  # -> sim.process.SimProcessConfig
-    from sim.process import SimProcessConfig
+def process_config(args: argparse.Namespace):  # -> tlfleet.sim.process.SimProcessConfig
+    from tlfleet.sim.process import SimProcessConfig
 
     return SimProcessConfig(scenario=Path(args.scenario),
                             mode="realtime" if args.realtime else "lockstep",
@@ -64,9 +65,9 @@ def _backfill(args: argparse.Namespace) -> dict:
     return {} if args.backfill_seconds is None else {"backfill_seconds": args.backfill_seconds}
 
 
-def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
-    """The :class:`~sim.process.SimConfig` these flags give for a loaded scenario."""
-    from sim.process import SimConfig
+def sim_config(args: argparse.Namespace, scenario):  # -> tlfleet.sim.process.SimConfig
+    """The :class:`~tlfleet.sim.process.SimConfig` these flags give for a loaded scenario."""
+    from tlfleet.sim.process import SimConfig
 
     return SimConfig.for_scenario(scenario, mode="realtime" if args.realtime else "lockstep",
                                   duration=args.duration, seed=args.seed,
@@ -76,7 +77,7 @@ def sim_config(args: argparse.Namespace, scenario):  # -> sim.process.SimConfig
 
 
 def run(args: argparse.Namespace) -> int:
-    from sim.process import main
+    from tlfleet.sim.process import main
 
     config = process_config(args)
     apply_process_flags(args, "sim")

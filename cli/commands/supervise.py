@@ -1,5 +1,5 @@
 """``tlfleet supervise SCENARIO --connect ENDPOINT [--out DIR] [--lockstep|--realtime] [--wait S]``:
-the coordinator without the launcher (:mod:`coordinator.supervise`).
+the coordinator without the launcher (:mod:`tlfleet.coordinator.supervise`).
 
 It joins a fleet whose router, simulator and agents were started elsewhere (by hand, on other
 machines, as compose services), prints every second which processes it still waits for (their
@@ -15,13 +15,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from bus.signals import stop_on_signals
-from cli.arg_types import fault_spec
-from cli.commands.run import ProgressBar, print_outputs
-from cli.run_flags import add_mode_arguments, add_output_arguments
-from cli.transport_flags import add_zenoh_config_argument
-from coordinator.supervise import SuperviseConfig, supervise_fleet
-from coordinator.supervisor import SupervisorConfig
+from tlfleet.bus.signals import stop_on_signals
+from tlfleet.cli.arg_types import fault_spec
+from tlfleet.cli.commands.run import ProgressBar, print_outputs
+from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
+from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.coordinator.live.supervisor import SupervisorConfig
+from tlfleet.coordinator.supervise import SuperviseConfig, supervise_fleet
 
 NAME = "supervise"
 HELP = "join a running fleet: wait for it, start, supervise and record the run"
@@ -67,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agent.scenario import load_scenario  # validated first: exit 1 before connecting
+    from tlfleet.agent.scenario import load_scenario  # validated first: exit 1 before connecting
 
     scenario = load_scenario(args.scenario)
     duration = args.duration or scenario.duration

@@ -1,10 +1,11 @@
 """``tlfleet translate 'FORMULA' | -F FILE | --hoa FILE [--format hoa|text|dot] [--stats]``.
 
-Prints the automaton of ``agent.ltl.buchi.translate`` (ltl-planning.md §2) on stdout — HOA v1 by
-default, so it can be piped into Spot's ``autfilt`` — and its size and translation time on stderr.
-``-F FILE`` translates one formula per line (``agent.ltl.batch``, like ``ltl2tgba -F``);
+Prints the automaton of ``tlfleet.agent.ltl.buchi.translate`` (ltl-planning.md §2) on stdout — HOA
+v1 by default, so it can be piped into Spot's ``autfilt`` — and its size and translation time on
+stderr.
+``-F FILE`` translates one formula per line (``tlfleet.agent.ltl.batch``, like ``ltl2tgba -F``);
 ``--stats`` prints one tab-separated line per formula (states, edges, time) instead of the
-automata; ``--hoa FILE`` reads an automaton made by another tool (``agent.ltl.hoa_reader``).
+automata; ``--hoa FILE`` reads an automaton made by another tool (``tlfleet.agent.ltl.hoa_reader``).
 """
 
 from __future__ import annotations
@@ -13,11 +14,11 @@ import argparse
 import sys
 import time
 
-from agent.errors import LtlError
-from agent.ltl.batch import STATS_HEADER, read_formulas, stats_line, translate_all
-from agent.ltl.buchi import to_dot, to_text, translate
-from agent.ltl.hoa import to_hoa
-from agent.ltl.hoa_reader import read_hoa_file
+from tlfleet.agent.ltl.batch import STATS_HEADER, read_formulas, stats_line, translate_all
+from tlfleet.agent.ltl.buchi import to_dot, to_text, translate
+from tlfleet.agent.ltl.hoa import to_hoa
+from tlfleet.agent.ltl.hoa_reader import read_hoa_file
+from tlfleet.bus.errors import LtlError
 
 NAME = "translate"
 HELP = "translate an LTL formula to a Büchi automaton"

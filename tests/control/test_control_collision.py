@@ -7,8 +7,7 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.control.collision import CollisionParams, collision_velocity, repulsion_magnitude
+from tlfleet.agent.control.collision import CollisionParams, collision_velocity, repulsion_magnitude
 
 PARAMS = CollisionParams(r1=0.6, r_sense=0.7, beta=2.0, max_lin=0.2)
 

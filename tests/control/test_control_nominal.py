@@ -5,8 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-
-from agent.stl.control_law import nominal_velocity
+from tlfleet.agent.stl.control_law import nominal_velocity
 
 
 def test_normalised_direction_and_magnitude_epsilon():

@@ -7,9 +7,8 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.control.mixing import mix
-from agent.control.saturation import saturate
+from tlfleet.agent.control.mixing import mix
+from tlfleet.agent.control.saturation import saturate
 
 velocities = st.floats(-50, 50, allow_nan=False)
 

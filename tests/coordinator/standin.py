@@ -24,11 +24,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from agent.protocol import keys  # noqa: E402
-from agent.protocol.codec import decode, encode  # noqa: E402
-from agent.protocol.messages import Control, Event, LtlStatus, MocapFrame, StlStatus  # noqa: E402
-from agent.scenario import load_scenario  # noqa: E402
-from bus.transport import TransportConfig, open_transport  # noqa: E402
+from tlfleet.agent.scenario import load_scenario  # noqa: E402
+from tlfleet.bus.protocol import keys  # noqa: E402
+from tlfleet.bus.protocol.codec import decode, encode  # noqa: E402
+from tlfleet.bus.protocol.messages import Control, Event, LtlStatus, MocapFrame, StlStatus  # noqa: E402
+from tlfleet.bus.transport import TransportConfig  # noqa: E402
+from tlfleet.bus.zenoh.transport import open_transport  # noqa: E402
 
 
 def main() -> int:

@@ -1,5 +1,6 @@
-"""The recorder's merge of frames by seq across gaps (issue 13: coordinator.frame_merge), and
-the backfill through the recorder tap on the fake bus (sim side: sim.frame_ring)."""
+"""The recorder's merge of frames by seq across gaps (issue 13:
+tlfleet.coordinator.record.frame_merge), and the backfill through the recorder tap on the fake bus
+(sim side: tlfleet.sim.frame_ring)."""
 
 from __future__ import annotations
 
@@ -7,16 +8,15 @@ import json
 
 import numpy as np
 import pytest
-
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import BackfillReply, BackfillRequest, MocapFrame
-from agent.stl.monitor import read_trajectory_csv
-from bus.fake import FakeNetwork
-from coordinator.frame_merge import MAX_REQUEST_FRAMES, FrameMerger, seq_ranges
-from coordinator.recorder import Recorder, RecorderTap
-from sim.frame_ring import FrameRing
+from tlfleet.agent.stl.monitor import read_trajectory_csv
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import BackfillReply, BackfillRequest, MocapFrame
+from tlfleet.coordinator.record.frame_merge import MAX_REQUEST_FRAMES, FrameMerger, seq_ranges
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.sim.frame_ring import FrameRing
 
 RATE = 100.0  # [Hz]
 

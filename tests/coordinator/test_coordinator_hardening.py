@@ -9,17 +9,16 @@ import time
 
 import pytest
 from test_coordinator_supervisor import FakeChild, declare, fleet  # noqa: F401 (fixture)
-
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import encode
-from agent.protocol.messages import Event, MocapFrame, StlStatus
-from bus.fake import FakeNetwork
-from coordinator.cleanup import Cleanup
-from coordinator.health import Health
-from coordinator.outcome import EXIT_CODES, classify, mission_event_kinds
-from coordinator.recorder import Recorder, RecorderTap
-from coordinator.trust import event_problem, sim_done_plausible
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Event, MocapFrame, StlStatus
+from tlfleet.coordinator.launch.cleanup import Cleanup
+from tlfleet.coordinator.live.health import Health
+from tlfleet.coordinator.live.verdict import EXIT_CODES, classify, mission_event_kinds
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.trust import event_problem, sim_done_plausible
 
 POSES = ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0))
 OK = dict(reason="sim_done", deaths=[], exit_codes={"sim": 0, "agent-1": 0},

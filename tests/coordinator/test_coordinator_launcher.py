@@ -9,8 +9,13 @@ import time
 
 import psutil
 import pytest
-
-from coordinator.launcher import Launcher, LaunchError, free_port, group_alive, wait_for_port
+from tlfleet.coordinator.launch.processes import (
+    Launcher,
+    LaunchError,
+    free_port,
+    group_alive,
+    wait_for_port,
+)
 
 SLEEPER = "import time; print('ready', flush=True); time.sleep(600)"
 WITH_GRANDCHILD = (

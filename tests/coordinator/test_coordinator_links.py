@@ -1,6 +1,6 @@
 """Which links a run's processes use (issue 17, architecture.md §1): in an unsecured run
 (lockstep or realtime) the simulator, the agents and the coordinator are zenoh peers linked to
-each other, everything else goes through the router (``coordinator.runner.peer_links``,
+each other, everything else goes through the router (``tlfleet.coordinator.run.peer_links``,
 ``default_child_argv``)."""
 
 from __future__ import annotations
@@ -8,10 +8,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from agent.scenario import load_scenario
-from bus.transport import DEFAULT_RUNTIME
-from coordinator.runner import PEER_LISTEN, RunConfig, default_child_argv, peer_links
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.transport import DEFAULT_RUNTIME
+from tlfleet.coordinator.run import PEER_LISTEN, RunConfig, default_child_argv, peer_links
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "scenario1.toml"
 ENDPOINT = "tcp/127.0.0.1:7447"
@@ -60,9 +59,9 @@ def test_a_run_with_faults_goes_through_the_router(tmp_path):
     the router topology): run.json says so; the stand-in children never start (bad argv)."""
     import json
 
-    from agent.scenario.faults import parse_fault
-    from coordinator.launcher import LaunchError
-    from coordinator.runner import run_fleet
+    from tlfleet.agent.model.faults import parse_fault
+    from tlfleet.coordinator.launch.processes import LaunchError
+    from tlfleet.coordinator.run import run_fleet
 
     fault = parse_fault("kill:robot3@5")
     config = RunConfig(SCENARIO, mode="lockstep", out=tmp_path / "run", faults=(fault,),
@@ -76,7 +75,7 @@ def test_a_run_with_faults_goes_through_the_router(tmp_path):
 def test_the_cli_flag_via_router_turns_peer_links_off():
     import argparse
 
-    from cli.commands import run as run_command
+    from tlfleet.cli.commands import run as run_command
 
     parser = argparse.ArgumentParser()
     run_command.add_arguments(parser)
@@ -87,8 +86,8 @@ def test_the_cli_flag_via_router_turns_peer_links_off():
 def test_the_zenoh_runtime_flag_sets_the_transport_runtime():
     import argparse
 
-    from bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME
-    from cli.transport_flags import add_transport_arguments, transport_config
+    from tlfleet.bus.transport import DEFAULT_RUNTIME, MINIMAL_RUNTIME
+    from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
     parser = argparse.ArgumentParser()
     add_transport_arguments(parser)
@@ -99,7 +98,7 @@ def test_the_zenoh_runtime_flag_sets_the_transport_runtime():
 
 
 def test_the_coordinator_joins_a_peer_link_run_as_a_peer(monkeypatch):
-    import coordinator.runner as runner
+    import tlfleet.coordinator.run as runner
 
     opened = []
     monkeypatch.setattr(runner, "open_client", lambda config, *_a, **_k: opened.append(config))

@@ -9,14 +9,13 @@ from datetime import UTC
 
 import numpy as np
 import pytest
-
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from agent.stl.monitor import read_trajectory_csv
-from bus.fake import FakeNetwork
-from coordinator.recorder import Recorder, RecorderTap
-from coordinator.rundir import (
+from tlfleet.agent.stl.monitor import read_trajectory_csv
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.rundir import (
     LTL_STATUS_COLUMNS,
     STATUS_COLUMNS,
     STL_STATUS_COLUMNS,
@@ -153,7 +152,7 @@ def test_default_run_dir_is_unique(tmp_path):
 def test_progress_bar_line():
     import io
 
-    from cli.commands.run import ProgressBar
+    from tlfleet.cli.commands.run import ProgressBar
 
     stream = io.StringIO()
     bar = ProgressBar(stream, width=10)

@@ -16,10 +16,9 @@ from pathlib import Path
 
 import pytest
 from process_helpers import processes_mentioning
-
-from cli import main as cli
-from coordinator.runner import RunConfig, run_fleet
-from coordinator.supervisor import SupervisorConfig
+from tlfleet.cli import main as cli
+from tlfleet.coordinator.live.supervisor import SupervisorConfig
+from tlfleet.coordinator.run import RunConfig, run_fleet
 
 STANDIN = Path(__file__).with_name("standin.py")
 SCENARIO = """

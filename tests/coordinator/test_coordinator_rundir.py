@@ -1,5 +1,6 @@
-"""coordinator.rundir: the one reader and writer of a run directory. Each file is opened once per
-command, status rows round-trip without JSON in cells, and the JSON edge keeps ±inf and None."""
+"""tlfleet.coordinator.record.rundir: the one reader and writer of a run directory. Each file is
+opened once per command, status rows round-trip without JSON in cells, and the JSON edge keeps ±inf
+and None."""
 
 from __future__ import annotations
 
@@ -12,11 +13,10 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-
-from agent.protocol.messages import Event, LtlStatus, StlStatus
-from coordinator import rundir
-from coordinator.outputs import write_outputs
-from coordinator.runner import RunConfig
+from tlfleet.bus.protocol.messages import Event, LtlStatus, StlStatus
+from tlfleet.coordinator.record import rundir
+from tlfleet.coordinator.report.outputs import write_outputs
+from tlfleet.coordinator.run import RunConfig
 
 FIXTURES = Path(__file__).resolve().parents[1] / "report" / "fixtures"
 RUN_FILES = (rundir.SCENARIO, rundir.RUN_INFO, rundir.TRAJECTORY, rundir.STATUS, rundir.EVENTS)
@@ -41,7 +41,7 @@ def test_the_end_of_a_run_reads_each_file_once(tmp_path, monkeypatch):
     """Summary, report (with figures) and run.rrd after a run: one read of each file."""
     run = tmp_path / "s1"
     shutil.copytree(FIXTURES / "s1", run)
-    from agent.scenario import load_scenario
+    from tlfleet.agent.scenario import load_scenario
 
     scenario = load_scenario(run / rundir.SCENARIO)
     opened = _count_opens(monkeypatch)

@@ -1,9 +1,9 @@
-"""OS scheduling of a run's processes (issue 17, ``cli.process_flags``): ``tlfleet run`` starts the
-router, the sim and the agents under Linux's ``SCHED_FIFO`` where the user may ask for it, and
-elsewhere a lockstep run under ``SCHED_BATCH`` and a realtime run as the OS starts it (``--sched``).
-Checked on the argv the runner builds, on the flags, on the policy a real process ends up with
-(every thread it had and every thread it starts), and on a refused ``fifo`` (an unprivileged
-user) falling back to ``batch``."""
+"""OS scheduling of a run's processes (issue 17, ``tlfleet.cli.process_flags``): ``tlfleet run``
+starts the router, the sim and the agents under Linux's ``SCHED_FIFO`` where the user may ask for
+it, and elsewhere a lockstep run under ``SCHED_BATCH`` and a realtime run as the OS starts it
+(``--sched``). Checked on the argv the runner builds, on the flags, on the policy a real process
+ends up with (every thread it had and every thread it starts), and on a refused ``fifo`` (an
+unprivileged user) falling back to ``batch``."""
 
 from __future__ import annotations
 
@@ -15,10 +15,9 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from agent.scenario import load_scenario
-from coordinator import runner
-from coordinator.runner import RunConfig, child_sched, default_child_argv
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator import run as runner
+from tlfleet.coordinator.run import RunConfig, child_sched, default_child_argv
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -46,7 +45,7 @@ def test_the_runner_asks_for_fifo_where_permitted_and_batch_in_lockstep_else(
 
 
 def test_fifo_is_permitted_to_root_and_to_an_rtprio_limit():
-    from coordinator.launcher import fifo_permitted
+    from tlfleet.coordinator.launch.processes import fifo_permitted
 
     if os.geteuid() == 0:
         assert fifo_permitted()
@@ -58,7 +57,7 @@ def test_fifo_is_permitted_to_root_and_to_an_rtprio_limit():
 
 
 def test_a_bad_sched_value_is_refused_before_anything_starts(tmp_path):
-    from coordinator.runner import run_fleet
+    from tlfleet.coordinator.run import run_fleet
 
     with pytest.raises(ValueError, match=r"RunConfig\.sched 'fast'"):
         run_fleet(RunConfig(SCENARIO, sched="fast", out=tmp_path / "run",
@@ -67,7 +66,7 @@ def test_a_bad_sched_value_is_refused_before_anything_starts(tmp_path):
 
 
 def test_the_flags_of_run_and_of_the_fleet_processes():
-    from cli.commands import agent, router, run, sim
+    from tlfleet.cli.commands import agent, router, run, sim
 
     parser = argparse.ArgumentParser()
     run.add_arguments(parser)
@@ -87,7 +86,7 @@ def test_the_flags_of_run_and_of_the_fleet_processes():
 PROBE = """
 import json, os, sys, threading
 sys.path.insert(0, {root!r})
-from cli.process_flags import apply_scheduling
+from tlfleet.cli.process_flags import apply_scheduling
 release = threading.Event()
 before = threading.Thread(target=release.wait)
 before.start()
@@ -115,7 +114,7 @@ def _probe(policy: str, prelude: str = "") -> dict:
 def test_the_policy_reaches_every_thread_of_the_process(policy):
     """fifo needs the right to it: root in CI, where a skip fails (tests/conftest.py)."""
     if policy == "fifo":
-        from coordinator.launcher import fifo_permitted
+        from tlfleet.coordinator.launch.processes import fifo_permitted
 
         if not fifo_permitted():
             pytest.skip("SCHED_FIFO needs root or an RLIMIT_RTPRIO >= 1")
@@ -134,7 +133,7 @@ def test_a_refused_fifo_runs_under_batch_and_says_why():
     if os.geteuid() == 0:
         # everything the probe imports is loaded first: nobody may not read this checkout
         prelude = (f"import json, os, resource, sys, threading\nsys.path.insert(0, {str(ROOT)!r})"
-                   "\nimport cli.process_flags\n"
+                   "\nimport tlfleet.cli.process_flags\n"
                    "resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))\n"
                    "os.setgid(65534)\nos.setuid(65534)\n")
     else:
@@ -150,7 +149,7 @@ def test_a_refused_fifo_runs_under_batch_and_says_why():
 
 
 def test_an_unknown_policy_is_a_value_error():
-    from cli.process_flags import apply_scheduling
+    from tlfleet.cli.process_flags import apply_scheduling
 
     with pytest.raises(ValueError, match="'rr'"):
         apply_scheduling("rr")

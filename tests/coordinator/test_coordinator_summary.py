@@ -8,8 +8,7 @@ import math
 
 import numpy as np
 import pytest
-
-from coordinator.summary import region_entries, summarise_run, write_summary
+from tlfleet.coordinator.report.summary import region_entries, summarise_run, write_summary
 
 SCENARIO = """
 name = "synthetic"

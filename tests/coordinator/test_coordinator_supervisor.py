@@ -10,15 +10,14 @@ import time
 from dataclasses import dataclass
 
 import pytest
-
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import Control, Event, MocapFrame
-from agent.scenario import load_scenario
-from bus.fake import FakeNetwork
-from coordinator.launcher import Launcher, LaunchError
-from coordinator.recorder import Recorder, RecorderTap
-from coordinator.supervisor import Supervisor, SupervisorConfig, expected_tokens
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import Control, Event, MocapFrame
+from tlfleet.coordinator.launch.processes import Launcher, LaunchError
+from tlfleet.coordinator.live.supervisor import Supervisor, SupervisorConfig, expected_tokens
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
 
 SCENARIO = """
 name = "sup"

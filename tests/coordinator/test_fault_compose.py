@@ -10,11 +10,10 @@ import threading
 import time
 
 import pytest
-
-from agent.protocol.codec import decode
-from agent.protocol.messages import Control
-from agent.scenario.faults import parse_fault
-from coordinator.compose import (
+from tlfleet.agent.model.faults import parse_fault
+from tlfleet.bus.protocol.codec import decode
+from tlfleet.bus.protocol.messages import Control
+from tlfleet.coordinator.compose import (
     ComposeConfig,
     ComposeError,
     compose_text,
@@ -23,7 +22,8 @@ from coordinator.compose import (
     write_compose,
     zenoh_path,
 )
-from coordinator.fault_compose import (
+from tlfleet.coordinator.faults.docker_executor import Executor, serve
+from tlfleet.coordinator.faults.handoff import (
     EXECUTOR_NAME,
     ComposeActuator,
     RestartedContainer,
@@ -31,10 +31,9 @@ from coordinator.fault_compose import (
     service_of,
     wait_for_executor,
 )
-from coordinator.fault_docker import Executor, serve
-from coordinator.fault_hosts import CUT_GRACE
-from coordinator.fault_schedule import FaultError, FaultScheduler
-from coordinator.hosts import RECONNECT
+from tlfleet.coordinator.faults.on_hosts import CUT_GRACE
+from tlfleet.coordinator.faults.schedule import FaultError, FaultScheduler
+from tlfleet.coordinator.launch.netns_hosts import RECONNECT
 
 
 class FakeDocker:

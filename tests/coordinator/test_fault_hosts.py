@@ -9,14 +9,24 @@ import sys
 import time
 
 import pytest
-
-from agent.scenario import load_scenario
-from agent.scenario.faults import parse_fault
-from coordinator import faults as faults_module
-from coordinator.fault_hosts import RESTARTED_NAME, HostsActuator, check_hosts_fault, stop_restarted
-from coordinator.fault_schedule import FaultError
-from coordinator.faults import hosts_for, need_hosts
-from coordinator.hosts import PROCESS_PORT0, NetnsHosts, Placement, place, place_peers
+from tlfleet.agent.model.faults import parse_fault
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.faults import plan as faults_module
+from tlfleet.coordinator.faults.on_hosts import (
+    RESTARTED_NAME,
+    HostsActuator,
+    check_hosts_fault,
+    stop_restarted,
+)
+from tlfleet.coordinator.faults.plan import hosts_for, need_hosts
+from tlfleet.coordinator.faults.schedule import FaultError
+from tlfleet.coordinator.launch.netns_hosts import (
+    PROCESS_PORT0,
+    NetnsHosts,
+    Placement,
+    place,
+    place_peers,
+)
 
 
 def test_link_faults_need_root_and_the_tools_and_say_so(monkeypatch):

@@ -8,12 +8,11 @@ import sys
 import time
 
 import pytest
-
-from agent.scenario import load_scenario
-from agent.scenario.faults import FaultSpecError, parse_fault
-from coordinator.fault_schedule import FaultError, FaultScheduler, ProcessActuator
-from coordinator.faults import run_faults
-from coordinator.launcher import Launcher
+from tlfleet.agent.model.faults import FaultSpecError, parse_fault
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.faults.plan import run_faults
+from tlfleet.coordinator.faults.schedule import FaultError, FaultScheduler, ProcessActuator
+from tlfleet.coordinator.launch.processes import Launcher
 
 
 class FakeActuator:

@@ -12,10 +12,9 @@ import math
 
 import networkx as nx
 from hypothesis import strategies as st
-
-from agent.ltl import bdd
-from agent.ltl.buchi import Buchi
-from agent.ltl.formula import (
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.buchi import Buchi
+from tlfleet.agent.ltl.formula import (
     FALSE,
     TRUE,
     Atom,
@@ -34,7 +33,7 @@ from agent.ltl.formula import (
     conj,
     disj,
 )
-from agent.ltl.transition_system import TransitionSystem
+from tlfleet.agent.ltl.transition_system import TransitionSystem
 
 ATOMS = ("a", "b", "c", "d")
 UNARY = (Not, Next, Finally, Globally)

@@ -1,5 +1,5 @@
-"""The pure LTL agent (agent.ltl.agent): planning and stepping with no process, no transport and
-no wire types — a unicycle integrated in the test closes the loop."""
+"""The pure LTL agent (tlfleet.agent.policy.ltl): planning and stepping with no process, no
+transport and no wire types — a unicycle integrated in the test closes the loop."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import math
 
 import numpy as np
 import pytest
-
-import agent.ltl.agent as ltl_agent_module
-from agent.ltl.agent import LtlAgent, LtlStepInput, Notice
-from agent.ltl.buchi import translate
-from agent.scenario import load_scenario
+import tlfleet.agent.policy.ltl as ltl_agent_module
+from tlfleet.agent.ltl.buchi import translate
+from tlfleet.agent.ltl.task import robot_formula
+from tlfleet.agent.policy.ltl import LtlAgent, LtlStepInput, Notice
+from tlfleet.agent.scenario import load_scenario
 
 RATE = 5.0  # [Hz] the LTL loop
 
@@ -48,7 +48,7 @@ def test_one_translation_serves_planning_and_tracking(scenarios_dir, monkeypatch
     monkeypatch.setattr(ltl_agent_module, "task_automaton", counting)
     agent = LtlAgent(scenario, 1)
     plan = agent.plan()
-    assert len(calls) == 1 and calls[0] is scenario.robot(1).ltl_tree
+    assert len(calls) == 1 and calls[0] is robot_formula(scenario.robot(1))
     assert plan.buchi_states == agent.buchi.num_states
     assert plan.timings.translate == agent.translate_time > 0.0
     # the same automaton a fresh translation gives: the planner's numbering is the agent's

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from agent.ltl import bdd
-from agent.ltl.guards import Alphabet
+from hypothesis_budget import examples
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.guards import Alphabet
 
 N = 5
 FULL = (1 << (1 << N)) - 1
@@ -50,7 +50,7 @@ def _build(e):
     raise AssertionError(e)
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(expressions, expressions)
 def test_bdd_operations_agree_with_truth_tables(e1, e2):
     g1, t1 = _build(e1)
@@ -62,7 +62,7 @@ def test_bdd_operations_agree_with_truth_tables(e1, e2):
     assert g1.implies(g2) == (t1 & ~t2 == 0)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(expressions)
 def test_isop_cover_and_smallest_letter(e):
     g, t = _build(e)
@@ -80,7 +80,7 @@ def test_isop_cover_and_smallest_letter(e):
         assert len(letter) == min(w.bit_count() for w in range(1 << N) if t >> w & 1)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(expressions)
 def test_pick_valuation_satisfies_the_guard(e):
     g, table = _build(e)

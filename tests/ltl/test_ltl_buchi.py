@@ -8,19 +8,24 @@ import re
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, guard_holds, lasso_words
-
-from agent.ltl.buchi import buchi_step, to_dot, to_text, translate, translation_candidates
-from agent.ltl.emptiness import accepting_lassos, accepts_lasso, find_accepting_lasso, is_empty
-from agent.ltl.hoa import to_hoa
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.buchi import buchi_step, to_dot, to_text, translate, translation_candidates
+from tlfleet.agent.ltl.emptiness import (
+    accepting_lassos,
+    accepts_lasso,
+    find_accepting_lasso,
+    is_empty,
+)
+from tlfleet.agent.ltl.hoa import to_hoa
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.rewrite import normalize
 
 E = frozenset()
 
 
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=examples(2000), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=1, max_size=4))
 def test_automaton_accepts_exactly_the_words_satisfying_the_formula(f, words):
     buchi = translate(f)
@@ -30,7 +35,7 @@ def test_automaton_accepts_exactly_the_words_satisfying_the_formula(f, words):
         )
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
 def test_every_marking_candidate_is_correct(f, words):
     """translate() keeps the smaller of two TGBA markings; both must have the right language."""
@@ -39,7 +44,7 @@ def test_every_marking_candidate_is_correct(f, words):
             assert automaton_accepts(buchi, prefix, loop) == holds(f, prefix, loop)
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
 def test_negation_gets_the_complementary_language(f, words):
     negated = translate(parse(f"!({f})"))
@@ -47,7 +52,7 @@ def test_negation_gets_the_complementary_language(f, words):
         assert automaton_accepts(negated, prefix, loop) != holds(f, prefix, loop)
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
 def test_rewriting_preserves_semantics(f, words):
     g = normalize(f)
@@ -55,7 +60,7 @@ def test_rewriting_preserves_semantics(f, words):
         assert holds(g, prefix, loop) == holds(f, prefix, loop), f"{f} rewritten to {g}"
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=examples(1000), deadline=None)
 @given(formulas())
 def test_every_accepting_lasso_of_the_emptiness_check_satisfies_the_formula(f):
     buchi = translate(f)
@@ -225,7 +230,7 @@ def test_text_and_dot_renderings():
 
 
 def test_translate_accepts_text_and_reports_syntax_errors():
-    from agent.errors import FormulaSyntaxError
+    from tlfleet.bus.errors import FormulaSyntaxError
 
     assert translate("G F a").num_states == translate(parse("G F a")).num_states
     with pytest.raises(FormulaSyntaxError, match="column 4"):
@@ -239,7 +244,7 @@ def test_translation_does_not_depend_on_string_hashing(tmp_path):
     import sys
 
     script = (
-        "from agent.ltl.buchi import translate; from agent.ltl.hoa import to_hoa; "
+        "from tlfleet.agent.ltl.buchi import translate; from tlfleet.agent.ltl.hoa import to_hoa; "
         "print(''.join(to_hoa(translate(f)) for f in "
         "['G F a21 & G F a22', 'F a1 & F a2 & F a3', 'G(a -> F b) & G F c | X(d U e)']))"
     )
@@ -253,8 +258,8 @@ def test_translation_does_not_depend_on_string_hashing(tmp_path):
 
 
 def test_too_many_propositions_is_a_clear_error():
-    from agent.errors import TlfleetError
-    from agent.ltl.guards import MAX_ATOMS, TooManyPropositions
+    from tlfleet.agent.ltl.guards import MAX_ATOMS, TooManyPropositions
+    from tlfleet.bus.errors import TlfleetError
 
     text = "G(" + " | ".join(f"p{i}" for i in range(MAX_ATOMS + 1)) + ")"
     with pytest.raises(TooManyPropositions, match=f"has {MAX_ATOMS + 1} atomic propositions"):
@@ -286,10 +291,10 @@ def test_valid_and_unsatisfiable_formulas_collapse_to_one_state():
         assert translate(text).num_states == 1 and not translate(text).accepting
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=1, max_size=3))
 def test_accepts_lasso_equals_the_independent_networkx_check(f, words):
-    """agent.ltl.emptiness.accepts_lasso (the run report's check) against the test helper's
+    """tlfleet.agent.ltl.emptiness.accepts_lasso (the run report's check) against the test helper's
     networkx product, and both against exact evaluation."""
     buchi = translate(f)
     for prefix, loop in words:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from cli.main import main
+from tlfleet.cli.main import main
 
 
 def test_translate_prints_hoa_and_size(capsys):

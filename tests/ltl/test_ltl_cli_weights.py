@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from cli.main import main
+from tlfleet.cli.main import main
 
 WALLED = """
 name = "walled"
@@ -49,7 +49,7 @@ def test_map_weights_go_around_the_wall(tmp_path: Path, capsys):
 
 def test_piping_into_a_closed_reader_is_not_an_error(repo_root: Path):
     """`tlfleet plan ... | head -1`: the reader has gone before we write; exit quietly with 0."""
-    proc = subprocess.Popen([sys.executable, "-m", "cli.main", "plan",
+    proc = subprocess.Popen([sys.executable, "-m", "tlfleet.cli", "plan",
                              "scenarios/scenario1.toml"], cwd=repo_root,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()  # closed before the child has even imported: its first write fails

@@ -1,20 +1,20 @@
 """The determinism that ``build_tgba`` records (``Tgba.deterministic``) and the reductions trust
-instead of checking again (``agent.ltl.buchi._reduce``, ``agent.ltl.wdba.powerset``): a flag that
-is ``True`` on a nondeterministic automaton would make the weak-DBA construction read it as its
-own subset construction, a language error."""
+instead of checking again (``tlfleet.agent.ltl.buchi._reduce``,
+``tlfleet.agent.ltl.wdba.powerset``): a flag that is ``True`` on a nondeterministic automaton would
+make the weak-DBA construction read it as its own subset construction, a language error."""
 
 from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, lasso_words
-
-from agent.ltl.bdd import FALSE
-from agent.ltl.buchi import _atoms_in_order, translate
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.rewrite import normalize
-from agent.ltl.tgba import build_tgba
+from tlfleet.agent.ltl.bdd import FALSE
+from tlfleet.agent.ltl.buchi import _atoms_in_order, translate
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.tgba import build_tgba
 
 
 def _really_deterministic(tgba) -> bool:
@@ -34,7 +34,7 @@ def _tgbas(text_or_tree):
     return build_tgba(normalize(f), index)
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(formulas(), st.lists(lasso_words(), min_size=3, max_size=3))
 def test_a_tgba_flagged_deterministic_is_deterministic(f, words):
     for tgba in _tgbas(f):
@@ -54,15 +54,15 @@ def test_the_flag_is_set_where_the_scenarios_need_it():
     assert not _tgbas("F G a")[0].deterministic
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(formulas())
 def test_weak_dba_minimisation_trusting_the_flag_is_the_same(f):
     """minimize_obligation(deterministic=True) decides without the subset construction when
     nothing would change; it must answer exactly as the full construction does."""
-    from agent.ltl.buchi import _cheap_reduce, _remove_useless
-    from agent.ltl.degeneralize import degeneralize
-    from agent.ltl.formula import Not
-    from agent.ltl.wdba import minimize_obligation
+    from tlfleet.agent.ltl.buchi import _cheap_reduce, _remove_useless
+    from tlfleet.agent.ltl.degeneralize import degeneralize
+    from tlfleet.agent.ltl.formula import Not
+    from tlfleet.agent.ltl.wdba import minimize_obligation
 
     index = {a: i for i, a in enumerate(_atoms_in_order(f))}
     for tgba in build_tgba(normalize(f), index):
@@ -86,8 +86,8 @@ def test_weak_dba_shortcut_keeps_a_deterministic_automaton_that_moore_shrinks():
     changes: 0 reads a into the accepting sink 1 and !a into 2, accepting but transient, then
     the rejecting sink 3. The colouring rejects 2, so the shortcut must not answer "nothing
     to gain": Moore's quotient merges 2 and 3."""
-    from agent.ltl import bdd
-    from agent.ltl.wdba import minimize_obligation
+    from tlfleet.agent.ltl import bdd
+    from tlfleet.agent.ltl.wdba import minimize_obligation
 
     a = bdd.var(0)
     aut = (4, (0,), frozenset({1, 2}),

@@ -6,17 +6,17 @@ from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, lasso_words
-
-from agent.errors import FormulaSyntaxError, LtlError, ScenarioError, TlfleetError
-from agent.ltl.buchi import translate
-from agent.ltl.hoa import to_hoa
-from agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa
-from agent.ltl.lasso import holds
-from agent.ltl.planner import plan_robot
-from agent.ltl.task import is_hoa_task, task_automaton
-from agent.scenario import load_scenario
-from cli.main import main
+from tlfleet.agent.ltl.buchi import translate
+from tlfleet.agent.ltl.hoa import to_hoa
+from tlfleet.agent.ltl.hoa_reader import HOA_TASK_PREFIX, read_hoa
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.planner import plan_robot
+from tlfleet.agent.ltl.task import is_hoa_task, task_automaton
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import FormulaSyntaxError, LtlError, ScenarioError, TlfleetError
+from tlfleet.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -69,7 +69,7 @@ State: 1 {0}
     assert not automaton_accepts(buchi, [pq], [frozenset({"q"})])
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(formulas(), lasso_words())
 def test_our_hoa_output_reads_back_to_the_same_language(f, word):
     buchi = read_hoa(to_hoa(translate(f)))

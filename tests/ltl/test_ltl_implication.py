@@ -1,8 +1,8 @@
 """Syntactic implication and contradiction (agent/ltl/implication.py), and the TGBA construction
 that drops transitions into contradictory conjunctions (agent/ltl/tgba.py).
 
-Soundness is checked against the exact lasso semantics (``agent.ltl.lasso``): on every pair of
-small formulas over two atoms, exhaustively, and on random larger ones; a proven ``f ⇒ g`` must
+Soundness is checked against the exact lasso semantics (``tlfleet.agent.ltl.lasso``): on every pair
+of small formulas over two atoms, exhaustively, and on random larger ones; a proven ``f ⇒ g`` must
 hold on every lasso, a proven contradiction must have no lasso satisfying both. A table of
 implications the translation relies on must be proven (an implementation that proves nothing
 would be sound and useless).
@@ -15,11 +15,11 @@ import random
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, lasso_words, random_lasso
-
-from agent.ltl import tgba
-from agent.ltl.buchi import _atoms_in_order, translate
-from agent.ltl.formula import (
+from tlfleet.agent.ltl import tgba
+from tlfleet.agent.ltl.buchi import _atoms_in_order, translate
+from tlfleet.agent.ltl.formula import (
     FALSE,
     TRUE,
     And,
@@ -33,11 +33,11 @@ from agent.ltl.formula import (
     Until,
     children,
 )
-from agent.ltl.graphs import reachable, strongly_connected_components
-from agent.ltl.implication import Conflicts, Implication, negate
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.graphs import reachable, strongly_connected_components
+from tlfleet.agent.ltl.implication import Conflicts, Implication, negate
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.rewrite import normalize
 
 INDEX = {"a": 0, "b": 1, "c": 2, "d": 3}
 
@@ -94,7 +94,7 @@ def _related(f):
                                    Until(Atom("c"), x), Release(Atom("c"), x)]))
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(max_depth=4).map(normalize).flatmap(
     lambda f: st.tuples(st.just(f), _related(f), st.lists(lasso_words(), min_size=8,
                                                           max_size=8))))
@@ -234,12 +234,12 @@ def test_an_unsatisfiable_formula_gives_the_empty_automaton():
         assert b.num_states == 1 and not b.accepting and b.edges == ((),), text
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(formulas(max_depth=4), st.lists(lasso_words(), min_size=4, max_size=4))
 def test_pruned_and_unpruned_tgba_accept_the_same_lassos(f, words):
-    from agent.ltl.buchi import Buchi, _remove_useless
-    from agent.ltl.degeneralize import degeneralize
-    from agent.ltl.printer import to_string
+    from tlfleet.agent.ltl.buchi import Buchi, _remove_useless
+    from tlfleet.agent.ltl.degeneralize import degeneralize
+    from tlfleet.agent.ltl.printer import to_string
 
     atoms = _atoms_in_order(f)
     for variant in (_build(f, True), _build(f, False)):

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
-from agent.ltl.lasso import evaluate, holds
-from agent.ltl.parser import parse
+from tlfleet.agent.ltl.lasso import evaluate, holds
+from tlfleet.agent.ltl.parser import parse
 
 E = frozenset()
 A = frozenset({"a"})

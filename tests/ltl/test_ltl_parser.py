@@ -5,10 +5,9 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from ltl_helpers import formulas
-
-from agent.errors import FormulaSyntaxError, TlfleetError
-from agent.ltl.formula import (
+from tlfleet.agent.ltl.formula import (
     FALSE,
     TRUE,
     And,
@@ -27,8 +26,9 @@ from agent.ltl.formula import (
     Xor,
     atoms,
 )
-from agent.ltl.parser import parse
-from agent.ltl.printer import to_string
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.printer import to_string
+from tlfleet.bus.errors import FormulaSyntaxError, TlfleetError
 
 a, b, c = Atom("a"), Atom("b"), Atom("c")
 
@@ -147,7 +147,7 @@ def test_atoms_of_a_formula():
     assert atoms(parse("G F a11 & (b U !c) & X true")) == {"a11", "b", "c"}
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas())
 def test_print_parse_round_trip(f):
     text = to_string(f)
@@ -216,7 +216,7 @@ def test_adjacent_atoms_are_an_error_as_in_spot():
         parse("aU b")
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.text(alphabet="abFGXUx_. 01\"\\&", min_size=1, max_size=6))
 def test_any_atom_name_prints_so_that_it_parses_back(name):
     f = And((Atom(name), Globally(Atom(name))))

@@ -8,16 +8,15 @@ import math
 import numpy as np
 import pytest
 from ltl_helpers import brute_force_optimum
-
-from agent.errors import UnsatisfiableTask
-from agent.ltl.buchi import buchi_step, translate
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.planner import plan, plan_robot, replan
-from agent.ltl.product import explore
-from agent.ltl.transition_system import START, TransitionSystem, from_regions, from_scenario
-from agent.scenario import load_scenario
-from agent.scenario.model import Arena, Region, Robot, Scenario
+from tlfleet.agent.ltl.buchi import buchi_step, translate
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.planner import plan, plan_robot, replan
+from tlfleet.agent.ltl.product import explore
+from tlfleet.agent.ltl.transition_system import START, TransitionSystem, from_regions, from_scenario
+from tlfleet.agent.model.scenario import Arena, Region, Robot, Scenario
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import UnsatisfiableTask
 
 
 def labels_of(ts: TransitionSystem, names) -> list[frozenset[str]]:

@@ -8,30 +8,30 @@ import random
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, lasso_words
-
-from agent.ltl import bdd
-from agent.ltl.buchi import (
+from tlfleet.agent.ltl import bdd
+from tlfleet.agent.ltl.buchi import (
     Buchi,
     _atoms_in_order,
     _remove_useless,
     translate,
     translation_candidates,
 )
-from agent.ltl.degeneralize import degeneralize
-from agent.ltl.fair_simulation import (
+from tlfleet.agent.ltl.degeneralize import degeneralize
+from tlfleet.agent.ltl.fair_simulation import (
     _Moves,
     fair_simulation_positions,
     remove_fair_little_brothers,
 )
-from agent.ltl.formula import And, Atom, Finally, Globally, Next, Not, Or, Release, Until
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.printer import to_string
-from agent.ltl.rewrite import normalize
-from agent.ltl.tgba import build_tgba
-from agent.ltl.tgba_simulation import reduce_tgba
-from agent.ltl.wdba import _equivalent, minimize_obligation
+from tlfleet.agent.ltl.formula import And, Atom, Finally, Globally, Next, Not, Or, Release, Until
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.printer import to_string
+from tlfleet.agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.tgba import build_tgba
+from tlfleet.agent.ltl.tgba_simulation import reduce_tgba
+from tlfleet.agent.ltl.wdba import _equivalent, minimize_obligation
 
 WORDS = st.lists(lasso_words(), min_size=1, max_size=4)
 
@@ -77,7 +77,7 @@ shapes = st.one_of(
 )
 
 
-@settings(max_examples=600, deadline=None)
+@settings(max_examples=examples(600), deadline=None)
 @given(shapes, WORDS)
 def test_new_rewrite_rules_preserve_semantics(f, words):
     g = normalize(f)
@@ -98,7 +98,7 @@ def test_rewrite_rules_fire():
     assert to_string(normalize(parse("a R (a | G b)"))) == "a | G b"
 
 
-@settings(max_examples=600, deadline=None)
+@settings(max_examples=examples(600), deadline=None)
 @given(formulas(), WORDS)
 def test_tgba_simulation_and_both_degeneralisation_orders_preserve_the_language(f, words):
     atoms = _atoms_in_order(f)
@@ -115,7 +115,7 @@ def _negation(f):
     return lambda: _tuple(translate(Not(f)))
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(formulas(), WORDS)
 def test_minimal_weak_dba_when_accepted_has_the_language_of_the_formula(f, words):
     b = translation_candidates(f)[-1]  # a variant with the cheap reductions only
@@ -144,7 +144,7 @@ def test_equivalence_check_separates_languages():
                            lambda: _tuple(translate("!F(a & b)")))
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=examples(500), deadline=None)
 @given(formulas(), WORDS)
 def test_fair_little_brothers_removal_preserves_the_language(f, words):
     for b in translation_candidates(f):

@@ -10,13 +10,13 @@ the two differ.
 from __future__ import annotations
 
 from hypothesis import given, settings
+from hypothesis_budget import examples
 from ltl_helpers import formulas, guard_holds
-
-from agent.ltl import simulation, tgba, tgba_simulation
-from agent.ltl.buchi import _atoms_in_order, _cheap_reduce, _remove_useless
-from agent.ltl.degeneralize import degeneralize
-from agent.ltl.rewrite import normalize
-from agent.ltl.truth_table import guard_algebra
+from tlfleet.agent.ltl import simulation, tgba, tgba_simulation
+from tlfleet.agent.ltl.buchi import _atoms_in_order, _cheap_reduce, _remove_useless
+from tlfleet.agent.ltl.degeneralize import degeneralize
+from tlfleet.agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.truth_table import guard_algebra
 
 
 def _reference_simulation(n, accepting, edges, atoms):
@@ -35,7 +35,7 @@ def _reference_simulation(n, accepting, edges, atoms):
     return [{q for q in range(n) if (p, q) in sim} for p in range(n)]
 
 
-@settings(max_examples=250, deadline=None)
+@settings(max_examples=examples(250), deadline=None)
 @given(formulas())
 def test_direct_simulation_is_the_greatest_simulation(f):
     atoms = _atoms_in_order(f)
@@ -68,7 +68,7 @@ def _reference_tgba_simulation(tgba, atoms):
     return [{q for q in range(n) if (p, q) in sim} for p in range(n)]
 
 
-@settings(max_examples=250, deadline=None)
+@settings(max_examples=examples(250), deadline=None)
 @given(formulas())
 def test_tgba_simulation_is_the_greatest_simulation_and_tables_change_nothing(f):
     atoms = _atoms_in_order(f)

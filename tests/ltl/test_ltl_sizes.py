@@ -7,10 +7,9 @@ import itertools
 
 import pytest
 from ltl_helpers import automaton_accepts
-
-from agent.ltl.buchi import translate
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
+from tlfleet.agent.ltl.buchi import translate
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
 
 E = frozenset()
 

@@ -3,7 +3,7 @@
 The tables must be the BDDs' sets of letters exactly (checked letter by letter), the TGBA built
 on tables must be the one built on BDDs (edge for edge), the simulation on tables the one on
 BDDs, and the translated automata must accept exactly the lassos that satisfy the formula
-(exact evaluation, ``agent.ltl.lasso``) — here on ``<->``/``xor``-heavy random formulas like
+(exact evaluation, ``tlfleet.agent.ltl.lasso``) — here on ``<->``/``xor``-heavy random formulas like
 the benchmark's slow tail.
 """
 
@@ -13,15 +13,15 @@ import random
 
 import pytest
 from hypothesis import given, settings
+from hypothesis_budget import examples
 from ltl_helpers import automaton_accepts, formulas, guard_holds, random_lasso
-
-from agent.ltl import bdd, simulation, tgba
-from agent.ltl.buchi import _atoms_in_order, _cheap_reduce, _remove_useless, translate
-from agent.ltl.degeneralize import degeneralize
-from agent.ltl.lasso import holds
-from agent.ltl.parser import parse
-from agent.ltl.rewrite import normalize
-from agent.ltl.truth_table import MAX_TABLE_ATOMS, BddAlgebra, TableAlgebra, guard_algebra
+from tlfleet.agent.ltl import bdd, simulation, tgba
+from tlfleet.agent.ltl.buchi import _atoms_in_order, _cheap_reduce, _remove_useless, translate
+from tlfleet.agent.ltl.degeneralize import degeneralize
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.agent.ltl.parser import parse
+from tlfleet.agent.ltl.rewrite import normalize
+from tlfleet.agent.ltl.truth_table import MAX_TABLE_ATOMS, BddAlgebra, TableAlgebra, guard_algebra
 
 
 def _random_bdd(rng: random.Random, n: int, depth: int) -> bdd.Bdd:
@@ -62,7 +62,7 @@ def test_algebra_choice_and_bad_input():
     assert bdd.node(0, bdd.FALSE, bdd.var(1)) is bdd.var(0) & bdd.var(1)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(formulas())
 def test_tgba_on_tables_is_the_tgba_on_bdds(f):
     index = {a: i for i, a in enumerate(_atoms_in_order(f))}
@@ -77,7 +77,7 @@ def test_tgba_on_tables_is_the_tgba_on_bdds(f):
     assert on_tables == on_bdds
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(formulas())
 def test_simulation_on_tables_is_the_simulation_on_bdds(f):
     atoms = _atoms_in_order(f)

@@ -5,11 +5,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
-from agent.nav.dwa import DwaConfig, MovingDiscs
-from agent.nav.grid import grid_from_arena
-from agent.scenario.model import Arena
+from tlfleet.agent.model.scenario import Arena
+from tlfleet.agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
+from tlfleet.agent.nav.dwa import DwaConfig, MovingDiscs
+from tlfleet.agent.nav.grid import grid_from_arena
 
 GRID = grid_from_arena(Arena(), inflation=0.25)
 ROBOT_RADIUS = 0.2

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from agent.scenario.model import Arena, Region, Robot, Scenario
+from tlfleet.agent.model.scenario import Arena, Region, Robot, Scenario
 
 
 def scenario1() -> Scenario:

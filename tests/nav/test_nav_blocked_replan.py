@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-
-from agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
-from agent.nav.grid import grid_from_arena
-from agent.nav.polyline import distance_to_polyline
-from agent.scenario.model import Arena, Region
+from tlfleet.agent.model.scenario import Arena, Region
+from tlfleet.agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
+from tlfleet.agent.nav.grid import grid_from_arena
+from tlfleet.agent.nav.polyline import distance_to_polyline
 
 CONFIG = ExecutorConfig()
 REGIONS = (Region("a1", (2.0, 0.0), 0.25, frozenset({"a1"})),)

@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from agent.errors import ScenarioError
-from agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
-from agent.nav.dwa import DwaConfig, dwa_control
-from agent.nav.grid import grid_from_arena
-from agent.scenario import load_scenario, parse_scenario
-from agent.scenario.model import Arena
-from agent.stl.coupling import CouplingModel
-from agent.stl.evaluate import compile_expr
-from agent.stl.parser import parse_task
-from agent.stl.syntax import BinOp
+from hypothesis_budget import examples
+from tlfleet.agent.model.scenario import Arena
+from tlfleet.agent.nav.coupling_limits import CouplingConstraint, VelocityLimits
+from tlfleet.agent.nav.dwa import DwaConfig, dwa_control
+from tlfleet.agent.nav.grid import grid_from_arena
+from tlfleet.agent.policy.coupling import CouplingModel
+from tlfleet.agent.scenario import load_scenario, parse_scenario
+from tlfleet.agent.stl.evaluate import compile_expr
+from tlfleet.agent.stl.parser import parse_task
+from tlfleet.agent.stl.syntax import BinOp
+from tlfleet.bus.errors import ScenarioError
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -80,7 +80,7 @@ def test_the_slot_distance_and_the_dependants_limit_set_the_bounds(offset, u_lin
     assert not _limits(scenario, 1, 10.5)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(x=st.floats(-2, 2), y=st.floats(-2, 2), th=st.floats(-math.pi, math.pi),
        ex=st.floats(-1, 1), ey=st.floats(-1, 1), frac=st.floats(0, 1),
        sign=st.sampled_from([-1, 1]))
@@ -145,7 +145,7 @@ def test_navigation_key_switches_and_bad_values_are_rejected():
 
 
 def test_ltl_core_uses_the_limits_only_when_coupling_aware():
-    from agent.runtime.ltl_agent import LtlCore
+    from tlfleet.agent.runtime.ltl_agent import LtlCore
 
     scenario = load_scenario(SCENARIOS / "scenario3.toml")
     assert LtlCore(scenario, 1).coupling

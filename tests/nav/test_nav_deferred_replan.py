@@ -12,11 +12,10 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from nav_harness import ExecutorController, SimRobot, simulate
 from nav_scenarios import scenario1
-
-from agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
-from agent.nav.grid_planner import plan_path
-from agent.nav.harness import ExecutorController, SimRobot, simulate
+from tlfleet.agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
+from tlfleet.agent.nav.grid_planner import plan_path
 
 PLAN = (("a11",), ("a12", "a11"))
 

@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 import pytest
-
-from agent.nav.dwa import (
+from nav_harness import ExecutorController, HarnessResult, SimRobot, simulate
+from tlfleet.agent.model.scenario import Arena, Region, Robot, Scenario
+from tlfleet.agent.nav.dwa import (
     DwaConfig,
     MovingDiscs,
     braking_command,
@@ -16,11 +17,9 @@ from agent.nav.dwa import (
     rollouts,
     velocity_window,
 )
-from agent.nav.executor import Executor
-from agent.nav.grid import grid_from_arena
-from agent.nav.grid_planner import plan_path
-from agent.nav.harness import ExecutorController, HarnessResult, SimRobot, simulate
-from agent.scenario.model import Arena, Region, Robot, Scenario
+from tlfleet.agent.nav.executor import Executor
+from tlfleet.agent.nav.grid import grid_from_arena
+from tlfleet.agent.nav.grid_planner import plan_path
 
 ARENA = Arena()
 GRID = grid_from_arena(ARENA, inflation=0.25)

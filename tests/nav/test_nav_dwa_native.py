@@ -1,5 +1,6 @@
-"""The DWA's C kernel (``agent/nav/dwa_kernel.c``, built at install time as ``agent.nav._dwa``)
-against its numpy kernel, the checked reference of test_nav_dwa_reference.py (issue 17).
+"""The DWA's C kernel (``agent/nav/dwa_kernel.c``, built at install time as
+``tlfleet.agent.nav._dwa``) against its numpy kernel, the checked reference of
+test_nav_dwa_reference.py (issue 17).
 
 The C kernel does the numpy kernel's floating-point operations in the same order, with libm's
 sin, cos and exp. Where numpy's own sin, cos and exp are libm's (this machine kind: x86-64
@@ -18,18 +19,17 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import tlfleet.agent.nav.dwa as dwa_module
+import tlfleet.agent.nav.dwa_native as dwa_native
 from dwa_cases import EXACT, GRID, PYTHON, ROBOT_RADIUS, random_cycle
-
-import agent.nav.dwa as dwa_module
-import agent.nav.dwa_native as dwa_native
-from agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control, native_kernel_available
-from agent.nav.executor import Executor, ExecutorConfig
+from tlfleet.agent.nav.dwa import DwaConfig, MovingDiscs, dwa_control, native_kernel_available
+from tlfleet.agent.nav.executor import Executor, ExecutorConfig
 
 NATIVE = replace(PYTHON, kernel="native") if native_kernel_available() else None
 
 c_kernel_built = pytest.mark.skipif(not native_kernel_available(),
-                                    reason="the DWA's C kernel (agent.nav._dwa) was not built: no "
-                                           "C compiler at install time")
+                                    reason="the DWA's C kernel (tlfleet.agent.nav._dwa) was not "
+                                           "built: no C compiler at install time")
 
 
 def same(native, python) -> bool:
@@ -135,10 +135,10 @@ def test_c_kernel_gives_scenario1_ltl_agents_the_same_commands(scenarios_dir):
     """Scenario 1's two LTL agents stepped as their processes step them (every 20th frame, the
     deferred re-plan after the command) over 40 s of a kinematic replay, once per kernel: the
     same commands, to the last bit where numpy's trig is libm's."""
-    from agent.protocol.messages import MocapFrame
-    from agent.runtime.loop import TickInput
-    from agent.runtime.ltl_agent import LtlCore
-    from agent.scenario import load_scenario
+    from tlfleet.agent.runtime.loop import TickInput
+    from tlfleet.agent.runtime.ltl_agent import LtlCore
+    from tlfleet.agent.scenario import load_scenario
+    from tlfleet.bus.protocol.messages import MocapFrame
 
     scenario = load_scenario(scenarios_dir / "scenario1.toml")
 

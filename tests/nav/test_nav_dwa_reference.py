@@ -1,7 +1,7 @@
 """The DWA and the polyline helpers against their plain array form, to the last bit (issue 17).
 
-``agent.nav.dwa.dwa_control`` and ``agent.nav.polyline`` compute in plain floats and on
-coordinate arrays, and leave out other robots that cannot matter; the reference below is the
+``tlfleet.agent.nav.dwa.dwa_control`` and ``tlfleet.agent.nav.polyline`` compute in plain floats and
+on coordinate arrays, and leave out other robots that cannot matter; the reference below is the
 straightforward numpy form of ltl-planning.md §6 (rollouts (S, T, 2), every robot, every
 polyline as one (P, M−1) array) that they replaced. Equality is exact (``==``), not approximate:
 the lockstep trajectories depend on every bit of the chosen command — where numpy's sin, cos and
@@ -21,10 +21,9 @@ import math
 import numpy as np
 import pytest
 from dwa_cases import EXACT, GRID, PYTHON, ROBOT_RADIUS, random_cycle, random_path
-
-from agent.nav import polyline
-from agent.nav.coupling_limits import VelocityLimits
-from agent.nav.dwa import (
+from tlfleet.agent.nav import polyline
+from tlfleet.agent.nav.coupling_limits import VelocityLimits
+from tlfleet.agent.nav.dwa import (
     DwaConfig,
     MovingDiscs,
     braking_command,

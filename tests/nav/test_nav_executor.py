@@ -1,7 +1,7 @@
 """Plan executor on the harness: Scenario 1 GF cycling, Scenario 3 visiting order, stuck handling.
 
-Plans come from the LTL planner (``agent.ltl.planner.plan_robot``, with the grid planner's path
-lengths as edge weights) and, independently of it, from hand-written sequences.
+Plans come from the LTL planner (``tlfleet.agent.ltl.planner.plan_robot``, with the grid planner's
+path lengths as edge weights) and, independently of it, from hand-written sequences.
 """
 
 from __future__ import annotations
@@ -10,21 +10,14 @@ import math
 
 import numpy as np
 import pytest
+from nav_harness import ExecutorController, HarnessConfig, HarnessResult, SimRobot, simulate
 from nav_scenarios import scenario1, scenario3
-
-from agent.nav.dwa import DwaConfig
-from agent.nav.errors import InvalidPlanError
-from agent.nav.events import PlanAccepted, PlanFinished, RegionVisited, ReplanRequest, Stuck
-from agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
-from agent.nav.grid_planner import path_length_function
-from agent.nav.harness import (
-    ExecutorController,
-    HarnessConfig,
-    HarnessResult,
-    SimRobot,
-    simulate,
-)
-from agent.scenario.model import Arena, RectObstacle, Region, Robot, Scenario
+from tlfleet.agent.model.scenario import Arena, RectObstacle, Region, Robot, Scenario
+from tlfleet.agent.nav.dwa import DwaConfig
+from tlfleet.agent.nav.errors import InvalidPlanError
+from tlfleet.agent.nav.events import PlanAccepted, PlanFinished, RegionVisited, ReplanRequest, Stuck
+from tlfleet.agent.nav.executor import Executor, ExecutorConfig, ExecutorInputs
+from tlfleet.agent.nav.grid_planner import path_length_function
 
 TOLERANCE = DwaConfig().xy_goal_tolerance
 
@@ -32,7 +25,7 @@ TOLERANCE = DwaConfig().xy_goal_tolerance
 
 
 def planner_plan(scenario: Scenario) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    planner = pytest.importorskip("agent.ltl.planner")
+    planner = pytest.importorskip("tlfleet.agent.ltl.planner")
     plan = planner.plan_robot(scenario, 1, distance=path_length_function(scenario))
     return plan.prefix, plan.suffix
 
@@ -73,7 +66,7 @@ def assert_commands_within_limits(commands: np.ndarray, config: DwaConfig) -> No
 
 SCENARIO1_PLANS = {
     "hand": (("a11",), ("a12", "a11")),
-    "planner": None,  # filled in by the test from agent.ltl.planner
+    "planner": None,  # filled in by the test from tlfleet.agent.ltl.planner
 }
 
 

@@ -9,15 +9,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-
-from agent.nav.grid import (
+from hypothesis_budget import examples
+from tlfleet.agent.model.scenario import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
+from tlfleet.agent.nav.grid import (
     arena_clearance,
     euclidean_distance_transform,
     grid_from_arena,
     grid_from_occupancy,
     grid_from_scenario,
 )
-from agent.scenario.model import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
 
 
 def test_paper_arena_is_140_by_140_cells_with_origin_at_the_corner():
@@ -119,7 +119,7 @@ def _brute_force_edt(occupied: np.ndarray) -> np.ndarray:
     return np.sqrt(d2.min(axis=-1))
 
 
-@settings(max_examples=60)
+@settings(max_examples=examples(60))
 @given(arrays(bool, st.tuples(st.integers(1, 12), st.integers(1, 12))))
 def test_distance_transform_matches_brute_force(occupied):
     if not occupied.any():

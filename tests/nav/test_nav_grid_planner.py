@@ -7,17 +7,22 @@ import math
 
 import numpy as np
 import pytest
+import tlfleet.agent.nav.grid_planner as grid_planner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from hypothesis_budget import examples
 from nav_scenarios import scenario3
-
-import agent.nav.grid_planner as grid_planner
-from agent.errors import TlfleetError
-from agent.nav.errors import NoPathError
-from agent.nav.grid import arena_clearance, grid_from_arena, grid_from_occupancy
-from agent.nav.grid_planner import astar_cells, line_of_sight, path_length_function, plan_path
-from agent.scenario.model import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
+from tlfleet.agent.model.scenario import Arena, DiscObstacle, RectObstacle, Region, Robot, Scenario
+from tlfleet.agent.nav.errors import NoPathError
+from tlfleet.agent.nav.grid import arena_clearance, grid_from_arena, grid_from_occupancy
+from tlfleet.agent.nav.grid_planner import (
+    astar_cells,
+    line_of_sight,
+    path_length_function,
+    plan_path,
+)
+from tlfleet.bus.errors import TlfleetError
 
 SQRT2 = math.sqrt(2.0)
 
@@ -143,7 +148,7 @@ def _dijkstra_length(blocked: np.ndarray, start, goal) -> float | None:
     return None
 
 
-@settings(max_examples=80)
+@settings(max_examples=examples(80))
 @given(
     arrays(bool, st.tuples(st.integers(2, 14), st.integers(2, 14)), elements=st.booleans()),
     st.data(),
@@ -196,7 +201,7 @@ def test_penalised_edges_add_the_penalty_in_the_blocked_direction_only():
     assert penalised((-2.0, -2.5001), a12) == pytest.approx(15.0, abs=1e-3)  # matched to 1 mm
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(
     st.lists(
         st.tuples(st.floats(-2.5, 2.5), st.floats(-2.5, 2.5), st.floats(0.1, 0.6)),
@@ -227,8 +232,8 @@ def test_smoothed_paths_are_collision_free_and_no_longer_than_the_grid_path(disc
 
 def test_unreachable_region_is_an_infinite_distance_and_the_planner_names_it():
     """A region walled in by obstacles: no transition to it, so `F a2` is unsatisfiable."""
-    from agent.errors import UnsatisfiableTask
-    from agent.ltl.planner import plan_robot
+    from tlfleet.agent.ltl.planner import plan_robot
+    from tlfleet.bus.errors import UnsatisfiableTask
 
     box = (RectObstacle(1.0, 1.0, 3.0, 1.2), RectObstacle(1.0, 2.8, 3.0, 3.0),
            RectObstacle(1.0, 1.0, 1.2, 3.0), RectObstacle(2.8, 1.0, 3.0, 3.0))

@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
-from agent.nav.harness import HarnessConfig, SimRobot, simulate
-from agent.scenario.model import Arena, RectObstacle, UnicycleLimits
+from nav_harness import HarnessConfig, SimRobot, simulate
+from tlfleet.agent.model.scenario import Arena, RectObstacle, UnicycleLimits
 
 
 def constant(v: float, omega: float):

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import pytest
+from nav_harness import ExecutorController, SimRobot, simulate
+from tlfleet.agent.nav.events import RegionVisited
+from tlfleet.agent.nav.executor import Executor
+from tlfleet.agent.nav.grid_planner import path_length_function
+from tlfleet.agent.scenario import load_scenario
 
-from agent.nav.events import RegionVisited
-from agent.nav.executor import Executor
-from agent.nav.grid_planner import path_length_function
-from agent.nav.harness import ExecutorController, SimRobot, simulate
-from agent.scenario import load_scenario
-
-planner = pytest.importorskip("agent.ltl.planner")
+planner = pytest.importorskip("tlfleet.agent.ltl.planner")
 
 
 def run_ltl_robots(scenario, duration):

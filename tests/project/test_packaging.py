@@ -8,8 +8,7 @@ from importlib.metadata import version
 from pathlib import Path
 
 import pytest
-
-from cli.main import main
+from tlfleet.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 

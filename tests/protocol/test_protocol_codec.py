@@ -9,10 +9,9 @@ import msgpack
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.protocol import keys
-from agent.protocol.codec import SCHEMA_VERSION, ProtocolError, decode, encode, peek_kind
-from agent.protocol.messages import (
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import SCHEMA_VERSION, ProtocolError, decode, encode, peek_kind
+from tlfleet.bus.protocol.messages import (
     Clock,
     CollabMessage,
     CollabReply,

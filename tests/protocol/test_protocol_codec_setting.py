@@ -1,5 +1,5 @@
 """A bad ``$TLFLEET_CODEC`` is a one-line error of the command, not a traceback (it is read when
-``agent.protocol.fast_paths`` is imported, so only a fresh process shows it)."""
+``tlfleet.bus.protocol.fast_paths`` is imported, so only a fresh process shows it)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import sys
 
 def test_a_bad_codec_setting_is_a_clear_error(repo_root):
     env = {**os.environ, "TLFLEET_CODEC": "fastest"}
-    done = subprocess.run([sys.executable, "-m", "cli.main", "run", "--help"],
+    done = subprocess.run([sys.executable, "-m", "tlfleet.cli", "run", "--help"],
                           cwd=repo_root, env=env, capture_output=True, text=True, timeout=120,
                           check=False)
     assert done.returncode == 1

@@ -11,11 +11,11 @@ import msgpack
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from agent.protocol import messages
-from agent.protocol.bounds import LIMITS, FleetBounds, check_message
-from agent.protocol.codec import SCHEMA_VERSION, ProtocolError, decode, encode, peek_kind
-from agent.protocol.messages import Command, Event, LtlStatus, MocapFrame, StlStatus
+from hypothesis_budget import examples
+from tlfleet.bus.protocol import messages
+from tlfleet.bus.protocol.bounds import LIMITS, FleetBounds, check_message
+from tlfleet.bus.protocol.codec import SCHEMA_VERSION, ProtocolError, decode, encode, peek_kind
+from tlfleet.bus.protocol.messages import Command, Event, LtlStatus, MocapFrame, StlStatus
 
 KINDS = [messages.Clock, messages.MocapFrame, messages.Command, messages.LtlStatus,
          messages.StlStatus, messages.CollabMessage, messages.CollabReply, messages.Event,
@@ -34,7 +34,7 @@ def decode_or_protocol_error(cls, data):
     return msg
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.sampled_from(KINDS), st.binary(max_size=512))
 def test_arbitrary_bytes_decode_or_raise_the_codec_error(cls, data):
     decode_or_protocol_error(cls, data)
@@ -67,14 +67,14 @@ def message_shaped(draw):
     return cls, body
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(message_shaped())
 def test_structurally_valid_msgpack_decodes_or_raises_the_codec_error(case):
     cls, body = case
     decode_or_protocol_error(cls, msgpack.packb(body, use_bin_type=True))
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.sampled_from(KINDS), values)
 def test_arbitrary_msgpack_values_decode_or_raise(cls, value):
     decode_or_protocol_error(cls, msgpack.packb(value, use_bin_type=True))

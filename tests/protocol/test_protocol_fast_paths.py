@@ -1,5 +1,5 @@
-"""The straight-line codec paths of the per-tick messages (``agent.protocol.fast_paths``, issue
-17) agree with the generic codec: a payload the fast path accepts decodes to the message the
+"""The straight-line codec paths of the per-tick messages (``tlfleet.bus.protocol.fast_paths``,
+issue 17) agree with the generic codec: a payload the fast path accepts decodes to the message the
 generic decoder builds, a payload the generic decoder rejects is never accepted by the fast path,
 valid messages do take the fast path, and the fast encoder writes the generic encoder's bytes."""
 
@@ -11,12 +11,12 @@ import math
 import msgpack
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from agent.protocol import codec
-from agent.protocol.bounds import MAX_COORD, MAX_SPEED, MAX_TIME
-from agent.protocol.codec import SCHEMA_VERSION, ProtocolError, decode
-from agent.protocol.fast_paths import decode_fast, encode_fast
-from agent.protocol.messages import Clock, Command, MocapFrame
+from hypothesis_budget import examples
+from tlfleet.bus.protocol import codec
+from tlfleet.bus.protocol.bounds import MAX_COORD, MAX_SPEED, MAX_TIME
+from tlfleet.bus.protocol.codec import SCHEMA_VERSION, ProtocolError, decode
+from tlfleet.bus.protocol.fast_paths import decode_fast, encode_fast
+from tlfleet.bus.protocol.messages import Clock, Command, MocapFrame
 
 ids = st.integers(0, 1_000_000)
 seqs = st.integers(0, 2 ** 53)
@@ -70,7 +70,7 @@ def near_valid(draw):
     return type(msg), msgpack.packb(body, use_bin_type=True)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(frames | commands)
 def test_valid_messages_take_the_fast_path_and_decode_as_the_generic_decoder(msg):
     data = codec._encode_generic(msg)
@@ -80,7 +80,7 @@ def test_valid_messages_take_the_fast_path_and_decode_as_the_generic_decoder(msg
     assert type(fast.poses if isinstance(fast, MocapFrame) else fast.u) is tuple
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(600), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(near_valid())
 def test_the_fast_path_accepts_only_what_the_generic_decoder_accepts_and_agrees(case):
     cls, data = case
@@ -98,7 +98,7 @@ def test_the_fast_path_accepts_only_what_the_generic_decoder_accepts_and_agrees(
             raise AssertionError("decode accepted what the generic decoder rejects")
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.sampled_from([MocapFrame, Command]), st.binary(max_size=300))
 def test_garbage_never_takes_the_fast_path(cls, data):
     fast = decode_fast(cls, data)
@@ -112,7 +112,7 @@ def test_ints_where_floats_are_allowed_are_left_to_the_generic_decoder():
     assert decode(Command, data) == Command(3, 1.0, 100, (0.0, 0.5, 0.0))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(frames | commands | clocks)
 def test_the_fast_encoder_writes_the_generic_encoders_bytes(msg):
     assert encode_fast(msg) == codec._encode_generic(msg)

@@ -1,5 +1,5 @@
-"""The C decoders of ``MocapFrame`` and ``Command`` (``agent/protocol/wire_kernel.c``, issue 17)
-against the Python fast path they stand in front of (``agent.protocol.fast_paths``).
+"""The C decoders of ``MocapFrame`` and ``Command`` (``bus/protocol/wire_kernel.c``, issue 17)
+against the Python fast path they stand in front of (``tlfleet.bus.protocol.fast_paths``).
 
 The contract: C returns a message only when the Python path returns an equal one, and ``None``
 (the Python path decides) for anything else; canonical payloads do take the C path. Checked on
@@ -20,18 +20,20 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
+from tlfleet.bus.protocol import bounds, codec, fast_paths
+from tlfleet.bus.protocol.codec import SCHEMA_VERSION
+from tlfleet.bus.protocol.fast_paths import CodecSettingError
+from tlfleet.bus.protocol.messages import Command, MocapFrame
 
-from agent.protocol import bounds, codec, fast_paths
-from agent.protocol.codec import SCHEMA_VERSION
-from agent.protocol.fast_paths import CodecSettingError
-from agent.protocol.messages import Command, MocapFrame
 from tests.protocol.test_protocol_fast_paths import commands, frames, near_valid
 
 native = fast_paths._native
 # without a C compiler at install time these skip; under TLFLEET_REQUIRE_SYSTEM=1 (CI, where it
 # must have been built) the skip is a failure (tests/conftest.py)
-pytestmark = [pytest.mark.skipif(native is None, reason="the C decoders (agent.protocol._wire) "
-                                 "were not built: no C compiler at install time, or "
+pytestmark = [pytest.mark.skipif(native is None, reason="the C decoders "
+                                 "(tlfleet.bus.protocol._wire) were not built: no C compiler at "
+                                 "install time, or "
                                  "TLFLEET_CODEC=python"),
               pytest.mark.needs_system]
 
@@ -52,7 +54,7 @@ def agree(cls, data) -> object:
     return got
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(frames | commands)
 def test_canonical_payloads_take_the_c_path_and_decode_to_the_message(msg):
     data = codec._encode_generic(msg)
@@ -62,14 +64,14 @@ def test_canonical_payloads_take_the_c_path_and_decode_to_the_message(msg):
         assert all(type(row) is tuple for row in got.poses) and type(got.due) is tuple
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(600), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(near_valid())
 def test_near_valid_payloads_are_refused_or_agree(case):
     cls, data = case
     agree(cls, data)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.sampled_from([MocapFrame, Command]), st.binary(max_size=300))
 def test_random_bytes_are_refused_or_agree(cls, data):
     agree(cls, data)
@@ -162,7 +164,7 @@ def test_other_encodings_of_the_map_are_left_to_python_or_agree():
     assert agree(MocapFrame, bytearray(pack(body))) is None  # only bytes, as the Python path
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(frames | commands | st.builds(Command, st.integers(0, 2 ** 63 - 1), st.floats(),
                                      st.integers(-2 ** 63, 2 ** 63 - 1),
                                      st.lists(st.floats(), max_size=20).map(tuple)))
@@ -240,7 +242,7 @@ def test_settings():
         fast_paths._load_native("fast")
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(frames | commands | st.builds(Command, st.integers(0, 2 ** 63 - 1), st.floats(),
                                      st.integers(-2 ** 63, 2 ** 63 - 1),
                                      st.lists(st.floats(), max_size=20).map(tuple)))
@@ -267,7 +269,7 @@ ROWS = st.lists(st.tuples(st.integers(0, 40), st.floats(), st.floats(), st.float
                 max_size=40).map(tuple)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(ROWS)
 def test_pose_map_is_the_comprehension_over_the_rows(rows):
     """Ids repeated too (the last row wins, as in the comprehension); the values are the rows'
@@ -337,7 +339,7 @@ def bounds_and_frames(draw):
     return fb, MocapFrame(t, seq, tuple(rows), due)
 
 
-@settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(1500), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(bounds_and_frames())
 def test_frame_plausible_confirms_exactly_the_frames_python_finds_nothing_wrong_with(case):
     """On the values the decoders build (exact ints, floats, tuples) the C check is the Python

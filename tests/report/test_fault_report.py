@@ -1,12 +1,12 @@
-"""The report's fault rows (coordinator.fault_report, issue 13 §2): detection and clearance."""
+"""The report's fault rows (tlfleet.coordinator.report.fault_table, issue 13 §2): detection and
+clearance."""
 
 from __future__ import annotations
 
 import pytest
-
-from agent.protocol.messages import Event
-from agent.scenario import load_scenario
-from coordinator.fault_report import fault_rows
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.report.fault_table import fault_rows
 
 
 def start(t, spec, kind, targets, wall=1000.0):

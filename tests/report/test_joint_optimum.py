@@ -1,21 +1,22 @@
-"""Scenario 1's joint optimum of φ′3, φ′4, φ′5 (coordinator.joint_optimum, docs/coupling.md §3).
+"""Scenario 1's joint optimum of φ′3, φ′4, φ′5 (tlfleet.coordinator.report.joint_optimum,
+docs/coupling.md §3).
 
 The closed form is checked against the project's robustness of the scenario's own parsed
-predicates (``agent.stl.robustness.psi_array``, ``agent.stl.monitor.task_robustness``) on sampled
-configurations and trajectories: never exceeded, attained, and equal to a brute-force search over
-robot 4's position.
+predicates (``tlfleet.agent.stl.robustness.psi_array``,
+``tlfleet.agent.stl.monitor.task_robustness``) on sampled configurations and trajectories: never
+exceeded, attained, and equal to a brute-force search over robot 4's position.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from agent.scenario.loader import load_scenario
-from agent.stl.monitor import Trajectory, task_robustness
-from agent.stl.robustness import psi_array
-from coordinator import paper_values
-from coordinator.joint_optimum import find_pinches
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.agent.stl.monitor import Trajectory, task_robustness
+from tlfleet.agent.stl.parser import robot_subtasks
+from tlfleet.agent.stl.robustness import psi_array
+from tlfleet.coordinator.report import paper_values
+from tlfleet.coordinator.report.joint_optimum import find_pinches
 
 RNG_SEED = 15
 SAMPLES = 4000
@@ -25,7 +26,7 @@ SAMPLES = 4000
 def s1(scenarios_dir):
     scenario = load_scenario(scenarios_dir / "scenario1.toml")
     (pinch,) = find_pinches(scenario)
-    tasks = {j: scenario.robot(j).stl_trees[0] for j in (3, 4, 5)}
+    tasks = {j: robot_subtasks(scenario.robot(j))[0] for j in (3, 4, 5)}
     return scenario, pinch, tasks
 
 

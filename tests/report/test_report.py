@@ -18,18 +18,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import given, settings
+from hypothesis_budget import examples
 from ltl.ltl_helpers import formulas, lasso_words
 from matplotlib.image import imread
-
-from agent.ltl.buchi import translate
-from agent.ltl.emptiness import accepts_lasso
-from agent.ltl.lasso import holds
-from cli.main import main as cli_main
-from coordinator import paper_values
-from coordinator.figures import robustness_figure
-from coordinator.ltl_trace import completed_cycles, plan_cycle
-from coordinator.report import RunDirectoryError, build_report, write_report
-from coordinator.summary import summarise_run
+from tlfleet.agent.ltl.buchi import translate
+from tlfleet.agent.ltl.emptiness import accepts_lasso
+from tlfleet.agent.ltl.lasso import holds
+from tlfleet.cli.main import main as cli_main
+from tlfleet.coordinator.report import paper_values
+from tlfleet.coordinator.report.figures import robustness_figure
+from tlfleet.coordinator.report.ltl_words import completed_cycles, plan_cycle
+from tlfleet.coordinator.report.run_report import RunDirectoryError, build_report, write_report
+from tlfleet.coordinator.report.summary import summarise_run
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 DT = 0.1  # [s] sample period of the synthetic run
@@ -151,7 +151,8 @@ def synthetic(tmp_path_factory) -> tuple[Path, dict]:
     return run_dir, json.loads((run_dir / "report.json").read_text())
 
 
-# -- STL values against a recomputation that does not use agent.stl ------------------------------
+# -- STL values against a recomputation that does not use tlfleet.agent.stl
+# ------------------------------
 
 def test_stl_robustness_equals_direct_recomputation(synthetic) -> None:
     run_dir, data = synthetic
@@ -320,7 +321,7 @@ def test_completed_cycles_need_the_whole_cycle() -> None:
     assert completed_cycles(["a", "b", "a"], ["a"]) == []
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(formulas(atoms=("a", "b"), max_depth=3), lasso_words(atoms=("a", "b")))
 def test_buchi_on_lasso_agrees_with_exact_evaluation(formula, word) -> None:
     prefix, loop = word

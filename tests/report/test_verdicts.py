@@ -1,4 +1,5 @@
-"""Per-sub-task verdicts, held fractions and stationary episodes (coordinator.verdicts)."""
+"""Per-sub-task verdicts, held fractions and stationary episodes
+(tlfleet.coordinator.report.task_verdicts)."""
 
 from __future__ import annotations
 
@@ -6,11 +7,15 @@ import math
 
 import numpy as np
 import pytest
-
-from agent.protocol.messages import Event
-from agent.scenario import parse_scenario
-from agent.stl.monitor import Trajectory
-from coordinator.verdicts import held_fraction, render_lines, stationary_episodes, verdict
+from tlfleet.agent.scenario import parse_scenario
+from tlfleet.agent.stl.monitor import Trajectory
+from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.report.task_verdicts import (
+    held_fraction,
+    render_lines,
+    stationary_episodes,
+    verdict,
+)
 
 
 @pytest.mark.parametrize("op,rho,t_end,expected,by", [

@@ -9,17 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode, peek_kind
-from agent.protocol.messages import (
-    Command,
-    Control,
-    Event,
-    LtlStatus,
-    MocapFrame,
-    StlStatus,
-)
-from bus.fake import FakeNetwork
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode, peek_kind
+from tlfleet.bus.protocol.messages import Command, Control, Event, LtlStatus, MocapFrame, StlStatus
 
 
 class FakeSim:
@@ -90,10 +83,10 @@ class FakeClock:
 
 def stl_loop(network: FakeNetwork, fleet: str, agent, clock=None, stale_after: float = 0.5):
     """An STL agent loop on its own fake transport, opened and alive."""
-    from agent.runtime.inbox import MalformedCounter
-    from agent.runtime.loop import AgentLoop, LoopConfig
-    from agent.runtime.peers import CollabLink
-    from agent.runtime.stl_agent import StlCore
+    from tlfleet.agent.runtime.inbox import MalformedCounter
+    from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig
+    from tlfleet.agent.runtime.peers import CollabLink
+    from tlfleet.agent.runtime.stl_agent import StlCore
 
     transport = network.transport(f"agent{agent.robot_id}")
     extra = {"clock": clock} if clock is not None else {}

@@ -5,8 +5,7 @@ from __future__ import annotations
 import re
 
 import pytest
-
-from cli.main import main
+from tlfleet.cli.main import main
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -6,12 +6,11 @@ import dataclasses
 import math
 
 import pytest
-
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import CollabMessage, FunnelWire
-from agent.runtime.collab import from_wire, funnel_from_wire, funnel_to_wire, to_wire
-from agent.stl.funnel import Funnel
-from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
+from tlfleet.agent.runtime.collab import from_wire, funnel_from_wire, funnel_to_wire, to_wire
+from tlfleet.agent.stl.funnel import Funnel
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import CollabMessage, FunnelWire
 
 FUNNEL = Funnel.init("F", 57.0, 58.0, 0.0997524, -1.5, 34.86)
 

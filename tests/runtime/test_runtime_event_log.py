@@ -1,21 +1,20 @@
 """Events lost while an agent's link was down are published again when the coordinator's token
-returns, and the recorder keeps each event once (agent.runtime.event_log,
-coordinator.event_dedup)."""
+returns, and the recorder keeps each event once (tlfleet.agent.runtime.event_log,
+tlfleet.coordinator.record.replay_dedup)."""
 
 from __future__ import annotations
 
 import json
 
 import pytest
-
-from agent.protocol import keys
-from agent.protocol.codec import decode
-from agent.protocol.messages import EVENT_REPLAYED, Event
-from agent.runtime.event_log import CAPACITY, EventLog
-from agent.runtime.loop import AgentLoop, LoopConfig
-from bus.fake import FakeNetwork
-from coordinator.event_dedup import REMEMBERED, EventDedup, identity
-from coordinator.recorder import Recorder, RecorderTap
+from tlfleet.agent.runtime.event_log import CAPACITY, EventLog
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode
+from tlfleet.bus.protocol.messages import EVENT_REPLAYED, Event
+from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.replay_dedup import REMEMBERED, EventDedup, identity
 
 FLEET = "f"
 

@@ -9,13 +9,12 @@ import time
 
 import pytest
 from runtime_helpers import FakeClock
-
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import Clock, Command, Control, Event, MocapFrame
-from agent.runtime.inbox import MalformedCounter
-from agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
-from bus.fake import FakeChannel, FakeNetwork
+from tlfleet.agent.runtime.inbox import MalformedCounter
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
+from tlfleet.bus.fake import FakeChannel, FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import Clock, Command, Control, Event, MocapFrame
 
 FLEET = "frames"
 POSES = ((1, 0.0, 0.0, 0.0), (2, 1.0, 0.0, 0.0))

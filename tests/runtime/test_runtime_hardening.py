@@ -6,16 +6,15 @@ from __future__ import annotations
 
 import msgpack
 from runtime_helpers import FakeClock, FakeSim
-
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import encode
-from agent.protocol.messages import Command, MocapFrame
-from agent.protocol.plausibility import FrameGate, Verdict, max_jump_ticks
-from agent.runtime.inbox import MalformedCounter
-from agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
-from bus.fake import FakeNetwork
-from sim.command_age import CommandAge
+from tlfleet.agent.runtime.inbox import MalformedCounter
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig, TickOutput
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Command, MocapFrame
+from tlfleet.bus.protocol.plausibility import FrameGate, Verdict, max_jump_ticks
+from tlfleet.sim.command_age import CommandAge
 
 FLEET = "hard"
 POSES = {1: (0.0, 0.0, 0.0), 2: (1.0, 0.0, 0.0)}

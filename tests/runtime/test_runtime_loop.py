@@ -10,17 +10,16 @@ import types
 import numpy as np
 import pytest
 from runtime_helpers import FakeClock, FakeSim, stl_loop
-
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import CollabMessage, CollabReply, Command, MocapFrame
-from agent.runtime.config import AgentConfig
-from agent.runtime.inbox import CollabInbox, Mailbox, MalformedCounter
-from agent.runtime.loop import AgentLoop, LoopConfig, TickInput, TickOutput
-from agent.runtime.process import run_agent
-from agent.scenario import load_scenario
-from agent.stl.agent import build_agents
-from bus.fake import FakeNetwork
+from tlfleet.agent.policy.stl import build_agents
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.runtime.inbox import CollabInbox, Mailbox, MalformedCounter
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig, TickInput, TickOutput
+from tlfleet.agent.runtime.process import run_agent
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import CollabMessage, CollabReply, Command, MocapFrame
 
 FLEET = "loop"
 POSES = {1: (0.0, 0.0, 0.0), 2: (1.0, 0.0, 0.0)}

@@ -10,16 +10,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from runtime_helpers import FakeSim
-
-from agent.ltl.buchi import buchi_step
-from agent.nav.events import ReplanRequest
-from agent.protocol.messages import LtlStatus, MocapFrame
-from agent.runtime import ltl_agent
-from agent.runtime.config import AgentConfig
-from agent.runtime.loop import AgentLoop, LoopConfig, TickInput
-from agent.runtime.ltl_agent import LtlCore
-from agent.scenario import load_scenario
-from bus.fake import FakeNetwork
+from tlfleet.agent.ltl.buchi import buchi_step
+from tlfleet.agent.nav.events import ReplanRequest
+from tlfleet.agent.runtime import ltl_agent
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig, TickInput
+from tlfleet.agent.runtime.ltl_agent import LtlCore
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol.messages import LtlStatus, MocapFrame
 
 RATE = 100.0
 DT = 1.0 / RATE

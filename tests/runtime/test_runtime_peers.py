@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import threading
 
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import CollabMessage, CollabReply
-from agent.runtime.inbox import MalformedCounter
-from agent.runtime.peers import CollabLink
+from tlfleet.agent.runtime.inbox import MalformedCounter
+from tlfleet.agent.runtime.peers import CollabLink
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import CollabMessage, CollabReply
 
 FLEET = "peers"
 

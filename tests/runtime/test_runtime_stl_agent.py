@@ -10,14 +10,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from runtime_helpers import FakeClock, FakeSim, stl_loop
-
-from agent.control.collision import CollisionParams
-from agent.protocol import keys
-from agent.protocol.messages import StlStatus
-from agent.runtime import stl_agent
-from agent.runtime.config import AgentConfig
-from agent.scenario import load_scenario
-from agent.stl.agent import (
+from stl_harness import run_closed_loop
+from tlfleet.agent.control.collision import CollisionParams
+from tlfleet.agent.policy.stl import (
     LogRecord,
     StepInput,
     StlAgent,
@@ -25,10 +20,14 @@ from agent.stl.agent import (
     single_agent,
     status_readers,
 )
-from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRelease, CollabRequest
-from agent.stl.sequencer import build_sequence
-from bus.fake import FakeNetwork
+from tlfleet.agent.runtime import stl_agent
+from tlfleet.agent.runtime.config import AgentConfig
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest
+from tlfleet.agent.stl.sequencer import build_sequence
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.messages import StlStatus
 
 RATE = 100.0
 DT = 1.0 / RATE

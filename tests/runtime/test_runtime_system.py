@@ -18,13 +18,12 @@ from pathlib import Path
 
 import pytest
 from process_helpers import free_port, kill_group
-
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import Command, Control, MocapFrame
-from agent.scenario import load_scenario
-from bus.transport import TransportConfig
-from bus.zenoh_transport import ZenohTransport
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import Command, Control, MocapFrame
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.transport import ZenohTransport
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -32,7 +31,7 @@ SCENARIO = ROOT / "scenarios" / "scenario1.toml"
 
 
 def tlfleet(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "cli.main", *args], cwd=ROOT,
+    return subprocess.Popen([sys.executable, "-m", "tlfleet.cli", *args], cwd=ROOT,
                             start_new_session=True, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
 

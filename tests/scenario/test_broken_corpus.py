@@ -7,9 +7,8 @@ import re
 
 import pytest
 from broken_corpus import CASES
-
-from agent.errors import ScenarioError
-from agent.scenario import load_scenario
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.errors import ScenarioError
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])

@@ -8,10 +8,9 @@ import re
 
 import pytest
 from test_loader import BASE
-
-from agent.errors import ScenarioError
-from agent.scenario import parse_scenario
-from agent.scenario.faults import Fault, FaultSpecError, check_fault, parse_fault
+from tlfleet.agent.model.faults import Fault, FaultSpecError, check_fault, parse_fault
+from tlfleet.agent.scenario import parse_scenario
+from tlfleet.bus.errors import ScenarioError
 
 
 @pytest.mark.parametrize(("spec", "fault"), [

@@ -9,9 +9,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from agent.errors import ScenarioError
-from agent.scenario import Scenario, load_scenario, parse_scenario
+from tlfleet.agent.model import Scenario
+from tlfleet.agent.scenario import load_scenario, parse_scenario
+from tlfleet.bus.errors import ScenarioError
 
 BASE: dict[str, Any] = {
     "name": "mini",
@@ -186,37 +186,42 @@ def test_ltl_on_omni_robot_is_rejected():
         parse_scenario(data, source="s.toml")
 
 
-def test_the_loaded_scenario_carries_each_task_parsed_once(scenarios_dir, monkeypatch):
-    """The loader parses every task once and the trees travel with the scenario: building the
-    agents and planning parse nothing again; a replaced task text is parsed anew, never served
-    the old text's tree."""
+def test_each_task_text_is_parsed_once_per_process(scenarios_dir, monkeypatch):
+    """The loader's parse of every task is the process's only one: building the agents and
+    planning parse nothing again, and a replaced task text is parsed anew, never served the old
+    text's tree."""
     import dataclasses
 
-    import agent.ltl.parser as ltl_parser
-    import agent.stl.parser as stl_parser
-    from agent.ltl.agent import LtlAgent
-    from agent.stl.agent import build_agents
+    import tlfleet.agent.ltl.parser as ltl_parser
+    import tlfleet.agent.ltl.task as ltl_task
+    import tlfleet.agent.stl.parser as stl_parser
+    from tlfleet.agent.policy.ltl import LtlAgent
+    from tlfleet.agent.policy.stl import build_agents
 
+    ltl_task.task_formula.cache_clear()
+    stl_parser.parsed_task.cache_clear()
     scenario = load_scenario(scenarios_dir / "scenario1.toml")
     ltl_robot = next(r for r in scenario.robots if r.is_ltl)
     stl_robot = next(r for r in scenario.robots if r.is_stl)
-    assert ltl_robot.parsed_ltl is not None and ltl_robot.ltl_tree is ltl_robot.parsed_ltl
-    assert len(stl_robot.stl_trees) == len(stl_robot.stl)
 
     def refuse(*args, **kwargs):
         raise AssertionError("parsed twice")
 
-    import agent.ltl.planner as planner
-    import agent.stl.sequencer as sequencer
-    import agent.stl.task as task
+    import tlfleet.agent.ltl.planner as planner
+    import tlfleet.agent.stl.sequencer as sequencer
+    import tlfleet.agent.stl.task as task
 
-    for module, name in ((ltl_parser, "parse"), (planner, "parse"), (stl_parser, "parse_task"),
-                         (sequencer, "parse_task"), (task, "parse_task")):
-        monkeypatch.setattr(module, name, refuse)
+    for module, name in ((ltl_parser, "parse"), (ltl_task, "parse"), (planner, "parse"),
+                         (stl_parser, "parse_task"), (sequencer, "parse_task"),
+                         (task, "parse_task")):
+        if hasattr(module, name):
+            monkeypatch.setattr(module, name, refuse)
+    assert ltl_task.robot_formula(ltl_robot) is ltl_task.robot_formula(ltl_robot)
+    assert len(stl_parser.robot_subtasks(stl_robot)) == len(stl_robot.stl)
     build_agents(scenario)
     LtlAgent(scenario, ltl_robot.id).plan()
     monkeypatch.undo()
 
     changed = dataclasses.replace(ltl_robot, ltl="F a12")
-    assert changed.parsed_ltl is None
-    assert ltl_parser.parse("F a12") == changed.ltl_tree != ltl_robot.ltl_tree
+    assert ltl_parser.parse("F a12") == ltl_task.robot_formula(changed)
+    assert ltl_task.robot_formula(changed) != ltl_task.robot_formula(ltl_robot)

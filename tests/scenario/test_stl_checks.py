@@ -1,4 +1,5 @@
-"""`tlfleet check`: rejections and warnings of STL tasks (agent.scenario.stl_checks, issue 15)."""
+"""`tlfleet check`: rejections and warnings of STL tasks (tlfleet.agent.scenario.stl_checks, issue
+15)."""
 
 from __future__ import annotations
 
@@ -6,11 +7,10 @@ import copy
 from pathlib import Path
 
 import pytest
-
-from agent.errors import ScenarioError
-from agent.scenario import load_scenario, parse_scenario
-from agent.scenario.stl_checks import stl_warnings
-from cli.main import main
+from tlfleet.agent.scenario import load_scenario, parse_scenario
+from tlfleet.agent.scenario.stl_checks import stl_warnings
+from tlfleet.bus.errors import ScenarioError
+from tlfleet.cli.main import main
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -41,7 +41,8 @@ def _with(robot: int, **fields) -> dict:
     (_with(1, phase_start_times=[15.0]), None, None),  # valid: 15 ≥ b = 10
     (_with(1, phase_start_times=[5.0]), "robots[1].phase_start_times[0]",
      "precedes the end b = 10"),
-    # overlapping windows: the loader's window-order check (agent.scenario.validation) names it
+    # overlapping windows: the loader's window-order check (tlfleet.agent.scenario.validation) names
+    # it
     (_with(1, stl=["G[0,10] (x2 >= 0)", "F[5,12] (y2 >= 0)"]), "robots[1].stl[1]",
      "window [5, 12] overlaps the window [0, 10] of stl[0]"),
 ])

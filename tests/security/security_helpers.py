@@ -10,11 +10,10 @@ import time
 from pathlib import Path
 
 import zenoh
-
-from agent.scenario import load_scenario
-from bus.security import KeyDir
-from coordinator.keys import write_keys
-from coordinator.launcher import free_port, wait_for_port
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.zenoh.security import KeyDir
+from tlfleet.coordinator.launch.processes import free_port, wait_for_port
+from tlfleet.coordinator.security.authority import write_keys
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO1 = ROOT / "scenarios" / "scenario1.toml"
@@ -60,7 +59,7 @@ class SecuredRouter:
         self.log = log
         self._handle = open(log, "wb")  # noqa: SIM115 (closed in stop())
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "cli.main", "router", "--fleet", fleet, "--listen",
+            [sys.executable, "-m", "tlfleet.cli", "router", "--fleet", fleet, "--listen",
              f"tcp/127.0.0.1:{self.port}", "--secure", str(keys.path)],
             stdout=self._handle, stderr=subprocess.STDOUT, start_new_session=True, cwd=ROOT)
         wait_for_port("127.0.0.1", self.port, 20.0)

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
+import tlfleet.cli.commands.run as run_command
 from security_helpers import ROOT, SCENARIO1
-
-import cli.commands.run as run_command
-from cli.main import main as cli_main
+from tlfleet.cli.main import main as cli_main
 
 
 class Launched(Exception):

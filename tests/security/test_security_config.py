@@ -2,7 +2,7 @@
 
 The policy is checked as zenoh reads it: a message kind on a key is allowed for a subject iff a
 rule of that subject's policy for that flow lists the kind and one of its key expressions
-*includes* the key (for concrete keys: matches it, ``keys.key_matches``).
+*includes* the key (for concrete keys: matches it, ``tlfleet.bus.transport.key_matches``).
 """
 
 from __future__ import annotations
@@ -15,11 +15,10 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from security_helpers import ROOT, SCENARIO1
-
-from agent.protocol import keys
-from agent.scenario import load_scenario
-from bus.acl_log import Caching, Decision, DenialFilter, NoSubject, Other, parse_line
-from bus.security import (
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.transport import TransportConfig, key_matches
+from tlfleet.bus.zenoh.security import (
     CAPABILITIES,
     Grant,
     KeyDir,
@@ -31,10 +30,10 @@ from bus.security import (
     secure_transport,
     tls_entries,
 )
-from bus.transport import TransportConfig
-from cli.main import main as cli_main
-from coordinator.acl import coupled_robots, fleet_grants, identities
-from coordinator.keys import KeysError, check_keys, write_keys
+from tlfleet.cli.main import main as cli_main
+from tlfleet.coordinator.security.authority import KeysError, check_keys, write_keys
+from tlfleet.coordinator.security.policy import coupled_robots, fleet_grants, identities
+from tlfleet.sim.router.denials import Caching, Decision, DenialFilter, NoSubject, Other, parse_line
 
 F = "scenario1"
 
@@ -174,7 +173,7 @@ def allowed(block, who: str, flow: str, message: str, key: str) -> bool:
             rule = rules[rule_id]
             if (rule["permission"] == "allow" and flow in rule["flows"]
                     and message in rule["messages"]
-                    and any(keys.key_matches(expr, key) for expr in rule["key_exprs"])):
+                    and any(key_matches(expr, key) for expr in rule["key_exprs"])):
                 return True
     return block["default_permission"] == "allow"
 

@@ -24,10 +24,9 @@ import msgpack
 import pytest
 import zenoh
 from security_helpers import SCENARIO1, make_keys, robot_path, wait_until
-
-from agent.protocol import keys
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import (
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import (
     CollabMessage,
     CollabReply,
     Command,
@@ -37,11 +36,11 @@ from agent.protocol.messages import (
     MocapFrame,
     StlStatus,
 )
-from bus.security import secure_transport
-from bus.transport import TransportConfig
-from bus.zenoh_transport import ZenohTransport
-from coordinator.runner import RunConfig, RunResult, default_child_argv, run_fleet
-from coordinator.supervisor import SupervisorConfig
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.security import secure_transport
+from tlfleet.bus.zenoh.transport import ZenohTransport
+from tlfleet.coordinator.live.supervisor import SupervisorConfig
+from tlfleet.coordinator.run import RunConfig, RunResult, default_child_argv, run_fleet
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 F = "scenario1"
@@ -239,8 +238,8 @@ def test_without_access_control_the_same_attack_moves_robot4(plain, tmp_path):
     this time) reach the sim and robot 4's path changes, so an identical trajectory is proof.
 
     The rogue and robot 4's agent race to answer each frame, and the sim takes the first answer
-    (``sim.lockstep``): which one wins each race is up to the scheduler, so how far robot 4 is
-    pushed is too (0.06–0.68 m over five runs). What does not depend on the race is that every
+    (``tlfleet.sim.lockstep``): which one wins each race is up to the scheduler, so how far robot 4
+    is pushed is too (0.06–0.68 m over five runs). What does not depend on the race is that every
     one of robot 4's ticks gets a second command, the loser of the race, counted by the sim as a
     duplicate (it came while the tick was open) or of the wrong seq (it came after); a plain run
     has neither (``test_plain_ignores_nothing``). Not every tick: zenoh drops a put whose link is

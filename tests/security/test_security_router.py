@@ -21,10 +21,9 @@ from security_helpers import (
     open_as,
     wait_until,
 )
-
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Command, Control
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Command, Control
 
 pytestmark = pytest.mark.system
 FLEET = "scenario1"

@@ -8,10 +8,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import replace
 
-from agent.protocol import keys
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import Command, Control, Event, MocapFrame
-from agent.scenario.model import (
+from tlfleet.agent.model.scenario import (
     Arena,
     LtlParams,
     OmniLimits,
@@ -21,8 +18,11 @@ from agent.scenario.model import (
     StlParams,
     UnicycleLimits,
 )
-from bus.fake import FakeNetwork, FakeTransport
-from sim.process import SimConfig, SimProcess
+from tlfleet.bus.fake import FakeNetwork, FakeTransport
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import Command, Control, Event, MocapFrame
+from tlfleet.sim.process import SimConfig, SimProcess
 
 FLEET = "simtest"
 WAIT = 10.0  # [s] wall: generous upper bound on every condition a test waits for

@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 
 import pytest
-
-from agent.scenario import load_scenario
-from cli.commands import sim as sim_command
-from cli.main import main
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.cli.commands import sim as sim_command
+from tlfleet.cli.main import main
 
 
 def parse(*argv: str) -> argparse.Namespace:

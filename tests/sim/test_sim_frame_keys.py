@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 from sim_helpers import FLEET, FakeAgent, Observer, SimRun, constant, omni, scenario, unicycle
-
-from agent.protocol import keys
-from agent.protocol.codec import decode
-from agent.protocol.messages import MocapFrame
-from bus.fake import FakeNetwork
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode
+from tlfleet.bus.protocol.messages import MocapFrame
+from tlfleet.bus.transport import key_matches
 
 
 def test_frame_keys_name_the_schedules_the_seq_falls_on():
@@ -25,8 +25,8 @@ def test_frame_keys_name_the_schedules_the_seq_falls_on():
         (4, 0), (20, 0), (20, 10))
     assert every(FLEET, 20) == f"tlfleet/{FLEET}/mocap_every/20/0"
     assert every(FLEET, 20, 10) == f"tlfleet/{FLEET}/mocap_every/20/10"
-    assert not keys.key_matches(keys.mocap(FLEET), every(FLEET, 20))
-    assert not keys.key_matches(every(FLEET, 20), every(FLEET, 20, 10))
+    assert not key_matches(keys.mocap(FLEET), every(FLEET, 20))
+    assert not key_matches(every(FLEET, 20), every(FLEET, 20, 10))
     with pytest.raises(ValueError, match="divider must be ≥ 2"):
         every(FLEET, 1)
     with pytest.raises(ValueError, match=r"phase must be in \[0, 20\), got 20"):

@@ -1,4 +1,4 @@
-"""The simulator's ring of recent frames (issue 13, sim.frame_ring) and its ``sim/backfill``
+"""The simulator's ring of recent frames (issue 13, tlfleet.sim.frame_ring) and its ``sim/backfill``
 queryable, on the fake bus."""
 
 from __future__ import annotations
@@ -7,13 +7,12 @@ import threading
 
 import pytest
 from sim_helpers import FLEET, FakeAgent, Observer, SimRun, omni, scenario
-
-from agent.protocol import keys
-from agent.protocol.codec import ProtocolError, decode, encode
-from agent.protocol.messages import BackfillReply, BackfillRequest, MocapFrame
-from bus.fake import FakeNetwork
-from sim.frame_ring import FrameRing, ring_size
-from sim.process import SimConfig, SimConfigError
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
+from tlfleet.bus.protocol.messages import BackfillReply, BackfillRequest, MocapFrame
+from tlfleet.sim.frame_ring import FrameRing, ring_size
+from tlfleet.sim.process import SimConfig, SimConfigError
 
 
 def payload(seq: int, size: int = 10) -> bytes:

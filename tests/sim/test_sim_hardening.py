@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from sim_helpers import FakeAgent, Observer, SimRun, omni, scenario
-
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Command, MocapFrame
-from bus.fake import FakeNetwork
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Command, MocapFrame
 
 
 class Lagging:

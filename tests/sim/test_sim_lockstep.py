@@ -7,10 +7,9 @@ from dataclasses import replace
 
 import pytest
 from sim_helpers import omni, scenario, unicycle
-
-from agent.protocol.messages import Command
-from sim.clock import Pacer, TickClock
-from sim.lockstep import (
+from tlfleet.bus.protocol.messages import Command
+from tlfleet.sim.clock import Pacer, TickClock
+from tlfleet.sim.lockstep import (
     LatestCommands,
     LockstepCollector,
     Offer,
@@ -18,7 +17,7 @@ from sim.lockstep import (
     control_phases,
     due_robots,
 )
-from sim.stats import TimingStats
+from tlfleet.sim.stats import TimingStats
 
 
 def cmd(robot: int, seq: int, u=(0.0, 0.0, 0.0)) -> Command:

@@ -23,12 +23,11 @@ from sim_helpers import (
     scenario,
     unicycle,
 )
-
-from agent.protocol import keys
-from agent.protocol.codec import decode, encode
-from agent.protocol.messages import Clock, Command, MocapFrame
-from bus.fake import FakeNetwork
-from sim.process import SimConfig, SimConfigError
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import Clock, Command, MocapFrame
+from tlfleet.sim.process import SimConfig, SimConfigError
 
 STILL_OMNI = constant((0.0, 0.0, 0.0))
 

@@ -8,10 +8,10 @@ import math
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from sim_helpers import distance, omni, scenario, unicycle
-
-from agent.scenario.model import Arena
-from sim.world import World, wrap_angle
+from tlfleet.agent.model.scenario import Arena
+from tlfleet.sim.world import World, wrap_angle
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)
 speed = st.floats(-3.0, 3.0, allow_nan=False)
@@ -43,7 +43,7 @@ def test_clipped_commands_respect_the_limits(u_omni, u_uni):
 commands = st.lists(st.tuples(speed, speed, speed, speed), min_size=1, max_size=5)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(commands, st.integers(0, 2**32 - 1))
 def test_robots_stay_in_the_arena_and_apart(plan, seed):
     arena = Arena(-1.0, 1.0, -1.0, 1.0)  # small: walls and each other are hit often

@@ -25,19 +25,19 @@ from sim_helpers import (
     scenario,
     unicycle,
 )
-
-from agent.protocol import keys
-from agent.protocol.bounds import FleetBounds
-from agent.protocol.codec import decode
-from agent.protocol.messages import Command, MocapFrame
-from agent.runtime.loop import AgentLoop, LoopConfig
-from agent.scenario.loader import load_scenario
-from bus.fake import FakeNetwork
-from coordinator.acl import fleet_grants
-from sim.lockstep import due_robots
-from sim.process import SimConfig, SimProcess
-from sim.stats import TimingStats
-from sim.world import World
+from tlfleet.agent.runtime.loop import AgentLoop, LoopConfig
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.bounds import FleetBounds
+from tlfleet.bus.protocol.codec import decode
+from tlfleet.bus.protocol.messages import Command, MocapFrame
+from tlfleet.bus.transport import key_matches
+from tlfleet.coordinator.security.policy import fleet_grants
+from tlfleet.sim.lockstep import due_robots
+from tlfleet.sim.process import SimConfig, SimProcess
+from tlfleet.sim.stats import TimingStats
+from tlfleet.sim.world import World
 
 ROOT = Path(__file__).resolve().parents[2]
 PERIOD = 0.01  # [s] the helpers' mocap period (100 Hz); 10 physics steps of 1 ms
@@ -106,12 +106,12 @@ def test_frame_keys_by_offset():
     assert keys.robot_frames(FLEET, 1, 0, 0) == keys.mocap(FLEET)
     assert keys.robot_frames(FLEET, 1, 0, 6) == keys.mocap_at(FLEET, 6)
     assert keys.robot_frames(FLEET, 20, 10, 5) == keys.mocap_every(FLEET, 20, 10)
-    assert not keys.key_matches(keys.mocap(FLEET), keys.mocap_at(FLEET, 3))
+    assert not key_matches(keys.mocap(FLEET), keys.mocap_at(FLEET, 3))
 
 
 class _KeyAnswerer(FakeAgent):
     """An agent reading only ``key``, answering each mission frame there with a command stamped
-    with the frame's own t (as agent.runtime.loop does), or silent."""
+    with the frame's own t (as tlfleet.agent.runtime.loop does), or silent."""
 
     def __init__(self, network: FakeNetwork, robot: int, key: str, silent: bool = False):
         super().__init__(network, robot, constant((0.0, 0.0)), started=True)

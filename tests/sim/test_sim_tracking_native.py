@@ -1,6 +1,6 @@
-"""The C tracking law (``sim/tracking.c``, built at install time as ``sim._tracking``) against the
-Python law (``SimRobot.track``), its fallback: the same trajectories to the last bit, on the
-paper's scenarios and on robots pushing each other and the walls, and the same velocity after
+"""The C tracking law (``sim/tracking.c``, built at install time as ``tlfleet.sim._tracking``)
+against the Python law (``SimRobot.track``), its fallback: the same trajectories to the last bit, on
+the paper's scenarios and on robots pushing each other and the walls, and the same velocity after
 one physics step from random states around the acceleration limits (issue 17).
 
 The C law is an accelerator a user's install may lack (no C compiler): the tests that need it
@@ -13,16 +13,15 @@ import math
 
 import numpy as np
 import pytest
+import tlfleet.sim.world as world_module
 from sim_helpers import omni, scenario, unicycle
-
-import sim.world as world_module
-from agent.scenario import load_scenario
-from agent.scenario.model import Arena, DiscObstacle
-from sim.world import World, WorldConfig, native_tracking_available
+from tlfleet.agent.model.scenario import Arena, DiscObstacle
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.sim.world import World, WorldConfig, native_tracking_available
 
 c_law_built = pytest.mark.skipif(not native_tracking_available(),
-                                 reason="the C tracking law (sim._tracking) was not built: no C "
-                                        "compiler at install time")
+                                 reason="the C tracking law (tlfleet.sim._tracking) was not "
+                                        "built: no C compiler at install time")
 
 
 def trace(scn, tracking: str, ticks: int, seed: int = 3) -> list:

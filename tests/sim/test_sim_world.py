@@ -8,9 +8,8 @@ import math
 import numpy as np
 import pytest
 from sim_helpers import distance, omni, scenario, unicycle
-
-from agent.scenario.model import Arena, DiscObstacle, RectObstacle
-from sim.world import WALL, Contact, World, native_tracking_available, wrap_angle
+from tlfleet.agent.model.scenario import Arena, DiscObstacle, RectObstacle
+from tlfleet.sim.world import WALL, Contact, World, native_tracking_available, wrap_angle
 
 DT = 0.001  # [s] one physics step at the default 1 kHz
 

@@ -5,8 +5,7 @@ h takes (``predicate_expressions``)."""
 from __future__ import annotations
 
 from hypothesis import strategies as st
-
-from agent.stl.syntax import BinOp, Call, Const, Neg, Position, StateVar, VecLit
+from tlfleet.agent.stl.syntax import BinOp, Call, Const, Neg, Position, StateVar, VecLit
 
 ROBOTS = (1, 2, 3)
 coords = st.floats(-3, 3, allow_nan=False)

@@ -6,13 +6,12 @@ import math
 import warnings
 
 import pytest
-
-from agent.stl.analysis import curvature, literal_sup, non_concave_literals
-from agent.stl.errors import StlConcavityWarning, StlTaskError
-from agent.stl.parser import parse_psi, parse_task
-from agent.stl.robustness import smooth_and
-from agent.stl.syntax import literals, predicate_function
-from agent.stl.task import build_task, default_rho_opt
+from tlfleet.agent.stl.analysis import curvature, literal_sup, non_concave_literals
+from tlfleet.agent.stl.errors import StlConcavityWarning, StlTaskError
+from tlfleet.agent.stl.parser import parse_psi, parse_task
+from tlfleet.agent.stl.robustness import smooth_and
+from tlfleet.agent.stl.syntax import literals, predicate_function
+from tlfleet.agent.stl.task import build_task, default_rho_opt
 
 
 @pytest.mark.parametrize(("text", "exogenous", "expected"), [

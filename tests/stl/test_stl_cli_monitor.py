@@ -6,12 +6,11 @@ import json
 
 import numpy as np
 import pytest
-
-from agent.scenario.loader import load_scenario
-from agent.stl.agent import build_agents
-from agent.stl.harness import ScriptedRobot, run_closed_loop
-from agent.stl.monitor import Trajectory, task_robustness, write_trajectory_csv
-from cli.main import main
+from stl_harness import ScriptedRobot, run_closed_loop
+from tlfleet.agent.policy.stl import build_agents
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.agent.stl.monitor import Trajectory, task_robustness, write_trajectory_csv
+from tlfleet.cli.main import main
 
 
 @pytest.fixture(scope="module")

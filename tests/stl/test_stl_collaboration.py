@@ -7,16 +7,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from agent.control.collision import CollisionParams
-from agent.stl.agent import StepInput, single_agent
-from agent.stl.funnel import Funnel
-from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
-from agent.stl.monitor import task_robustness
-from agent.stl.recovery import RecoveryParams
-from agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
-from agent.stl.sequencer import build_sequence
+from stl_harness import run_closed_loop
+from tlfleet.agent.control.collision import CollisionParams
+from tlfleet.agent.policy.stl import StepInput, single_agent
+from tlfleet.agent.stl.funnel import Funnel
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
+from tlfleet.agent.stl.monitor import task_robustness
+from tlfleet.agent.stl.recovery import RecoveryParams
+from tlfleet.agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
+from tlfleet.agent.stl.sequencer import build_sequence
 
 PSI_3 = "dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7"
 
@@ -126,7 +125,7 @@ def test_11_7_coupled_stage2_sequence():
 
 
 def test_11_7_with_f_recovery_agent4_gets_back_its_original_r():
-    """The same run with robustness recovery (tlfleet's default, agent.stl.recovery "F
+    """The same run with robustness recovery (tlfleet's default, tlfleet.agent.stl.recovery "F
     sub-tasks"): agent 3's story is unchanged (it requests help: c_3 = 3, no recovery); agent 4's
     stage-3 repairs lowered r for the funnel's front-loaded contraction, not for an infeasible
     task, so once it keeps up a recovery raises r back to r_0 = r_frac·ρ_max and φ''_4 ends

@@ -1,4 +1,5 @@
-"""The straight-line ψ (agent.stl.compiled) against the generic evaluator, its checked reference.
+"""The straight-line ψ (tlfleet.agent.stl.compiled) against the generic evaluator, its checked
+reference.
 
 Property (issue 17 item 2): compiled = generic to 1e-12 on random states, for random expression
 trees and conjunctions with negations, and for every sub-task of Scenarios 1–3. Non-zero entries
@@ -14,14 +15,14 @@ from pathlib import Path
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from stl_strategies import ROBOTS, coords, numbers, predicate_expressions, states
-
-from agent.scenario.loader import load_scenario
-from agent.stl.agent import build_agents
-from agent.stl.compiled import StraightLinePsi, generate_source
-from agent.stl.parser import parse_psi
-from agent.stl.robustness import CompiledPsi
-from agent.stl.syntax import And, Const, Not, Predicate
+from tlfleet.agent.policy.stl import build_agents
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.agent.stl.compiled import StraightLinePsi, generate_source
+from tlfleet.agent.stl.parser import parse_psi
+from tlfleet.agent.stl.robustness import CompiledPsi
+from tlfleet.agent.stl.syntax import And, Const, Not, Predicate
 
 ROOT = Path(__file__).resolve().parents[2]
 expressions = predicate_expressions(max_leaves=6)
@@ -49,7 +50,7 @@ def assert_same(reference, compiled, s):
             assert b == a  # bit-identical where non-zero
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(psi=psis, s=states, eta=st.sampled_from([1.0, 10.0, 50.0]))
 def test_compiled_equals_generic_on_random_trees_and_states(psi, s, eta):
     reference = CompiledPsi(psi, ROBOTS, eta)
@@ -67,7 +68,7 @@ def _scenario_tasks():
 SCENARIO_TASKS = list(_scenario_tasks())
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(k=st.integers(0, len(SCENARIO_TASKS) - 1), s=st.lists(coords, min_size=15, max_size=15))
 def test_compiled_equals_generic_on_every_scenario_subtask(k, s):
     task = SCENARIO_TASKS[k]

@@ -1,4 +1,5 @@
-"""``agent.evolve.evolve`` against ``dataclasses.replace`` (issue 17: per-tick agent states)."""
+"""``tlfleet.agent.evolve.evolve`` against ``dataclasses.replace`` (issue 17: per-tick agent
+states)."""
 
 from __future__ import annotations
 
@@ -9,12 +10,11 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.evolve import evolve
-from agent.ltl.agent import LtlState
-from agent.nav.executor import ExecutorState
-from agent.stl.agent import AgentState
-from agent.stl.funnel import Funnel, FunnelParams
+from tlfleet.agent.evolve import evolve
+from tlfleet.agent.nav.executor import ExecutorState
+from tlfleet.agent.policy.ltl import LtlState
+from tlfleet.agent.policy.stl import AgentState
+from tlfleet.agent.stl.funnel import Funnel, FunnelParams
 
 NAMES = st.sampled_from(["a", "b", "c"])
 CHANGES = st.fixed_dictionaries({}, optional={

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-
-from agent.stl.errors import FunnelInvariantError
-from agent.stl.funnel import Funnel, FunnelParams, epsilon, is_critical
+from hypothesis_budget import examples
+from tlfleet.agent.stl.errors import FunnelInvariantError
+from tlfleet.agent.stl.funnel import Funnel, FunnelParams, epsilon, is_critical
 
 TOL = 1e-6
 
@@ -119,7 +119,7 @@ def _assert_invariants(f: Funnel, rho: float, t: float, opt: float):
         assert f.lower(t) >= f.r
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(
     kind=st.sampled_from(["G", "F"]),
     a=st.floats(0, 40), length=st.floats(0, 20),

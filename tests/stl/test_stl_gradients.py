@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from hypothesis_budget import examples
 from stl_strategies import ROBOTS, coords, predicate_expressions, states
-
-from agent.stl.evaluate import compile_expr, evaluate_array
-from agent.stl.parser import parse_psi
-from agent.stl.robustness import CompiledPsi, psi_array
-from agent.stl.syntax import robots_of
+from tlfleet.agent.stl.evaluate import compile_expr, evaluate_array
+from tlfleet.agent.stl.parser import parse_psi
+from tlfleet.agent.stl.robustness import CompiledPsi, psi_array
+from tlfleet.agent.stl.syntax import robots_of
 
 expressions = predicate_expressions(max_leaves=5)
 
@@ -31,7 +31,7 @@ def finite_difference(f, s, step, side=0):
     return np.array(grad)
 
 
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(expr=expressions, s=states)
 def test_gradient_equals_finite_differences(expr, s):
     f = compile_expr(expr, ROBOTS)
@@ -57,7 +57,7 @@ def test_gradient_equals_finite_differences(expr, s):
     assert np.allclose(exact, coarse, rtol=1e-4, atol=1e-5), (exact, coarse)
 
 
-@settings(max_examples=200)
+@settings(max_examples=examples(200))
 @given(expr=expressions, rows=st.lists(states, min_size=1, max_size=4))
 def test_compiled_value_equals_vectorised_value(expr, rows):
     f = compile_expr(expr, ROBOTS)
@@ -88,7 +88,7 @@ def test_lse_example_11_6_values_weights_and_gradient():
     assert psi_array(psi, states_)[0] == pytest.approx(-1.4811388, abs=1e-6)
 
 
-@settings(max_examples=200)
+@settings(max_examples=examples(200))
 @given(s=st.lists(coords, min_size=6, max_size=6))
 def test_smooth_conjunction_gradient_equals_finite_differences(s):
     psi = parse_psi("dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7 & !(x4 >= 2 * y3)")

@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 import pytest
-
-from agent.stl.agent import build_agents, single_agent
-from agent.stl.harness import ScriptedRobot, run_closed_loop
-from agent.stl.monitor import task_robustness
-from agent.stl.sequencer import build_sequence
+from stl_harness import ScriptedRobot, run_closed_loop
+from tlfleet.agent.policy.stl import build_agents, single_agent
+from tlfleet.agent.stl.monitor import task_robustness
+from tlfleet.agent.stl.sequencer import build_sequence
 
 
 def tracking_agent():
@@ -65,7 +64,7 @@ def test_zero_order_hold_euler_and_sample_times():
 
 
 def test_scenario3_formation_agents_build_and_run(scenarios_dir):
-    from agent.scenario.loader import load_scenario
+    from tlfleet.agent.scenario.loader import load_scenario
 
     scenario = load_scenario(scenarios_dir / "scenario3.toml")
     agents = build_agents(scenario)

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
-from agent.errors import ScenarioError
-from agent.scenario.loader import load_scenario
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.bus.errors import ScenarioError
 
 
 @pytest.mark.parametrize(("old", "new", "message"), [

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from agent.stl.monitor import (
+from hypothesis_budget import examples
+from tlfleet.agent.stl.monitor import (
     OnlineMonitor,
     Trajectory,
     TrajectoryFileError,
@@ -18,8 +18,8 @@ from agent.stl.monitor import (
     task_robustness,
     write_trajectory_csv,
 )
-from agent.stl.parser import parse_task
-from agent.stl.task import build_task
+from tlfleet.agent.stl.parser import parse_task
+from tlfleet.agent.stl.task import build_task
 
 
 def line_trajectory() -> Trajectory:
@@ -75,7 +75,7 @@ tasks = st.sampled_from([
 ])
 
 
-@settings(max_examples=150)
+@settings(max_examples=examples(150))
 @given(text=tasks, smooth=st.booleans(),
        rows=st.lists(st.lists(coords, min_size=6, max_size=6), min_size=1, max_size=12))
 def test_online_monitor_equals_offline_on_every_prefix(text, smooth, rows):

@@ -7,10 +7,8 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.errors import FormulaSyntaxError
-from agent.stl.parser import parse_psi, parse_task
-from agent.stl.syntax import (
+from tlfleet.agent.stl.parser import parse_psi, parse_task
+from tlfleet.agent.stl.syntax import (
     And,
     BinOp,
     Call,
@@ -27,6 +25,7 @@ from agent.stl.syntax import (
     robots_of,
     to_text,
 )
+from tlfleet.bus.errors import FormulaSyntaxError
 
 SCENARIO_TASKS = [
     "G[21,30] (dist(p3, [0,-2]) <= 0.1)",

@@ -1,5 +1,5 @@
-"""Robustness recovery (agent.stl.recovery): the invariants of its funnels (G and F sub-tasks), its
-hysteresis, and the room rules."""
+"""Robustness recovery (tlfleet.agent.stl.recovery): the invariants of its funnels (G and F
+sub-tasks), its hysteresis, and the room rules."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-
-from agent.stl.funnel import Funnel, FunnelParams
-from agent.stl.recovery import (
+from hypothesis_budget import examples
+from tlfleet.agent.stl.funnel import Funnel, FunnelParams
+from tlfleet.agent.stl.recovery import (
     RecoveryParams,
     RecoveryState,
     advance,
@@ -39,7 +39,7 @@ def _relaxed_funnel(opt: float, rho0: float, t0: float, repairs: list[tuple[int,
     return f, t
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(opt=st.floats(0.05, 1.5), rho0=st.floats(-3.0, 1.0), t0=st.floats(0, 30),
        repairs=st.lists(st.tuples(st.sampled_from([1, 3]), st.floats(0.01, 5), st.floats(0, 0.05)),
                         min_size=1, max_size=8),
@@ -102,7 +102,7 @@ def test_room_must_last_the_dwell_and_targets_the_least_rho_seen():
     assert state.r_floor == f.r  # the replaced funnel's r stays the reported floor
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(seq=st.lists(st.tuples(st.floats(0.01, 3.0), st.floats(-3.5, 0.5), st.booleans()),
                     min_size=1, max_size=120))
 def test_hysteresis_bounds_the_recovery_rate(seq):
@@ -176,7 +176,7 @@ def _steepest_climb(old: Funnel, rho: float, t: float, r_new: float, t_star: flo
         t_star - t)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(opt=st.floats(0.05, 1.5), rho0=st.floats(-3.0, 0.5), t0=st.floats(0, 30),
        lead=st.floats(1.0, 30.0), width=st.floats(0.5, 10.0),
        repairs=st.lists(st.tuples(st.sampled_from([1, 3]), st.floats(0.01, 5), st.floats(0, 0.05)),

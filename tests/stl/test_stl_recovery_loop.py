@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 import pytest
-
-from agent.stl.agent import single_agent
-from agent.stl.harness import ScriptedRobot, run_closed_loop
-from agent.stl.recovery import RecoveryParams
-from agent.stl.task import build_task
+from stl_harness import ScriptedRobot, run_closed_loop
+from tlfleet.agent.policy.stl import single_agent
+from tlfleet.agent.stl.recovery import RecoveryParams
+from tlfleet.agent.stl.task import build_task
 
 
 def _leader_runaway(t: float, stop: float = 8.0, speed: float = 0.35):

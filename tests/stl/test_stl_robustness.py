@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from agent.stl.robustness import (
+from tlfleet.agent.stl.robustness import (
     smooth_and,
     smooth_and_array,
     smooth_and_grad,

@@ -12,12 +12,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from agent.scenario.loader import load_scenario
-from agent.stl.agent import build_agents
-from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRelease, CollabRequest
-from agent.stl.monitor import task_robustness
+from stl_harness import run_closed_loop
+from tlfleet.agent.policy.stl import build_agents
+from tlfleet.agent.scenario.loader import load_scenario
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest
+from tlfleet.agent.stl.monitor import task_robustness
 
 # Paper §IV, Scenario 1 (φ″5: the paper prints 0.5, a typo for 0.05 per stl-funnel.md §10.2).
 PAPER_BOUNDS = {(3, 0): -0.18, (4, 0): -1.11, (5, 0): -0.12, (3, 1): 0.02, (4, 1): -0.4,
@@ -106,8 +105,8 @@ def test_phi4_second_recovers_its_r_and_ends_within_005_of_best(run):
     """φ″4's stage-3 repairs (58–64 s) come from the funnel's front-loaded contraction, not from
     an infeasible task (robot 4 has 25 s for 2.9 m at 0.2 m/s); without recovery the funnel
     controller ends φ″4 at the middle of the relaxed funnel, ½(ρ_max + r̄) ≈ −0.007. The F
-    recovery (agent.stl.recovery) raises r back to r_0 once robot 4 keeps up: φ″4 ends within
-    0.05 of its best achievable 0.1 (scenarios.md), and ρ^φ ≥ r̄ (the least r in force)."""
+    recovery (tlfleet.agent.stl.recovery) raises r back to r_0 once robot 4 keeps up: φ″4 ends
+    within 0.05 of its best achievable 0.1 (scenarios.md), and ρ^φ ≥ r̄ (the least r in force)."""
     agents, result, robustness = run
     outcome = result.states[4].outcomes[1]
     recoveries = [rec for rec in result.logs[4] if rec.recovered]

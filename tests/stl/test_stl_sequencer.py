@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from agent.stl.agent import StepInput, single_agent
-from agent.stl.errors import StlTaskError
-from agent.stl.harness import run_closed_loop
-from agent.stl.sequencer import build_sequence, check_phase_start_times, overall_robustness
-from agent.stl.syntax import And
+from stl_harness import run_closed_loop
+from tlfleet.agent.policy.stl import StepInput, single_agent
+from tlfleet.agent.stl.errors import StlTaskError
+from tlfleet.agent.stl.sequencer import build_sequence, check_phase_start_times, overall_robustness
+from tlfleet.agent.stl.syntax import And
 
 
 def test_same_window_g_tasks_are_merged():

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from agent.stl.agent import StepInput, single_agent
-from agent.stl.control_law import ControlParams
-from agent.stl.harness import run_closed_loop
-from agent.stl.monitor import task_robustness
-from agent.stl.repair import ProtocolParams
-from agent.stl.task import build_task
+from hypothesis_budget import examples
+from stl_harness import run_closed_loop
+from tlfleet.agent.policy.stl import StepInput, single_agent
+from tlfleet.agent.stl.control_law import ControlParams
+from tlfleet.agent.stl.monitor import task_robustness
+from tlfleet.agent.stl.repair import ProtocolParams
+from tlfleet.agent.stl.task import build_task
 
 G_REGION = "dist(p1, [0,-2]) <= 0.1"
 
@@ -119,7 +119,7 @@ def test_step_is_pure_and_idle_after_completion():
     assert out3.u[0] < 0 and out3.u[1] == 0.0  # collision avoidance stays active when idle
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(kind=st.sampled_from(["G", "F"]), a=st.integers(0, 12), length=st.integers(0, 6),
        x=st.floats(-3, 3), y=st.floats(-3, 3), seed=st.integers(0, 2**16),
        disturbance=st.sampled_from([0.0, 0.05, 0.15]))
@@ -158,8 +158,8 @@ def test_tuple_poses_taken_as_they_are_step_as_the_copied_ones(repo_root):
     """``StepInput(tuples=True)`` (the runtime's decoded rows, issue 17) skips the step's copy of
     the poses: along a kinematic replay of Scenario 1's three coupled STL agents (repairs and
     stage 2 included) every state and output equals the copying step's."""
-    from agent.scenario import load_scenario
-    from agent.stl.agent import build_agents
+    from tlfleet.agent.policy.stl import build_agents
+    from tlfleet.agent.scenario import load_scenario
 
     scenario = load_scenario(repo_root / "scenarios" / "scenario1.toml")
     agents = build_agents(scenario)

@@ -7,13 +7,12 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-
-from agent.control.collision import CollisionParams
-from agent.stl.agent import StepInput, single_agent
-from agent.stl.funnel import Funnel
-from agent.stl.harness import run_closed_loop
-from agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
-from agent.stl.sequencer import build_sequence
+from stl_harness import run_closed_loop
+from tlfleet.agent.control.collision import CollisionParams
+from tlfleet.agent.policy.stl import StepInput, single_agent
+from tlfleet.agent.stl.funnel import Funnel
+from tlfleet.agent.stl.messages import CollabRelease, CollabRequest, CollabUpdate, StatusAnnounce
+from tlfleet.agent.stl.sequencer import build_sequence
 
 PSI_3 = "dist(p3, [1.5,-1.5]) <= 0.1 & dist(p3, p4) <= 0.7"
 POSES = {3: np.array([0.0, -2.0, 0.0]), 4: np.array([0.0, 0.0, 0.0])}

@@ -2,7 +2,8 @@
 
 :func:`start_by_hand` starts ``tlfleet router``, ``tlfleet sim`` and one ``tlfleet agent`` per
 robot with the command lines of the README ("Processes can also be started by hand"), each in its
-own process group (:class:`coordinator.launcher.Launcher`: stopping it leaves nothing behind);
+own process group (:class:`tlfleet.coordinator.launch.processes.Launcher`: stopping it leaves
+nothing behind);
 ``prefix`` puts each one inside something else (``ip netns exec NS``).
 """
 
@@ -14,8 +15,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from agent.scenario import load_scenario
-from coordinator.launcher import Launcher, tlfleet_command, wait_for_port
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.launch.processes import Launcher, tlfleet_command, wait_for_port
 
 Prefix = Callable[[str], Sequence[str]]  # process name -> argv prefix
 
@@ -42,7 +43,7 @@ def start_by_hand(launcher: Launcher, scenario: Path, listen: str, connect: str 
 def supervise(scenario: Path, connect: str, out: Path, *args: str, prefix: Sequence[str] = (),
               timeout: float = 400.0) -> subprocess.CompletedProcess:
     """``tlfleet supervise`` as a user runs it (a process of its own), output captured."""
-    return subprocess.run([*prefix, sys.executable, "-m", "cli.main", "supervise", str(scenario),
+    return subprocess.run([*prefix, sys.executable, "-m", "tlfleet.cli", "supervise", str(scenario),
                            "--connect", connect, "--out", str(out), *args],
                           capture_output=True, text=True, timeout=timeout)
 

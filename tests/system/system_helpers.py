@@ -1,7 +1,7 @@
 """Helpers of the system tests: run a fleet with real processes on loopback, read its outputs.
 
 Robustness is recomputed here with numpy from ``trajectory.csv`` (independently of
-``agent.stl.monitor``): G[a,b] → min over the samples with a ≤ t ≤ b, F[a,b] → max.
+``tlfleet.agent.stl.monitor``): G[a,b] → min over the samples with a ≤ t ≤ b, F[a,b] → max.
 """
 
 from __future__ import annotations
@@ -14,9 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import psutil
-
-from coordinator.runner import RunConfig, RunResult, run_fleet
-from coordinator.supervisor import SupervisorConfig
+from tlfleet.coordinator.live.supervisor import SupervisorConfig
+from tlfleet.coordinator.run import RunConfig, RunResult, run_fleet
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "scenarios"

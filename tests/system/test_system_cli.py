@@ -10,15 +10,14 @@ import time
 import pytest
 from process_helpers import processes_mentioning
 from system_helpers import HERE, ROOT, leftover_in_groups
-
-from coordinator.report import build_report
+from tlfleet.coordinator.report.run_report import build_report
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
 
 
 def tlfleet_run(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "cli.main", "run", str(TWO), *args],
+    return subprocess.Popen([sys.executable, "-m", "tlfleet.cli", "run", str(TWO), *args],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -16,14 +16,13 @@ import sys
 import pytest
 from needs import need_docker
 from system_helpers import ROOT, SCENARIOS
-
-from coordinator.compose import ComposeConfig, compose_text
+from tlfleet.coordinator.compose import ComposeConfig, compose_text
 
 COMMITTED = ROOT / "docker" / "compose.scenario1.yaml"
 
 
 def tlfleet(*args: str, cwd=ROOT) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "cli.main", *args], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "tlfleet.cli", *args], cwd=cwd,
                           capture_output=True, text=True, timeout=60)
 
 

@@ -9,7 +9,7 @@ a robot is cut or frozen, so the watchdog, the stale mocap and the catching up w
 60 s of sim time, with the knobs of the namespace-host test (lease 500 ms on every service,
 watchdog 0.15 s, LTL robots at 10 Hz: ``test_system_link_faults.fast_watchdog``). The faults are
 scheduled by the coordinator in its container and run on the host by ``tlfleet compose-faults``,
-which ``docker/compose-run.sh`` starts (:mod:`coordinator.fault_compose`).
+which ``docker/compose-run.sh`` starts (:mod:`tlfleet.coordinator.faults.handoff`).
 
 Root, docker.io, docker-compose and mmdebstrap as the compose test needs (``need_docker``); the
 image is the one that test builds (cached; rebuilt only when the sources changed). Bounded: the
@@ -31,9 +31,8 @@ import pytest
 import test_system_link_faults as link_faults
 from needs import need_docker
 from system_helpers import ROOT, SCENARIOS, events, load_trajectory, robot_robot_contacts
-
-from agent.scenario.faults import parse_fault
-from coordinator.compose import ComposeConfig, write_compose
+from tlfleet.agent.model.faults import parse_fault
+from tlfleet.coordinator.compose import ComposeConfig, write_compose
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system, pytest.mark.slow]
 CUT, FREEZE, RESTART = "cut:robot3@20+3", "freeze:robot1@35+3", "restart:robot2@42"
@@ -128,7 +127,7 @@ def check_outcomes(run_dir) -> dict[str, tuple[float, float, float]]:
     → {process: (stopped after its last command [s sim], link_lost after the fault [s wall],
     link_restored after the restore [s wall])}; for the restarted agent (nan, process_died after
     the fault [s wall], process_recovered after the fault [s sim])."""
-    from coordinator import rundir
+    from tlfleet.coordinator.record import rundir
 
     files = rundir.read_run(run_dir, strict=True)  # every file is there and parses
     assert files.trajectory is not None and files.trajectory.t[-1] == pytest.approx(60.0)

@@ -25,9 +25,8 @@ from system_helpers import (
     load_trajectory,
     run,
 )
-
-from agent.scenario import load_scenario
-from agent.scenario.faults import parse_fault
+from tlfleet.agent.model.faults import parse_fault
+from tlfleet.agent.scenario import load_scenario
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
@@ -137,7 +136,7 @@ def test_a_frozen_agent_in_lockstep_pauses_the_fleet_and_changes_nothing(tmp_pat
 
 
 def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_path):
-    from coordinator import rundir
+    from tlfleet.coordinator.record import rundir
 
     run_dir = tmp_path / "run"
     result = run(TWO, run_dir, mode="realtime", duration=8.0, rrd=False, report=False,
@@ -161,7 +160,7 @@ def test_a_restarted_router_is_rejoined_by_every_client_and_the_run_completes(tm
     goes and comes back with it (link losses and restorations, not deaths), the clients
     reconnect within zenoh's retry period (250 ms in fault runs), the run completes and every
     file parses; the frames published while the coordinator had no router are backfilled."""
-    from coordinator import rundir
+    from tlfleet.coordinator.record import rundir
 
     run_dir = tmp_path / "run"
     result = run(TWO, run_dir, mode="realtime", duration=8.0, rrd=False, report=False,
@@ -196,7 +195,7 @@ def test_bad_fault_specs_exit_before_anything_starts(tmp_path):
                           ("kill:robot9@1", "the scenario has no robot 9"),
                           ("freeze:robot1@30+1", "@30 s is not before the end of the run")):
         out = tmp_path / spec.replace(":", "_")
-        done = subprocess.run([sys.executable, "-m", "cli.main", "run", str(TWO), "--out",
+        done = subprocess.run([sys.executable, "-m", "tlfleet.cli", "run", str(TWO), "--out",
                                str(out), "--fault", spec], capture_output=True, text=True,
                               cwd=ROOT, timeout=60)
         assert done.returncode in (1, 2), done.stderr

@@ -24,12 +24,12 @@ from system_helpers import (
     load_trajectory,
     run,
 )
-
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Event
-from agent.scenario import load_scenario
-from bus.transport import TransportConfig, open_transport
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Event
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.transport import open_transport
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"

@@ -28,12 +28,12 @@ import numpy as np
 import pytest
 from system_helpers import HERE, events, load_trajectory
 from test_system_faults import Background, agent_process, wait_until_started
-
-from agent.protocol import keys
-from agent.protocol.codec import encode
-from agent.protocol.messages import Command, Event, MocapFrame, StlStatus
-from agent.scenario import load_scenario
-from bus.transport import TransportConfig, open_transport
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.messages import Command, Event, MocapFrame, StlStatus
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.transport import open_transport
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"

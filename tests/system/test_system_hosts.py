@@ -19,11 +19,10 @@ import pytest
 from by_hand import start_by_hand, supervise
 from needs import need_root_netns
 from system_helpers import HERE, ROOT, SCENARIOS, run
-
-from agent.scenario import load_scenario
-from coordinator.hosts import NetnsHosts, place, wait_listening
-from coordinator.hosts_run import run_on_hosts
-from coordinator.launcher import Launcher
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.launch.netns_hosts import NetnsHosts, place, wait_listening
+from tlfleet.coordinator.launch.processes import Launcher
+from tlfleet.coordinator.run_hosts import run_on_hosts
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system]
 
@@ -164,7 +163,7 @@ def test_an_interrupted_hosts_run_ends_interrupted_and_leaves_nothing(tmp_path, 
     need_root_netns()
     run_dir = tmp_path / "run"
     process = subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "run", str(HERE / "two_robots.toml"), "--realtime",
+        [sys.executable, "-m", "tlfleet.cli", "run", str(HERE / "two_robots.toml"), "--realtime",
          "--hosts", "2", "--duration", "120", "--out", str(run_dir), "--quiet", "--no-rrd",
          "--no-figures"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True)  # the signal reaches tlfleet run alone, as `kill PID` does

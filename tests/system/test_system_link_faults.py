@@ -31,10 +31,9 @@ from system_helpers import (
     load_trajectory,
     robot_robot_contacts,
 )
-
-from agent.scenario import load_scenario
-from agent.scenario.faults import parse_fault
-from coordinator.hosts_run import run_on_hosts
+from tlfleet.agent.model.faults import parse_fault
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.run_hosts import run_on_hosts
 
 pytestmark = [pytest.mark.system, pytest.mark.needs_system]
 LEASE_MS = 500
@@ -96,7 +95,7 @@ def test_scenario1_robot3_cut_is_stopped_reported_restored_and_completes(tmp_pat
     scenario = fast_watchdog(SCENARIOS / "scenario1.toml", tmp_path / "scenario1.toml")
     run_dir = tmp_path / "run"
     done = subprocess.run(
-        [sys.executable, "-m", "cli.main", "run", str(scenario), "--realtime", "--duration",
+        [sys.executable, "-m", "tlfleet.cli", "run", str(scenario), "--realtime", "--duration",
          "60", "--lease-ms", str(LEASE_MS), "--fault", "cut:robot3@20+3", "--out",
          str(run_dir), "--no-rrd", "--no-figures", "--quiet"],
         capture_output=True, text=True, cwd=ROOT, timeout=400)
@@ -149,16 +148,16 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
         tmp_path):
     """Scenario 1, lockstep paced at ≤ 2× wall time: robot 3 asked robot 4 for help (stage 2) at
     t ≈ 35 s; a partition of the pair from t = 36 s for 6 s wall (both keep every other link:
-    the peer layout, coordinator.hosts.place_peers). Robot 4 sees robot 3's token go (its lease)
-    and releases itself; robot 3's messages to robot 4 go unanswered, it sees robot 4
-    unreachable and its next critical events get stage 3 (Algorithm 2); the mission runs to its
-    end and robot 3 finishes its sub-task. (6 s of wall time: every unanswered message stalls
+    the peer layout, tlfleet.coordinator.launch.netns_hosts.place_peers). Robot 4 sees robot 3's
+    token go (its lease) and releases itself; robot 3's messages to robot 4 go unanswered, it sees
+    robot 4 unreachable and its next critical events get stage 3 (Algorithm 2); the mission runs to
+    its end and robot 3 finishes its sub-task. (6 s of wall time: every unanswered message stalls
     the lockstep fleet for the collab timeout, so a loaded machine covered only 1.7 s of sim
     time in 3 s of wall time, less than robot 3 takes to its next critical event, ≈ 2 s.)"""
     need_root_netns()
     run_dir = tmp_path / "run"
     done = subprocess.run(
-        [sys.executable, "-m", "cli.main", "run", str(SCENARIOS / "scenario1.toml"),
+        [sys.executable, "-m", "tlfleet.cli", "run", str(SCENARIOS / "scenario1.toml"),
          "--lockstep", "--max-speed", "2", "--duration", "62", "--lease-ms", str(LEASE_MS),
          "--fault", "partition:robot3,robot4@36+6", "--out", str(run_dir), "--no-rrd",
          "--no-figures", "--quiet"],
@@ -198,7 +197,7 @@ def test_a_stage2_partner_partitioned_mid_collaboration_goes_to_stage3_and_nobod
     assert t[-1] == pytest.approx(62.0) and (np.diff(t) > 0).all()
     # ... and nobody stopped hearing the others: paced at 2x, the 6 s of wall time cover up to
     # 12 s of sim time; a process whose receive runtime was held in close(2) by the lost links
-    # (bus.transport.RX_WORKERS) stalled the fleet for the whole partition (0.77 s covered)
+    # (tlfleet.bus.transport.RX_WORKERS) stalled the fleet for the whole partition (0.77 s covered)
     covered = end["t"] - start["t"]
     assert covered >= 4.0, (covered, collab)  # 11.5-12.0 s in 12 runs here
     assert [e for e in evs if e["kind"] == "subtask_done" and e["source"] == "agent/3"

@@ -1,7 +1,7 @@
 """System tests (issue 5 §5): real router, simulator and agent processes on loopback.
 
-Each test runs ``tlfleet run`` (``coordinator.runner.run_fleet``) and asserts on the recorded run
-directory; robustness is recomputed here with numpy (``system_helpers``), not with the monitor
+Each test runs ``tlfleet run`` (``tlfleet.coordinator.run.run_fleet``) and asserts on the recorded
+run directory; robustness is recomputed here with numpy (``system_helpers``), not with the monitor
 the summary uses. Paper bounds: ``shared/design/scenarios.md``.
 """
 
@@ -25,9 +25,8 @@ from system_helpers import (
     robot_robot_contacts,
     run,
 )
-
-from agent.scenario import load_scenario
-from coordinator.rundir import RUN_INFO, read_json
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.record.rundir import RUN_INFO, read_json
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"

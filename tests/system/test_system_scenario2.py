@@ -29,8 +29,7 @@ from system_helpers import (
     run,
     still_while,
 )
-
-from agent.scenario import load_scenario
+from tlfleet.agent.scenario import load_scenario
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 

@@ -14,10 +14,9 @@ import pytest
 from by_hand import start_by_hand, supervise
 from process_helpers import free_port
 from system_helpers import HERE, SCENARIOS
-
-from agent.scenario import load_scenario
-from coordinator.launcher import Launcher, tlfleet_command
-from coordinator.supervise import SuperviseConfig, SuperviseError, supervise_fleet
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.launch.processes import Launcher, tlfleet_command
+from tlfleet.coordinator.supervise import SuperviseConfig, SuperviseError, supervise_fleet
 
 pytestmark = pytest.mark.system
 TWO = HERE / "two_robots.toml"
@@ -75,7 +74,7 @@ def test_every_process_started_by_hand_says_what_it_waits_for(tmp_path):
 
 
 def test_a_secured_fleet_by_hand_is_supervised_with_its_keys(tmp_path):
-    from coordinator.keys import write_keys
+    from tlfleet.coordinator.security.authority import write_keys
 
     keydir = tmp_path / "keys"
     write_keys(load_scenario(TWO), keydir)

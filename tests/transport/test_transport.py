@@ -7,11 +7,9 @@ import threading
 
 import pytest
 from process_helpers import free_port
-
-from agent.protocol.keys import key_matches
-from bus.fake import FakeNetwork
-from bus.transport import TransportConfig
-from bus.zenoh_transport import ZenohTransport
+from tlfleet.bus.fake import FakeNetwork
+from tlfleet.bus.transport import TransportConfig, key_matches
+from tlfleet.bus.zenoh.transport import ZenohTransport
 
 
 @pytest.mark.parametrize(("expr", "key", "expected"), [
@@ -200,7 +198,7 @@ def test_zenoh_channel_timer_wakes_at_the_deadline_and_sleeps_through_a_steady_r
     until each slice's deadline instead of looking every ``CHANNEL_TICK`` (20 times a second)."""
     import time
 
-    from bus.transport import CHANNEL_TICK
+    from tlfleet.bus.transport import CHANNEL_TICK
 
     a, b = loopback_pair
     channel = a.subscribe_channel("test/timer")

@@ -7,10 +7,9 @@ import subprocess
 import sys
 
 import pytest
-
-from bus.transport import TransportConfig
-from bus.zenoh_config import ZenohConfigError, leaves, parse_json5
-from bus.zenoh_transport import ZenohTransport
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.config import ZenohConfigError, leaves, parse_json5
+from tlfleet.bus.zenoh.transport import ZenohTransport
 
 
 def config_of(tmp_path, text: str, **kwargs):
@@ -85,7 +84,7 @@ def test_unreadable_and_unparsable_files_are_named(tmp_path):
 def test_every_process_takes_zenoh_config_and_rejects_a_bad_one(tmp_path, repo_root, command):
     bad = tmp_path / "bad.json5"
     bad.write_text("{ transport: { link: { tx: { lease: 'soon' } } } }")
-    done = subprocess.run([sys.executable, "-m", "cli.main", *command, "--zenoh-config",
+    done = subprocess.run([sys.executable, "-m", "tlfleet.cli", *command, "--zenoh-config",
                            str(bad)], cwd=repo_root, capture_output=True, text=True, timeout=60)
     assert done.returncode == 1, done.stderr
     assert f"zenoh config {bad}: key transport/link/tx/lease: error parsing number" \

@@ -1,4 +1,4 @@
-"""zenoh's receive runtime in tlfleet processes (bus.transport.RX_WORKERS, issue 13): enough
+"""zenoh's receive runtime in tlfleet processes (tlfleet.bus.transport.RX_WORKERS, issue 13): enough
 workers that links held in close(2) by a partition (zenoh's 10 s SO_LINGER) leave the others
 received. Checked on the threads zenoh really starts, in a fresh process (zenoh reads
 ``ZENOH_RUNTIME`` once per process)."""
@@ -12,13 +12,13 @@ import sys
 
 import pytest
 from process_helpers import free_port
-
-from bus.transport import DEFAULT_RUNTIME, RX_WORKERS, TransportConfig
+from tlfleet.bus.transport import DEFAULT_RUNTIME, RX_WORKERS, TransportConfig
 
 PROBE = """
 import json, os, sys, time
 sys.path.insert(0, {root!r})
-from bus.transport import TransportConfig, open_transport
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.transport import open_transport
 listen = open_transport(TransportConfig(mode="peer", listen=("tcp/127.0.0.1:{port}",)))
 dial = open_transport(TransportConfig(mode="peer", connect=("tcp/127.0.0.1:{port}",)))
 got = []
@@ -64,8 +64,8 @@ def test_children_do_not_inherit_the_runtime_a_process_set_for_itself(monkeypatc
     """zenoh reads ZENOH_RUNTIME once per process and an environment value wins: the runtime a
     coordinator set for its own session must not decide its children's (each picks its own
     from its flags, e.g. the lockstep peers' --zenoh-runtime minimal); a user's value stays."""
-    from bus import transport
-    from coordinator.launcher import Launcher
+    from tlfleet.bus import transport
+    from tlfleet.coordinator.launch.processes import Launcher
 
     monkeypatch.setattr(transport, "_runtime_set_here", None)
     assert transport.child_environment({"ZENOH_RUNTIME": "(mine)", "A": "1"}) == \

@@ -1,5 +1,6 @@
 """The live path: LiveView decimates frames, never raises into the run; runner step 7 never fails
-the run; rerun stays out of every module but coordinator.visual and out of `tlfleet run`'s imports.
+the run; rerun stays out of every module but tlfleet.coordinator.report.viewer and out of `tlfleet
+run`'s imports.
 """
 
 from __future__ import annotations
@@ -8,21 +9,20 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
 from visual_helpers import ROOT, SCENARIO, read_rrd
-
-from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from agent.scenario import load_scenario
 
 
 def _live_view(path: Path, frame_period: float = 0.05):
-    from coordinator import visual
+    from tlfleet.coordinator.report import viewer
 
     scenario = load_scenario(SCENARIO)
-    recording = visual.new_recording()
+    recording = viewer.new_recording()
     recording.save(path)
-    log = visual.FleetLog(scenario, recording)
+    log = viewer.FleetLog(scenario, recording)
     log.log_static()
-    return visual.LiveView(log, frame_period=frame_period)
+    return viewer.LiveView(log, frame_period=frame_period)
 
 
 def _frame(t: float, seq: int) -> MocapFrame:
@@ -51,13 +51,13 @@ def test_live_view_logs_frames_at_the_decimated_rate(tmp_path: Path) -> None:
 
 
 def test_live_view_sends_buffered_rows_every_flush_period_of_wall_time(tmp_path: Path) -> None:
-    from coordinator import visual
+    from tlfleet.coordinator.report import viewer
 
     now = [100.0]
     scenario = load_scenario(SCENARIO)
-    recording = visual.new_recording()
+    recording = viewer.new_recording()
     recording.save(tmp_path / "live.rrd")
-    view = visual.LiveView(visual.FleetLog(scenario, recording), flush_period=0.2,
+    view = viewer.LiveView(viewer.FleetLog(scenario, recording), flush_period=0.2,
                            clock=lambda: now[0])
     for seq in range(10):
         view.on_message("mocap", _frame(seq * 0.05, seq))
@@ -72,7 +72,7 @@ def test_live_view_sends_buffered_rows_every_flush_period_of_wall_time(tmp_path:
 
 
 def test_static_scene_with_obstacles(tmp_path: Path) -> None:
-    from coordinator import visual
+    from tlfleet.coordinator.report import viewer
 
     path = tmp_path / "obstacles.toml"
     path.write_text(SCENARIO.read_text().replace("[sim]", """[[arena.obstacles]]
@@ -90,9 +90,9 @@ center = [-2.0, 2.0]
 radius = 0.3
 
 [sim]"""))
-    recording = visual.new_recording()
+    recording = viewer.new_recording()
     recording.save(tmp_path / "static.rrd")
-    visual.FleetLog(load_scenario(path), recording).log_static()
+    viewer.FleetLog(load_scenario(path), recording).log_static()
     recording.disconnect()
     static = read_rrd(tmp_path / "static.rrd")["static"]
     rects = static["/world/obstacles/rects"][0]
@@ -137,8 +137,8 @@ def test_a_failing_live_view_switches_itself_off_without_raising(tmp_path: Path,
 def test_runner_reports_a_viewer_that_cannot_start_and_goes_on() -> None:
     import socket
 
-    from coordinator.outputs import start_viewer
-    from coordinator.runner import RunConfig
+    from tlfleet.coordinator.report.outputs import start_viewer
+    from tlfleet.coordinator.run import RunConfig
 
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
@@ -150,7 +150,7 @@ def test_runner_reports_a_viewer_that_cannot_start_and_goes_on() -> None:
 
 
 def test_runner_step_7_reports_a_failure_and_returns(tmp_path: Path) -> None:
-    from coordinator.outputs import write_rrd
+    from tlfleet.coordinator.report.outputs import write_rrd
 
     said: list[str] = []
     result = write_rrd(tmp_path, 5, said.append)  # no scenario.toml there
@@ -159,7 +159,7 @@ def test_runner_step_7_reports_a_failure_and_returns(tmp_path: Path) -> None:
 
 
 def test_runner_step_7_writes_run_rrd(run_dir: Path) -> None:
-    from coordinator.outputs import write_rrd
+    from tlfleet.coordinator.report.outputs import write_rrd
 
     result = write_rrd(run_dir, 5, lambda text: None)
     assert result["path"] == str(run_dir / "run.rrd") and result["frames"] == 51
@@ -168,11 +168,13 @@ def test_runner_step_7_writes_run_rrd(run_dir: Path) -> None:
 
 def test_run_and_replay_commands_import_rerun_only_when_they_log() -> None:
     code = ("import sys\n"
-            "import cli.main, coordinator.runner, coordinator.recorder\n"
-            "import cli.commands.run, cli.commands.replay\n"
-            "import agent.runtime.process, agent.runtime.stl_agent, sim.process\n"
+            "import tlfleet.cli.main, tlfleet.coordinator.run\n"
+            "import tlfleet.coordinator.record.recorder\n"
+            "import tlfleet.cli.commands.run, tlfleet.cli.commands.replay\n"
+            "import tlfleet.agent.runtime.process, tlfleet.agent.runtime.stl_agent\n"
+            "import tlfleet.sim.process\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', "
-            "'rerun_bindings') or m == 'coordinator.visual'))\n")
+            "'rerun_bindings') or m == 'tlfleet.coordinator.report.viewer'))\n")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
                          timeout=60, check=True).stdout
     assert out.strip() == "[]"

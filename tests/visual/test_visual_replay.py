@@ -7,10 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tlfleet.cli.main import main
+from tlfleet.coordinator.record.rundir import read_events, read_statuses
 from visual_helpers import N_FRAMES, T0, T1, pose, read_rrd, write_run
-
-from cli.main import main
-from coordinator.rundir import read_events, read_statuses
 
 EXPECTED = {
     "/world", "/world/arena", "/world/regions", "/world/robots", "/world/headings",

@@ -9,15 +9,14 @@ import time
 import urllib.request
 from pathlib import Path
 
+from tlfleet.coordinator.launch.processes import free_port
 from visual_helpers import ROOT, read_rrd
-
-from coordinator.launcher import free_port
 
 
 def test_replay_viewer_serves_until_ctrl_c(run_dir: Path) -> None:
     grpc_port, web_port = free_port(), free_port()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "replay", str(run_dir), "--viewer",
+        [sys.executable, "-m", "tlfleet.cli", "replay", str(run_dir), "--viewer",
          "--grpc-port", str(grpc_port), "--web-port", str(web_port)],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

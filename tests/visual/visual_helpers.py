@@ -1,5 +1,5 @@
 """Helpers of the visual tests: a small finished run directory, written by the real
-:class:`coordinator.recorder.Recorder`, and what rerun's own reader finds in an .rrd.
+:class:`tlfleet.coordinator.record.recorder.Recorder`, and what rerun's own reader finds in an .rrd.
 
 
 Robot 1 (LTL unicycle, ``G F a1 & G F a2``) drives from a1 to a2; robot 2 (STL omni) follows it.
@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from agent.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
-from coordinator.recorder import Recorder
+from tlfleet.bus.protocol.messages import Event, LtlStatus, MocapFrame, StlStatus
+from tlfleet.coordinator.record.recorder import Recorder
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "tests" / "system" / "two_robots.toml"

@@ -1,0 +1,255 @@
+"""``tlfleet run --hosts N`` and runs with link faults: a fleet launched on namespace hosts and
+supervised there (issue 12 §3, issue 13; the hosts and the placement are
+:mod:`tlfleet.coordinator.launch.netns_hosts`).
+
+:func:`run_on_hosts` is launch + supervise: the routers, the simulator and the agents start in
+their namespaces (:class:`tlfleet.coordinator.launch.processes.Launcher`, logs in ``<run>/logs``),
+then
+``tlfleet supervise`` runs on host 0 (:mod:`tlfleet.coordinator.supervise`, the code of ``tlfleet
+run``) and writes the run directory. Everything it started is stopped and every namespace deleted,
+also on error and on interruption: when ``stop`` is set (``tlfleet run`` sets it on SIGINT and
+SIGTERM), supervise is interrupted (SIGINT: it ends the run as *interrupted* and writes the run
+directory up to that point) and everything else is stopped after it. Needs root (``ip netns``);
+nft only for process cuts.
+
+Secured by default (issue 14): every link is ``tls/`` with mutual authentication and every
+router enforces the fleet's access-control policy. Without ``keys``, a fresh key directory for
+this run (a CA, one certificate per process, the routers' names being the hosts' addresses, the
+mesh policy of :func:`tlfleet.coordinator.security.policy.fleet_grants`) is written to a private
+temporary directory and deleted with the namespaces; ``run.json`` records the fingerprints.
+``insecure`` keeps plain TCP.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.coordinator.launch.netns_hosts import (
+    PEER_PORT,
+    RECONNECT,
+    ROUTER_PORT,
+    HostsError,
+    NetnsHosts,
+    Placement,
+    certificate_name,
+    place,
+    place_peers,
+    require_root,
+    wait_listening,
+)
+from tlfleet.coordinator.launch.processes import Launcher, tlfleet_command
+from tlfleet.coordinator.record.rundir import default_run_dir
+
+#: [s] wall an interrupted ``tlfleet supervise`` gets to stop the fleet and write the run
+#: directory (its clean-up steps are bounded: tlfleet.coordinator.launch.cleanup) before it is
+#: killed
+SUPERVISE_GRACE = 30.0
+
+
+def supervise_until_done(argv: Sequence[str], capture: bool, stop: threading.Event | None,
+                         grace: float = SUPERVISE_GRACE, poll: float = 0.2
+                         ) -> subprocess.CompletedProcess:
+    """Run ``tlfleet supervise`` (``argv``) to its end. When ``stop`` is set, interrupt it once
+    with SIGINT, as Ctrl-C would (it ends the mission, records the verdict *interrupted* and
+    writes its files), and kill it if it is still running ``grace`` [s] later. It runs in a
+    session of its own, so a terminal's Ctrl-C reaches it only through this (once)."""
+    pipe = subprocess.PIPE if capture else None
+    process = subprocess.Popen(list(argv), stdout=pipe, stderr=pipe, text=True,
+                               start_new_session=True)
+    interrupted_at: float | None = None
+    out = err = None
+    try:
+        while True:
+            try:
+                out, err = process.communicate(timeout=poll)  # retried: no output is lost
+                break
+            except subprocess.TimeoutExpired:
+                pass
+            if stop is not None and stop.is_set() and interrupted_at is None:
+                process.send_signal(signal.SIGINT)
+                interrupted_at = time.monotonic()
+            elif interrupted_at is not None and time.monotonic() - interrupted_at > grace:
+                process.kill()
+    finally:
+        if process.poll() is None:  # an exception here (not a stop): nothing may outlive us
+            process.kill()
+            process.wait()
+    return subprocess.CompletedProcess(list(argv), process.returncode, out, err)
+
+
+@dataclass
+class HostsRun:
+    run_dir: Path
+    returncode: int  # tlfleet supervise's exit code
+    placement: Placement
+    exit_codes: dict[str, int | None]
+    stdout: str = ""
+    stderr: str = ""
+    keys: Path | None = None  # the key directory made for the run (deleted at its end)
+
+
+def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
+                 mode: str = "lockstep", supervise_args: Sequence[str] = (),
+                 sim_args: Sequence[str] = (), agent_args: Sequence[str] = (),
+                 capture: bool = False,
+                 router_timeout: float = 15.0, kill_grace: float = 3.0,
+                 prefix: str | None = None, keys: Path | None = None,
+                 insecure: bool = False, lease_ms: int | None = None,
+                 faults: Sequence[Fault] = (),
+                 stop: threading.Event | None = None) -> HostsRun:
+    """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults`` (issue 13)
+    the supervisor on host 0 injects them from a fault plan
+    (:mod:`tlfleet.coordinator.faults.on_hosts`) and every client reconnects fast (``RECONNECT``);
+    ``lease_ms`` goes to every process. A partition fault puts the fleet in the peer layout
+    (:func:`place_peers`; ``hosts`` is then the layout's own count)."""
+    require_root()
+    scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    if keys is not None and insecure:
+        raise HostsError("--secure DIR and --insecure exclude each other")
+    if keys is not None:
+        from tlfleet.coordinator.security.authority import check_keys
+
+        check_keys(scenario, keys)
+    path = str(Path(scenario_path).resolve())
+    run_dir = Path(out) if out else default_run_dir(scenario.name)
+    all_faults: tuple[Fault, ...] = ()
+    if scenario.faults or faults:  # FaultSpecError before anything starts
+        from tlfleet.coordinator.faults.plan import run_faults
+
+        all_faults = run_faults(scenario, faults)
+    peers = any(f.kind == "partition" for f in all_faults)
+    if peers and keys is not None:
+        raise HostsError("a partition run makes its own keys (its peers' certificates carry "
+                         "their hosts' addresses): leave out --secure DIR, or use --insecure")
+    placement = place_peers(scenario) if peers else place(scenario, hosts)
+    hosts = placement.hosts
+    if all_faults:  # FaultError before anything starts
+        from tlfleet.coordinator.faults.on_hosts import check_hosts_fault
+
+        for fault in all_faults:
+            check_hosts_fault(fault, placement)
+    injecting = bool(all_faults)
+    net = NetnsHosts(hosts, **({"prefix": prefix} if prefix else {}))
+    launcher = Launcher(run_dir / "logs")
+    done: subprocess.CompletedProcess | None = None
+    codes: dict[str, int | None] = {}
+    run_dir.mkdir(parents=True, exist_ok=True)
+    router_conf = run_dir / "logs" / "router.json5"
+    router_conf.parent.mkdir(parents=True, exist_ok=True)
+    # explicit router mesh only: no gossip, so no router links another over a process's port
+    # peer layout: the router must not broker between two peers that lost their direct link
+    # (zenoh's peers_failover_brokering), or a partition would not separate them
+    router_conf.write_text("{ scouting: { gossip: { enabled: false } }"
+                           + (f", {RECONNECT}" if injecting else "")
+                           + (", routing: { router: { peers_failover_brokering: false } }"
+                              if peers else "") + " }\n")
+    scheme = "tcp" if insecure else "tls"
+    own_keys = None if insecure or keys is not None else Path(
+        tempfile.mkdtemp(prefix="tlfleet-keys-"))  # 0700: private to this user
+    lease = ["--lease-ms", str(lease_ms)] if lease_ms else []
+    client = []
+    if injecting:  # a cut client comes back within a retry period of the restore
+        client_conf = run_dir / "logs" / "client.json5"
+        client_conf.write_text(f"{{ {RECONNECT} }}\n")
+        client = ["--zenoh-config", str(client_conf)]
+    # with faults, agents that read only every d-th frame watch the sim's clock key too, so they
+    # notice a lost simulator within --stale-after like the others (issue 13 §2)
+    beat = ["--heartbeat"] if injecting else []
+    with net:
+        try:
+            if own_keys is not None:
+                from tlfleet.coordinator.security.authority import (
+                    write_keys,  # cryptography: secured runs only
+                )
+
+                write_keys(scenario, own_keys, force=True, mesh=True,
+                           hosts=tuple(net.address(h) for h in range(hosts)),
+                           addresses={certificate_name(p): [net.address(placement.host_of[p])]
+                                      for p in placement.peers})
+            keydir = own_keys or keys
+            secure = () if keydir is None else ("--secure", str(Path(keydir).resolve()))
+            for host in sorted({placement.router_host(p) for p in placement.host_of}):
+                listen = [f"{scheme}/{net.address(host)}:{ROUTER_PORT}"] + [
+                    f"{scheme}/{net.address(host)}:{placement.port_of[p]}"
+                    for p in placement.host_of if placement.router_host(p) == host]
+                argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf),
+                        *secure, *lease]
+                for endpoint in listen:
+                    argv += ["--listen", endpoint]
+                for other in range(host):
+                    argv += ["--connect", f"{scheme}/{net.address(other)}:{ROUTER_PORT}"]
+                launcher.start(f"router-{host}", [*net.exec_prefix(host),
+                                                  *tlfleet_command(*argv)])
+            for host in sorted({placement.router_host(p) for p in placement.host_of}):
+                wait_listening(net, host, ROUTER_PORT, router_timeout)
+
+            def endpoint_of(process: str) -> str:
+                host, port = placement.link(process)
+                return f"{scheme}/{net.address(host)}:{port}"
+
+            def links_of(process: str) -> list[str]:
+                """--connect to its router port; in the peer layout also --mode peer, --listen
+                on its own host and --connect to every fleet peer before it (the mesh)."""
+                links = ["--connect", endpoint_of(process)]
+                if process in placement.peers:
+                    links += ["--mode", "peer", "--listen",
+                              f"{scheme}/{net.address(placement.host_of[process])}:{PEER_PORT}"]
+                    for other in placement.peers[:placement.peers.index(process)]:
+                        links += ["--connect", f"{scheme}/"
+                                  f"{net.address(placement.host_of[other])}:{PEER_PORT}"]
+                return links
+
+            launcher.start("sim", [*net.exec_prefix(placement.host_of["sim"]), *tlfleet_command(
+                "sim", path, f"--{mode}", *sim_args, *links_of("sim"), *secure, *lease,
+                *client)])
+            for robot in sorted(scenario.robot_ids):
+                name = f"agent-{robot}"
+                launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
+                                      *tlfleet_command("agent", path, "--robot", str(robot),
+                                                       *agent_args, *beat, *links_of(name),
+                                                       *secure, *lease, *client)])
+            plan: list[str] = []
+            if injecting:
+                from tlfleet.coordinator.faults.on_hosts import PLAN_NAME, write_plan
+
+                pids = {c.name: c.pid for c in launcher.children}
+                argv = {c.name: c.argv for c in launcher.children}
+                plan = ["--fault-plan", str(write_plan(run_dir / "logs" / PLAN_NAME, net,
+                                                       placement, pids, argv))]
+                for fault in faults:
+                    plan += ["--fault", fault.text or fault.spec]
+            coordinator = [*net.exec_prefix(0), *tlfleet_command(
+                "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
+                "--out", str(run_dir), *secure, *lease, *client, *plan, *supervise_args)]
+            done = supervise_until_done(coordinator, capture, stop)
+            launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
+        finally:
+            if injecting:  # what `restart:` started again, as a child of supervise
+                from tlfleet.coordinator.faults.on_hosts import stop_restarted
+
+                stop_restarted(run_dir / "logs", kill_grace)
+            codes = launcher.stop_all(kill_grace)
+            if own_keys is not None:
+                shutil.rmtree(own_keys, ignore_errors=True)
+    info_path = run_dir / "run.json"
+    if info_path.is_file():
+        info = json.loads(info_path.read_text())
+        if own_keys is not None:
+            info["keys"] = "generated for this run in a private temporary directory, deleted"
+        info.update(hosts=placement.as_dict(), host_exit_codes=codes,
+                    addresses={net.name(h): net.address(h) for h in range(hosts)})
+        info_path.write_text(json.dumps(info, indent=2, default=str) + "\n")
+    assert done is not None
+    return HostsRun(run_dir, done.returncode, placement, codes,
+                    done.stdout or "", done.stderr or "", own_keys)
