@@ -26,7 +26,11 @@ from typing import TYPE_CHECKING, TextIO
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
-from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.cli.transport_flags import (
+    add_lease_argument,
+    add_secure_argument,
+    add_zenoh_config_argument,
+)
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.run import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 
@@ -56,9 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wall time for every process to come up [s] (default 60)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="zenoh link lease of every process [ms] (default zenoh's 10000): "
-                             "how fast a hung or cut-off peer is declared gone")
+    add_lease_argument(parser, "every process's")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--viewer", action="store_true",
                         help="serve the run live to a web viewer (URL on stderr); after the run, "
@@ -67,10 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
     parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
                         help="--viewer: web viewer port (default: a free one)")
-    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
-                        help="mutual TLS with the keys of DIR (`tlfleet keys SCENARIO --out DIR`) "
-                             "and the router's access control; without it the links are plain "
-                             "TCP on 127.0.0.1")
+    add_secure_argument(parser, "and the router's access control; without it the links are "
+                                "plain TCP on 127.0.0.1")
     add_output_arguments(parser)
     add_zenoh_config_argument(parser)
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
@@ -173,7 +173,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     with stop_on_signals() as stop:  # SIGINT / SIGTERM: interrupted, every host cleaned up
         result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
-                              keys=args.secure, insecure=args.insecure,
+                              secure=args.secure, insecure=args.insecure,
                               supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
                               faults=tuple(args.faults), stop=stop)
     return result.returncode
