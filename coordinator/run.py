@@ -68,6 +68,7 @@ from tlfleet.coordinator.launch.processes import (
     LaunchError,
     fifo_permitted,
     free_port,
+    share_with_children,
     tlfleet_command,
     wait_for_port,
 )
@@ -285,7 +286,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
             actuator = ProcessActuator(launcher, children, supervisor=session.supervisor)
             schedule = FaultScheduler(faults, actuator, prepared.recorder.on_event, say)
             progress = schedule.progress(progress)
-        outcome, codes = session.run(stop, progress)
+        with share_with_children(child_sched(config)):
+            outcome, codes = session.run(stop, progress)
         wall_start = session.wall_start
     except BaseException:
         if viewer is not None:

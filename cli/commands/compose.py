@@ -18,11 +18,19 @@ from tlfleet.coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compo
 
 NAME = "compose"
 HELP = "write the docker compose file of a scenario's fleet"
+EXAMPLES = (
+    ("tlfleet compose scenario1.toml -o fleet/",
+     "write fleet/compose.yaml: one service per process of Scenario 1, mutual TLS"),
+    ("tlfleet compose scenario1.toml -o fleet/ --insecure --realtime",
+     "the same fleet on plain TCP, physics on wall-clock time"),
+)
+EXIT_CODES = {0: "the compose file was written",
+              1: "an invalid scenario, or a fault a compose fleet cannot do"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
-    parser.add_argument("--out", type=Path, default=Path("."),
+    parser.add_argument("-o", "--out", type=Path, default=Path("."),
                         help="directory for compose.yaml, or the .yaml file (default .)")
     add_mode_arguments(parser, "deterministic (default)")
     parser.add_argument("--wait", type=float, default=120.0, metavar="S",

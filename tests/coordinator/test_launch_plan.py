@@ -14,6 +14,8 @@ import pytest
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.transport import MINIMAL_RUNTIME
 from tlfleet.cli.commands import agent, router, sim, supervise
+from tlfleet.cli.conventions import merge_verbosity
+from tlfleet.cli.main import add_command_arguments
 from tlfleet.cli.transport_flags import transport_config
 from tlfleet.coordinator.compose import ComposeConfig, compose_text
 from tlfleet.coordinator.launch.plan import Links, PlanConfig, ProcessSpec, plan_fleet
@@ -27,8 +29,10 @@ COMMANDS = {"sim": sim, "agent": agent, "router": router, "supervise": supervise
 def parse(argv: tuple[str, ...]) -> argparse.Namespace:
     """``argv`` (``tlfleet``'s arguments) parsed by the command's own parser."""
     parser = argparse.ArgumentParser(exit_on_error=False)
-    COMMANDS[argv[0]].add_arguments(parser)
-    return parser.parse_args(list(argv[1:]))
+    add_command_arguments(COMMANDS[argv[0]], parser)
+    args = parser.parse_args(list(argv[1:]))
+    merge_verbosity(args)
+    return args
 
 
 @pytest.mark.parametrize("links", [
