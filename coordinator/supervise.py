@@ -50,6 +50,7 @@ from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, 
 from tlfleet.coordinator.live.verdict import Verdict, classify, mission_event_kinds
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
 from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
+from tlfleet.coordinator.record.trust import RecordCheck
 from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
 
 logger = logging.getLogger(__name__)
@@ -164,10 +165,13 @@ def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
     """The recorder tap's plausibility checks for this run (issue 11)."""
     a = scenario.arena
     dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
-    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
-                                  scenario.sim.mocap_rate, scenario.speed_limits()),
-            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
-            "robot_ids": scenario.robot_ids}
+    rate = scenario.sim.mocap_rate
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration, rate,
+                                  scenario.speed_limits()),
+            "max_jump": max_jump_ticks(rate, dividers),
+            "robot_ids": scenario.robot_ids,
+            "record_check": RecordCheck({r.id: r.radius for r in scenario.robots}, rate,
+                                        round(duration * rate))}
 
 
 class Supervision:

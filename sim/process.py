@@ -260,7 +260,8 @@ class SimProcess:
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
-                      "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
+                      "event": keys.event(self.fleet, "sim", 0),
+                      "backfill": keys.sim_backfill(self.fleet)}
         # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
         # the last step's tick, due robots and watchdog stops, reported after the next frame

@@ -89,7 +89,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
                              config.orphan_after, source)
     try:
         malformed = MalformedCounter(source)
-        event_key = keys.event(scenario.fleet)
+        event_key = keys.event(scenario.fleet, "agent", config.robot)
 
         def publish(event: Event) -> None:
             transport.publish(event_key, encode(event))

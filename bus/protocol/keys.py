@@ -116,9 +116,23 @@ def collab(fleet: str, robot: int) -> str:
     return f"{prefix(fleet)}/robot/{int(robot)}/collab"
 
 
-def event(fleet: str) -> str:
-    """Any → coordinator: ``Event``."""
-    return f"{prefix(fleet)}/event"
+def event(fleet: str, role: str, ident: str | int) -> str:
+    """Process → coordinator: its ``Event`` s, on a key of its own (``event/sim/0``,
+    ``event/agent/3``, ``event/coordinator/0``): the access policy lets each identity write only
+    its own, so the key names the publisher (``tlfleet.bus.protocol.events``)."""
+    if role not in ROLES or role == "router":
+        raise ValueError(f"role {role!r} publishes no events; expected sim, agent or coordinator")
+    return f"{prefix(fleet)}/event/{role}/{_check_segment(str(ident), 'process id')}"
+
+
+def all_events(fleet: str) -> str:
+    return f"{prefix(fleet)}/event/*/*"
+
+
+def parse_event(key: str) -> tuple[str, str] | None:
+    """``(role, id)`` of an event key, or ``None`` when it is not one."""
+    match = re.search(r"/event/([A-Za-z]+)/([A-Za-z0-9_-]+)$", key)
+    return (match.group(1), match.group(2)) if match else None
 
 
 def control(fleet: str) -> str:

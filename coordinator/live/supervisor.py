@@ -297,7 +297,7 @@ class Supervisor:
                             "wall": death.wall})
         self.tap.recorder.on_event(event)
         try:
-            self.transport.publish(keys.event(self.fleet), encode(event))
+            self.transport.publish(keys.event(self.fleet, "coordinator", 0), encode(event))
         except Exception:  # the router may be gone: recording matters, publishing does not
             logger.exception("cannot publish the process_died event")
 

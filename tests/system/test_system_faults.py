@@ -126,14 +126,15 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
     wait_until_started(run_dir, 1.0)
     endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
     intruder = open_transport(TransportConfig(mode="client", connect=(endpoint,)))
-    targets = [keys.mocap(fleet), keys.clock(fleet), keys.control(fleet), keys.event(fleet)]
+    targets = [keys.mocap(fleet), keys.clock(fleet), keys.control(fleet),
+               keys.event(fleet, "sim", 0)]
     for robot in (1, 2):
         targets += [keys.cmd(fleet, robot), keys.status(fleet, robot)]
     try:
         for _ in range(3):
             for key in targets:
                 for payload in GARBAGE:
-                    if payload == GARBAGE[-1] and key == keys.event(fleet):
+                    if payload == GARBAGE[-1] and key == keys.event(fleet, "sim", 0):
                         continue  # a valid Event on the event key is not malformed
                     intruder.publish(key, payload)
             for payload in GARBAGE:
