@@ -79,6 +79,7 @@ class Recorder:
         self.statuses = 0
         self.events = 0
         self.event_kinds: Counter[str] = Counter()
+        self.sim_done_t: float | None = None  # [s] the sim time the newest sim_done claims
         self._traj_writer = rundir.TrajectoryWriter(self.run_dir / rundir.TRAJECTORY,
                                                     self.robot_ids)
         self._status_writer = rundir.StatusWriter(self.run_dir / rundir.STATUS)
@@ -175,6 +176,8 @@ class Recorder:
         self._events.write(rundir.event_line(event))
         self.events += 1
         self.event_kinds[event.kind] += 1
+        if event.kind == "sim_done":
+            self.sim_done_t = event.t
         if event.kind in ("process_died", "sim_done"):
             self._events.flush()  # rare and important: on disk at once
         self._maybe_flush()

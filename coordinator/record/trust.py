@@ -95,7 +95,8 @@ class RecordCheck:
         self.slack = max(2, round(mocap_rate))
         self.frames: deque[MocapFrame] = deque(maxlen=FRAMES_KEPT)
         self.newest_seq = -1
-        self.once: dict[str, float] = {}  # sim_done / sim_stats -> t of the one accepted
+        # sim_done / sim_stats -> (t, the newest frame's seq) of the one accepted
+        self.once: dict[str, tuple[float, int]] = {}
 
     def on_frame(self, frame: MocapFrame) -> None:
         self.newest_seq = max(self.newest_seq, frame.seq)
@@ -104,8 +105,10 @@ class RecordCheck:
     def contradiction(self, event: Event) -> str | None:
         kind, data = event.kind, event.data
         if kind in ("sim_done", "sim_stats"):
-            if kind in self.once:
-                return f"a second {kind} (the first at t = {self.once[kind]:.2f} s)"
+            first = self.once.get(kind)
+            # a first one that frames followed was not the end: this one may be
+            if first is not None and self.newest_seq <= first[1] + self.slack:
+                return f"a second {kind} (the first at t = {first[0]:.2f} s)"
             ticks = data.get("ticks")
             if isinstance(ticks, int):
                 if ticks > self.ticks + 2:
@@ -118,7 +121,7 @@ class RecordCheck:
                     due > (ticks + 1) * len(self.radii):
                 return f"sim_stats: {due} deadlines due in {ticks} ticks of {len(self.radii)} " \
                        "robots"
-            self.once[kind] = event.t
+            self.once[kind] = (event.t, self.newest_seq)
         elif kind == "deadline_miss":
             seq = data.get("seq")
             if isinstance(seq, int) and seq > self.newest_seq + self.slack:

@@ -265,3 +265,35 @@ def test_cleanup_runs_every_step_whatever_fails_and_bounds_blocking_ones():
     assert cleanup.step("second", lambda: done.append(1) or 7) == 7
     assert done == [1]
     assert [e.split(":")[0] for e in cleanup.errors] == ["first", "interrupted", "hangs"]
+
+
+def _judge(t_end, duration=45.0, reason="sim_done", sim_reached=None, **extra):
+    from tlfleet.coordinator.live.verdict import RunEnd
+
+    return classify(reason=reason, deaths=[], exit_codes={"sim": 0}, router_clean=True,
+                    mode="lockstep", deadlines={}, event_kinds={}, end=RunEnd(
+                        t_end, duration, reason), tolerance=0.015, sim_reached=sim_reached,
+                    **extra)
+
+
+def test_the_verdict_compares_the_end_with_the_duration():
+    """A run that ends before its duration is never clean; where and why it ended is in the
+    outcome line and in run.json's outcome."""
+    full = _judge(45.0)
+    assert full.label == "clean" and full.line == \
+        "outcome: clean (ended at t = 45.00 s of 45 s: sim_done)"
+    assert full.to_json()["end"] == {"t": 45.0, "duration": 45.0, "reason": "sim_done"}
+    assert _judge(45.0 - 0.01).label == "clean"  # the last tick, within the tolerance
+    early = _judge(20.1)  # a forged sim_done accepted during a pause
+    assert early.label == "failed" and early.exit_code == 3
+    assert early.line.startswith("outcome: failed (ended at t = 20.10 s of 45 s: sim_done; "
+                                 "the run ended 24.90 s before its duration")
+    # the simulator itself says it reached the end: only the recording of the end is missing
+    lost = _judge(13.0, sim_reached=45.0)
+    assert lost.label == "degraded" and "not recorded" in lost.reasons[0]
+    assert _judge(13.0, sim_reached=13.0).label == "failed"
+    worse = _judge(20.0, findings=["agent-2 silent from t = 3.00 s (never came back)"])
+    assert worse.label == "failed" and "agent-2 silent" in worse.line
+    stopped = _judge(17.33, reason="interrupted")
+    assert stopped.label == "interrupted" and "ended at t = 17.33 s of 45 s" in stopped.line
+    assert _judge(3.0, reason="sim_died").label == "failed"

@@ -259,8 +259,13 @@ def _blip(net, scenario, sup, peers, *, exit_code=None):
         sup.children["sim"].returncode = exit_code
     back = declare(net, scenario, ["sim"])["sim"]
     stop = threading.Event()
-    done = threading.Timer(sup.config.end_grace + 0.3, lambda: back.publish(
-        keys.event(scenario.fleet, "sim", 0), encode(Event(5.0, "sim", "sim_done", {}))))
+
+    def finish() -> None:  # as the simulator does: sim_done, then it exits
+        back.publish(keys.event(scenario.fleet, "sim", 0), encode(Event(5.0, "sim", "sim_done",
+                                                                         {})))
+        back.kill()
+
+    done = threading.Timer(sup.config.end_grace + 0.3, finish)
     done.start()
     threading.Timer(3.0, stop.set).start()  # bound: the run ends by itself well before
     try:
