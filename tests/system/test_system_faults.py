@@ -180,7 +180,7 @@ def test_a_forged_sim_done_during_a_pause_never_reads_clean(tmp_path, paused):
         agent.send_signal(signal.SIGCONT)
         forger.close()
     result = bg.join(180.0)
-    assert not result.verdict.label == "clean", result.verdict.line
+    assert result.verdict.label != "clean", result.verdict.line
     end = result.verdict.end
     assert end is not None and f"of {end.duration:g} s" in result.verdict.line
     info = json.loads((run_dir / "run.json").read_text())
