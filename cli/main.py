@@ -27,6 +27,7 @@ from tlfleet.cli.conventions import (
 # lists them without imports. Each module also declares EXAMPLES and EXIT_CODES (the help's
 # epilog, tlfleet.cli.conventions).
 COMMANDS: dict[str, tuple[str, str]] = {
+    "init": ("init", "write a commented starter scenario that passes `tlfleet check`"),
     "check": ("check", "validate a scenario file and summarise it"),
     "translate": ("translate", "LTL formula to Büchi automaton"),
     "plan": ("plan", "optimal prefix–suffix plans of the LTL robots"),
