@@ -13,6 +13,7 @@ from pathlib import Path
 
 from tlfleet.cli.arg_types import fault_spec, scenario_file
 from tlfleet.cli.run_flags import add_mode_arguments
+from tlfleet.cli.transport_flags import add_lease_argument
 from tlfleet.coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
 
 NAME = "compose"
@@ -41,9 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plain TCP links, no authentication, no access control (default: "
                              "mutual TLS with the keys of ${TLFLEET_KEYS}, `tlfleet keys "
                              "SCENARIO --out DIR --host router`)")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="zenoh link lease of every service [ms] (default zenoh's 10000; "
-                             "500 notices a cut within 1 s)")
+    add_lease_argument(parser, "every service's")
     parser.add_argument("--fault-subnet", default=FAULT_SUBNET, metavar="CIDR",
                         help="with faults: the fleet network's IPv4 subnet, the router at its "
                              f".2 (default {FAULT_SUBNET}; pick another when docker says the "
@@ -57,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
-                                       args.duration, secure=not args.insecure,
+                                       args.duration, insecure=args.insecure,
                                        faults=tuple(args.faults), lease_ms=args.lease_ms,
                                        fault_subnet=args.fault_subnet))
     print(path)

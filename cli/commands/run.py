@@ -32,7 +32,11 @@ from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float, scenario_file
 from tlfleet.cli.conventions import add_json_argument, add_out_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
-from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.cli.transport_flags import (
+    add_lease_argument,
+    add_secure_argument,
+    add_zenoh_config_argument,
+)
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.run import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 
@@ -77,9 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wall time for every process to come up [s] (default 60)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="zenoh link lease of every process [ms] (default zenoh's 10000): "
-                             "how fast a hung or cut-off peer is declared gone")
+    add_lease_argument(parser, "every process's")
     parser.add_argument("--viewer", action="store_true",
                         help="serve the run live to a web viewer (URL on stderr); after the run, "
                              "keep serving until Ctrl-C")
@@ -87,10 +89,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
     parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
                         help="--viewer: web viewer port (default: a free one)")
-    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
-                        help="mutual TLS with the keys of DIR (`tlfleet keys SCENARIO --out DIR`) "
-                             "and the router's access control; without it the links are plain "
-                             "TCP on 127.0.0.1")
+    add_secure_argument(parser, "and the router's access control; without it the links are "
+                                "plain TCP on 127.0.0.1")
     add_output_arguments(parser)
     add_json_argument(parser, "print the result (verdict, run directory, report) as JSON on "
                               "stdout instead of the report table")
@@ -243,7 +243,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     with stop_on_signals() as stop:  # SIGINT / SIGTERM: interrupted, every host cleaned up
         result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
-                              keys=args.secure, insecure=args.insecure,
+                              secure=args.secure, insecure=args.insecure,
                               supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
                               faults=tuple(args.faults), stop=stop)
     return result.returncode

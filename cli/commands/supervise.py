@@ -20,7 +20,7 @@ from tlfleet.cli.arg_types import fault_spec, scenario_file
 from tlfleet.cli.commands.run import ProgressBar, print_outputs
 from tlfleet.cli.conventions import add_json_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
-from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.cli.transport_flags import add_transport_arguments
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.supervise import SuperviseConfig, supervise_fleet
 
@@ -44,9 +44,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", type=scenario_file,
                         help="scenario TOML file or a bundled scenario's name (the one the fleet "
                              "was started with)")
-    parser.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                        help="the fleet's router, e.g. tcp/127.0.0.1:7447 (repeatable; "
-                             "default tcp/127.0.0.1:7447)")
     add_mode_arguments(parser, "the simulator runs in lockstep (default; recorded in run.json)",
                        "the simulator runs on wall-clock time")
     parser.add_argument("-o", "--out", type=Path, default=None,
@@ -65,12 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_output_arguments(parser)
     add_json_argument(parser, "print the result (verdict, run directory, report) as JSON on "
                               "stdout instead of the report table")
-    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
-                        help="mutual TLS as `coordinator` with the keys of DIR (`tlfleet keys`); "
-                             "the endpoints must be tls/…")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="link lease in ms (zenoh default 10000)")
-    add_zenoh_config_argument(parser)
+    add_transport_arguments(parser, connect_default="tcp/127.0.0.1:7447", client_only=True)
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
                         metavar="SPEC", help="inject a fault (as `tlfleet run --fault`); needs "
                                              "--fault-plan or --fault-handoff")
