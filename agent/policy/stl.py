@@ -42,6 +42,7 @@ from tlfleet.agent.evolve import evolve
 from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle
 from tlfleet.agent.policy.route import Route, RoutePlanner
 from tlfleet.agent.scenario import stl_setup
+from tlfleet.agent.scenario.stl_timing import PositionGrid, position_grid, reach_time, transfer_time
 from tlfleet.agent.stl import recovery as rec
 from tlfleet.agent.stl.control_law import ControlParams, nominal_velocity
 from tlfleet.agent.stl.funnel import Funnel, FunnelParams, epsilon
@@ -55,8 +56,14 @@ from tlfleet.agent.stl.messages import (
 from tlfleet.agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
 from tlfleet.agent.stl.sequencer import check_phase_start_times
 from tlfleet.agent.stl.supremum import Workspace, maximize
+from tlfleet.agent.stl.syntax import literals
 from tlfleet.agent.stl.task import Task
-from tlfleet.agent.stl.timing import conjunct_rates, design_rate, minimal_time, smoothing_offset
+from tlfleet.agent.stl.timing import (
+    conjunct_rates,
+    design_rate,
+    minimal_time,
+    smoothing_offset,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -207,10 +214,11 @@ class StepOutput:
 class StlAgent:
     """The step function of one STL agent bound to its immutable :class:`AgentConfig`."""
 
-    __slots__ = ("cfg",)
+    __slots__ = ("_grid", "cfg")
 
     def __init__(self, config: AgentConfig):
         self.cfg = config
+        self._grid: PositionGrid | None = None  # positions of the workspace, built once
 
     @property
     def robot_id(self) -> int:
@@ -325,8 +333,21 @@ class StlAgent:
         else:
             level = funnel.r
         rate = design_rate(task, task.stacked_state(tick.poses), self.cfg.robot_id, rho, level,
-                           cp.max_lin, cp.max_ang)
+                           cp.max_lin, cp.max_ang, at_least=self._reach_time(task, tick, level))
         return fp.saturation_share * rate
+
+    def _reach_time(self, task: Task, tick: _Tick, level: float) -> float:
+        """The minimal-time bound [s] to the set where ψ's conjuncts hold at ``level`` (+ the
+        smoothing offset) at once (tlfleet.agent.scenario.stl_timing); 0 without a workspace or
+        where ρ^ψ is at the level already."""
+        grid = self._position_grid()
+        if grid is None or tick.rho_own >= level:
+            return 0.0
+        cp = self.cfg.control
+        smooth = smoothing_offset(len(literals(task.psi)), task.eta)
+        need = reach_time(task, self.cfg.robot_id, tick.poses, grid, level, cp.max_lin,
+                          cp.max_ang, smooth)
+        return need if math.isfinite(need) else 0.0
 
     def _route(self, state: AgentState, tick: _Tick, task: Task, activating: bool) -> None:
         """The route of the tick (docs/stl-saturation.md §8): planned at activation, looked for
@@ -361,11 +382,12 @@ class StlAgent:
         tick.rho_ctl, tick.grad_ctl = tick.rho_own - penalty, grad
 
     def _leave_by(self, k: int, poses: Mapping[int, object], at_goal: bool = True) -> float:
-        """Look-ahead deadline of sub-task k (docs/stl-saturation.md §6): an F sub-task followed
-        by sub-task k+1 must be met by rel(k+1) − T/κ, with T the minimal-time bound to the goal
-        level of ψ_(k+1) from the own goal pose of ψ_k (``at_goal``, the funnel's deadline) or
-        from where the robot is now (the others where they are now), and rel = a of a G, b of
-        an F; inf for a G, the last sub-task, forced phase starts or without look-ahead."""
+        """Look-ahead deadline of sub-task k (docs/stl-saturation.md §6.2): an F sub-task
+        followed by sub-task k+1 must be met by rel(k+1) − T/κ, with T the minimal-time bound
+        to the goal level of ψ_(k+1), from the best point where ψ_k is at its goal level
+        (``at_goal``: the funnel's deadline, over the workspace grid) or from where the robot
+        is now (the others where they are now), and rel = a of a G, b of an F; inf for a G, the
+        last sub-task, forced phase starts or without look-ahead."""
         cfg = self.cfg
         tasks = cfg.subtasks
         if (not cfg.lookahead or k + 1 >= len(tasks) or tasks[k].kind != "F"
@@ -373,16 +395,35 @@ class StlAgent:
             return math.inf
         task, after = tasks[k], tasks[k + 1]
         i, cp, fp = cfg.robot_id, cfg.control, cfg.funnel
-        moved = dict(poses)
-        if at_goal:
-            moved[i] = self._goal_pose(task, poses)
-        if any(j not in moved for j in after.participants):
+        if any(j not in poses for j in (*task.participants, *after.participants)):
             return math.inf
-        rates = conjunct_rates(after, after.stacked_state(moved), i, cp.max_lin, cp.max_ang)
         level = fp.r_frac * fp.rho_max_frac * after.rho_opt
-        need = minimal_time(rates, level, smooth=smoothing_offset(len(rates), after.eta))
+        smooth = smoothing_offset(len(literals(after.psi)), after.eta)
+        if at_goal:
+            grid = self._position_grid()
+            if grid is None:
+                return math.inf
+            need = transfer_time(task, after, i, poses, grid, cp.max_lin,
+                                 fp.r_frac * fp.rho_max_frac * task.rho_opt, level + smooth)
+        else:  # every tick once met: the conjuncts' bound, no grid (docs §6.2)
+            rates = conjunct_rates(after, after.stacked_state(poses), i, cp.max_lin,
+                                   cp.max_ang)
+            need = minimal_time(rates, level, smooth=smooth)
+        if not math.isfinite(need):
+            return math.inf
         due = after.a if after.kind == "G" else after.b
         return due - need / fp.saturation_share
+
+    def _position_grid(self) -> PositionGrid | None:
+        """The robot's positions over its workspace (tlfleet.agent.scenario.stl_timing), built
+        once; None without a workspace."""
+        workspace = self.cfg.workspace
+        if workspace is None:
+            return None
+        if self._grid is None:
+            self._grid = position_grid(workspace.arena,
+                                       workspace.clearance_of(self.cfg.robot_id))
+        return self._grid
 
     def _goal_pose(self, task: Task, poses: Mapping[int, object]) -> tuple[float, float, float]:
         """The own pose that maximises ρ^ψ with the other participants where they are now
@@ -518,9 +559,15 @@ class StlAgent:
             if not tick.active:
                 tick.active = True
                 leave_by = self._leave_by(tick.k, tick.poses)
+                rate = self._rate(task, tick, None)
+                if rate and math.isfinite(leave_by):
+                    # the next sub-task's need never dooms this one: the deadline is at least
+                    # when this one can reach its goal level at the rate v
+                    base = max(0.0, tick.rho_ctl)
+                    level = fp.r_frac * (base + fp.rho_max_frac * (task.rho_opt - base))
+                    leave_by = max(leave_by, t + (level - tick.rho_ctl + fp.ramp_margin) / rate)
                 tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_ctl,
-                                          t, fp, self._rng(tick.k, ce_before, t),
-                                          rate=self._rate(task, tick, None),
+                                          t, fp, self._rng(tick.k, ce_before, t), rate=rate,
                                           deadline=None if math.isinf(leave_by) else leave_by)
                 changes.update(active=True, funnel=tick.funnel, ce=0, c=0, stage=0,
                                events=(0, 0, 0), rho_phi=math.nan,
@@ -569,17 +616,17 @@ class StlAgent:
         rho_ctl = tick.rho_ctl  # ρ̃ on a route (≤ ρ^ψ), else ρ^ψ: what the funnel holds
         inside = funnel.r < rho_ctl < funnel.rho_max
         if task.kind == "F" and cfg.protocol.f_done_at_goal:
-            # docs/stl-saturation.md §6: met once ρ^ψ reaches the level the first funnel aimed
-            # at (r_frac·ρ_max > 0), not merely r, which repairs may have taken below 0; at
-            # the look-ahead deadline once ρ^φ > 0 already
-            goal = changes.get("r_goal", state.r_goal)
-            inside = rho_ctl > funnel.r and (
-                rho_own >= goal or (rho_phi > 0.0 and t >= self._leave_by(tick.k, tick.poses,
-                                                                          at_goal=False)))
+            # docs/stl-saturation.md §6.1: met once ρ^ψ reaches the level the first funnel
+            # aimed at (r_frac·ρ_max > 0), not merely r, which repairs may take below 0
+            inside = rho_ctl > funnel.r and rho_own >= changes.get("r_goal", state.r_goal)
         by_rule = False
         if tick.follow is None and inside and cfg.protocol.complete_on_satisfaction and (
                 (task.kind == "F" and task.a <= t <= task.b)
                 or (task.kind == "G" and t >= task.b)):
+            tick.done = by_rule = True
+        elif (tick.follow is None and task.kind == "F" and task.a <= t <= task.b
+              and rho_phi > 0.0 and t >= self._leave_by(tick.k, tick.poses, at_goal=False)):
+            # §6.2: met already, and the next sub-task needs the robot now
             tick.done = by_rule = True
         elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
             tick.done = True

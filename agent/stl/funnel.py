@@ -104,14 +104,11 @@ class Funnel:
             return cls.init_saturated(kind, a, b, rho_opt, rho0, t_r, rate, params,
                                       deadline=deadline)
         p = params
-        base = max(0.0, rho0)
-        rho_max = base + p.rho_max_frac * (rho_opt - base)
-        if rho_max < rho0 + p.guard_a_eps:
-            # ρ_0 at (or numerically above) the supremum ρ_opt: no admissible ρ_max in
-            # (ρ_0, ρ_opt) exists, so lift it just above ρ_0 as Guard A does (§7.3) [OUR CHOICE].
-            rho_max = rho0 + p.guard_a_eps
+        shift = _shift(rho_opt, p)
+        rho_max = _top(rho_opt - shift, rho0 - shift, p) + shift
         zeta_u = max(0.0, rho_opt - rho_max) / max(p.n_stage1, 2)
-        r = rho_max * (0.5 * float(rng.uniform()) if rng is not None else p.r_frac)
+        r = shift + (rho_max - shift) * (0.5 * float(rng.uniform()) if rng is not None
+                                         else p.r_frac)
         t_star = a if kind == "G" else a + p.f_tstar_frac * (b - a)
         late = t_star - t_r <= p.tau_min
         if late:
@@ -226,12 +223,10 @@ class Funnel:
         r_snap). t* = a for G, the time the lower boundary reaches r for F (≤ D). After the knee
         the tail γ_∞ = ginf_frac·(ρ_max − r_g), l = v/(γ_k − γ_∞) (C¹ at t_k)."""
         p = params
-        base = max(0.0, rho0)
-        rho_max = base + p.rho_max_frac * (rho_opt - base)
-        if rho_max < rho0 + p.guard_a_eps:
-            rho_max = rho0 + p.guard_a_eps
+        shift = _shift(rho_opt, p)
+        rho_max = _top(rho_opt - shift, rho0 - shift, p) + shift
         zeta_u = max(0.0, rho_opt - rho_max) / max(p.n_stage1, 2)
-        r_goal = p.r_frac * rho_max
+        r_goal = shift + p.r_frac * (rho_max - shift)
         gap = rho_max - rho0
         margin = min(p.gamma0_margin * gap, p.ramp_margin)
         gamma0 = gap + margin
@@ -285,6 +280,25 @@ class Funnel:
         if problems:
             raise FunnelInvariantError(f"{what} at t = {t:.4f} with rho = {rho:.6g}: "
                                        + "; ".join(problems) + f" ({self})")
+
+
+def _top(rho_opt: float, rho0: float, p: FunnelParams) -> float:
+    """ρ_max = max(0, ρ_0) + rho_max_frac·(ρ_opt − max(0, ρ_0)) (§5), lifted just above ρ_0 when
+    ρ_0 is at (or numerically above) the supremum: no admissible ρ_max in (ρ_0, ρ_opt) exists
+    then, so it is lifted as Guard A does (§7.3) [OUR CHOICE]."""
+    base = max(0.0, rho0)
+    rho_max = base + p.rho_max_frac * (rho_opt - base)
+    return max(rho_max, rho0 + p.guard_a_eps)
+
+
+def _shift(rho_opt: float, p: FunnelParams) -> float:
+    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: a goal inside an
+    obstacle, two robots asked to be closer than they may; docs/stl-saturation.md §5) gets the
+    design of a ψ whose supremum is c = max(|ρ_opt|, 2δ), shifted down by c − ρ_opt, so that its
+    goal r and ρ_max sit just under the supremum: the least violation."""
+    if rho_opt > 0.0:
+        return 0.0
+    return rho_opt - max(abs(rho_opt), 2.0 * p.delta)
 
 
 def epsilon(zeta: float, clip: float = 1e-9) -> float:

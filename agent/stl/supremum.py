@@ -220,4 +220,18 @@ def psi_supremum(psi: Psi, robots: tuple[int, ...], eta: float, workspace: Works
     ``poses``: (robot, (x, y, θ)) start poses to begin the ascent from (cached per arguments)."""
     compiled = StraightLinePsi(psi, robots, eta)
     starts = grid_starts(robots, workspace, dict(poses))
-    return maximize(compiled.value_grad, robots, workspace, starts)
+    best = maximize(compiled.value_grad, robots, workspace, starts)
+    if len(robots) > 1:
+        # a joint step that a separation pushes back moves the partner too, off its optimum:
+        # rounds of one robot at a time (the others fixed) slide along the constraint
+        for _ in range(3):
+            before = best.value
+            for k in range(len(robots)):
+                free = [j == k for j in range(len(robots))]
+                found = maximize(compiled.value_grad, robots, workspace, [best.state], free=free,
+                                 step=0.1)
+                if found.value > best.value:
+                    best = found
+            if best.value - before < 1e-9:
+                break
+    return best

@@ -60,14 +60,17 @@ def smoothing_offset(n: int, eta: float) -> float:
 
 
 def design_rate(task: Task, state: Sequence[float], robot: int, rho: float, level: float,
-                max_lin: float, max_ang: float) -> float:
+                max_lin: float, max_ang: float, at_least: float = 0.0) -> float:
     """The rate v [1/s] at which robot ``robot`` can raise ρ^ψ (= ``rho`` now) towards ``level``:
-    (level − ρ)/T with T the minimal-time bound of the conjuncts aimed at level + ln(n)/η;
-    the gradient rate u_lin·‖∂ρ/∂z_i‖ + u_ang·|∂ρ/∂θ_i| of the smooth ρ^ψ when ρ is at the level
-    already (or no conjunct needs time); 0 when robot i cannot move ρ^ψ at all."""
+    (level − ρ)/T with T the minimal-time bound of the conjuncts aimed at level + ln(n)/η, or
+    ``at_least`` [s] if that is longer (e.g. the distance to the set where the conjuncts all
+    hold at once, which the bound of separate conjuncts does not see); the gradient rate
+    u_lin·‖∂ρ/∂z_i‖ + u_ang·|∂ρ/∂θ_i| of the smooth ρ^ψ when ρ is at the level already (or no
+    conjunct needs time); 0 when robot i cannot move ρ^ψ at all."""
     rates = conjunct_rates(task, state, robot, max_lin, max_ang)
     if level > rho:
-        t = minimal_time(rates, level, smooth=smoothing_offset(len(rates), task.eta))
+        t = max(minimal_time(rates, level, smooth=smoothing_offset(len(rates), task.eta)),
+                at_least)
         if t > 0.0:
             return (level - rho) / t
     _, grad = task.compiled.value_grad(state)
