@@ -100,9 +100,22 @@ def _present_figures(run_dir: Path, data: dict[str, Any]) -> list[Path]:
 
 def stl_goals(scenario: Scenario, window: tuple[float, float]
               ) -> list[tuple[int, float, float, float]]:
-    """The STL goal points of the sub-tasks active in ``window`` [s]: every predicate
-    ``dist(p_i, [x, y]) <= c`` (or ``<``) with constants x, y, c, as ``(i, x, y, c)`` — what the
-    trajectory figures mark (× and the tolerance circle)."""
+    """The STL goal points of the sub-tasks active in ``window`` [s] (sharing more than an
+    instant with it), as ``(i, x, y, c)``: what the trajectory figures mark (× and the tolerance
+    circle)."""
+    a, b = window
+    out: list[tuple[int, float, float, float]] = []
+    for _robot, start, end, goal in subtask_goals(scenario):
+        if start < b and end > a and goal not in out:
+            out.append(goal)
+    return out
+
+
+def subtask_goals(scenario: Scenario
+                  ) -> list[tuple[int, float, float, tuple[int, float, float, float]]]:
+    """Every STL sub-task's goal points: each predicate ``dist(p_i, [x, y]) <= c`` (or ``<``)
+    with constants x, y, c [m], as ``(robot, a, b, (i, x, y, c))`` with the sub-task's window
+    [a, b] [s]."""
     from tlfleet.agent.stl import syntax as stl
 
     def constant(expr: Any) -> float | None:
@@ -129,13 +142,8 @@ def stl_goals(scenario: Scenario, window: tuple[float, float]
                     found.append((own.robot, x, y, tolerance))
         return found
 
-    a, b = window
-    out: list[tuple[int, float, float, float]] = []
-    for robot in scenario.robots:
-        for tree in robot_subtasks(robot):
-            if tree.a < b and tree.b > a:  # shares more than an instant with the window
-                out += [g for g in goals_of(tree.body) if g not in out]
-    return out
+    return [(robot.id, tree.a, tree.b, goal) for robot in scenario.robots
+            for tree in robot_subtasks(robot) for goal in goals_of(tree.body)]
 
 
 def _collect(files: RunFiles, summary: dict[str, Any] | None = None
