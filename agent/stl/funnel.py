@@ -291,7 +291,7 @@ def received_funnel_problem(funnel: Funnel, kind: str, a: float, b: float) -> st
         return (f"funnel of {funnel.kind}[{funnel.a:g},{funnel.b:g}], the sub-task is "
                 f"{kind}[{a:g},{b:g}]")
     values = (funnel.rho_opt, funnel.rho_max, funnel.r, funnel.gamma0, funnel.gamma_inf,
-              funnel.l, funnel.t_star, funnel.t_r, funnel.zeta_u)
+              funnel.l, funnel.t_star, funnel.t_r, funnel.zeta_u, funnel.ramp, funnel.t_knee)
     if not all(math.isfinite(v) for v in values):
         return "funnel with a value that is not finite"
     if not 0.0 < funnel.gamma_inf <= funnel.gamma0:
@@ -300,6 +300,8 @@ def received_funnel_problem(funnel: Funnel, kind: str, a: float, b: float) -> st
         return "funnel needs gamma_inf < rho_max - r"
     if funnel.l < 0.0:
         return f"funnel needs l = {funnel.l:.6g} >= 0"
+    if funnel.ramp < 0.0 or (funnel.ramp > 0.0 and funnel.t_knee < funnel.t_r):
+        return "funnel needs ramp >= 0, and t_knee >= t_r with a ramp"
     return None
 
 

@@ -37,7 +37,8 @@ def funnels(task) -> list[Funnel]:
     window, and degenerate ones the codec lets through (γ_∞ = 0, NaN, l < 0)."""
     fit = Funnel.init(task.kind, task.a, task.b, rho_opt=1.0, rho0=0.2, t_r=task.a - 1.0)
     return [fit, replace(fit, a=task.a + 1.0, b=task.b + 5.0), replace(fit, gamma_inf=0.0),
-            replace(fit, r=math.nan, rho_max=math.nan), replace(fit, l=-3.0, gamma0=-1.0)]
+            replace(fit, r=math.nan, rho_max=math.nan), replace(fit, l=-3.0, gamma0=-1.0),
+            replace(fit, ramp=1e6, t_knee=fit.t_r - 5.0), replace(fit, ramp=-1.0)]
 
 
 def poses_at(scenario) -> tuple[tuple[int, float, float, float], ...]:
@@ -89,7 +90,7 @@ def test_every_well_formed_collaboration_message_leaves_every_agent_alive(name):
                             replace(frame, t=t + 0.01 * step), inbox))
                         assert all(math.isfinite(u) for u in out.u), (msg, out.u)
         link.close()
-    combinations = len(agents) * len(senders) * len(subtasks) * len(times) * (2 * 5 + 2)
+    combinations = len(agents) * len(senders) * len(subtasks) * len(times) * (2 * 7 + 2)
     assert sent == combinations and refused > 0, (sent, combinations, refused)
     coupled = any(len(task.v_ctrl) > 1 for task in library.values())
     assert (followed > 0) == coupled  # a scenario with coupled sub-tasks has requests to follow
