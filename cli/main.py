@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("monitor", "STL robustness of a recorded trajectory"),
     "router": ("router", "run a zenoh router for a fleet"),
     "sim": ("sim", "run the pymunk simulator process of a scenario"),
+    "hw": ("hw", "run the hardware bridge: real robots on ROS 2 in the simulator's place"),
     "agent": ("agent", "run the agent process of one robot"),
     "run": ("run", "launch, supervise and record a whole fleet"),
     "keys": ("keys", "write a fleet CA, per-process certificates and the router's ACL policy"),

@@ -95,6 +95,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
+    parser.add_argument("--hardware", type=Path, default=None, metavar="LAB.toml",
+                        help="real robots on ROS 2: start `tlfleet hw --lab LAB.toml` in the "
+                             "simulator's place (realtime only; docs/hardware.md)")
+    parser.set_defaults(mode=None)  # lockstep, or realtime with --hardware
 
 
 class ProgressBar:
@@ -180,6 +184,16 @@ def run_hosts(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.hardware is not None:
+        if args.mode == "lockstep":
+            print("tlfleet run: --hardware runs in realtime only: real robots do not wait for a "
+                  "lockstep tick (drop --lockstep)", file=sys.stderr)
+            return 2
+        if args.hosts or args.faults:
+            print("tlfleet run: --hardware cannot be combined with --hosts or --fault (they act "
+                  "on the simulator's processes and links)", file=sys.stderr)
+            return 2
+    args.mode = args.mode or ("realtime" if args.hardware is not None else "lockstep")
     if not args.hosts:
         from tlfleet.coordinator.faults.plan import hosts_for
 
@@ -206,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
         report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        direct_links=args.direct_links, sched=args.sched,
+        direct_links=args.direct_links, sched=args.sched, hardware=args.hardware,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

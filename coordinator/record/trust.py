@@ -24,7 +24,7 @@ from collections.abc import Collection
 from typing import Any
 
 SIM_KINDS = frozenset({"sim_done", "sim_stats", "contact", "deadline_miss", "watchdog_stop",
-                       "stale_command"})
+                       "stale_command", "tracking_lost", "geofence"})  # the last two: tlfleet hw
 AGENT_KINDS = frozenset({"agent_stats", "stale_mocap", "resumed", "plan_ready", "fault"})
 FLAGGED = "flagged_event"
 

@@ -1,0 +1,248 @@
+"""One ROS test case, run inside an isolated namespace by :func:`ros_harness.run_case`.
+
+``python ros_case.py CASE.json`` starts the case's processes — the fake robots
+(:mod:`fake_robots`), and either ``tlfleet run SCENARIO --hardware LAB`` (``"kind": "run"``) or a
+zenoh router plus ``tlfleet hw`` driven by this script standing in for the coordinator and the
+agents (``"kind": "bridge"``) — performs the case's steps and writes ``result.json`` beside the
+case file: what this script saw on zenoh (events, frames), when it did what (CLOCK_MONOTONIC),
+the bridge's exit code and time, and the commands the fake robots received. Every process is
+stopped in ``finally``; every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from ros_harness import FAKE_ROBOTS, fake_robot_specs, lab_toml, received, wait_file
+from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.protocol import keys
+from tlfleet.bus.protocol.codec import decode, encode
+from tlfleet.bus.protocol.messages import Command, Control, Event, MocapFrame
+from tlfleet.bus.transport import TransportConfig
+from tlfleet.bus.zenoh.transport import open_transport
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def tlfleet(*args: str) -> list[str]:
+    return [sys.executable, "-m", "tlfleet.cli", *args]
+
+
+class Fleet:
+    """This script as coordinator and agents, on zenoh."""
+
+    def __init__(self, fleet: str, endpoint: str):
+        self.fleet = fleet
+        self.t = open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+        self.lock = threading.Lock()
+        self.frame: MocapFrame | None = None
+        self.frames = 0
+        self.events: list[dict] = []
+        self.handles = [
+            self.t.subscribe(keys.mocap(fleet), self._on_frame),
+            self.t.subscribe(keys.event(fleet), self._on_event),
+        ]
+
+    def _on_frame(self, _key: str, payload: bytes) -> None:
+        frame = decode(MocapFrame, payload)
+        with self.lock:
+            self.frame = frame
+            self.frames += 1
+
+    def _on_event(self, _key: str, payload: bytes) -> None:
+        event = decode(Event, payload)
+        with self.lock:
+            self.events.append({"t": event.t, "kind": event.kind, "data": event.data,
+                                "wall": time.monotonic()})
+
+    def newest(self) -> MocapFrame | None:
+        with self.lock:
+            return self.frame
+
+    def control(self, cmd: str) -> None:
+        self.t.publish(keys.control(self.fleet), encode(Control(cmd)))
+
+    def command(self, robot: int, u: list[float]) -> None:
+        frame = self.newest()
+        t, seq = (frame.t, frame.seq) if frame is not None else (0.0, 0)
+        self.t.publish(keys.cmd(self.fleet, robot), encode(Command(robot, t, seq, tuple(u))))
+
+    def close(self) -> None:
+        for h in self.handles:
+            h.close()
+        self.t.close()
+
+
+def goto_command(kind: str, pose: tuple[float, float, float], goal: list[float],
+                 spin: float) -> list[float]:
+    """A plain go-to-point law (world-frame for omni robots, spinning at ``spin`` [rad/s] so a
+    wrong body-frame rotation sends the robot astray)."""
+    x, y, yaw = pose
+    dx, dy = goal[0] - x, goal[1] - y
+    d = math.hypot(dx, dy)
+    if kind == "omni":
+        speed = min(0.18, 1.5 * d)
+        return [speed * dx / d if d > 1e-9 else 0.0, speed * dy / d if d > 1e-9 else 0.0, spin]
+    heading = math.atan2(dy, dx)
+    err = math.atan2(math.sin(heading - yaw), math.cos(heading - yaw))
+    v = min(0.25, 1.2 * d) * max(0.0, math.cos(err))
+    return [v, max(-1.0, min(1.0, 2.5 * err))]
+
+
+def main(case_path: str) -> int:
+    case_file = Path(case_path)
+    case = json.loads(case_file.read_text())
+    tmp = case_file.parent
+    scenario = load_scenario(case["scenario"])
+    domain = int(case["domain_id"])
+    overrides = {int(k): v for k, v in case.get("robots", {}).items()}
+    lab = tmp / "lab.toml"
+    lab.write_text(lab_toml([(r.id, r.kind) for r in scenario.robots],
+                            int(case.get("lab_domain", domain)),
+                            **case.get("lab", {})))
+    log = tmp / "received.jsonl"
+    ready = tmp / "robots.ready"
+    robots_config = tmp / "robots.json"
+    robots_config.write_text(json.dumps({
+        "domain_id": domain, "log": str(log), "ready": str(ready),
+        "robots": fake_robot_specs(scenario, **overrides)}))
+    procs: dict[str, subprocess.Popen] = {}
+    result: dict = {"marks": {}}
+    fleet: Fleet | None = None
+    try:
+        procs["robots"] = subprocess.Popen([sys.executable, str(FAKE_ROBOTS), str(robots_config)])
+        if not wait_file(ready, 30.0):
+            raise RuntimeError("the fake robots did not come up within 30 s")
+        if case["kind"] == "run":
+            argv = tlfleet("run", case["scenario"], "--hardware", str(lab), "--out",
+                           str(tmp / "run"), "--no-rrd", "--no-figures", "--quiet",
+                           *case.get("args", []))
+            start = time.monotonic()
+            proc = subprocess.run(argv, timeout=float(case.get("timeout", 300)),
+                                  capture_output=True, text=True)
+            result.update(returncode=proc.returncode, stdout=proc.stdout[-4000:],
+                          stderr=proc.stderr[-4000:], wall=time.monotonic() - start,
+                          run_dir=str(tmp / "run"))
+        elif case["kind"] == "check":
+            proc = subprocess.run(tlfleet("hw", case["scenario"], "--lab", str(lab), "--check",
+                                          "--check-wait", "2"),
+                                  timeout=60, capture_output=True, text=True)
+            result.update(returncode=proc.returncode, stdout=proc.stdout, stderr=proc.stderr)
+        else:
+            fleet = bridge_case(case, scenario, lab, procs, result, tmp)
+    finally:
+        for name, proc in reversed(list(procs.items())):
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+                try:
+                    proc.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+            result.setdefault("exit", {})[name] = proc.returncode
+        if fleet is not None:
+            result["events"] = fleet.events
+            result["frames"] = fleet.frames
+            fleet.close()
+        result["received"] = received(log)
+        final = ready.read_text() if ready.exists() else ""
+        result["robots_final"] = json.loads(final)["final"] if final.startswith("{") else None
+        (tmp / "result.json").write_text(json.dumps(result))
+    return 0
+
+
+def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
+                tmp: Path) -> Fleet:
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    procs["router"] = subprocess.Popen(tlfleet("router", "--fleet", scenario.fleet, "--listen",
+                                               endpoint))
+    deadline = time.monotonic() + 20
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+            break
+        except OSError:
+            if time.monotonic() > deadline:
+                raise RuntimeError("the router did not listen within 20 s") from None
+            time.sleep(0.1)
+    hw_log = open(tmp / "hw.log", "w")  # noqa: SIM115 (the child writes it; closed at exit)
+    procs["bridge"] = subprocess.Popen(
+        tlfleet("-v", "hw", case["scenario"], "--lab", str(lab), "--connect", endpoint,
+                "--wait-mocap", str(case.get("wait_mocap", 10)), *case.get("args", [])),
+        stdout=hw_log, stderr=subprocess.STDOUT)
+    fleet = Fleet(scenario.fleet, endpoint)
+    kinds = {r.id: r.kind for r in scenario.robots}
+    marks = result["marks"]
+    deadline = time.monotonic() + 30
+    while fleet.newest() is None and procs["bridge"].poll() is None:
+        if time.monotonic() > deadline:
+            raise RuntimeError("no frame from the bridge within 30 s")
+        time.sleep(0.05)
+    for step in case["steps"]:
+        do = step["do"]
+        marks.setdefault(do, []).append(time.monotonic())
+        if procs["bridge"].poll() is not None and do not in ("wait_exit",):
+            break
+        if do == "start":
+            fleet.control("start")
+        elif do == "stop":
+            fleet.control("stop")
+        elif do == "sleep":
+            time.sleep(float(step["s"]))
+        elif do == "stream":
+            # commands at each robot's rate (Hz) for `s` seconds; `u` per robot (or goto goals)
+            end = time.monotonic() + float(step["s"])
+            rates = {int(r): float(hz) for r, hz in step["rates"].items()}
+            due = dict.fromkeys(rates, time.monotonic())
+            goals = {int(r): g for r, g in step.get("goals", {}).items()}
+            while time.monotonic() < end:
+                now = time.monotonic()
+                frame = fleet.newest()
+                for robot, hz in rates.items():
+                    if now < due[robot]:
+                        continue
+                    due[robot] = now + 1.0 / hz
+                    if robot in goals and frame is not None:
+                        u = goto_command(kinds[robot], frame.pose(robot), goals[robot],
+                                         float(step.get("spin", 0.0)))
+                    else:
+                        u = step["u"][str(robot)]
+                    fleet.command(robot, u)
+                time.sleep(0.002)
+            frame = fleet.newest()
+            if frame is not None:
+                result.setdefault("poses", []).append(
+                    {str(r): list(frame.pose(r)) for r in kinds})
+        elif do == "sigterm":
+            procs["bridge"].send_signal(signal.SIGTERM)
+        elif do == "wait_exit":
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                procs["bridge"].wait(timeout=float(step.get("s", 15)))
+            marks["bridge_exit"] = [time.monotonic()]
+        else:
+            raise ValueError(f"unknown step {do!r}")
+    bridge = procs["bridge"]
+    if bridge.poll() is None:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            bridge.wait(timeout=float(case.get("end_wait", 0.1)))
+    result["bridge_rc"] = bridge.poll()
+    hw_log.close()
+    return fleet
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
