@@ -76,7 +76,7 @@ def check(args: argparse.Namespace) -> int:
         print(f"robot {row.robot} {row.role:5s} {row.topic} [{row.expected_type}]: "
               f"{len(row.endpoints)} {who} — {status}")
         for e in row.endpoints:
-            print(f"    {e.node}  {e.type}  {e.reliability}/{e.durability} depth {e.depth}")
+            print(f"    {e.node}  {e.type}  {e.reliability}/{e.durability}")
     print("if the bridge crashes, each robot stops on its own command timeout:")
     for robot in lab.robots:
         timeout = (f"{robot.robot_timeout:g} s" if robot.robot_timeout is not None

@@ -183,8 +183,7 @@ class Endpoint:
     node: str
     type: str
     reliability: str
-    durability: str
-    depth: int
+    durability: str  # (DDS discovery does not carry the history depth)
 
 
 @dataclass(frozen=True)
@@ -229,7 +228,7 @@ def _endpoint(info: Any) -> Endpoint:
     qos = info.qos_profile
     return Endpoint(node=f"{info.node_namespace.rstrip('/')}/{info.node_name}",
                     type=info.topic_type, reliability=_policy(qos.reliability),
-                    durability=_policy(qos.durability), depth=int(qos.depth))
+                    durability=_policy(qos.durability))
 
 
 def _policy(value: Any) -> str:

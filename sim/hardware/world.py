@@ -73,6 +73,7 @@ class HardwareWorld:
         self.robots = {r: _Commanded() for r in self.ids}
         self._poses: dict[int, tuple[float, float, float]] = {}
         self._events: list[SafetyEvent] = []
+        self._stopped: list[int] = []  # robots the watchdog stopped, not reported yet
         self._touching: set[tuple[int, int | str, str]] = set()
         self._contacts: list[Contact] = []
         self.t0: float | None = None  # [s] wall time of the mission's start
@@ -133,24 +134,28 @@ class HardwareWorld:
     # ----------------------------------------------------------------- the loop's clock
 
     def check_watchdog(self, t: float) -> list[int]:
-        """Run the safety rules now; the robots the command watchdog stopped now."""
-        return self._tick()
+        """Run the safety rules now; the robots the command watchdog stopped since the last
+        call (by this or by :meth:`step`)."""
+        self._tick()
+        with self._lock:
+            stopped, self._stopped = self._stopped, []
+        return stopped
 
     def step(self, duration: float, *, draw_disturbance: bool = True) -> None:
         """Time passes by itself; run the rules (keep-alive, tracking, geofence)."""
         self._tick()
 
-    def _tick(self) -> list[int]:
+    def _tick(self) -> None:
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)
             self._send(sends)
+            self._stopped.extend(stopped)
             self._events.extend(events)
             self._find_contacts()
         for event in events:
             logger.error("%s: every robot held at zero for the rest of the run (%s)",
                          event.kind, event.data)
-        return stopped
 
     def stop_all(self, repeats: int = 1) -> None:
         """Zero to every robot, ``repeats`` times; no command goes out afterwards."""

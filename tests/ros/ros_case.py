@@ -118,7 +118,7 @@ def main(case_path: str) -> int:
     robots_config = tmp / "robots.json"
     robots_config.write_text(json.dumps({
         "domain_id": domain, "log": str(log), "ready": str(ready),
-        "robots": fake_robot_specs(scenario, **overrides)}))
+        "robots": fake_robot_specs(scenario, overrides)}))
     procs: dict[str, subprocess.Popen] = {}
     result: dict = {"marks": {}}
     fleet: Fleet | None = None
@@ -241,6 +241,7 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
             bridge.wait(timeout=float(case.get("end_wait", 0.1)))
     result["bridge_rc"] = bridge.poll()
     hw_log.close()
+    result["hw_log"] = (tmp / "hw.log").read_text(errors="replace")[-6000:]
     return fleet
 
 

@@ -103,7 +103,7 @@ def robot_name(robot_id: int) -> str:
 
 def lab_toml(robots: Iterable[tuple[int, str]], domain: int, *, stamp: str = "now",
              lost_after: float = 0.2, repeat_hz: float = 20.0, margin: float = 0.3,
-             cmd_types: dict[int, str] | None = None) -> str:
+             cmd_types: dict[str, str] | None = None, robot_timeout: float = 0.3) -> str:
     """A lab file for fake robots ``(id, kind)``: vrpn-style pose topics, TwistStamped (or
     ``cmd_types[id]``) commands on ``/<name>/cmd_vel``."""
     lines = ["[ros]", f"domain_id = {domain}", 'discovery_range = "LOCALHOST"',
@@ -111,17 +111,17 @@ def lab_toml(robots: Iterable[tuple[int, str]], domain: int, *, stamp: str = "no
              "[safety]", f"geofence_margin = {margin}", ""]
     for robot_id, _kind in robots:
         name = robot_name(robot_id)
-        cmd_type = (cmd_types or {}).get(robot_id, "geometry_msgs/msg/TwistStamped")
+        cmd_type = (cmd_types or {}).get(str(robot_id), "geometry_msgs/msg/TwistStamped")
         lines += ["[[robots]]", f"id = {robot_id}",
                   f'mocap = {{ topic = "/vrpn_mocap/{name}/pose", '
                   f'type = "geometry_msgs/msg/PoseStamped" }}',
                   f'cmd = {{ topic = "/{name}/cmd_vel", type = "{cmd_type}", '
                   f'repeat_hz = {repeat_hz} }}',
-                  "robot_timeout = 0.3", ""]
+                  f"robot_timeout = {robot_timeout}", ""]
     return "\n".join(lines)
 
 
-def fake_robot_specs(scenario, **overrides) -> list[dict]:
+def fake_robot_specs(scenario, overrides: dict[int, dict] | None = None) -> list[dict]:
     """One fake robot per scenario robot at its start pose: a unicycle for a unicycle, a mecanum
     car for an omni robot, with the scenario's acceleration limits; ``overrides``: per-robot
     dicts by id (noise, latency, dropout, lose_after, mocap_reliable, cmd_type…)."""
@@ -135,7 +135,7 @@ def fake_robot_specs(scenario, **overrides) -> list[dict]:
         spec = {"name": name, "kind": "mecanum" if robot.kind == "omni" else "unicycle",
                 "pose": list(robot.pose), "cmd_topic": f"/{name}/cmd_vel",
                 "cmd_timeout": 0.3, **acc, "seed": robot.id}
-        spec.update(overrides.get(robot.id, {}))
+        spec.update((overrides or {}).get(robot.id, {}))
         specs.append(spec)
     return specs
 
