@@ -172,12 +172,6 @@ def check_lab(lab: Lab, scenario: Scenario) -> None:
             raise ScenarioError(source, f"robots[{index}].id",
                                 f"robot {robot.id} is not in scenario {scenario.name!r} "
                                 f"(its robots: {', '.join(map(str, sorted(ids)))})")
-    missing = sorted(ids - {r.id for r in lab.robots})
-    if missing:
-        listed = ", ".join(map(str, missing))
-        raise ScenarioError(source, "robots",
-                            f"scenario {scenario.name!r} has robot(s) {listed} without a "
-                            f"[[robots]] entry (mocap and cmd topics)")
     for index, robot in enumerate(lab.robots):
         if robot.robot_timeout is not None and 1.0 / robot.repeat_hz >= robot.robot_timeout:
             raise ScenarioError(source, f"robots[{index}].cmd.repeat_hz",
@@ -185,6 +179,12 @@ def check_lab(lab: Lab, scenario: Scenario) -> None:
                                 f"{1.0 / robot.repeat_hz:g} s, not within the robot's own "
                                 f"timeout robot_timeout = {robot.robot_timeout:g} s: it would "
                                 f"stop between two re-sends")
+    missing = sorted(ids - {r.id for r in lab.robots})
+    if missing:
+        listed = ", ".join(map(str, missing))
+        raise ScenarioError(source, "robots",
+                            f"scenario {scenario.name!r} has robot(s) {listed} without a "
+                            f"[[robots]] entry (mocap and cmd topics)")
 
 
 def _robot(table: _Table) -> LabRobot:
