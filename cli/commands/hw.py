@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import logging
 from pathlib import Path
 
 from tlfleet.bus.errors import TlfleetError
@@ -19,6 +20,18 @@ from tlfleet.cli.transport_flags import add_transport_arguments, transport_confi
 
 NAME = "hw"
 HELP = "run the hardware bridge: real robots on ROS 2 in the simulator's place"
+# a process's log says what it is doing (waiting for poses, for start) without -v
+DEFAULT_LOG_LEVEL = logging.INFO
+EXAMPLES = (
+    ("tlfleet hw my.toml --lab lab.toml --connect tcp/127.0.0.1:7447",
+     "drive the lab's robots for a fleet whose router listens on port 7447"),
+    ("tlfleet hw my.toml --lab lab.toml --check",
+     "list the lab's mocap and command topics as the ROS graph shows them, with their QoS"),
+)
+EXIT_CODES = {0: "the run ended (its duration, Control(stop), SIGINT or SIGTERM: every robot was "
+                 "sent zero); --check: the graph has what the lab file says",
+              1: "an invalid scenario or lab file, rclpy missing, a rigid body without poses, "
+                 "no router at --connect; --check: a topic missing or mismatched"}
 
 
 class RosMissing(TlfleetError):

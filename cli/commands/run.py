@@ -52,6 +52,8 @@ EXAMPLES = (
     ("tlfleet run my.toml --realtime -o runs/try1 --duration 30",
      "30 s of my.toml on wall-clock time, recorded in runs/try1"),
     ("tlfleet run scenario2 --json -q", "no progress bar; the result as JSON on stdout"),
+    ("tlfleet run my.toml --hardware lab.toml",
+     "real robots on ROS 2 (docs/hardware.md): `tlfleet hw` in the simulator's place, realtime"),
 )
 EXIT_CODES = {
     0: "clean: the run reached its end and every check passed",

@@ -77,6 +77,7 @@ class BridgeProcess(SimProcess):
                                 "does not wait for a lockstep tick")
         super().__init__(transport, scenario, config, stop, world=world)
         self._forward_lock = threading.Lock()
+        self._tick_clock: tuple[float, float | None] = (0.0, None)  # (t_k [s], wall [s])
         self.forwarded = 0
         self.held_back = 0
 
@@ -106,7 +107,11 @@ class BridgeProcess(SimProcess):
             self.world.check_command(robot, command.u)
         except ValueError:
             return
-        t = arrival - t0  # [s] the bridge's sim time is wall time since the start
+        # [s] sim time now on the frames' clock: the newest tick's time plus the wall time
+        # since it went out (after an overrun the loop's schedule restarts, and sim time lags
+        # wall time since the start; the agents stamp their commands with frame times)
+        tick_t, tick_wall = self._tick_clock
+        t = tick_t + max(0.0, arrival - tick_wall) if tick_wall is not None else arrival - t0
         fresh, started = self.ages.fresh([command], t)
         for stale in started:
             logger.warning("robot %d: command for t = %.3f s is %.3f s old at t = %.3f s: "
@@ -140,6 +145,11 @@ class BridgeProcess(SimProcess):
                 self._frame0 = self.world.mocap_poses()
                 return True
         return False
+
+    def _publish_tick(self, k: int, due: tuple[int, ...]) -> None:
+        published = self._now()
+        super()._publish_tick(k, due)
+        self._tick_clock = (self.clock.time(k), published)
 
     def _run_realtime(self) -> None:
         self.world.start()

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import signal
 import socket
 import subprocess
@@ -35,6 +36,18 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def cpu_seconds(procs: dict[str, subprocess.Popen]) -> dict[str, float]:
+    """CPU time [s] (user + system) of each live process so far."""
+    out = {}
+    for name, proc in procs.items():
+        try:
+            fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+            out[name] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, IndexError, ValueError):
+            continue
+    return out
 
 
 def tlfleet(*args: str) -> list[str]:
@@ -122,6 +135,7 @@ def main(case_path: str) -> int:
     procs: dict[str, subprocess.Popen] = {}
     result: dict = {"marks": {}}
     fleet: Fleet | None = None
+    started = time.monotonic()
     try:
         procs["robots"] = subprocess.Popen([sys.executable, str(FAKE_ROBOTS), str(robots_config)])
         if not wait_file(ready, 30.0):
@@ -144,6 +158,8 @@ def main(case_path: str) -> int:
         else:
             fleet = bridge_case(case, scenario, lab, procs, result, tmp)
     finally:
+        result["wall"] = time.monotonic() - started
+        result["cpu"] = cpu_seconds(procs)
         for name, proc in reversed(list(procs.items())):
             if proc.poll() is None:
                 proc.send_signal(signal.SIGTERM)
@@ -228,6 +244,7 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
                 result.setdefault("poses", []).append(
                     {str(r): list(frame.pose(r)) for r in kinds})
         elif do == "sigterm":
+            result["cpu_before_sigterm"] = cpu_seconds(procs)
             procs["bridge"].send_signal(signal.SIGTERM)
         elif do == "wait_exit":
             with contextlib.suppress(subprocess.TimeoutExpired):

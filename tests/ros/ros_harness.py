@@ -44,11 +44,16 @@ def need_ros() -> None:
 
 
 def isolated_argv(argv: list[str], shm_mb: int = 256) -> list[str]:
-    """``argv`` run in a new network namespace (only ``lo``, up) with a private ``/dev/shm``."""
+    """``argv`` run in a new network namespace (only ``lo``, up) with a private ``/dev/shm``,
+    under ``SCHED_FIFO`` priority 1 where ``chrt`` is there (inherited by every process of the
+    case): as ``tlfleet run`` schedules a fleet where it may, so that on a loaded machine the
+    realtime bridge, the fake robots (on their own computers in a lab) and the case's stand-in
+    agents are woken on time, as the realtime tests of the simulator are."""
     script = (f"mount -t tmpfs -o size={shm_mb}m tlfleet-shm /dev/shm && ip link set lo up && "
               'exec "$@"')
-    return ["unshare", "--net", "--mount", "--propagation", "private", "--", "sh", "-c", script,
-            "sh", *argv]
+    fifo = ["chrt", "-f", "1"] if shutil.which("chrt") else []
+    return [*fifo, "unshare", "--net", "--mount", "--propagation", "private", "--", "sh", "-c",
+            script, "sh", *argv]
 
 
 def ros_env(domain: int) -> dict[str, str]:
@@ -102,7 +107,7 @@ def robot_name(robot_id: int) -> str:
 
 
 def lab_toml(robots: Iterable[tuple[int, str]], domain: int, *, stamp: str = "now",
-             lost_after: float = 0.2, repeat_hz: float = 20.0, margin: float = 0.3,
+             lost_after: float = 0.5, repeat_hz: float = 20.0, margin: float = 0.3,
              cmd_types: dict[str, str] | None = None, robot_timeout: float = 0.3) -> str:
     """A lab file for fake robots ``(id, kind)``: vrpn-style pose topics, TwistStamped (or
     ``cmd_types[id]``) commands on ``/<name>/cmd_vel``."""
