@@ -46,6 +46,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                          "compose-run.sh)"),
     "report": ("report", "regenerate report.md/json and figures of a run"),
     "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "export-mcap": ("export_mcap", "write a run directory as an MCAP file with ROS 2 messages "
+                                   "(Foxglove, ros2 bag)"),
+    "ros-mirror": ("ros_mirror", "publish a running fleet on ROS 2 for rviz2 and Foxglove "
+                                 "(read-only)"),
     "echo": ("echo", "print a running fleet's messages as JSON lines (by key name or pattern)"),
     "topics": ("topics", "list a running fleet's keys (kind, publisher, rate) and its processes"),
     "hz": ("hz", "rates of a running fleet's keys, once a second"),

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float, scenario_file
 from tlfleet.cli.conventions import add_json_argument, add_out_argument
@@ -119,6 +120,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
+    parser.add_argument("--mcap", action="store_true",
+                        help="also write run.mcap at the end: the run in ROS 2 messages for "
+                             "Foxglove and ros2 bag (tlfleet export-mcap; the tlfleet[ros2] extra)")
     parser.add_argument("--hardware", type=Path, default=None, metavar="LAB.toml",
                         help="real robots on ROS 2: start `tlfleet hw --lab LAB.toml` in the "
                              "simulator's place (realtime only; docs/hardware.md)")
@@ -206,6 +210,16 @@ def result_json(result: RunResult) -> dict:
         "data": (json.loads(report_path.read_text()) if result.report is not None
                  and report_path.is_file() else result.summary),
     }
+
+
+def _write_mcap(run_dir: Path, report) -> None:
+    """``--mcap``: run.mcap beside the report; a failure is reported, never fails the run."""
+    try:
+        from tlfleet.coordinator.report.mcap_export import export_mcap
+
+        report(f"wrote {export_mcap(run_dir)}")
+    except (ImportError, TlfleetError, OSError) as exc:
+        report(f"run.mcap not written: {exc}")
 
 
 def print_outputs(result: RunResult, as_json: bool = False) -> None:
@@ -311,6 +325,8 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if bar is not None:
                 bar.end()
+    if args.mcap:
+        _write_mcap(result.run_dir, report)
     print_outputs(result, as_json=args.json)
     verdict = result.verdict
     if result.viewer is not None:

@@ -66,7 +66,7 @@ class Fleet:
         self.events: list[dict] = []
         self.handles = [
             self.t.subscribe(keys.mocap(fleet), self._on_frame),
-            self.t.subscribe(keys.event(fleet), self._on_event),
+            self.t.subscribe(keys.all_events(fleet), self._on_event),
         ]
 
     def _on_frame(self, _key: str, payload: bytes) -> None:
