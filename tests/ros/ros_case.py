@@ -150,6 +150,8 @@ def main(case_path: str) -> int:
             result.update(returncode=proc.returncode, stdout=proc.stdout[-4000:],
                           stderr=proc.stderr[-4000:], wall=time.monotonic() - start,
                           run_dir=str(tmp / "run"))
+        elif case["kind"] == "mirror":
+            mirror_case(case, tmp, procs, result)
         elif case["kind"] == "check":
             proc = subprocess.run(tlfleet("hw", case["scenario"], "--lab", str(lab), "--check",
                                           "--check-wait", "2"),
@@ -178,6 +180,78 @@ def main(case_path: str) -> int:
         result["robots_final"] = json.loads(final)["final"] if final.startswith("{") else None
         (tmp / "result.json").write_text(json.dumps(result))
     return 0
+
+
+def mirror_case(case: dict, tmp: Path, procs: dict, result: dict) -> None:
+    """A simulated realtime run, ``tlfleet ros-mirror`` joined to it, and an rclpy node here
+    recording what the mirror publishes."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PoseArray, PoseStamped
+    from nav_msgs.msg import Odometry
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+    from visualization_msgs.msg import MarkerArray
+
+    run_dir = tmp / "run"
+    procs["run"] = subprocess.Popen(tlfleet(
+        "run", case["scenario"], "--realtime", "--duration", str(case["duration"]), "--out",
+        str(run_dir), "--no-report", "--no-figures", "--no-rrd", "--quiet"),
+        stdout=subprocess.DEVNULL, stderr=open(tmp / "run.log", "w"))  # noqa: SIM115
+    deadline = time.monotonic() + 30
+    endpoint = None
+    while endpoint is None and time.monotonic() < deadline:
+        try:
+            endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+        except (OSError, ValueError, KeyError):
+            time.sleep(0.1)
+    if endpoint is None:
+        raise RuntimeError("the run wrote no endpoint within 30 s")
+    mirror_log = open(tmp / "mirror.log", "w")  # noqa: SIM115
+    procs["mirror"] = subprocess.Popen(tlfleet(
+        "ros-mirror", case["scenario"], "--connect", endpoint, "--domain-id",
+        str(case["domain_id"]), "--rate", "50"), stdout=mirror_log, stderr=subprocess.STDOUT)
+    rclpy.init(domain_id=int(case["domain_id"]))
+    node = rclpy.create_node("mirror_probe")
+    got: dict[str, list] = {}
+
+    def keep(topic, convert):
+        return lambda msg: got.setdefault(topic, []).append(convert(msg))
+
+    def stamp(h):
+        return h.stamp.sec + 1e-9 * h.stamp.nanosec
+
+    def q_yaw(q):
+        return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+    node.create_subscription(PoseStamped, "/tlfleet/robot1/pose", keep("pose1", lambda m: [
+        stamp(m.header), m.pose.position.x, m.pose.position.y, q_yaw(m.pose.orientation),
+        m.header.frame_id]), qos_profile_sensor_data)
+    node.create_subscription(Odometry, "/tlfleet/robot2/odom", keep("odom2", lambda m: [
+        stamp(m.header), m.pose.pose.position.x, m.twist.twist.linear.x,
+        m.twist.twist.linear.y, m.child_frame_id]), qos_profile_sensor_data)
+    node.create_subscription(PoseArray, "/tlfleet/poses", keep("array", lambda m: [
+        stamp(m.header), [[p.position.x, p.position.y] for p in m.poses]]),
+        qos_profile_sensor_data)
+    node.create_subscription(MarkerArray, "/tlfleet/scene", keep("scene", lambda m: [
+        [mk.ns, mk.text, mk.pose.position.x] for mk in m.markers]),
+        QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                   durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    node.create_subscription(DiagnosticArray, "/diagnostics", keep("diag", lambda m: [
+        [s.name, s.message, s.level[0] if isinstance(s.level, bytes) else s.level,
+         {kv.key: kv.value for kv in s.values}] for s in m.status]), 10)
+    end = time.monotonic() + float(case["duration"]) + 60
+    while time.monotonic() < end and procs["mirror"].poll() is None:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    for _ in range(20):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        procs["run"].wait(timeout=30)
+    result.update(mirror_rc=procs["mirror"].poll(), run_rc=procs["run"].poll(),
+                  got=got, run_dir=str(run_dir))
+    mirror_log.close()
+    result["mirror_log"] = (tmp / "mirror.log").read_text(errors="replace")[-3000:]
+    node.destroy_node()
+    rclpy.shutdown()
 
 
 def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
