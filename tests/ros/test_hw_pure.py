@@ -357,3 +357,10 @@ def test_contacts_from_the_poses_are_reported_at_their_onset(tmp_path):
     world.on_pose(2, 0.35, 0.0, 0.0)
     world.step(0.01)
     assert [(c.a, c.b) for c in world.drain_contacts()] == [(1, 2)]  # a new onset
+
+
+def test_the_documented_lab_fits_scenario_1():
+    root = HERE.parent.parent
+    lab = load_lab(root / "docs" / "labs" / "turtlebot4_vrpn.toml")
+    check_lab(lab, load_scenario(root / "scenarios" / "scenario1.toml"))
+    assert [r.cmd_type for r in lab.robots] == ["geometry_msgs/msg/TwistStamped"] * 5
