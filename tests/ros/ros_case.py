@@ -64,13 +64,26 @@ class Fleet:
         self.frame: MocapFrame | None = None
         self.frames = 0
         self.events: list[dict] = []
+        self.echo: tuple[int, ...] = ()
+        self.omni: set[int] = set()  # robots answered at once on every tick frame
+        self.echoed: dict[int, float] = {}  # seq -> CLOCK_MONOTONIC when its frame came
         self.handles = [
             self.t.subscribe(keys.mocap(fleet), self._on_frame),
             self.t.subscribe(keys.all_events(fleet), self._on_event),
         ]
 
     def _on_frame(self, _key: str, payload: bytes) -> None:
+        arrival = time.monotonic()
         frame = decode(MocapFrame, payload)
+        if self.echo and frame.seq > 0:
+            # an agent that answers at once, its angular rate coding the frame's seq (ω is
+            # neither rotated into the body frame nor clipped at 0.1 rad/s)
+            self.echoed[frame.seq] = arrival
+            for robot in self.echo:
+                u = (0.0, 0.0, seq_code(frame.seq)) if robot in self.omni else \
+                    (0.0, seq_code(frame.seq))
+                self.t.publish(keys.cmd(self.fleet, robot),
+                               encode(Command(robot, frame.t, frame.seq, u)))
         with self.lock:
             self.frame = frame
             self.frames += 1
@@ -97,6 +110,15 @@ class Fleet:
         for h in self.handles:
             h.close()
         self.t.close()
+
+
+def seq_code(seq: int) -> float:
+    """The angular rate [rad/s] that codes a frame's seq modulo 1000 (:func:`seq_of`)."""
+    return (seq % 1000 + 1) * 1e-4
+
+
+def seq_of(omega: float) -> int:
+    return round(omega * 1e4) - 1
 
 
 def goto_command(kind: str, pose: tuple[float, float, float], goal: list[float],
@@ -285,6 +307,7 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
     for step in case["steps"]:
         do = step["do"]
         marks.setdefault(do, []).append(time.monotonic())
+        result.setdefault("cpu_at", []).append([do, time.monotonic(), cpu_seconds(procs)])
         if procs["bridge"].poll() is not None and do not in ("wait_exit",):
             break
         if do == "start":
@@ -317,6 +340,12 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
             if frame is not None:
                 result.setdefault("poses", []).append(
                     {str(r): list(frame.pose(r)) for r in kinds})
+        elif do == "echo":
+            fleet.omni = {r for r, k in kinds.items() if k == "omni"}
+            fleet.echo = tuple(sorted(kinds))
+            time.sleep(float(step["s"]))
+            fleet.echo = ()
+            result["echoed"] = dict(fleet.echoed)
         elif do == "sigterm":
             result["cpu_before_sigterm"] = cpu_seconds(procs)
             procs["bridge"].send_signal(signal.SIGTERM)
