@@ -87,7 +87,10 @@ class DwaConfig:
     vtheta_samples: int = 20
     path_distance_bias: float = 64.0  # [1/m]
     goal_distance_bias: float = 24.0  # [1/m]
-    occdist_scale: float = 0.5  # [1/cost]
+    # ROS's 0.5 with ROS's path and goal biases per 0.05 m cell: ours are per metre (20× less),
+    # so the occupancy term is scaled alike; at 0.5 it outweighed progress next to wall ends and
+    # door frames and the robot stood still (docs/ltl-navigation.md §4)
+    occdist_scale: float = 0.025  # [1/cost]
     xy_goal_tolerance: float = 0.15  # [m]
     controller_period: float = 0.2  # [s] (5 Hz)
     forward_point_distance: float = 0.325  # [m] ROS default
