@@ -53,21 +53,21 @@ class Case:
         return CORPUS_DIR / f"{self.name}.toml"
 
 
-CORPUS: tuple[Case, ...] = (
-    Case("forbidden_on_path", 60.0),
-    Case("until_order", 45.0),
-    Case("sequence_with_wall"),
-    Case("request_response", 60.0),
-    Case("wall_door", 70.0),
-    Case("pillars", 90.0),
-    Case("corridor_080", 80.0),
-    Case("corridor_100", 80.0),
-    Case("corridor_120", 80.0),
-    Case("swap_corridor"),
+CORPUS: tuple[Case, ...] = (  # test durations: the task's lasso is met at seed 1 with ~10 % to spare
+    Case("forbidden_on_path", 70.0),
+    Case("until_order", 35.0),
+    Case("sequence_with_wall", 70.0),
+    Case("request_response", 70.0),
+    Case("wall_door", 85.0),
+    Case("pillars"),
+    Case("corridor_080"),
+    Case("corridor_100"),
+    Case("corridor_120"),
+    Case("swap_corridor", 50.0),
     Case("hall_crossing", slow=True),
     Case("warehouse_12x9", slow=True),
-    Case("shared_charger", 80.0),
-    Case("pick_then_home", 60.0),
+    Case("shared_charger", 75.0),
+    Case("pick_then_home", 45.0),
 )
 
 

@@ -283,7 +283,9 @@ class Executor:
         cfg = replace(base, robot_radius=robot.radius, dwa=dwa)
         grid = grid_from_arena(scenario.arena, robot.radius + cfg.inflation_margin, cfg.resolution)
         radii = tuple((r.id, r.radius) for r in scenario.robots if r.id != robot_id)
-        ruled = frozenset(r.id for r in scenario.robots if r.id != robot_id and r.is_ltl)
+        # the unicycles run this executor and apply the right-of-way rule; the STL robots do not
+        ruled = frozenset(r.id for r in scenario.robots
+                          if r.id != robot_id and r.kind == "unicycle")
         paths = RegionPaths(tuple(scenario.regions), grid, cfg.path_clearance)
         return Executor(scenario.regions, grid, cfg, radii, robot_id, ruled, paths)
 
@@ -432,7 +434,9 @@ class Executor:
         """
         entered, inside = self._entries(s, pose)
         s = evolve(s, inside=inside, prev_position=(float(pose[0]), float(pose[1])))
-        if s.mode not in (HOLD, LOST):
+        if s.mode == LOST:  # the task is lost: no progress is counted any more
+            return s
+        if s.mode != HOLD:
             s = self._pass_stays(s, t, events)
         for name in entered:
             if name == s.last_region:
@@ -612,9 +616,10 @@ class Executor:
                 centers, radii = self._stamps(pose, others, full=True,
                                               goal=self.region(target).center)
                 grid = grid.with_disc_blocks(centers, radii)
+            region = self.region(target)
             try:
-                plan_path(grid, pose[:2], self.region(target).center)
-                reachable = True
+                end = plan_path(grid, pose[:2], region.center).goal
+                reachable = region.contains(*end)  # not a free cell beside a robot on it
             except NoPathError:
                 reachable = False
         if reachable:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from tlfleet.agent.ltl.task import task_automaton
 from tlfleet.agent.model import Scenario
+from tlfleet.agent.policy.ltl import plan_all
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
 
@@ -28,9 +28,7 @@ def run(args: argparse.Namespace) -> int:
         if index:
             print()
         scenario = load_scenario(path)
-        for robot in scenario.robots:
-            if robot.ltl is not None:
-                task_automaton(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
+        plan_all(scenario)  # Algorithm 1 with the agents' map and rules, as `tlfleet plan` does
         print(summarise(scenario))
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")
