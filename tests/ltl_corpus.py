@@ -53,7 +53,8 @@ class Case:
         return CORPUS_DIR / f"{self.name}.toml"
 
 
-CORPUS: tuple[Case, ...] = (  # test durations: the task's lasso is met at seed 1 with ~10 % to spare
+# test durations: the task's lasso is met at seed 1 with about 10 % to spare
+CORPUS: tuple[Case, ...] = (
     Case("forbidden_on_path", 70.0),
     Case("until_order", 35.0),
     Case("sequence_with_wall", 70.0),

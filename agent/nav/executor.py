@@ -80,6 +80,8 @@ from tlfleet.agent.nav.traffic import (
     TrafficConfig,
     crossing_conflict,
     narrow_conflict,
+    narrow_intervals,
+    passing_width,
     refuge,
 )
 
@@ -157,19 +159,23 @@ class ExecutorOutputs:
 @dataclass(frozen=True, eq=False)
 class PathRequest:
     """A global re-plan decided at sim time ``t`` [s] and run later (:meth:`Executor.refresh`):
-    from ``start`` (2,) [m] to the centre ``goal`` (2,) [m] of region ``target``, with the other
-    robots stamped as discs ``centers`` (J, 2) [m], ``radii`` (J,) [m]; ``blocked``: stamped at
-    full size (step 4); on the keep-out grid of the transition between the ``allowed``
-    regions."""
+    from the ``pose`` (3,) [m, rad] to the centre ``goal`` (2,) [m] of region ``target``, with
+    the other robots ``others`` stamped as discs (``Executor._stamps``, at full size when
+    ``blocked``: step 4), on the keep-out grid of the transition between the ``allowed``
+    regions. The stamps are computed when the request runs, from these inputs, so a deferred
+    request costs the step nothing."""
 
     t: float
     target: str
     allowed: tuple[str | None, str]
-    start: np.ndarray
+    pose: np.ndarray
     goal: np.ndarray
-    centers: np.ndarray
-    radii: np.ndarray
+    others: MovingDiscs
     blocked: bool
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.pose[:2]
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,6 +195,8 @@ class ExecutorState:
     yield_to: int | None = None  # the robot we give way to (mode YIELD)
     yielded: float = 0.0  # [s] spent yielding on the way to the current target
     refuge: tuple[float, float] | None = None  # [m] where a yield in a passage waits
+    path_narrow: tuple[tuple[float, float], ...] = ()  # [m] arc lengths of the path's narrow
+    # stretches (``traffic.narrow_intervals``), found when the path is planned
     command: tuple[float, float] = (0.0, 0.0)  # last (v, ω) sent
     control_cycles: int = 0
     path: np.ndarray | None = None
@@ -263,6 +271,16 @@ class Executor:
         if self.paths is None:
             object.__setattr__(self, "paths", RegionPaths(
                 tuple(self.regions), self.grid, self.config.path_clearance))
+        # (name, x, y, radius, radius + hysteresis) [m] of every region, for the word's entries
+        object.__setattr__(self, "_discs", tuple(
+            (r.name, float(r.center[0]), float(r.center[1]), float(r.radius),
+             float(r.radius) + self.config.region_hysteresis) for r in self.regions))
+
+    @property
+    def _passing_width(self) -> float:
+        """The clearance below which the widest other robot cannot pass beside this one."""
+        widest = max((r for _, r in self.other_radii), default=self.config.default_other_radius)
+        return passing_width(self.config.robot_radius, widest, self.config.traffic)
 
     @staticmethod
     def from_scenario(
@@ -333,9 +351,7 @@ class Executor:
         events: list[NavEvent] = []
         s = self._take_note(self.refresh(state), events)  # a re-plan not run after the command
         frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
-        others = self._local_obstacles(s, frame, pose, t)
-        traffic = (self._traffic(s, frame, t) if self.config.traffic.enabled and len(frame)
-                   else None)
+        others, traffic = self._local_obstacles(s, frame, pose, t)
         s = evolve(s, control_cycles=s.control_cycles + 1, prev_others=frame, prev_time=t)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
@@ -349,7 +365,7 @@ class Executor:
             s, command = self._recover(s, pose, t, others, events, limits)
         else:
             s, command = self._navigate(s, pose, t, others, events, limits, traffic)
-        s = evolve(s, command=command)
+        s = evolve(s, command=command, prev_position=(float(pose[0]), float(pose[1])))
         for event in events:
             log.debug("t=%.2f %s", t, event)
         return s, ExecutorOutputs(
@@ -410,17 +426,18 @@ class Executor:
         dx, dy = px - ax, py - ay
         seg2 = dx * dx + dy * dy
         entered, inside = [], set(s.inside)
-        for region in self.regions:
-            cx, cy = region.center
-            if region.name in inside:
-                if math.hypot(px - cx, py - cy) > region.radius + self.config.region_hysteresis:
-                    inside.discard(region.name)
+        for name, cx, cy, radius, leave in self._discs:
+            if name in inside:
+                if math.hypot(px - cx, py - cy) > leave:
+                    inside.discard(name)
                 continue
             u = 0.0 if seg2 <= 0.0 else min(max(((cx - ax) * dx + (cy - ay) * dy) / seg2, 0.0),
                                             1.0)
-            if math.hypot(ax + u * dx - cx, ay + u * dy - cy) <= region.radius:
-                entered.append(region.name)
-                inside.add(region.name)
+            if math.hypot(ax + u * dx - cx, ay + u * dy - cy) <= radius:
+                entered.append(name)
+                inside.add(name)
+        if not entered and len(inside) == len(s.inside):
+            return entered, s.inside  # nothing changed (the common step)
         return sorted(entered), frozenset(inside)
 
     def _word(self, s: ExecutorState, pose: np.ndarray, t: float, events: list
@@ -433,10 +450,11 @@ class Executor:
         ``RegionEntered`` (the agent decides: replan or task lost); the plan does not advance.
         """
         entered, inside = self._entries(s, pose)
-        s = evolve(s, inside=inside, prev_position=(float(pose[0]), float(pose[1])))
+        if entered or inside != s.inside:
+            s = evolve(s, inside=inside)
         if s.mode == LOST:  # the task is lost: no progress is counted any more
             return s
-        if s.mode != HOLD:
+        if s.mode != HOLD and s.step == 0:  # the virtual start (later stays pass on arrival)
             s = self._pass_stays(s, t, events)
         for name in entered:
             if name == s.last_region:
@@ -515,29 +533,35 @@ class Executor:
 
     def _local_obstacles(
         self, s: ExecutorState, frame: np.ndarray, pose: np.ndarray, t: float
-    ) -> MovingDiscs:
+    ) -> tuple[MovingDiscs, Traffic | None]:
         """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
         cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
+        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``:
+        within its ``crossing_range``, or all of them when the path has a narrow stretch), or
+        None with the rule off.
 
         Plain floats over the few rows (issue 17), with the array form's operations:
         ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
         px, py = float(pose[0]), float(pose[1])
         local_range = self.config.local_range
-        near = []
+        rule = self.config.traffic
+        reach = (math.inf if s.path_narrow else rule.crossing_range) if rule.enabled else -1.0
+        rows = []
         for row in frame.tolist():
             if row[0] == self.robot_id:
                 continue
             dx, dy = row[1] - px, row[2] - py
-            if math.sqrt(dx * dx + dy * dy) <= local_range:
-                near.append(row)
-        if not near:
-            return MovingDiscs.empty()
-        velocities = [(0.0, 0.0)] * len(near)
+            distance = math.sqrt(dx * dx + dy * dy)
+            if distance <= local_range or distance <= reach:
+                rows.append((row, distance))
+        if not rows:
+            return MovingDiscs.empty(), (Traffic(()) if rule.enabled else None)
+        velocities = [(0.0, 0.0)] * len(rows)
         if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
             dt = t - s.prev_time
             cap = self.config.max_other_speed
             previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
-            for k, row in enumerate(near):
+            for k, (row, _) in enumerate(rows):
                 before = previous.get(int(row[0]))
                 if before is not None:
                     ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
@@ -546,9 +570,21 @@ class Executor:
                         ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
                     velocities[k] = (ux, uy)
         radii_by_id = dict(self.other_radii)
-        radii = [radii_by_id.get(int(row[0]), self.config.default_other_radius) for row in near]
-        return MovingDiscs(np.array([(row[1], row[2]) for row in near]), np.array(velocities),
-                           np.array(radii))
+        default = self.config.default_other_radius
+        near = [k for k, (_, d) in enumerate(rows) if d <= local_range]
+        traffic = None
+        if rule.enabled:
+            traffic = Traffic(tuple(
+                (int(row[0]), row[1], row[2], *velocities[k],
+                 radii_by_id.get(int(row[0]), default), int(row[0]) in self.ruled)
+                for k, (row, d) in enumerate(rows) if d <= reach))
+        if not near:
+            return MovingDiscs.empty(), traffic
+        return (MovingDiscs(np.array([(rows[k][0][1], rows[k][0][2]) for k in near]),
+                            np.array([velocities[k] for k in near]),
+                            np.array([radii_by_id.get(int(rows[k][0][0]), default)
+                                      for k in near])),
+                traffic)
 
     def _ramp(self, current: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
         """The command closest to ``goal`` reachable from ``current`` in one period, saturated."""
@@ -636,50 +672,39 @@ class Executor:
         )
         return evolve(s, recoveries=0)
 
-    def _traffic(self, s: ExecutorState, frame: np.ndarray, t: float) -> Traffic:
-        """Every other robot of the frame for the right-of-way rule (``traffic``): positions,
-        velocities from the last two frames (capped like the local obstacles'), radii."""
-        rows = [row for row in frame.tolist() if row[0] != self.robot_id]
-        n = len(rows)
-        velocities = np.zeros((n, 2))
-        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time and n:
-            dt = t - s.prev_time
-            cap = self.config.max_other_speed
-            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
-            for k, row in enumerate(rows):
-                before = previous.get(int(row[0]))
-                if before is not None:
-                    u = np.array([(row[1] - before[0]) / dt, (row[2] - before[1]) / dt])
-                    speed = float(np.hypot(*u))
-                    velocities[k] = u if speed <= cap else u * cap / speed
-        radii_by_id = dict(self.other_radii)
-        return Traffic(
-            ids=np.array([int(row[0]) for row in rows], dtype=np.int64),
-            positions=np.array([(row[1], row[2]) for row in rows], dtype=float).reshape(n, 2),
-            velocities=velocities,
-            radii=np.array([radii_by_id.get(int(row[0]), self.config.default_other_radius)
-                            for row in rows], dtype=float),
-            ruled=np.array([int(row[0]) in self.ruled for row in rows], dtype=bool),
-        )
-
     def _give_way(self, s: ExecutorState, pose: np.ndarray, t: float, traffic: Traffic | None,
-                  grid: OccupancyGrid, events: list) -> tuple[int | None, bool]:
+                  grid: OccupancyGrid, events: list, vertices: list[list[float]],
+                  ahead: list[list[float]]) -> tuple[int | None, bool]:
         """The robot to yield to this step (``traffic``), None to drive, and whether it is a
         passage's conflict (else a crossing's); emits ``Yielding`` when a yield begins or ends.
-        A yield lasts at most ``traffic.max_wait``."""
+        A yield lasts at most ``traffic.max_wait``. ``vertices``: the path's; ``ahead``: its
+        part ahead of the robot's projection (``remaining_vertices``)."""
         narrow = False
         rule = self.config.traffic
         spent = s.yielded + (t - s.mode_since if s.mode == YIELD else 0.0)
-        if not rule.enabled or s.path is None or traffic is None or spent >= rule.max_wait:
-            other = None
+        if (not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait
+                or (not s.path_narrow and not any(row[3] or row[4] for row in traffic.rows))):
+            other = None  # nobody near, or only standing robots and no passage: no conflict
         else:
             px, py = float(pose[0]), float(pose[1])
-            ahead = remaining_vertices(px, py, s.path.tolist())
-            ahead = [[px, py], *ahead] if math.hypot(ahead[0][0] - px,
-                                                     ahead[0][1] - py) > 1e-6 else ahead
             rid = self.robot_id if self.robot_id is not None else 0
+            stretch = None
+            if s.path_narrow:  # where the robot is along the path, and the next narrow part
+                done = vertices_length(vertices) - vertices_length(ahead)
+                for a, b in s.path_narrow:
+                    if b > done:
+                        stretch = (max(0.0, a - done), b - done)
+                        break
+                if stretch is not None and stretch[0] > rule.lookahead:
+                    stretch = None
+            lead = math.hypot(ahead[0][0] - px, ahead[0][1] - py)
+            if lead > 1e-6:  # from the robot itself onto its path
+                ahead = [[px, py], *ahead]
+                if stretch is not None:
+                    stretch = (stretch[0] + lead if stretch[0] > 0.0 else 0.0,
+                               stretch[1] + lead)
             other = narrow_conflict(rid, (px, py), self.config.robot_radius, ahead, grid,
-                                    traffic, rule)
+                                    traffic, rule, stretch)
             narrow = other is not None
             if other is None:
                 carrot = point_along_vertices(ahead, self.config.dwa.carrot_distance)
@@ -711,10 +736,8 @@ class Executor:
         following = s.path is not None and s.path_target == target
         if (not following or t - s.path_time >= cfg.replan_period
                 or (blocked and not s.blocked_plan)):
-            centers, radii = (self._stamps(pose, others, full=blocked, goal=goal)
-                              if len(others) else (np.zeros((0, 2)), np.zeros(0)))
-            request = PathRequest(t, target, (s.last_region, target), pose[:2].copy(),
-                                  np.asarray(goal, dtype=float), centers, radii, blocked)
+            request = PathRequest(t, target, (s.last_region, target), pose.copy(),
+                                  np.asarray(goal, dtype=float), others, blocked)
             if following and cfg.deferred_replan:  # run after the command (module docstring)
                 s = evolve(s, pending=request, path_time=t)
             else:
@@ -723,7 +746,10 @@ class Executor:
             command = self._ramp(s.command, (0.0, 0.0))
             remaining = math.inf
         else:
-            yield_to, narrow = self._give_way(s, pose, t, traffic, grid, events)
+            px, py = float(pose[0]), float(pose[1])
+            vertices = s.path.tolist()
+            ahead = remaining_vertices(px, py, vertices)
+            yield_to, narrow = self._give_way(s, pose, t, traffic, grid, events, vertices, ahead)
             if yield_to is not None:
                 return self._yield(s, pose, t, yield_to, narrow, grid, others, limits)
             if s.mode == YIELD:
@@ -733,8 +759,6 @@ class Executor:
                 pose, s.command, s.path, grid, cfg.robot_radius, others, cfg.dwa, limits
             )
             command = (result.v, result.omega)
-            px, py = float(pose[0]), float(pose[1])
-            ahead = remaining_vertices(px, py, s.path.tolist())
             dx, dy = ahead[0][0] - px, ahead[0][1] - py
             remaining = math.sqrt(dx * dx + dy * dy) + vertices_length(ahead)
         if remaining < s.best_remaining - cfg.progress_epsilon:
@@ -799,8 +823,10 @@ class Executor:
         replaces the current one, else the current one is kept and the failure is noted once
         per target (``no_path_note``) and retried every ``replan_period``."""
         grid = self.paths.grid_for(request.allowed)
-        if len(request.centers):
-            grid = grid.with_disc_blocks(request.centers, request.radii)
+        if len(request.others):
+            centers, radii = self._stamps(request.pose, request.others, full=request.blocked,
+                                          goal=request.goal)
+            grid = grid.with_disc_blocks(centers, radii)
         try:
             path = plan_path(grid, request.start, request.goal,
                              prefer=self.config.path_clearance).waypoints
@@ -810,8 +836,11 @@ class Executor:
                 note = NoPathFound(request.t, request.target, error.reason)
                 log.info("no path to %s: %s", request.target, error.reason)
             return evolve(s, path_time=request.t, no_path_to=request.target, no_path_note=note)
+        rule = self.config.traffic
+        narrow = (narrow_intervals(path.tolist(), self.paths.grid_for(request.allowed),
+                                   self._passing_width, rule.sample) if rule.enabled else ())
         return evolve(s, path=path, path_target=request.target, path_time=request.t,
-                       no_path_to=None, blocked_plan=request.blocked)
+                      no_path_to=None, blocked_plan=request.blocked, path_narrow=narrow)
 
     def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False,
                 goal: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:

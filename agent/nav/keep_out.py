@@ -101,17 +101,22 @@ class RegionPaths:
 
     def grid_for(self, allowed: Iterable[str | None]) -> OccupancyGrid:
         """The static grid with every region but the ``allowed`` ones as a disc obstacle
-        (clearance, occupied and blocked layers), cached."""
+        (clearance, occupied and blocked layers), cached (a control step asks every time: a
+        tuple it asked before is found without building its set)."""
+        if isinstance(allowed, tuple):
+            cached = self._grids.get(allowed)
+            if cached is not None:
+                return cached
         key = _allowed(allowed)
         cached = self._grids.get(key)
-        if cached is not None:
-            self._grids.move_to_end(key)
-            return cached
-        grid = self._build(key)
-        self._grids[key] = grid
-        if len(self._grids) > GRID_CACHE:
-            self._grids.popitem(last=False)
-        return grid
+        if cached is None:
+            cached = self._build(key)
+            self._grids[key] = cached
+            if len(self._grids) > GRID_CACHE:
+                self._grids.popitem(last=False)
+        if isinstance(allowed, tuple):
+            self._grids[allowed] = cached  # the same grid under the caller's own key
+        return cached
 
     def _build(self, allowed: frozenset[str]) -> OccupancyGrid:
         base = self.grid

@@ -32,11 +32,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 from tlfleet.agent.nav.grid import OccupancyGrid
-from tlfleet.agent.nav.polyline import distance_to_polyline_xy, point_along_vertices
+from tlfleet.agent.nav.polyline import distance_to_polyline_xy
 
 
 @dataclass(frozen=True)
@@ -61,38 +60,75 @@ class TrafficConfig:
     refuge_reach: float = 1.5  # [m] farthest refuge considered
 
 
+Row = tuple[int, float, float, float, float, float, bool]  # id, x, y, vx, vy, radius, ruled
+
+
 @dataclass(frozen=True, eq=False)
 class Traffic:
-    """The other robots of one frame: ids (K,), positions (K, 2) [m], velocities (K, 2) [m/s],
-    radii (K,) [m], and whether each applies this rule (an LTL agent) (K,)."""
+    """The other robots of one frame, one row each: id, position x, y [m], velocity x, y [m/s],
+    radius [m], and whether it applies this rule (an LTL agent). Plain floats: a control step
+    reads a handful of rows; the passage rule turns them into arrays when it needs them."""
 
-    ids: np.ndarray
-    positions: np.ndarray
-    velocities: np.ndarray
-    radii: np.ndarray
-    ruled: np.ndarray
+    rows: tuple[Row, ...]
+
+    @staticmethod
+    def of(ids, positions, velocities, radii, ruled) -> Traffic:
+        """From arrays: ids (K,), positions (K, 2), velocities (K, 2), radii (K,), ruled (K,)."""
+        return Traffic(tuple(
+            (int(i), float(p[0]), float(p[1]), float(u[0]), float(u[1]), float(r), bool(g))
+            for i, p, u, r, g in zip(ids, np.asarray(positions).reshape(-1, 2),
+                                     np.asarray(velocities).reshape(-1, 2), radii, ruled,
+                                     strict=True)))
 
     def __len__(self) -> int:
-        return len(self.ids)
+        return len(self.rows)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """ids (K,), positions (K, 2), velocities (K, 2), radii (K,), ruled (K,)."""
+        a = np.array([row[:6] for row in self.rows], dtype=float).reshape(-1, 6)
+        return (a[:, 0].astype(np.int64), a[:, 1:3], a[:, 3:5], a[:, 5],
+                np.array([row[6] for row in self.rows], dtype=bool))
 
 
 def _samples(vertices: list[list[float]], length: float, step: float) -> np.ndarray:
-    """Points (S, 2) every ``step`` [m] along the vertex list, up to ``length`` [m]."""
-    out = [point_along_vertices(vertices, s) for s in np.arange(0.0, length + 1e-9, step)]
-    return np.asarray(out, dtype=float)
+    """Points (S, 2) every ``step`` [m] along the vertex list, up to ``length`` [m] (the last
+    vertex where the polyline is shorter)."""
+    pts = np.asarray(vertices, dtype=float).reshape(-1, 2)
+    if len(pts) == 1:
+        return pts.copy()
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = np.arange(0.0, min(length, float(arc[-1])) + 1e-9, step)
+    return np.stack([np.interp(s, arc, pts[:, 0]), np.interp(s, arc, pts[:, 1])], axis=-1)
+
+
+def narrow_intervals(vertices: list[list[float]], grid: OccupancyGrid, width: float,
+                     step: float) -> tuple[tuple[float, float], ...]:
+    """Arc-length intervals ``(a, b)`` [m] of the whole path whose clearance is below ``width``
+    [m], sampled every ``step`` [m]: computed once per global path (the executor stores them
+    with it), so a control step only looks them up."""
+    points = _samples(vertices, math.inf, step)
+    if len(points) < 2:
+        return ()
+    narrow = grid.clearance_at(points) < width
+    out, start = [], None
+    for k, flag in enumerate(narrow.tolist()):
+        if flag and start is None:
+            start = k
+        elif not flag and start is not None:
+            out.append((start * step, (k - 1) * step))
+            start = None
+    if start is not None:
+        out.append((start * step, (len(narrow) - 1) * step))
+    return tuple(out)
 
 
 def narrow_stretch(vertices: list[list[float]], grid: OccupancyGrid, width: float,
                    config: TrafficConfig) -> tuple[float, float] | None:
     """Arc lengths ``(a, b)`` [m] of the first stretch of the path ahead (its first vertex is
     the robot's projection) whose clearance is below ``width``, within ``lookahead``; None."""
-    if len(vertices) < 2:
+    points = _samples(vertices, config.lookahead, config.sample)
+    if len(points) < 2:
         return None
-    total = 0.0
-    for (ax, ay), (bx, by) in pairwise(vertices):
-        total += math.hypot(bx - ax, by - ay)
-    reach = min(total, config.lookahead)
-    points = _samples(vertices, reach, config.sample)
     narrow = grid.clearance_at(points) < width
     if not narrow.any():
         return None
@@ -102,15 +138,25 @@ def narrow_stretch(vertices: list[list[float]], grid: OccupancyGrid, width: floa
     return first * config.sample, last * config.sample
 
 
+def passing_width(radius: float, other_radius: float, config: TrafficConfig) -> float:
+    """The clearance [m] below which a robot of ``other_radius`` cannot pass beside one of
+    ``radius``: ``r_self + 2·r_other + 2·passing_margin``."""
+    return radius + 2.0 * other_radius + 2.0 * config.passing_margin
+
+
 def narrow_conflict(robot_id: int, position: Sequence[float], radius: float,
                     vertices: list[list[float]], grid: OccupancyGrid, traffic: Traffic,
-                    config: TrafficConfig) -> int | None:
-    """The robot to give way to in a narrow passage (module docstring), or None."""
+                    config: TrafficConfig,
+                    stretch: tuple[float, float] | bool | None = False) -> int | None:
+    """The robot to give way to in a narrow passage (module docstring), or None. ``stretch``:
+    the first narrow stretch ``(a, b)`` of ``vertices`` if the caller knows it (None: there is
+    none), else it is found here."""
     if not config.enabled or not len(traffic) or len(vertices) < 2:
         return None
-    widest = float(np.max(traffic.radii)) if len(traffic) else radius
-    width = radius + 2.0 * widest + 2.0 * config.passing_margin
-    stretch = narrow_stretch(vertices, grid, width, config)
+    widest = max(row[5] for row in traffic.rows)
+    width = passing_width(radius, widest, config)
+    if stretch is False:
+        stretch = narrow_stretch(vertices, grid, width, config)
     if stretch is None or stretch[0] > config.mouth_distance:
         return None
     a, b = stretch
@@ -118,11 +164,11 @@ def narrow_conflict(robot_id: int, position: Sequence[float], radius: float,
     span = _samples(vertices, b + config.mouth_distance, config.sample)
     if len(span) < 2:
         return None
-    near = distance_to_polyline_xy(traffic.positions[:, 0], traffic.positions[:, 1], span)
-    # where each robot projects on the span, and the path's direction there
+    ids, positions, velocities, radii, ruled = traffic.arrays()
+    near = distance_to_polyline_xy(positions[:, 0], positions[:, 1], span)
     best: int | None = None
     for k in np.flatnonzero(near < width).tolist():
-        p = traffic.positions[k]
+        p = positions[k]
         d = np.hypot(span[:, 0] - p[0], span[:, 1] - p[1])
         m = int(np.argmin(d))
         if m * config.sample < a - 1e-9 and not inside:
@@ -131,13 +177,14 @@ def narrow_conflict(robot_id: int, position: Sequence[float], radius: float,
         i = max(j - 1, 0)
         direction = span[j] - span[i]
         norm = float(np.hypot(*direction))
-        along = float(traffic.velocities[k] @ direction) / norm if norm > 1e-9 else 0.0
+        along = float(velocities[k] @ direction) / norm if norm > 1e-9 else 0.0
         if along > config.moving_away:
             continue  # going our way: we follow it
-        other_width = float(traffic.radii[k]) + 2.0 * radius + 2.0 * config.passing_margin
-        other_inside = bool(grid.clearance_at(p) < other_width) and m * config.sample <= b
-        other = int(traffic.ids[k])
-        if not traffic.ruled[k]:
+        other_width = passing_width(float(radii[k]), radius, config)
+        other_inside = (grid.clearance_point(float(p[0]), float(p[1])) < other_width
+                        and m * config.sample <= b)
+        other = int(ids[k])
+        if not ruled[k]:
             we_go = False  # it does not yield: it has the right of way
         elif inside != other_inside:
             we_go = inside
@@ -152,31 +199,30 @@ def crossing_conflict(robot_id: int, position: Sequence[float], radius: float,
                       heading_point: Sequence[float], traffic: Traffic,
                       config: TrafficConfig) -> int | None:
     """The robot with a lower id to let pass first at a crossing (module docstring), or None.
-    ``heading_point`` is the own path's look-ahead point."""
+    ``heading_point`` is the own path's look-ahead point. Plain floats over the few robots (a
+    numpy call costs more than its arithmetic here)."""
     if not (config.enabled and config.crossing) or not len(traffic):
         return None
-    p = np.asarray(position[:2], dtype=float)
-    direction = np.asarray(heading_point[:2], dtype=float) - p
-    norm = float(np.hypot(*direction))
+    px, py = float(position[0]), float(position[1])
+    hx, hy = float(heading_point[0]) - px, float(heading_point[1]) - py
+    norm = math.hypot(hx, hy)
     if norm < 1e-6:
         return None
-    v = direction / norm * config.cruise
+    vx, vy = hx / norm * config.cruise, hy / norm * config.cruise
     best: int | None = None
-    for k in range(len(traffic)):
-        other = int(traffic.ids[k])
-        if traffic.ruled[k] and other > robot_id:
+    for other, qx, qy, ux, uy, r_other, ruled in traffic.rows:
+        if ruled and other > robot_id:
             continue  # we have the right of way over it
-        q = traffic.positions[k]
-        if float(np.hypot(*(q - p))) > config.crossing_range:
+        dpx, dpy = qx - px, qy - py
+        if math.hypot(dpx, dpy) > config.crossing_range or math.hypot(ux, uy) < 0.02:
+            continue  # far, or standing: the local planner's (or the passage rule's)
+        dvx, dvy = ux - vx, uy - vy
+        speed2 = dvx * dvx + dvy * dvy
+        t_min = 0.0 if speed2 < 1e-9 else max(0.0, -(dpx * dvx + dpy * dvy) / speed2)
+        if t_min > config.horizon:
             continue
-        u = traffic.velocities[k]
-        dp, dv = q - p, u - v
-        speed2 = float(dv @ dv)
-        t_min = 0.0 if speed2 < 1e-9 else max(0.0, -float(dp @ dv) / speed2)
-        if t_min > config.horizon or float(np.hypot(*u)) < 0.02:
-            continue  # a standing robot is the local planner's (or the passage rule's)
-        miss = float(np.hypot(*(dp + dv * t_min)))
-        if miss >= radius + float(traffic.radii[k]) + config.crossing_gap:
+        miss = math.hypot(dpx + dvx * t_min, dpy + dvy * t_min)
+        if miss >= radius + r_other + config.crossing_gap:
             continue
         if t_min * config.cruise < config.min_distance:
             continue  # too close to stop short of the meeting point: the DWA keeps us apart

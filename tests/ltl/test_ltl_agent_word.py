@@ -6,6 +6,7 @@ checked against the exact lasso evaluator, not against the agent's own automaton
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -96,7 +97,7 @@ def test_cycles_are_counted_only_for_passes_the_word_made():
     agent = _agent("G F a & G F b", [r for r in REGIONS if r.name != "c"])
     legs = [(-2.5, 0.0), (2.5, 0.0), (-2.5, 0.0), (2.5, 0.0)]
     around = []
-    for p, q in zip(legs, legs[1:], strict=False):
+    for p, q in itertools.pairwise(legs):
         around += _line(p, q)
     state, notices, _ = _walk(agent, around)
     done = [n for n in notices if n.kind == "cycle_completed"]

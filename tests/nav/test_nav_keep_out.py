@@ -4,6 +4,7 @@ own numbers."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -26,7 +27,7 @@ RES = 0.05
 
 def _samples(waypoints: np.ndarray, step: float = 0.01) -> np.ndarray:
     out = []
-    for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
+    for a, b in itertools.pairwise(waypoints):
         n = max(2, math.ceil(float(np.linalg.norm(b - a)) / step) + 1)
         out.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
     return np.vstack(out)

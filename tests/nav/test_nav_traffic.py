@@ -33,8 +33,8 @@ WEST = [[3.5, 0.0], [-3.5, 0.0]]
 def _traffic(rows, ruled=True) -> Traffic:
     """rows: (id, x, y, vx, vy)."""
     a = np.array(rows, dtype=float).reshape(-1, 5)
-    return Traffic(a[:, 0].astype(np.int64), a[:, 1:3], a[:, 3:5], np.full(len(a), 0.2),
-                   np.full(len(a), ruled, dtype=bool))
+    return Traffic.of(a[:, 0].astype(np.int64), a[:, 1:3], a[:, 3:5], np.full(len(a), 0.2),
+                      np.full(len(a), ruled, dtype=bool))
 
 
 def _ahead(path, position):
@@ -178,7 +178,7 @@ def test_three_robots_crossing_a_hall_centre_keep_apart_and_keep_cycling():
     for j in (1, 2, 3):
         kinds = [n.kind for n in notices[j]]
         word = [n.data["region"] for n in notices[j] if n.kind == "region_visited"]
-        assert len(word) >= 4 and all(a != b for a, b in zip(word, word[1:], strict=False))
+        assert len(word) >= 4 and all(a != b for a, b in itertools.pairwise(word))
         assert "stuck" not in kinds and "unplanned_region" not in kinds
     assert any(n.kind == "yield" for j in (2, 3) for n in notices[j])
     assert not any(n.kind == "yield" for n in notices[1])  # robot 1 never waits
