@@ -1,5 +1,5 @@
 """The OS scheduling flag of the fleet's processes (``tlfleet sim``, ``agent``, ``router``):
-``--sched {default,batch,fifo}`` (issue 17, docs/performance.md rounds 9 and 16).
+``--sched {default,batch,fifo}`` (measured in docs/performance.md).
 
 ``batch`` puts the process under Linux's ``SCHED_BATCH`` before it opens its session, so every
 thread it starts (zenoh's included) inherits it. A batch task is never preempted by a task that
@@ -10,7 +10,7 @@ wake-up only interrupts the process whose output the others wait for: in Scenari
 put took 0.3–0.7 ms instead of 0.03 ms in 19–31 % of the ticks, until the simulator itself was
 a batch task. Lowering a process to ``SCHED_BATCH`` needs no privilege.
 
-``fifo`` (round 16) puts it under ``SCHED_FIFO`` at :data:`FIFO_PRIORITY`, the lowest real-time
+``fifo`` puts it under ``SCHED_FIFO`` at :data:`FIFO_PRIORITY`, the lowest real-time
 priority: it runs as soon as it wakes, before every ordinary process (the coordinator, a
 compiler, another user's job), and no task of its own priority preempts it. The fleet's
 processes block between their steps (a channel, a timed wait), so none holds a core for long,
@@ -24,9 +24,9 @@ under
 ``tlfleet run`` asks for ``fifo`` where it is permitted, in either mode (``RunConfig.sched``):
 in realtime a tick's deadline is met when every agent is woken and runs within the period, and
 under ``fifo`` Scenario 1's latency p99 was 0.81–0.91 against 1.14–1.56 ms and a 30-robot fleet
-missed 0.23–0.40 against 0.54–8.2 % of its deadlines (round 17, interleaved; an earlier series of
-round 16 had it worse in 2 of 4 pairs). Where it is not permitted a lockstep run uses ``batch``
-and a realtime run ``default`` (round 9: batch made the realtime tail worse in 4 of 4 pairs).
+missed 0.23–0.40 against 0.54–8.2 % of its deadlines (interleaved pairs; an earlier series
+had it worse in 2 of 4 pairs). Where it is not permitted a lockstep run uses ``batch``
+and a realtime run ``default`` (batch made the realtime tail worse in 4 of 4 pairs).
 Where the OS has no such policy the process says so and runs as it is.
 """
 
@@ -36,6 +36,8 @@ import argparse
 import logging
 import os
 
+from tlfleet.bus.lifeline import ORPHAN_AFTER
+from tlfleet.cli.arg_types import positive_float
 from tlfleet.coordinator.launch.processes import FIFO_PRIORITY
 
 logger = logging.getLogger(__name__)
@@ -52,6 +54,14 @@ def add_process_arguments(parser: argparse.ArgumentParser) -> None:
                             "'fifo' (SCHED_FIFO priority 1: runs as soon as it wakes, before "
                             "ordinary processes; needs root or RLIMIT_RTPRIO, else batch); "
                             "`tlfleet run` uses fifo or batch in lockstep, where they are faster")
+
+
+def add_orphan_argument(parser: argparse.ArgumentParser) -> None:
+    """``--orphan-after S`` of the processes a coordinator supervises (the sim, the agents)."""
+    parser.add_argument("--orphan-after", type=positive_float, default=ORPHAN_AFTER, metavar="S",
+                        help="exit when the coordinator's liveliness token, once seen, has been "
+                             f"gone this long [s wall] (default {ORPHAN_AFTER:g}): a run whose "
+                             "coordinator died leaves nothing behind")
 
 
 def apply_scheduling(policy: str) -> str | None:

@@ -1,8 +1,8 @@
-"""One whole run of a fleet: validate, launch, supervise, record, summarise (issue 5 §4).
+"""One whole run of a fleet: validate, launch, supervise, record, summarise.
 
 :func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks. It is the
 launcher around :mod:`tlfleet.coordinator.supervise`, the code ``tlfleet supervise`` runs alone
-(steps 2, 3 and 5–8 below are that module's; issue 12):
+(steps 2, 3 and 5–8 below are that module's):
 
 1. load the scenario (``ScenarioError`` before any process starts);
 2. create the run directory (:mod:`tlfleet.coordinator.record.recorder`), pick a free loopback
@@ -34,7 +34,7 @@ loop thread at a decimated rate; it is returned in :attr:`RunResult.viewer` stil
 caller closes it). rerun (0.9 s to import) is imported only for 8 and the live view; matplotlib only
 for 7.
 
-Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Issue 11: step 6
+Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Step 6
 is exception-safe and bounded in time (:mod:`tlfleet.coordinator.launch.cleanup`); the recorder tap
 drops implausible frames and flags events whose claimed identity does not hold
 (:mod:`tlfleet.coordinator.record.trust`); silent (frozen/partitioned) agents are noticed
@@ -61,12 +61,14 @@ from tlfleet.coordinator.faults.plan import run_faults
 from tlfleet.coordinator.faults.schedule import FaultScheduler, ProcessActuator
 from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.launch.netns_hosts import RECONNECT
+from tlfleet.coordinator.launch.plan import PlanConfig, ProcessSpec, plan_fleet
 from tlfleet.coordinator.launch.processes import (
     Child,
     Launcher,
     LaunchError,
     fifo_permitted,
     free_port,
+    share_with_children,
     tlfleet_command,
     wait_for_port,
 )
@@ -85,12 +87,12 @@ from tlfleet.coordinator.supervise import (
 )
 
 __all__ = ["SCHED_CHOICES", "RunConfig", "RunResult", "child_sched", "default_child_argv",
-           "peer_links", "run_fleet"]
+           "fleet_plan", "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
 HOST = "127.0.0.1"
-ChildArgv = Callable[[str, "RunConfig", Scenario, int | None, str], list[str]]
+ChildArgv = Callable[[ProcessSpec], list[str]]
 
 
 @dataclass(frozen=True)
@@ -110,7 +112,8 @@ class RunConfig:
     agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
     child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
     report: bool = True  # write report.md/json after the run
-    figures: bool = True  # ... and the PNG figures
+    figures: bool = True  # ... and the figures
+    figure_format: str = "png"  # png | pdf | svg (tlfleet.coordinator.report.figures.FORMATS)
     rrd: bool = True  # write run.rrd after the run
     rrd_every: int = 5  # log every n-th trajectory row to run.rrd
     viewer: bool = False  # serve the run live to a web viewer
@@ -122,7 +125,7 @@ class RunConfig:
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
     #                                   every process of the run (tlfleet.bus.zenoh.config)
-    faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
+    faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]]
     direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
     sched: str = "auto"  # OS scheduling of the router, sim and agents (child_sched)
@@ -134,7 +137,7 @@ PEER_LISTEN = f"tcp/{HOST}:0"
 
 def peer_links(config: RunConfig) -> bool:
     """Whether the sim, the agents and the coordinator of this run are zenoh **peers**
-    (architecture.md §1, issue 17): without ``--secure``, without ``--zenoh-config`` and without
+    (architecture.md §1): without ``--secure``, without ``--zenoh-config`` and without
     ``--via-router``, in lockstep and in realtime (``run_fleet`` also turns them off for a run
     with faults). Each then listens on a free loopback port, connects to the router and learns
     the others' locators from it (zenoh's gossip), so frames and commands go sim ↔ agent
@@ -143,7 +146,7 @@ def peer_links(config: RunConfig) -> bool:
     (:func:`_open_client`). The sim and the agents also run zenoh's minimal runtime
     (``--zenoh-runtime minimal``, :data:`tlfleet.bus.transport.MINIMAL_RUNTIME`: one worker thread
     that receives and sends too; less CPU per sample); the router and the coordinator keep zenoh's
-    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md round 7): latency p50
+    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md): latency p50
     2.3 → 1.8 ms, the STL robots' p99 on quiet ticks 4.0 → 3.4 ms. A secured run keeps every
     link on the router, where the access-control policy is enforced
     (:mod:`tlfleet.coordinator.security.policy`); a user's zenoh file keeps the topology it
@@ -160,9 +163,9 @@ def child_sched(config: RunConfig) -> str:
     ``auto`` is ``fifo`` where this user may ask for it (Linux ``SCHED_FIFO`` priority 1: a process
     runs as soon as it wakes), in either mode: Scenario 1 in lockstep ≈ 1.4× faster; in realtime its
     latency p99 0.81–0.91 against 1.14–1.56 ms and a 30-robot fleet's missed deadlines 0.23–0.40
-    against 0.54–8.2 % (docs/performance.md rounds 16 and 17). Without that right, ``batch`` in
-    lockstep (``SCHED_BATCH``: no process is preempted when another wakes up; ≈ 4–8 % faster,
-    round 9) and ``default`` in realtime, where batch made the latency tail worse."""
+    against 0.54–8.2 % (docs/performance.md). Without that right, ``batch`` in
+    lockstep (``SCHED_BATCH``: no process is preempted when another wakes up; ≈ 4–8 % faster) and
+    ``default`` in realtime, where batch made the latency tail worse."""
     if config.sched not in SCHED_CHOICES:
         raise ValueError(f"RunConfig.sched {config.sched!r}: expected one of "
                          f"{', '.join(SCHED_CHOICES)}")
@@ -173,30 +176,37 @@ def child_sched(config: RunConfig) -> str:
     return config.sched
 
 
-def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
-                       endpoint: str) -> list[str]:
-    """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
-    path = str(Path(config.scenario_path).resolve())
-    secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
-    lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
-    lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
-    lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
-        if role != "router" and peer_links(config) else ()
+def fleet_plan(config: RunConfig, scenario: Scenario,
+               endpoint: str) -> tuple[ProcessSpec, ...]:
+    """The run's processes (:func:`tlfleet.coordinator.launch.plan.plan_fleet`) placed on this
+    machine: the router listens on ``endpoint``, the sim and the agents connect to it and, over
+    peer links (:func:`peer_links`), also listen on a free loopback port as zenoh peers with
+    zenoh's minimal runtime."""
     sched = child_sched(config)
-    lease += ("--sched", sched) if sched != "default" else ()
-    if role == "router":
-        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
-                               *secure, *lease)
-    if role == "sim":
-        argv = ["sim", path, f"--{config.mode}", "--duration",
-                repr(float(config.duration or scenario.duration))]
-        if config.seed is not None:
-            argv += ["--seed", str(config.seed)]
-        if config.tick_timeout is not None:
-            argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *secure, *lease)
-    return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint, *secure, *lease)
+    plan = plan_fleet(scenario, PlanConfig(
+        scenario_ref=str(Path(config.scenario_path).resolve()), mode=config.mode,
+        duration=float(config.duration or scenario.duration), seed=config.seed,
+        tick_timeout=config.tick_timeout, sim_args=config.sim_args,
+        agent_args=config.agent_args,
+        secure=None if config.secure is None else Path(config.secure).resolve(),
+        lease_ms=config.lease_ms or None, zenoh_config=config.zenoh_config,
+        sched=None if sched == "default" else sched))
+    peers = peer_links(config)
+    placed = []
+    for spec in plan:
+        if spec.role == "router":
+            placed.append(spec.placed(listen=(endpoint,)))
+        elif peers:
+            placed.append(spec.placed(connect=(endpoint,), mode="peer", listen=(PEER_LISTEN,),
+                                      runtime="minimal"))
+        else:
+            placed.append(spec.placed(connect=(endpoint,)))
+    return tuple(placed)
+
+
+def default_child_argv(spec: ProcessSpec) -> list[str]:
+    """argv of a planned process: ``python -P -m tlfleet.cli`` and its arguments."""
+    return tlfleet_command(*spec.argv())
 
 
 def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
@@ -204,7 +214,7 @@ def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
     router's log when the router dies or does not answer within ``router_timeout``. In a
     peer-link run (:func:`peer_links`) it is a peer too, listening on a free loopback port: the
     frames, statuses and events it records come straight from the sim and the agents instead of
-    through the router (issue 17: the router no longer forwards 100 frames per sim second)."""
+    through the router (the router no longer forwards 100 frames per sim second)."""
     client = client_config((endpoint,), secure=config.secure, lease_ms=config.lease_ms,
                            zenoh_config=config.zenoh_config)
     if peer_links(config):
@@ -219,6 +229,22 @@ def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
 
 def _router_clean(code: int | None) -> bool:
     return code in (0, -signal.SIGTERM, 128 + signal.SIGTERM)
+
+
+#: [s] wall between two supervision steps in lockstep (the recorder drains its channels at each)
+LOCKSTEP_POLL_PERIOD = 0.01
+
+
+def supervisor_config(config: RunConfig) -> SupervisorConfig:
+    """The supervision's settings: in lockstep the recorder is drained every
+    :data:`LOCKSTEP_POLL_PERIOD` at most. The fleet runs 8-17x faster than real time there, so the
+    default 50 ms between drains was 0.4-0.85 s of sim time the record trailed the simulator by
+    (bench/recorder_lag_bench.py); 10 ms keeps it to a few tenths at most, for 100 wake-ups a
+    second of a process that decodes every frame anyway."""
+    if config.mode != "lockstep":
+        return config.supervisor
+    return replace(config.supervisor,
+                   poll_period=min(config.supervisor.poll_period, LOCKSTEP_POLL_PERIOD))
 
 
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
@@ -262,24 +288,23 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     cleanup = Cleanup()
     schedule: FaultScheduler | None = None
     try:
-        router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
+        plan = {spec.name: spec for spec in fleet_plan(config, scenario, endpoint)}
+        router = launcher.start("router", argv_of(plan.pop("router")))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
         transport = _open_client(endpoint, router, config)
-        session = Supervision(transport, prepared, config=config.supervisor,
+        session = Supervision(transport, prepared, config=supervisor_config(config),
                               silence=config.silence, children={"router": router},
                               report=report,
                               on_message=None if viewer is None else viewer.on_message)
         children = session.supervisor.children
-        children["sim"] = launcher.start("sim", argv_of("sim", config, scenario, None, endpoint))
-        for robot in sorted(scenario.robots, key=lambda r: r.id):
-            name = f"agent-{robot.id}"
-            children[name] = launcher.start(
-                name, argv_of("agent", config, scenario, robot.id, endpoint))
+        for name, spec in plan.items():  # the sim, then the agents (ids ascending)
+            children[name] = launcher.start(name, argv_of(spec))
         if faults:
             actuator = ProcessActuator(launcher, children, supervisor=session.supervisor)
             schedule = FaultScheduler(faults, actuator, prepared.recorder.on_event, say)
             progress = schedule.progress(progress)
-        outcome, codes = session.run(stop, progress)
+        with share_with_children(child_sched(config), above=config.mode == "lockstep"):
+            outcome, codes = session.run(stop, progress)
         wall_start = session.wall_start
     except BaseException:
         if viewer is not None:

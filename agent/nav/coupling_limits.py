@@ -1,6 +1,6 @@
 """Coupling-aware velocity limits of an LTL robot: the DWA's constraints (docs/coupling.md).
 
-Beyond the paper (issue 15). Each :class:`CouplingConstraint` bounds the unicycle command
+Beyond the paper. Each :class:`CouplingConstraint` bounds the unicycle command
 (v [m/s], ω [rad/s]) of an LTL robot that an STL task of another robot depends on:
 ``a_v·|v| + a_ω·|ω| ≤ bound``. The constraints of one control step are derived from the coupled
 predicates' gradients by ``tlfleet.agent.policy.coupling`` (navigation does not depend on the STL
@@ -57,11 +57,6 @@ class VelocityLimits:
         """Largest admissible |ω| [rad/s] (at v = 0)."""
         return min((c.bound / c.a_omega for c in self.constraints if c.a_omega > 0),
                    default=math.inf)
-
-    def binding(self) -> CouplingConstraint | None:
-        """The constraint with the smallest v_max (for logs and the report)."""
-        with_v = [c for c in self.constraints if c.a_v > 0]
-        return min(with_v, key=lambda c: c.bound / c.a_v) if with_v else None
 
 
 

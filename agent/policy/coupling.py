@@ -1,6 +1,6 @@
 """What an LTL robot may do so that the STL robots coupled to it can track it (docs/coupling.md).
 
-Beyond the paper (issue 15): a robot L under an LTL task moves as its navigation stack likes
+Beyond the paper: a robot L under an LTL task moves as its navigation stack likes
 (paper §III-A), while STL robots j track it through predicates μ = (h(x̄) ≥ 0) whose x̄ contains
 x_L = [z_Lᵀ, θ_L]ᵀ (Scenario 2: ``dist(p3, p1) <= 0.6``; Scenario 3: a slot 1 m beside robot 1
 that turns with θ_1). Robot j can change h at most at the rate its saturated input allows
@@ -36,9 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.scenario.stl_setup import stl_sequences
 from tlfleet.agent.stl.evaluate import compile_expr
-from tlfleet.agent.stl.parser import robot_subtasks
-from tlfleet.agent.stl.sequencer import build_sequence
 from tlfleet.agent.stl.syntax import (
     BinOp,
     Call,
@@ -90,15 +89,12 @@ class CouplingModel:
     def from_scenario(scenario: Scenario, leader: int) -> CouplingModel:
         """Every literal of every STL sub-task that involves ``leader`` and its owner's state."""
         params = scenario.navigation
-        stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
         terms: list[_Term] = []
+        sequences = stl_sequences(scenario)
         for robot in scenario.robots:
             if not robot.is_stl:
                 continue
-            seq = build_sequence(robot.id, robot_subtasks(robot), robot_ids=scenario.robot_ids,
-                                 stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=scenario.stl.eta,
-                                 warn=False)
-            for task in seq:
+            for task in sequences[robot.id]:
                 if leader not in task.participants:
                     continue
                 for k, literal in enumerate(literals(task.psi)):

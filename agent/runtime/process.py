@@ -23,6 +23,7 @@ from tlfleet.agent.runtime.inbox import MalformedCounter
 from tlfleet.agent.runtime.loop import AgentLoop, Core, LoopConfig
 from tlfleet.agent.runtime.peers import CollabLink
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import CoordinatorWatch
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import MAX_TIME, FleetBounds
 from tlfleet.bus.protocol.codec import encode
@@ -42,7 +43,7 @@ LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 
 def plausibility(scenario: Scenario) -> dict[str, Any]:
-    """The loop's frame checks for ``scenario`` (issue 11): the arena box and robots, and the
+    """The loop's frame checks for ``scenario``: the arena box and robots, and the
     sequence gate. The run's duration may be overridden on the simulator's command line, which
     the agent does not see, so times are only bounded by the codec's MAX_TIME here."""
     if not isinstance(scenario, Scenario):  # a test double: no plausibility checks
@@ -56,7 +57,7 @@ def plausibility(scenario: Scenario) -> dict[str, Any]:
 
 def frame_subscription(scenario: Scenario, robot: int) -> dict[str, Any]:
     """The loop reads only the frames it can be due for, at its frame offset
-    (``keys.robot_frames``, issue 17): the simulator of a real scenario publishes them. Test
+    (``keys.robot_frames``): the simulator of a real scenario publishes them. Test
     doubles keep reading every frame on ``mocap``."""
     if not isinstance(scenario, Scenario):
         return {}
@@ -84,9 +85,11 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
     source = f"agent/{config.robot}"
     divider = scenario.control_divider(config.robot)
     loop: AgentLoop | None = None
+    watch = CoordinatorWatch(transport, keys.alive(scenario.fleet, "coordinator", 0), stop,
+                             config.orphan_after, source)
     try:
         malformed = MalformedCounter(source)
-        event_key = keys.event(scenario.fleet)
+        event_key = keys.event(scenario.fleet, "agent", config.robot)
 
         def publish(event: Event) -> None:
             transport.publish(event_key, encode(event))
@@ -112,10 +115,9 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             loop.publish_event(event)
         logger.info("%s ready (fleet %s, divider %d, phase %d)", source, scenario.fleet, divider,
                     loop_config.phase)
-        # said at WARNING so that a process started by hand shows it without -v (issue 12 §1)
-        logger.warning("agent %d: waiting for start from a coordinator on %s and mocap frames "
-                       "from the simulator on %s", config.robot, keys.control(scenario.fleet),
-                       keys.mocap(scenario.fleet))
+        logger.info("agent %d: waiting for start from a coordinator on %s and mocap frames "
+                    "from the simulator on %s", config.robot, keys.control(scenario.fleet),
+                    keys.mocap(scenario.fleet))
         try:
             code = loop.run(stop)
         except Exception as exc:  # a bug in a core: report it, then exit non-zero
@@ -128,6 +130,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         logger.info("%s stopped: %s", source, stats)
         return code
     finally:
+        watch.close()
         if loop is not None:
             loop.close()
         if own_transport:

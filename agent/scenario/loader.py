@@ -12,7 +12,11 @@ File layout (every section but ``robots`` is optional)::
     [arena]   xmin/xmax/ymin/ymax [m], [[arena.obstacles]] shape = "rect"|"disc"
     [ltl]     suffix_weight, control_rate, stagger      (LtlParams)
     [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate, hold_f_above_r,
-              complete_f_on_satisfaction, recovery   (StlParams; recovery: docs/coupling.md)
+              complete_f_on_satisfaction, complete_f_at_goal, lookahead, saturation_aware,
+              saturation_share, rho_opt_from_arena, coupled_radii, coupled_r1_margin,
+              coupled_r_margin, wall_avoidance, wall_r1_margin, wall_r_margin, route_around,
+              recovery   (StlParams; recovery: docs/coupling.md; the others:
+              docs/stl-saturation.md)
     [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog, spread_frames,
               frame_slots
               (SimParams)
@@ -21,7 +25,7 @@ File layout (every section but ``robots`` is optional)::
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
     [[faults]]  spec = "cut:robot3@20+3" | kind, target (targets for a partition), at, duration
-                (issue 13, agent/model/faults.py)
+                (agent/model/faults.py)
 """
 
 from __future__ import annotations
@@ -73,7 +77,7 @@ RESERVED_ATOMS = frozenset({"true", "false", "xor"})
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; ``ScenarioError`` on any problem."""
     path = Path(path)
-    data = validation.parse_toml(validation.read_text(path), str(path))  # issue 11: file limits
+    data = validation.parse_toml(validation.read_text(path), str(path))  # file limits
     return parse_scenario(data, source=str(path))
 
 
@@ -99,6 +103,16 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     if stl.r1 >= stl.r_sense:
         raise ScenarioError(source, "stl.r1",
                             f"must be below stl.r_sense = {stl.r_sense}, got {stl.r1}")
+    if stl.saturation_share > 1.0:
+        raise ScenarioError(source, "stl.saturation_share",
+                            f"must be in (0, 1] (a share of the achievable rate), got "
+                            f"{stl.saturation_share}")
+    for inner, outer in (("coupled_r1_margin", "coupled_r_margin"),
+                         ("wall_r1_margin", "wall_r_margin")):
+        if getattr(stl, inner) >= getattr(stl, outer):
+            raise ScenarioError(source, f"stl.{inner}",
+                                f"must be below stl.{outer} = {getattr(stl, outer)}, got "
+                                f"{getattr(stl, inner)}")
     regions = tuple(_region(t, arena) for t in top.array_of_tables("regions", required=False))
     _unique(source, "regions", [(r.name, i) for i, r in enumerate(regions)], "region name")
     robots = tuple(_robot(t, arena) for t in top.array_of_tables("robots"))
@@ -124,7 +138,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         source=Path(source) if source and not source.startswith("<") else None,
         faults=faults,
     )
-    validation.check_scenario(scenario, source)  # issue 11: sizes, rates, geometry
+    validation.check_scenario(scenario, source)  # sizes, rates, geometry
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
         where = f"robots[{index}]"
@@ -132,7 +146,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
             _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
         for k, text in enumerate(robot.stl):
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
-    validation.check_tasks(scenario, source)  # issue 11: satisfiability, STL windows
+    validation.check_tasks(scenario, source)  # satisfiability, STL windows
     from tlfleet.agent.scenario.stl_checks import check_stl_tasks
 
     check_stl_tasks(scenario, source)

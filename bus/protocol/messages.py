@@ -108,6 +108,8 @@ class FunnelWire:
     t_star: float
     t_r: float
     zeta_u: float
+    ramp: float = 0.0  # the lower boundary's climb before the knee (0: no ramp)
+    t_knee: float = 0.0
 
 
 CollabKind = Literal["request", "update", "release", "status"]
@@ -170,7 +172,7 @@ class Control:
 
 @dataclass(frozen=True, slots=True)
 class BackfillRequest:
-    """Recorder → simulator (query on ``sim/backfill``, issue 13): publish again, as a reply, the
+    """Recorder → simulator (query on ``sim/backfill``): publish again, as a reply, the
     frames with ``first`` ≤ seq ≤ ``last`` that the recorder missed (a link cut longer than the
     zenoh lease loses what the simulator published meanwhile)."""
 

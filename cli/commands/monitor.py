@@ -19,13 +19,23 @@ import sys
 
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
+from tlfleet.cli.arg_types import scenario_file
 
 NAME = "monitor"
 HELP = "STL robustness of a recorded trajectory"
+EXAMPLES = (
+    ("tlfleet monitor scenario2.toml runs/s2/trajectory.csv",
+     "the STL robustness of every robot of a recorded Scenario 2 run"),
+    ("tlfleet monitor scenario2.toml runs/s2/trajectory.csv --json --strict",
+     "the same as JSON; exit 3 if the trace misses a window"),
+)
+EXIT_CODES = {0: "computed", 1: "an invalid scenario or trajectory file",
+              3: "--strict and the trace does not cover a sub-task's window"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("trajectory", help="trajectory CSV (t,x1,y1,th1,...)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--smooth", action="store_true",

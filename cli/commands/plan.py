@@ -21,13 +21,21 @@ import sys
 from tlfleet.agent.ltl.planner import Plan, plan_robot
 from tlfleet.agent.policy.ltl import plan_on_map
 from tlfleet.agent.scenario import load_scenario
+from tlfleet.cli.arg_types import scenario_file
 
 NAME = "plan"
 HELP = "compute the optimal prefix–suffix plan of each LTL robot"
+EXAMPLES = (
+    ("tlfleet plan scenario1.toml", "the optimal prefix-suffix plan of every LTL robot"),
+    ("tlfleet plan scenario1.toml --robot 1 --json", "robot 1's plan as JSON"),
+)
+EXIT_CODES = {0: "every plan was found",
+              1: "an invalid scenario, or an LTL task no run of the map satisfies"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("--robot", type=int, default=None, help="only this robot id")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.add_argument("--weights", choices=("map", "euclidean"), default="map",

@@ -8,18 +8,35 @@ until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
-from tlfleet.cli.arg_types import non_negative_float, positive_float
-from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.arg_types import non_negative_float, positive_float, scenario_file
+from tlfleet.cli.process_flags import (
+    add_orphan_argument,
+    add_process_arguments,
+    apply_process_flags,
+)
 from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
 HELP = "run the pymunk simulator process of a scenario"
+# a process's log says what it is doing (waiting for start, listening, ...) without -v;
+# -q leaves the warnings only (tlfleet.cli.conventions.log_level)
+DEFAULT_LOG_LEVEL = logging.INFO
+EXAMPLES = (
+    ("tlfleet sim scenario1.toml --lockstep --connect tcp/127.0.0.1:7447",
+     "simulate Scenario 1 in lockstep for a fleet whose router listens on port 7447"),
+    ("tlfleet sim scenario2.toml --realtime --duration 20 --connect tcp/127.0.0.1:7447",
+     "20 s of Scenario 2 on wall-clock time"),
+)
+EXIT_CODES = {0: "the run ended (its duration, Control(stop), SIGINT or SIGTERM)",
+              1: "an invalid scenario or no router at --connect"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--lockstep", dest="realtime", action="store_false",
                       help="wait for every due agent's command each tick (default; deterministic)")
@@ -46,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "them during a link cut [s] (default 10; also bounded to 8 MiB)")
     add_transport_arguments(parser)
     add_process_arguments(parser)
+    add_orphan_argument(parser)
 
 
 def process_config(args: argparse.Namespace):  # -> tlfleet.sim.process.SimProcessConfig
@@ -57,7 +75,7 @@ def process_config(args: argparse.Namespace):  # -> tlfleet.sim.process.SimProce
                             tick_timeout=args.tick_timeout,
                             transport=transport_config(args, "sim"),
                             max_command_age=args.max_command_age,
-                            max_speed=args.max_speed,
+                            max_speed=args.max_speed, orphan_after=args.orphan_after,
                             **_backfill(args))
 
 

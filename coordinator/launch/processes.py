@@ -20,12 +20,13 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import child_environment as tie_to_this_process
 from tlfleet.bus.transport import child_environment
 
 logger = logging.getLogger(__name__)
@@ -47,6 +48,58 @@ def fifo_permitted() -> bool:
 
     soft, _hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
     return soft == resource.RLIM_INFINITY or soft >= FIFO_PRIORITY
+
+
+def _threads() -> list[int]:
+    """The ids of this process's threads (Linux sets a scheduling policy per thread)."""
+    try:
+        return [int(tid) for tid in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
+@contextlib.contextmanager
+def share_with_children(children_sched: str, above: bool = False) -> Iterator[bool]:
+    """While the children run under ``SCHED_FIFO`` (``children_sched == "fifo"``), put every
+    thread of this process (zenoh's receivers, the supervision loop, the recorder) under
+    ``SCHED_FIFO`` at the children's priority; afterwards, back to the ordinary policy.
+
+    Why: an ordinary task runs only when no real-time task is runnable, and in lockstep the
+    fleet's processes hand the CPU to each other without pause, so the coordinator — which
+    records every frame and supervises the run — got no CPU until the run ended (the progress
+    bar stopped at 6.6 of 90 s; the recorder fell as far behind; bench/recorder_lag_bench.py
+    measures it). At equal FIFO priority no one preempts anyone: a woken coordinator queues
+    behind the running child for a few hundred microseconds instead of waiting for the end of the
+    run. ``above`` (lockstep): one priority above the children, so that a woken coordinator runs at
+    once: at equal priority it queued behind the fleet and the record trailed the simulator by up
+    to 3.5 s of sim time (bench/recorder_lag_bench.py). Its work is bounded by the messages it
+    records, so the fleet loses little (Scenario 1's lockstep wall time within the noise). Threads
+    it starts meanwhile inherit the policy (``SCHED_RESET_ON_FORK`` would reset them too), and so
+    would a child it starts (a fault's restart), which sets its own ``--sched`` first thing.
+    Yields whether the policy was applied (not for other ``children_sched``, nor where the OS
+    refuses: then a warning)."""
+    if children_sched != "fifo" or not fifo_permitted():
+        yield False
+        return
+    policy = os.SCHED_FIFO
+    priority = FIFO_PRIORITY + 1 if above else FIFO_PRIORITY
+    raised: list[int] = []
+    try:
+        for tid in _threads():
+            try:
+                os.sched_setscheduler(tid, policy, os.sched_param(priority))
+                raised.append(tid)
+            except ProcessLookupError:
+                continue
+            except OSError as exc:
+                logger.warning("the coordinator stays under the ordinary policy (%s): its "
+                               "recording may fall behind a SCHED_FIFO fleet", exc)
+                break
+        yield bool(raised)
+    finally:
+        for tid in _threads():  # threads started meanwhile inherited the policy too
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
 
 
 class LaunchError(TlfleetError, RuntimeError):
@@ -183,6 +236,7 @@ class Launcher:
         log_path = self.log_dir / f"{name}.log"
         log = open(log_path, "ab", buffering=0)  # noqa: SIM115 - closed in Child.close_log
         env = child_environment(os.environ if self._env is None else self._env)
+        tie_to_this_process(env)  # it dies with us, even when we are SIGKILLed
         env.setdefault("PYTHONUNBUFFERED", "1")
         try:
             process = subprocess.Popen(list(argv), stdin=subprocess.DEVNULL, stdout=log,
@@ -196,7 +250,7 @@ class Launcher:
         return child
 
     def restart(self, name: str) -> Child:
-        """Start child ``name`` again with the same argv (issue 13's ``restart:`` fault), once
+        """Start child ``name`` again with the same argv (the ``restart:`` fault), once
         its process has exited; the new child takes the old one's place (its log goes on in the
         same file)."""
         old = next((c for c in self.children if c.name == name), None)

@@ -6,7 +6,7 @@ the last second. :class:`Recorder` is a plain consumer of decoded messages (no t
 :class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
 (stack-notes.md §0) and decodes in the coordinator's loop.
 
-Backfill (issue 13): frames reach ``trajectory.csv`` through a
+Backfill: frames reach ``trajectory.csv`` through a
 :class:`~tlfleet.coordinator.record.frame_merge.FrameMerger`, so a gap in the live stream (a link
 cut longer than the zenoh lease) is held open while :class:`RecorderTap` asks the simulator for the
 missing frames (``BackfillRequest`` on ``sim/backfill``); they are merged by seq, and what cannot be
@@ -30,6 +30,7 @@ from typing import IO, Any
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.codec import ProtocolError, decode, encode, peek_kind
+from tlfleet.bus.protocol.events import data_problem
 from tlfleet.bus.protocol.messages import (
     BackfillReply,
     BackfillRequest,
@@ -43,6 +44,7 @@ from tlfleet.bus.transport import Channel, Closeable, Transport
 from tlfleet.coordinator.record import rundir
 from tlfleet.coordinator.record.frame_merge import FrameMerger
 from tlfleet.coordinator.record.replay_dedup import EventDedup
+from tlfleet.coordinator.record.trust import RecordCheck
 
 logger = logging.getLogger(__name__)
 
@@ -77,6 +79,7 @@ class Recorder:
         self.statuses = 0
         self.events = 0
         self.event_kinds: Counter[str] = Counter()
+        self.sim_done_t: float | None = None  # [s] the sim time the newest sim_done claims
         self._traj_writer = rundir.TrajectoryWriter(self.run_dir / rundir.TRAJECTORY,
                                                     self.robot_ids)
         self._status_writer = rundir.StatusWriter(self.run_dir / rundir.STATUS)
@@ -173,6 +176,8 @@ class Recorder:
         self._events.write(rundir.event_line(event))
         self.events += 1
         self.event_kinds[event.kind] += 1
+        if event.kind == "sim_done":
+            self.sim_done_t = event.t
         if event.kind in ("process_died", "sim_done"):
             self._events.flush()  # rare and important: on disk at once
         self._maybe_flush()
@@ -201,19 +206,21 @@ class Recorder:
 class RecorderTap:
     """Subscribes a :class:`Recorder` to a fleet's mocap, status and event keys.
 
-    The samples wait in one channel per key (``Transport.subscribe_channel``; issue 17: no
+    The samples wait in one channel per key (``Transport.subscribe_channel``: no
     Python thread is woken per sample, 100+ times a second) or, on a transport without
     channels, are queued by callbacks; :meth:`drain` (called from the coordinator's loop)
     decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
     per (kind, claimed source) in ``malformed_by_source``, logged at most once a second per kind,
-    never raised. With ``bounds``/``max_jump`` (issue 11), implausible frames (outside the run,
+    never raised. With ``bounds``/``max_jump``, implausible frames (outside the run,
     the arena, or a sequence jump not confirmed by the next frame: ``FrameGate``) count as
     malformed and are not recorded, so a spoofed frame neither ends the run (t = 10⁹) nor makes the
-    recorder drop real rows (a high seq). With ``robot_ids``, events and statuses whose claimed
-    identity does not hold (:mod:`tlfleet.coordinator.record.trust`) are recorded as
-    ``flagged_event`` instead.
+    recorder drop real rows (a high seq). An event whose data has the wrong types for its kind
+    (:func:`tlfleet.bus.protocol.events.data_problem`) is malformed. With ``robot_ids``, events
+    on a key that is not their claimed source's, and statuses whose claimed identity does not
+    hold, are recorded as ``flagged_event`` instead (:mod:`tlfleet.coordinator.record.trust`);
+    with ``record_check`` also the simulator's claims that contradict the frames recorded.
 
-    Backfill (issue 13): each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
+    Backfill: each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
     simulator's ``sim/backfill`` queryable (``query_async``: the replies are queued by the
     transport's thread and recorded by a later drain). Every frame of a reply is decoded and
     checked (``bounds``) like a live one, but not by the gate: it is an old frame asked for. A
@@ -231,7 +238,8 @@ class RecorderTap:
     def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
                  on_message: Callable[[str, Any], None] | None = None, *,
                  bounds: FleetBounds | None = None, max_jump: int | None = None,
-                 robot_ids: Sequence[int] | None = None):
+                 robot_ids: Sequence[int] | None = None,
+                 record_check: RecordCheck | None = None):
         self.recorder = recorder
         self.fleet = fleet
         self.transport = transport
@@ -240,6 +248,7 @@ class RecorderTap:
         self.bounds = bounds
         self.gate = FrameGate(max_jump) if max_jump else None
         self.robot_ids = frozenset(robot_ids) if robot_ids is not None else None
+        self.record_check = record_check
         self.flagged = 0
         self.dedup = EventDedup()  # replayed agent events (tlfleet.agent.runtime.event_log)
         self.malformed_by_source: Counter[tuple[str, str]] = Counter()
@@ -252,7 +261,7 @@ class RecorderTap:
         self._channels: list[tuple[str, Channel]] = []
         subscribe_channel = getattr(transport, "subscribe_channel", None)
         for what, key in (("mocap", keys.mocap(fleet)), ("status", keys.all_statuses(fleet)),
-                          ("event", keys.event(fleet))):
+                          ("event", keys.all_events(fleet))):
             if subscribe_channel is not None:
                 channel = subscribe_channel(key, capacity=self.CHANNEL_CAPACITY)
                 self._channels.append((what, channel))
@@ -317,6 +326,8 @@ class RecorderTap:
             if what == "mocap":
                 frame = decode(MocapFrame, payload)
                 self._check_frame(frame)
+                if self.record_check is not None:
+                    self.record_check.on_frame(frame)
                 self.latest_frame = frame
                 self.recorder.on_mocap(frame)
                 message: Any = frame
@@ -334,9 +345,13 @@ class RecorderTap:
                 self.recorder.on_status(message)
             else:
                 message = decode(Event, payload)
-                if message.source == COORDINATOR_SOURCE:  # ours are recorded when made
-                    return
-                if self._flag(message) or not self.dedup.admit(message):
+                parsed = keys.parse_event(key)
+                if parsed is not None and parsed[0] == COORDINATOR_SOURCE:
+                    return  # ours are recorded when made
+                problem = data_problem(message.kind, message.data)
+                if problem is not None:
+                    raise ProtocolError(f"Event: {problem}")
+                if self._flag(message, key) or not self.dedup.admit(message):
                     return
                 self.recorder.on_event(message)
         except ProtocolError as exc:
@@ -368,13 +383,16 @@ class RecorderTap:
         if problem is not None:
             raise ProtocolError(f"MocapFrame: implausible: {problem}")
 
-    def _flag(self, event: Event) -> bool:
-        """Record an event whose claimed identity does not hold as ``flagged_event``."""
+    def _flag(self, event: Event, key: str) -> bool:
+        """Record an event whose claimed identity does not hold, or whose claim contradicts the
+        record, as ``flagged_event`` (:mod:`tlfleet.coordinator.record.trust`)."""
         if self.robot_ids is None:
             return False
         from tlfleet.coordinator.record.trust import FLAGGED, event_problem
 
-        problem = event_problem(event, self.robot_ids)
+        problem = event_problem(event, key, self.robot_ids)
+        if problem is None and event.source == "sim" and self.record_check is not None:
+            problem = self.record_check.contradiction(event)
         if problem is None:
             return False
         self.flagged += 1
@@ -383,15 +401,16 @@ class RecorderTap:
                            event.source[:40], problem, self.flagged)
         self.recorder.on_event(Event(
             t=event.t, source=COORDINATOR_SOURCE, kind=FLAGGED,
-            data={"claimed_source": event.source[:80], "claimed_kind": event.kind[:80],
-                  "reason": problem}))
+            data={"key": key[-80:], "claimed_source": event.source[:80],
+                  "claimed_kind": event.kind[:80], "reason": problem}))
         return True
 
     def _count(self, what: str, key: str, payload: bytes, exc: Exception) -> None:
         if what == "status":
             source = f"agent/{keys.robot_of(key)}"
         elif what == "event":
-            source = "?"
+            parsed = keys.parse_event(key)
+            source = "/".join(parsed)[:40] if parsed is not None else "?"
         else:
             source = "sim"
         self.malformed[what] += 1

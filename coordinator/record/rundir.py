@@ -36,6 +36,7 @@ from tlfleet.agent.model import Scenario
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.stl.monitor import Trajectory, read_trajectory_csv
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.protocol.events import data_problem
 from tlfleet.bus.protocol.messages import Event, LtlStatus, StlStatus
 
 logger = logging.getLogger(__name__)
@@ -75,7 +76,7 @@ def default_run_dir(scenario_name: str, root: Path = Path("runs"),
                     now: datetime | None = None) -> Path:
     """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists.
 
-    Always a direct child of ``root`` (issue 11): a name that would leave it (a path separator,
+    Always a direct child of ``root``: a name that would leave it (a path separator,
     ``..``) is refused even if the loader let it through.
     """
     stamp = (now or datetime.now(UTC)).strftime("%Y%m%d-%H%M%S")
@@ -118,10 +119,11 @@ def write_json(path: Path, data: Any) -> None:
 
 
 def read_json(path: Path, default: Any = None) -> Any:
-    """A JSON file written by :func:`write_json`; ``default`` when missing or not JSON."""
+    """A JSON file written by :func:`write_json`; ``default`` when missing or not JSON (or
+    nested beyond Python's recursion limit)."""
     try:
         return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
         return default
 
 
@@ -144,7 +146,10 @@ def json_default(value: Any) -> Any:
 
 
 def _event_from_line(line: str) -> Event:
-    record = json.loads(line)
+    try:
+        record = json.loads(line)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
     if not isinstance(record, dict):
         raise ValueError("not a JSON object")
     t, source, kind = record.get("t"), record.get("source"), record.get("kind")
@@ -155,6 +160,9 @@ def _event_from_line(line: str) -> Event:
         raise ValueError(f"'source' and 'kind' must be strings, found {source!r}, {kind!r}")
     if not isinstance(data, dict):
         raise ValueError(f"'data' must be an object, found {type(data).__name__}")
+    problem = data_problem(kind, data)  # the types its readers rely on
+    if problem is not None:
+        raise ValueError(problem)
     return Event(t=float(t), source=source, kind=kind, data=data)
 
 
@@ -330,9 +338,6 @@ class RunFiles:
     @property
     def skipped_event_lines(self) -> list[int]:
         return [p.line for p in self.problems if p.file == EVENTS]
-
-    def statuses_of(self, robot: int, kind: type[Status]) -> list[Status]:
-        return [s for s in self.statuses if isinstance(s, kind) and s.robot == robot]
 
 
 def read_run(run_dir: str | Path, *, strict: bool = False,

@@ -57,8 +57,8 @@ def main() -> int:
         transport = open_transport(TransportConfig(mode="router", listen=(args.endpoint,)))
     else:
         transport = open_transport(TransportConfig(mode="client", connect=(args.endpoint,)))
-    scenario = load_scenario(args.scenario)
-    fleet = scenario.fleet
+    scenario = load_scenario(args.scenario) if args.role != "router" else None
+    fleet = scenario.fleet if scenario is not None else ""
     started = threading.Event()
 
     def on_control(_key: str, payload: bytes) -> None:
@@ -107,8 +107,9 @@ def main() -> int:
             k += 1
             time.sleep(1.0 / args.rate)
         transport.publish(keys.mocap(fleet), encode(frame(k)))
-        transport.publish(keys.event(fleet), encode(Event(k / 100.0, "sim", "sim_done", {})))
-        transport.publish(keys.event(fleet), encode(Event(0.5, "sim", "contact",
+        transport.publish(keys.event(fleet, "sim", 0),
+                          encode(Event(k / 100.0, "sim", "sim_done", {})))
+        transport.publish(keys.event(fleet, "sim", 0), encode(Event(0.5, "sim", "contact",
                                                           {"a": ids[0], "b": "wall"})))
         stop.wait(30.0)
         return 0

@@ -42,7 +42,7 @@ def test_trajectory_rows_after_start_only_strictly_increasing(tmp_path):
     rec.start()
     rec.on_mocap(frame(0))  # a late pre-start frame …
     rec.on_mocap(frame(0))  # … and tick 0 (the later one wins)
-    for seq in (1, 2, 4, 3, 5, 2):  # 3 after 4 fills the gap it left (issue 13); 2 again: stale
+    for seq in (1, 2, 4, 3, 5, 2):  # 3 after 4 fills the gap it left; 2 again: stale
         rec.on_mocap(frame(seq))
     rec.close()
     traj = read_trajectory_csv(tmp_path / "trajectory.csv")
@@ -127,7 +127,7 @@ def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path, channel
     sim.publish(keys.mocap("f"), b"\xc1garbage")
     sim.publish(keys.mocap("f"), encode(Event(0.0, "x", "y", {})))  # wrong message kind
     sim.publish(keys.status("f", 3), b"")
-    sim.publish(keys.event("f"), encode(Event(0.5, "sim", "sim_done", {})))
+    sim.publish(keys.event("f", "sim", 0), encode(Event(0.5, "sim", "sim_done", {})))
     sim.publish(keys.mocap("f"), encode(frame(1)))
     assert rec.frames_written == 0  # channels and callbacks only queue
     assert tap.drain(limit=2) == 2  # at most limit samples, the rest stays queued
@@ -154,10 +154,22 @@ def test_progress_bar_line():
 
     from tlfleet.cli.commands.run import ProgressBar
 
+    wall = [0.0]
     stream = io.StringIO()
-    bar = ProgressBar(stream, width=10)
+    bar = ProgressBar(stream, width=10, clock=lambda: wall[0])
     bar(45.0, 90.0)
-    bar(45.05, 90.0)  # less than 0.1 s of sim time later: not redrawn
+    wall[0] = 0.1
+    bar(45.05, 90.0)  # less than 0.1 s of sim time and 0.5 s of wall time later: not redrawn
+    wall[0] = 2.0
+    bar(55.0, 90.0)  # 10 s of sim time in 2 s of wall time: 5x, 35 s left = 7 s of wall time
+    wall[0] = 3.0
+    bar(55.0, 90.0)  # stalled: redrawn after 0.5 s of wall time, the rate falls
+    wall[0] = 30.0
     bar(90.0, 90.0)
     bar.end()
-    assert stream.getvalue() == "\r[#####     ] 45.0/90.0 s\r[##########] 90.0/90.0 s\n"
+    assert stream.getvalue().split("\r")[1:] == [
+        "[#####     ] 45.0/90.0 s\x1b[K",
+        "[######    ] 55.0/90.0 s  5.0x  ETA 0:07\x1b[K",
+        "[######    ] 55.0/90.0 s  3.3x  ETA 0:10\x1b[K",
+        "[##########] 90.0/90.0 s  1.3x  ETA 0:00\x1b[K\n",
+    ]

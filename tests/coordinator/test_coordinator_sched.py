@@ -1,4 +1,4 @@
-"""OS scheduling of a run's processes (issue 17, ``tlfleet.cli.process_flags``): ``tlfleet run``
+"""OS scheduling of a run's processes (``tlfleet.cli.process_flags``): ``tlfleet run``
 starts the router, the sim and the agents under Linux's ``SCHED_FIFO`` where the user may ask for
 it, and elsewhere a lockstep run under ``SCHED_BATCH`` and a realtime run as the OS starts it
 (``--sched``). Checked on the argv the runner builds, on the flags, on the policy a real process
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.coordinator import run as runner
-from tlfleet.coordinator.run import RunConfig, child_sched, default_child_argv
+from tlfleet.coordinator.run import RunConfig, child_sched, default_child_argv, fleet_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -39,8 +39,9 @@ def test_the_runner_asks_for_fifo_where_permitted_and_batch_in_lockstep_else(
     scenario = load_scenario(SCENARIO)
     config = RunConfig(SCENARIO, mode=mode, sched=sched)
     assert child_sched(config) == expected
+    plan = {spec.name: spec for spec in fleet_plan(config, scenario, "tcp/127.0.0.1:7447")}
     for role, robot in ROLES:
-        argv = default_child_argv(role, config, scenario, robot, "tcp/127.0.0.1:7447")
+        argv = default_child_argv(plan[role if robot is None else f"agent-{robot}"])
         assert _sched_flag(argv) == (None if expected == "default" else expected), (role, argv)
 
 
@@ -153,3 +154,61 @@ def test_an_unknown_policy_is_a_value_error():
 
     with pytest.raises(ValueError, match="'rr'"):
         apply_scheduling("rr")
+
+
+def _policy_of_threads() -> set[tuple[int, int]]:
+    """(policy without the reset-on-fork flag, priority) of every thread of this process."""
+    flag = getattr(os, "SCHED_RESET_ON_FORK", 0)
+    out = set()
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            policy = os.sched_getscheduler(int(tid)) & ~flag
+            out.add((policy, os.sched_getparam(int(tid)).sched_priority))
+        except ProcessLookupError:
+            continue
+    return out
+
+
+@pytest.mark.needs_system
+@pytest.mark.parametrize("above", [False, True])
+def test_the_coordinator_shares_the_fifo_of_its_children_during_supervision(above):
+    """Inside ``share_with_children("fifo")`` every thread of the coordinator (one started
+    before, one started inside) runs SCHED_FIFO at the children's priority (one above in
+    lockstep); afterwards all are ordinary again."""
+    import threading
+
+    from tlfleet.coordinator.launch.processes import (
+        FIFO_PRIORITY,
+        fifo_permitted,
+        share_with_children,
+    )
+
+    if not fifo_permitted():
+        pytest.skip("SCHED_FIFO is not permitted to this user (root or RLIMIT_RTPRIO)")
+    release = threading.Event()
+    before = threading.Thread(target=release.wait, daemon=True)
+    before.start()
+    inside = None
+    try:
+        with share_with_children("fifo", above=above) as applied:
+            inside = threading.Thread(target=release.wait, daemon=True)
+            inside.start()
+            assert applied
+            expected = FIFO_PRIORITY + 1 if above else FIFO_PRIORITY
+            assert _policy_of_threads() == {(os.SCHED_FIFO, expected)}
+        assert _policy_of_threads() == {(os.SCHED_OTHER, 0)}
+    finally:
+        release.set()
+        before.join(5)
+        if inside is not None:
+            inside.join(5)
+
+
+@pytest.mark.parametrize("sched", ["batch", "default"])
+def test_no_share_unless_the_children_are_fifo(sched):
+    from tlfleet.coordinator.launch.processes import share_with_children
+
+    policies = _policy_of_threads()
+    with share_with_children(sched) as applied:
+        assert not applied
+        assert _policy_of_threads() == policies

@@ -1,4 +1,4 @@
-"""Every file of the broken-scenario corpus (issue 11) is rejected with a specific error: the
+"""Every file of the broken-scenario corpus is rejected with a specific error: the
 file, the field path and the reason — never a traceback, never accepted."""
 
 from __future__ import annotations

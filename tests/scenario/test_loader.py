@@ -150,7 +150,7 @@ def test_scenario1_matches_the_design_table(scenarios_dir: Path):
         0.02, 0.2, 0.6, 0.7, 2.0)
     # the paper's Algorithm 2 through each F window, not the authors' code's F-hold
     assert (s.stl.hold_f_above_r, s.stl.complete_f_on_satisfaction) == (False, False)
-    # issue 17: the two LTL agents step at ticks 0 and 10 of every 20 (ltl.stagger default)
+    # the two LTL agents step at ticks 0 and 10 of every 20 (ltl.stagger default)
     assert s.ltl.stagger and [s.control_phase(r.id) for r in s.robots] == [0, 10, 0, 0, 0]
 
 

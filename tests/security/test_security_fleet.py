@@ -62,10 +62,10 @@ def fleet_run(out: Path, secure: Path | None = None, on_endpoint=None,
     ``max_speed``: sim time at most this × wall time; ``sched``: ``RunConfig.sched`` (the
     trajectory is the same whatever these two)."""
 
-    def child_argv(role, config, scenario, robot, endpoint):
-        if role == "router" and on_endpoint is not None:
-            on_endpoint(endpoint)
-        return default_child_argv(role, config, scenario, robot, endpoint)
+    def child_argv(spec):
+        if spec.role == "router" and on_endpoint is not None:
+            on_endpoint(spec.links.listen[0])
+        return default_child_argv(spec)
 
     return run_fleet(RunConfig(SCENARIO1, mode="lockstep", out=out, duration=DURATION, seed=1,
                                secure=secure, child_argv=child_argv, report=False, sched=sched,
@@ -281,6 +281,82 @@ def test_plain_ignores_nothing(plain):
     assert ignored.get("duplicate", 0) == 0 and ignored.get("wrong_seq", 0) == 0, ignored
 
 
+#: what robot 3's certificate forges: every kind the simulator makes, and agent events of
+#: another robot (kind, claimed source, data)
+FORGED = (
+    ("sim_done", "sim", {"ticks": 1}),
+    ("sim_stats", "sim", {"ticks": 3000, "due": 100_000, "missed": 0, "ignored": {}}),
+    ("contact", "sim", {"a": 4, "b": 5}),
+    ("contact", "sim", {"a": 4, "b": "wall", "what": "wall"}),
+    ("watchdog_stop", "sim", {"robot": 4, "last_command_t": 0.0}),
+    ("deadline_miss", "sim", {"robot": 4, "seq": 10, "count": 1000}),
+    ("stale_command", "sim", {"robot": 4, "command_t": 0.0}),
+    ("repair", "agent/4", {"stage": 3, "r": 0.0, "subtask": 0}),
+    ("subtask_done", "agent/4", {"subtask": 0, "satisfied": False, "r": 0.0}),
+)
+
+
+class Forger(Hostile):
+    """Publishes every forged event of :data:`FORGED` twice a second of wall time: on robot 3's
+    own event key (claiming another source), and on the simulator's and robot 4's keys (which the
+    router must refuse)."""
+
+    def __init__(self, keydir: Path):
+        super().__init__(keydir)
+        self.sent: dict[str, int] = {}
+
+    def attack(self, session) -> None:
+        self.wait_for_fleet(session)
+        own, theirs = keys.event(F, "agent", 3), (keys.event(F, "sim", 0),
+                                                  keys.event(F, "agent", 4))
+        publishers = {key: session.declare_publisher(key) for key in (own, *theirs)}
+        t = 1.0
+        while not self.stop.wait(0.5):
+            for kind, source, data in FORGED:
+                for key, publisher in publishers.items():
+                    publisher.put(encode(Event(t, source, kind, data)))
+                    self.sent[key] = self.sent.get(key, 0) + 1
+            t += 1.0
+
+
+def test_robot3_forges_no_event_of_any_kind(fleet_keys, tmp_path):
+    """Issue: every identity wrote the one ``event`` key and the source was whatever the payload
+    claimed; robot 3's certificate got 6 of 8 forged events recorded as genuine and replaced the
+    simulator's end-of-run statistics. Now each identity writes only its own key."""
+    forger = Forger(fleet_keys.path)
+    try:
+        result = fleet_run(tmp_path / "run", fleet_keys.path, forger.on_endpoint, max_speed=4.0)
+    finally:
+        forger.stop.set()
+        forger.join(30)
+    assert forger.error is None, repr(forger.error)
+    own = keys.event(F, "agent", 3)
+    assert forger.sent.get(own, 0) >= 5 * len(FORGED), forger.sent  # ≥ 5 rounds in the run
+    recorded = events(tmp_path / "run")
+    # nothing forged recorded as genuine: the simulator's events are its own (one sim_stats, its
+    # real counts), robot 4's events have none of the forged values
+    stats = [e for e in recorded if e["kind"] == "sim_stats"]
+    assert len(stats) == 1 and stats[0]["source"] == "sim"
+    assert stats[0]["data"]["due"] != 100_000 and stats[0]["data"]["ticks"] > 2000
+    done = [e for e in recorded if e["kind"] == "sim_done"]
+    assert len(done) <= 1 and all(e["data"]["ticks"] > 2000 for e in done)
+    for kind in ("contact", "watchdog_stop", "deadline_miss", "stale_command"):
+        assert not [e for e in recorded if e["kind"] == kind], kind
+    assert not [e for e in recorded if e["source"] == "agent/4"
+                and e["kind"] in ("repair", "subtask_done") and e["data"].get("r") == 0.0]
+    flagged = [e for e in recorded if e["kind"] == "flagged_event"]
+    assert flagged and all(e["data"]["key"].endswith("event/agent/3") for e in flagged)
+    assert len(flagged) >= 5 * len(FORGED)  # forgeries on its own key, each named as such
+    log = (tmp_path / "run" / "logs" / "router.log").read_text()
+    for key in (keys.event(F, "sim", 0), keys.event(F, "agent", 4)):
+        assert f"ACL denied: robot3 Put (ingress) on {key}" in log, log
+    # the mission ran to its end; the only degradation is the flagged forgeries
+    assert result.outcome.reason in ("duration", "sim_done")
+    assert result.outcome.t_end >= result.info["duration"] - 0.02
+    assert result.verdict.label == "degraded", result.verdict.line
+    assert all("flagged event" in r for r in result.verdict.reasons), result.verdict.reasons
+
+
 def _rubbish(rng: random.Random, depth: int = 0):
     choice = rng.randrange(9 if depth < 3 else 6)
     if choice == 0:
@@ -334,7 +410,7 @@ def malformed_payloads(seed: int, valid: bytes, types: tuple[type, ...], n: int
                        ) -> tuple[list[bytes], list[str]]:
     """``n`` payloads that no type in ``types`` decodes (each is rejected with ``ProtocolError``
     or makes ``decode`` raise something else), and those other exceptions: payloads on which the
-    codec is not total (issue 11). They stay in the stream: a receiver must count them too."""
+    codec is not total. They stay in the stream: a receiver must count them too."""
     rng = random.Random(seed)
     out: list[bytes] = []
     crashes: list[str] = []
@@ -362,7 +438,8 @@ def valid_examples() -> dict[str, tuple[bytes, tuple[type, ...]]]:
     return {
         keys.cmd(F, 3): (encode(Command(3, 1.0, 100, (0.1, 0.0, 0.0))), (Command,)),
         keys.status(F, 3): (STATUS, (StlStatus, LtlStatus)),
-        keys.event(F): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})), (Event,)),
+        keys.event(F, "agent", 3): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})),
+                                    (Event,)),
         keys.collab(F, 4): (encode(CollabMessage("release", 3, 4, 1.0, 0)), (CollabMessage,)),
     }
 
@@ -444,7 +521,7 @@ def test_fuzzer_sent_every_payload_on_every_key_robot3_may_write(fuzzed):
     assert fuzzer.finished.is_set(), "the fuzzer did not finish"
     assert fuzzer.gone_before_finish == set(), (fuzzer.gone_before_finish, fuzzer.seconds)
     assert fuzzer.sent == {key: FUZZ_PER_KEY for key in valid_examples()}
-    # the codec is total (issue 11): every malformed payload on every key is a ProtocolError
+    # the codec is total: every malformed payload on every key is a ProtocolError
     assert {key for key, found in crashes.items() if found} == set()
 
 
