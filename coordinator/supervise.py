@@ -35,6 +35,7 @@ from typing import Any
 
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.ltl import plan_all
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.protocol import keys
@@ -127,8 +128,10 @@ class RunResult:
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
     """The scenario (``ScenarioError`` names file and field); with ``secure``, its key directory
     checked against it (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): both before
-    anything starts."""
+    anything starts; so is every LTL robot's plan (``plan_all``: ``UnsatisfiableTask`` names the
+    region in the way when the keep-out rule leaves none, docs/ltl-navigation.md §2)."""
     scenario = load_scenario(scenario_path)
+    plan_all(scenario)
     if secure is not None:
         from tlfleet.coordinator.security.authority import (
             check_keys,  # cryptography: imported for secured runs only

@@ -11,8 +11,8 @@ import argparse
 import json
 import math
 
-from tlfleet.agent.ltl.task import task_automaton
 from tlfleet.agent.model import Scenario
+from tlfleet.agent.policy.ltl import plan_all
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
 from tlfleet.cli.arg_types import scenario_file
@@ -39,18 +39,14 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         for path in args.scenario:
             scenario = load_scenario(path)
-            for robot in scenario.robots:
-                if robot.ltl is not None:
-                    task_automaton(robot.ltl)
+            plan_all(scenario)  # as below: Algorithm 1 with the agents' map and rules
             print(json.dumps(summary_json(scenario, stl_warnings(scenario))), flush=True)
         return 0
     for index, path in enumerate(args.scenario):
         if index:
             print()
         scenario = load_scenario(path)
-        for robot in scenario.robots:
-            if robot.ltl is not None:
-                task_automaton(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
+        plan_all(scenario)  # Algorithm 1 with the agents' map and rules, as `tlfleet plan` does
         print(summarise(scenario))
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")
