@@ -47,10 +47,16 @@ from tlfleet.bus.zenoh.transport import open_transport
 from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
-from tlfleet.coordinator.live.verdict import Verdict, classify, mission_event_kinds
+from tlfleet.coordinator.live.verdict import (
+    Verdict,
+    classify,
+    control_periods,
+    mission_event_kinds,
+)
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
 from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
 from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
+from tlfleet.coordinator.report.task_tally import TASKS_NOT_MET, TaskTally
 
 logger = logging.getLogger(__name__)
 
@@ -117,6 +123,16 @@ class RunResult:
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # tlfleet.coordinator.report.viewer.LiveView, still serving (close() it)
     verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
+    tasks: TaskTally | None = None  # what the run achieved (None: not computed)
+
+    def exit_code(self, require_tasks: bool = False) -> int:
+        """The verdict's exit code; with ``require_tasks``, :data:`TASKS_NOT_MET` (5) instead
+        of 0 or 4 when a task was not met (or the tally could not be computed)."""
+        code = self.verdict.exit_code
+        if require_tasks and self.verdict.label in ("clean", "degraded") and not (
+                self.tasks is not None and self.tasks.all_met):
+            return TASKS_NOT_MET
+        return code
 
 
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
@@ -293,7 +309,7 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
     ``codes``: the launched children's exit codes after ``Control(stop)``; ``final``: after the
     clean-up; ``lingering``: processes not started here whose tokens outlived ``Control(stop)``.
     """
-    info, recorder = prepared.info, prepared.recorder
+    info, recorder, scenario = prepared.info, prepared.recorder, prepared.scenario
     clean = (outcome.reason in CLEAN_ENDS and not outcome.deaths and not lingering
              and all(code == 0 for code in codes.values()) and router_clean)
     info["clean"] = clean
@@ -302,19 +318,21 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
          f"{' and figures' if config.report and config.figures else ''} in {prepared.run_dir} …")
 
     def judge(files: RunFiles, data: dict[str, Any]) -> Verdict:
-        events = [{"t": e.t, "kind": e.kind} for e in files.events]  # read once (lenient)
+        events = [{"t": e.t, "kind": e.kind, "source": e.source, "data": e.data}
+                  for e in files.events]  # read once (lenient)
         extra = list(findings or []) + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])]
         return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
                         exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
                         deadlines=data.get("deadlines") or {},
-                        event_kinds=mission_event_kinds(events, outcome.t_end),
+                        event_kinds=mission_event_kinds(events, outcome.t_end,
+                                                        periods=control_periods(scenario)),
                         findings=extra, lingering=lingering)
 
-    text, data, report, rrd, verdict = write_outputs(
+    text, data, report, rrd, verdict, tally = write_outputs(
         prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note, say,
         judge=judge)
     return RunResult(prepared.run_dir, outcome, final, clean, text, data, info, report, rrd,
-                     viewer, verdict)
+                     viewer, verdict, tally)
 
 
 def client_config(connect: tuple[str, ...], *, secure: Path | None = None,

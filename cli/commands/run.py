@@ -13,7 +13,9 @@ Exit codes (the run's verdict, :mod:`tlfleet.coordinator.live.verdict`, printed 
 …``): 0 clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost,
 a process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
 missed deadlines, watchdog stops, stale commands, malformed input, flagged events, silent or
-recovered agents: listed); 130 interrupted (a message says so).
+recovered agents: listed); 130 interrupted (a message says so). The line before it is the task
+tally (:mod:`tlfleet.coordinator.report.task_tally`); with ``--require-tasks``, 5 instead of 0 or 4
+when a task was not met.
 """
 
 from __future__ import annotations
@@ -95,6 +97,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
+    add_require_tasks_argument(parser)
+
+
+def add_require_tasks_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--require-tasks", action="store_true",
+                        help="exit 5 when the fleet ran (clean or degraded) but a task was not "
+                             "met: the tally's line 'tasks: N of M met; …' names them")
 
 
 class ProgressBar:
@@ -138,8 +147,9 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
 
 
 def print_outputs(result: RunResult) -> None:
-    """The report table (the summary if no report was written), the files a person opens next, the
-    verdict (``outcome: …``) and the run directory last."""
+    """The report table (the summary if no report was written), the files a person opens next and
+    the run directory, then the last two lines: the task tally (``tasks: 5 of 7 met; …``) and the
+    verdict (``outcome: …``)."""
     if result.report is not None:
         print(result.report.table)
         print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
@@ -150,8 +160,10 @@ def print_outputs(result: RunResult) -> None:
         print(f"summary: {result.run_dir / 'summary.txt'}")
     if result.rrd is not None:
         print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`)")
-    print(result.verdict.line)
-    print(f"run directory: {result.run_dir}", flush=True)
+    print(f"run directory: {result.run_dir}")
+    if result.tasks is not None:
+        print(result.tasks.line)
+    print(result.verdict.line, flush=True)
 
 
 def run_hosts(args: argparse.Namespace) -> int:
@@ -167,6 +179,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     extra += [] if args.report else ["--no-report"]
     extra += [] if args.figures else ["--no-figures"]
     extra += [] if args.rrd else ["--no-rrd"]
+    extra += ["--require-tasks"] if args.require_tasks else []
     sim = [] if args.seed is None else ["--seed", str(args.seed)]
     sim += [] if args.duration is None else ["--duration", repr(args.duration)]
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
@@ -235,4 +248,4 @@ def run(args: argparse.Namespace) -> int:
     elif verdict.label != "clean":
         print(f"tlfleet run: {verdict.label} (end: {result.outcome.reason}, exit codes: "
               f"{result.exit_codes})", file=sys.stderr)
-    return verdict.exit_code
+    return result.exit_code(args.require_tasks)
