@@ -32,10 +32,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.common import RESULTS, Figure, load_average, report  # noqa: E402
 from tlfleet.agent.scenario import load_scenario  # noqa: E402
 from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
 from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
+
+from bench.common import RESULTS, Figure, load_average, report  # noqa: E402
 
 
 def expected_startup(scenario_path: Path) -> collections.Counter[tuple[str, str]]:
