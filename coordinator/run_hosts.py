@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.coordinator.launch.netns_hosts import (
     PEER_PORT,
@@ -115,6 +116,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     (:func:`place_peers`; ``hosts`` is then the layout's own count)."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    check_launch(scenario)  # ... and what would stop an agent at launch
     if keys is not None and insecure:
         raise HostsError("--secure DIR and --insecure exclude each other")
     if keys is not None:

@@ -35,6 +35,7 @@ from typing import Any
 
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.protocol import keys
@@ -136,10 +137,12 @@ class RunResult:
 
 
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
-    """The scenario (``ScenarioError`` names file and field); with ``secure``, its key directory
+    """The scenario (``ScenarioError`` names file and field; every agent built as its process
+    would, :func:`tlfleet.agent.policy.preflight.check_launch`); with ``secure``, its key directory
     checked against it (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): both before
     anything starts."""
     scenario = load_scenario(scenario_path)
+    check_launch(scenario)  # what would stop an agent at launch, refused before any starts
     if secure is not None:
         from tlfleet.coordinator.security.authority import (
             check_keys,  # cryptography: imported for secured runs only

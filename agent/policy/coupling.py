@@ -47,6 +47,7 @@ from tlfleet.agent.stl.syntax import (
     Predicate,
     literals,
     predicate_function,
+    robots_of,
     to_text,
 )
 from tlfleet.agent.stl.task import Task
@@ -93,7 +94,10 @@ class CouplingModel:
         stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
         terms: list[_Term] = []
         for robot in scenario.robots:
-            if not robot.is_stl:
+            # only the tasks that name the leader: another robot's task, however broken, is
+            # that robot's agent's to report, never a reason for this one to fail
+            if not robot.is_stl or not any(leader in robots_of(phi.body)
+                                           for phi in robot_subtasks(robot)):
                 continue
             seq = build_sequence(robot.id, robot_subtasks(robot), robot_ids=scenario.robot_ids,
                                  stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=scenario.stl.eta,

@@ -47,6 +47,7 @@ from tlfleet.agent.stl.messages import (
 from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
 from tlfleet.agent.stl.sequencer import build_sequence, check_phase_start_times
+from tlfleet.agent.stl.syntax import robots_of
 from tlfleet.agent.stl.task import Task
 
 logger = logging.getLogger(__name__)
@@ -620,15 +621,21 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     """One :class:`StlAgent` per STL robot of a loaded ``tlfleet.agent.model.scenario.Scenario``.
 
     Parameters come from the scenario's ``[stl]`` table and each robot's limits unless given.
-    ``robots`` restricts which STL agents are built (the library still holds every STL task).
+    ``robots`` restricts which STL agents are built; the library holds their own sub-tasks and
+    every sub-task of a robot whose tasks name one of them (the stage-2 requests they may follow,
+    the announcements they owe), and nothing else.
     Each agent announces its status to :func:`status_readers` only.
     """
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
+    wanted = frozenset(robots if robots is not None else stl_ids)
     library: dict[tuple[int, int], Task] = {}
     sequences: dict[int, tuple[Task, ...]] = {}
     for robot in scenario.robots:
-        if not robot.is_stl:
+        # the agents' own tasks and those that name them (a requester's task, followed in
+        # stage 2): another robot's task, however broken, is that robot's agent's to report
+        if not robot.is_stl or not (robot.id in wanted or any(
+                wanted & robots_of(phi.body) for phi in robot_subtasks(robot))):
             continue
         seq = build_sequence(robot.id, robot_subtasks(robot), robot_ids=scenario.robot_ids,
                              stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=p.eta, warn=warn)

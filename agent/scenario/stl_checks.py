@@ -12,13 +12,12 @@ loader (``tlfleet.agent.scenario.loader.parse_scenario``):
   override too;
 * sub-task windows that overlap (§9: sub-tasks run in sequence, b^(k) ≤ a^(k+1));
 * ``phase_start_times`` entries that come before the previous window ends, or the wrong number
-  of them (§9 item 4, §13 item 6).
+  of them (§9 item 4, §13 item 6);
+* a window that ends after the scenario's ``duration`` (:func:`check_windows_in_run`);
+* a conjunct that asks two robots' bodies to overlap (:func:`check_bodies_apart`).
 
 Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
-* a window that ends (or starts) after the scenario's duration: its verdict will be "not
-  evaluated" (``tlfleet.coordinator.report.task_verdicts``);
-* a predicate whose robustness is unbounded above, with no ``rho_opt`` override;
 * a non-concave literal in the controlled states (paper Assumption 1);
 * a G sub-task whose window opens at t = 0 while its predicate is violated at the start poses:
   ρ^φ ≤ ρ^ψ(x̄(0)) < 0 whatever the robots do (the funnel starts late, stl-funnel.md §5).
@@ -27,9 +26,22 @@ Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 from __future__ import annotations
 
 from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.scenario.fields import robot_field
 from tlfleet.agent.stl.analysis import literal_sup, non_concave_literals
 from tlfleet.agent.stl.parser import robot_subtasks
-from tlfleet.agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
+from tlfleet.agent.stl.syntax import (
+    And,
+    BinOp,
+    Call,
+    Const,
+    Not,
+    Position,
+    Predicate,
+    Temporal,
+    literals,
+    robots_of,
+    to_text,
+)
 from tlfleet.bus.errors import ScenarioError
 
 # The loader runs these checks in every process that loads a scenario: they use the syntax tree
@@ -101,6 +113,68 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
                         source, f"{where}.phase_start_times[{k}]",
                         f"{t:g} precedes the end b = {windows[k][1]:g} of sub-task {k + 1} "
                         f"(stl-funnel.md §9: a forced start needs the previous window closed)")
+    check_windows_in_run(scenario, source)
+    check_bodies_apart(scenario, source)
+
+
+def _pair_bound(literal: object) -> tuple[int, int, float] | None:
+    """``(i, j, d)`` when ``literal`` is ``dist(pi, pj) <= d`` (or ``< d``, ``d >= dist(…)``,
+    ``norm(pi - pj)``) with two different robots and a constant d [m]; None otherwise."""
+    if not isinstance(literal, Predicate):
+        return None
+    if literal.cmp in ("<=", "<"):
+        distance, bound = literal.lhs, literal.rhs
+    else:
+        distance, bound = literal.rhs, literal.lhs
+    if not isinstance(bound, Const) or not isinstance(distance, Call):
+        return None
+    args = distance.args
+    if distance.func == "norm" and len(args) == 1 and isinstance(args[0], BinOp) \
+            and args[0].op == "-":
+        args = (args[0].left, args[0].right)
+    elif distance.func != "dist":
+        return None
+    if len(args) != 2 or not all(isinstance(a, Position) for a in args):
+        return None
+    i, j = args[0].robot, args[1].robot  # type: ignore[union-attr]
+    return (i, j, float(bound.value)) if i != j else None
+
+
+def check_bodies_apart(scenario: Scenario, source: str) -> None:
+    """A sub-task whose every satisfying state puts two robots' centres closer than their radii
+    allow — a conjunct ``dist(pi, pj) <= d`` with d < r_i + r_j — asks their bodies to overlap:
+    no run meets it (the simulator keeps bodies apart) and the funnel would push them into
+    contact."""
+    radius = {r.id: r.radius for r in scenario.robots}
+    for index, robot in enumerate(scenario.robots):
+        for k, phi in enumerate(_formulas(scenario, index)):
+            body = phi.body
+            conjuncts = body.children if isinstance(body, And) else (body,)
+            for literal in conjuncts:
+                pair = _pair_bound(literal)
+                if pair is None or pair[0] not in radius or pair[1] not in radius:
+                    continue
+                i, j, d = pair
+                if d < radius[i] + radius[j]:
+                    raise ScenarioError(
+                        source, f"{robot_field(index, robot.id)}.stl[{k}]",
+                        f"{to_text(literal)!r} asks the bodies of robots {i} and {j} to overlap: "
+                        f"their centres can come no closer than the sum of their radii, "
+                        f"{radius[i]:g} + {radius[j]:g} = {radius[i] + radius[j]:g} m > {d:g} m")
+
+
+def check_windows_in_run(scenario: Scenario, source: str) -> None:
+    """Every sub-task's window closes by the scenario's ``duration``: a window the run never
+    closes has no verdict, so its task cannot be met (``tlfleet run --duration`` may still cut a
+    run shorter: its tally then says ``not evaluated``)."""
+    for index, robot in enumerate(scenario.robots):
+        for k, phi in enumerate(_formulas(scenario, index)):
+            if phi.b > scenario.duration:
+                raise ScenarioError(
+                    source, f"{robot_field(index, robot.id)}.stl[{k}]",
+                    f"window [{phi.a:g}, {phi.b:g}] ends after the run (duration = "
+                    f"{scenario.duration:g} s): the run could never tell whether it was met; "
+                    f"raise duration or end the window by {scenario.duration:g} s")
 
 
 def stl_warnings(scenario: Scenario) -> list[str]:
@@ -114,18 +188,6 @@ def stl_warnings(scenario: Scenario) -> list[str]:
         for k, phi in enumerate(_formulas(scenario, index)):
             field = f"robots[{index}].stl[{k}]"
             text = to_text(phi)
-            if phi.a > scenario.duration:
-                out.append(f"{field}: window [{phi.a:g}, {phi.b:g}] starts after the run ends "
-                           f"(duration {scenario.duration:g} s): never evaluated")
-            elif phi.b > scenario.duration:
-                out.append(f"{field}: window [{phi.a:g}, {phi.b:g}] ends after the run ends "
-                           f"(duration {scenario.duration:g} s): the report cannot give it a "
-                           f"verdict")
-            override = robot.rho_opt[k] if k < len(robot.rho_opt) else None
-            unbounded = [lit for lit in literals(phi.body) if literal_sup(lit) == float("inf")]
-            if unbounded and override is None:
-                out.append(f"{field}: the robustness of {to_text(unbounded[0])!r} is unbounded "
-                           f"above: the agent needs robots[{index}].rho_opt[{k}]")
             for literal in non_concave_literals(phi.body, ltl_ids):
                 out.append(f"{field}: predicate {to_text(literal)!r} is not concave in the "
                            f"controlled states (paper Assumption 1): the funnel guarantees do "

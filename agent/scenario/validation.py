@@ -16,7 +16,8 @@ the reason; no input — however large, deep, strange or hostile — gives a tra
   text lengths, arena size, robot and region radii, ids, rates (mocap, physics, control),
   duration, watchdog, noise, disturbance and velocity limits within sane bounds
   (:data:`RANGES`);
-* **geometry** (:func:`check_geometry`): no obstacle over a robot's start pose, no region centre
+* **geometry** (:func:`check_geometry`): no robot's disc over the arena's wall or an obstacle at
+  its start pose, no region centre
   inside an obstacle, no two regions overlapping (a robot inside both could not tell which
   proposition holds);
 * **tasks** (:func:`check_ltl`, :func:`check_stl_windows`): an LTL task with more than
@@ -256,8 +257,15 @@ def check_geometry(scenario: Any, source: str) -> None:
     """No obstacle over a start pose, no region centre inside an obstacle, no overlapping
     regions."""
     obstacles = scenario.arena.obstacles
+    arena = scenario.arena
     for i, robot in enumerate(scenario.robots):
         x, y, _ = robot.pose
+        gap = min(x - arena.xmin, arena.xmax - x, y - arena.ymin, arena.ymax - y)
+        if gap < robot.radius:
+            raise ScenarioError(source, f"robots[{i}].pose",
+                                f"robot {robot.id} (radius {robot.radius:g} m) at ({x:g}, {y:g}) "
+                                f"overlaps the arena's wall at its start: its centre is "
+                                f"{gap:g} m from the wall, at least {robot.radius:g} m needed")
         for k, obstacle in enumerate(obstacles):
             if _disc_hits_obstacle(x, y, robot.radius, obstacle):
                 raise ScenarioError(source, f"robots[{i}].pose",

@@ -287,6 +287,31 @@ CASES: list[Case] = [
          "robots[1].stl", "at most"),
     Case("stl on unicycle", edit('id = 3\nkind = "omni"', 'id = 3\nkind = "unicycle"'),
          "robots[2].stl", "omni"),
+    # ------------------------------------------- what used to pass `check` and fail the run
+    # (every case below is rejected by `tlfleet check` and by `tlfleet run` before launching)
+    Case("ltl robot starts in the region its task forbids",
+         _text(BASE.replace(LTL1, 'ltl = "G !a1 & G F a2"').replace(
+             "pose = [-2.0, 0.0, 0.0]", "pose = [-2.0, -2.0, 0.0]")),
+         "robots[0].ltl", "cannot be satisfied"),
+    Case("ltl region walled in by obstacles", append("".join(
+        f'[[arena.obstacles]]\nshape = "rect"\nxmin = {x0}\nxmax = {x1}\nymin = {y0}\n'
+        f'ymax = {y1}\n' for x0, x1, y0, y1 in ((1.2, 2.8, -1.3, -1.1), (1.2, 2.8, -2.9, -2.7),
+                                                  (1.2, 1.4, -2.9, -1.1), (2.6, 2.8, -2.9, -1.1)))),
+         "robots[0].ltl", "cannot be satisfied"),
+    Case("ltl G a & G b on disjoint regions", edit(LTL1, 'ltl = "G a1 & G a2"'),
+         "robots[0].ltl", "cannot be satisfied"),
+    Case("stl half-plane without rho_opt", stl2(["G[5,15] (dist(p2, [1,0]) <= 0.2)",
+                                                 "F[20,30] (x2 >= 0.5)"]),
+         "robots[1].stl", "unbounded"),
+    Case("robot over the arena wall at its start", edit("pose = [1.0, 1.0, 0.0]",
+                                                        "pose = [3.45, 1.0, 0.0]"),
+         "robots[1].pose", "arena's wall"),
+    Case("stl bodies asked to overlap", edit('stl = ["G[0,40] (dist(p3, p2) <= 2.5)"]',
+                                             'stl = ["G[0,40] (dist(p3, p2) <= 0.3)"]'),
+         "robots[2].stl[0]", "bodies of robots 3 and 2 to overlap"),
+    Case("stl window beyond the duration", edit('stl = ["G[0,40] (dist(p3, p2) <= 2.5)"]',
+                                                'stl = ["G[0,45] (dist(p3, p2) <= 2.5)"]'),
+         "robots[2].stl[0]", "ends after the run"),
     # ---------------------------------------------------------------- rates and sizes
     Case("mocap_rate 1e9", edit("mocap_rate = 100.0", "mocap_rate = 1e9"), "sim.mocap_rate",
          "at most"),
