@@ -26,6 +26,17 @@ def non_negative_float(text: str) -> float:
     return _number(text, lambda v: v >= 0.0, "≥ 0")
 
 
+def positive_int(text: str) -> int:
+    """A whole number > 0, e.g. ``--lease-ms 500``."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, found {text}")
+    return value
+
+
 def fault_spec(text: str):
     """``--fault KIND:TARGET@T[+D]`` (issue 13): parsed at once, so a bad part is a usage
     error naming it, before anything starts."""

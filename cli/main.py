@@ -13,11 +13,19 @@ import logging
 import os
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.cli.conventions import (
+    add_verbosity_arguments,
+    epilog,
+    log_level,
+    merge_verbosity,
+)
 
 # command name -> (module in tlfleet.cli.commands, one-line help). Kept here so `tlfleet --help`
-# lists them without imports.
+# lists them without imports. Each module also declares EXAMPLES and EXIT_CODES (the help's
+# epilog, tlfleet.cli.conventions).
 COMMANDS: dict[str, tuple[str, str]] = {
     "check": ("check", "validate a scenario file and summarise it"),
     "translate": ("translate", "LTL formula to Büchi automaton"),
@@ -35,7 +43,12 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                          "compose-run.sh)"),
     "report": ("report", "regenerate report.md/json and figures of a run"),
     "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "completion": ("completion", "print a shell completion script (bash, zsh, tcsh)"),
 }
+
+# Commands the tools run themselves, not people: they work, but `tlfleet --help` does not list
+# them (compose-run.sh starts compose-faults).
+INTERNAL: frozenset[str] = frozenset({"compose-faults"})
 
 
 def _version() -> str:
@@ -49,16 +62,44 @@ def _version() -> str:
 
 
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+    """The top-level parser and one empty sub-parser per command (their arguments are added by
+    :func:`add_command_arguments` when the command is chosen)."""
     parser = argparse.ArgumentParser(
-        prog="tlfleet", description="Robot fleets under LTL and STL tasks."
-    )
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging")
+        prog="tlfleet", description="Robot fleets under LTL and STL tasks.",
+        epilog="`tlfleet COMMAND --help` shows a command's options, examples and exit codes.")
+    add_verbosity_arguments(parser, after_command=False)
     parser.add_argument("--version", action="version", version=f"tlfleet {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     subparsers = {}
     for name, (_module, help_text) in COMMANDS.items():
-        subparsers[name] = sub.add_parser(name, help=help_text, description=help_text)
+        # a parser made without help= is not listed in `tlfleet --help`
+        listed = {} if name in INTERNAL else {"help": help_text}
+        subparsers[name] = sub.add_parser(
+            name, description=help_text, formatter_class=argparse.RawDescriptionHelpFormatter,
+            **listed)
     return parser, subparsers
+
+
+def command_module(name: str) -> ModuleType:
+    """The module of command ``name`` (imported on first use)."""
+    return importlib.import_module(f"tlfleet.cli.commands.{COMMANDS[name][0]}")
+
+
+def add_command_arguments(module: ModuleType, parser: argparse.ArgumentParser) -> None:
+    """A command's own arguments, the shared ``-v``/``-q`` and its epilog (examples and exit
+    codes, :func:`tlfleet.cli.conventions.epilog`)."""
+    module.add_arguments(parser)
+    add_verbosity_arguments(parser, after_command=True)
+    parser.epilog = epilog(module.EXAMPLES, module.EXIT_CODES)
+
+
+def full_parser() -> argparse.ArgumentParser:
+    """The parser with every command's arguments (shell completion, the conventions test): it
+    imports every command module, which ``tlfleet COMMAND`` never does."""
+    parser, subparsers = build_parser()
+    for name, sub in subparsers.items():
+        add_command_arguments(command_module(name), sub)
+    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -69,18 +110,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     module = None
     if chosen in COMMANDS:
         try:  # importing reads settings from the environment ($TLFLEET_CODEC)
-            module = importlib.import_module(f"tlfleet.cli.commands.{COMMANDS[chosen][0]}")
+            module = command_module(chosen)
         except TlfleetError as exc:
             print(f"tlfleet {chosen}: {exc}", file=sys.stderr)
             return 1
-        module.add_arguments(subparsers[chosen])
+        add_command_arguments(module, subparsers[chosen])
     args = parser.parse_args(argv)
     if module is None:
         parser.print_help()
         return 2
-    logging.basicConfig(
-        level=logging.WARNING - 10 * args.verbose, format="%(levelname)s %(name)s: %(message)s"
-    )
+    merge_verbosity(args)
+    default = getattr(module, "DEFAULT_LOG_LEVEL", logging.WARNING)
+    logging.basicConfig(level=log_level(args, default),
+                        format="%(levelname)s %(name)s: %(message)s")
     try:
         return int(module.run(args) or 0)
     except TlfleetError as exc:

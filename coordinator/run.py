@@ -61,12 +61,14 @@ from tlfleet.coordinator.faults.plan import run_faults
 from tlfleet.coordinator.faults.schedule import FaultScheduler, ProcessActuator
 from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.launch.netns_hosts import RECONNECT
+from tlfleet.coordinator.launch.plan import PlanConfig, ProcessSpec, plan_fleet
 from tlfleet.coordinator.launch.processes import (
     Child,
     Launcher,
     LaunchError,
     fifo_permitted,
     free_port,
+    share_with_children,
     tlfleet_command,
     wait_for_port,
 )
@@ -85,12 +87,12 @@ from tlfleet.coordinator.supervise import (
 )
 
 __all__ = ["SCHED_CHOICES", "RunConfig", "RunResult", "child_sched", "default_child_argv",
-           "peer_links", "run_fleet"]
+           "fleet_plan", "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
 HOST = "127.0.0.1"
-ChildArgv = Callable[[str, "RunConfig", Scenario, int | None, str], list[str]]
+ChildArgv = Callable[[ProcessSpec], list[str]]
 
 
 @dataclass(frozen=True)
@@ -173,30 +175,37 @@ def child_sched(config: RunConfig) -> str:
     return config.sched
 
 
-def default_child_argv(role: str, config: RunConfig, scenario: Scenario, robot: int | None,
-                       endpoint: str) -> list[str]:
-    """argv of the router / sim / agent processes (their CLI shapes are in architecture.md §1)."""
-    path = str(Path(config.scenario_path).resolve())
-    secure = ("--secure", str(Path(config.secure).resolve())) if config.secure else ()
-    lease = ("--lease-ms", str(config.lease_ms)) if config.lease_ms else ()
-    lease += ("--zenoh-config", str(config.zenoh_config)) if config.zenoh_config else ()
-    lease += ("--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "minimal") \
-        if role != "router" and peer_links(config) else ()
+def fleet_plan(config: RunConfig, scenario: Scenario,
+               endpoint: str) -> tuple[ProcessSpec, ...]:
+    """The run's processes (:func:`tlfleet.coordinator.launch.plan.plan_fleet`) placed on this
+    machine: the router listens on ``endpoint``, the sim and the agents connect to it and, over
+    peer links (:func:`peer_links`), also listen on a free loopback port as zenoh peers with
+    zenoh's minimal runtime."""
     sched = child_sched(config)
-    lease += ("--sched", sched) if sched != "default" else ()
-    if role == "router":
-        return tlfleet_command("router", "--fleet", scenario.fleet, "--listen", endpoint,
-                               *secure, *lease)
-    if role == "sim":
-        argv = ["sim", path, f"--{config.mode}", "--duration",
-                repr(float(config.duration or scenario.duration))]
-        if config.seed is not None:
-            argv += ["--seed", str(config.seed)]
-        if config.tick_timeout is not None:
-            argv += ["--tick-timeout", repr(float(config.tick_timeout))]
-        return tlfleet_command(*argv, *config.sim_args, "--connect", endpoint, *secure, *lease)
-    return tlfleet_command("agent", path, "--robot", str(robot), *config.agent_args,
-                           "--connect", endpoint, *secure, *lease)
+    plan = plan_fleet(scenario, PlanConfig(
+        scenario_ref=str(Path(config.scenario_path).resolve()), mode=config.mode,
+        duration=float(config.duration or scenario.duration), seed=config.seed,
+        tick_timeout=config.tick_timeout, sim_args=config.sim_args,
+        agent_args=config.agent_args,
+        secure=None if config.secure is None else Path(config.secure).resolve(),
+        lease_ms=config.lease_ms or None, zenoh_config=config.zenoh_config,
+        sched=None if sched == "default" else sched))
+    peers = peer_links(config)
+    placed = []
+    for spec in plan:
+        if spec.role == "router":
+            placed.append(spec.placed(listen=(endpoint,)))
+        elif peers:
+            placed.append(spec.placed(connect=(endpoint,), mode="peer", listen=(PEER_LISTEN,),
+                                      runtime="minimal"))
+        else:
+            placed.append(spec.placed(connect=(endpoint,)))
+    return tuple(placed)
+
+
+def default_child_argv(spec: ProcessSpec) -> list[str]:
+    """argv of a planned process: ``python -P -m tlfleet.cli`` and its arguments."""
+    return tlfleet_command(*spec.argv())
 
 
 def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
@@ -262,7 +271,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     cleanup = Cleanup()
     schedule: FaultScheduler | None = None
     try:
-        router = launcher.start("router", argv_of("router", config, scenario, None, endpoint))
+        plan = {spec.name: spec for spec in fleet_plan(config, scenario, endpoint)}
+        router = launcher.start("router", argv_of(plan.pop("router")))
         wait_for_port(HOST, int(endpoint.rsplit(":", 1)[1]), config.router_timeout, router)
         transport = _open_client(endpoint, router, config)
         session = Supervision(transport, prepared, config=config.supervisor,
@@ -270,16 +280,14 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
                               report=report,
                               on_message=None if viewer is None else viewer.on_message)
         children = session.supervisor.children
-        children["sim"] = launcher.start("sim", argv_of("sim", config, scenario, None, endpoint))
-        for robot in sorted(scenario.robots, key=lambda r: r.id):
-            name = f"agent-{robot.id}"
-            children[name] = launcher.start(
-                name, argv_of("agent", config, scenario, robot.id, endpoint))
+        for name, spec in plan.items():  # the sim, then the agents (ids ascending)
+            children[name] = launcher.start(name, argv_of(spec))
         if faults:
             actuator = ProcessActuator(launcher, children, supervisor=session.supervisor)
             schedule = FaultScheduler(faults, actuator, prepared.recorder.on_event, say)
             progress = schedule.progress(progress)
-        outcome, codes = session.run(stop, progress)
+        with share_with_children(child_sched(config)):
+            outcome, codes = session.run(stop, progress)
         wall_start = session.wall_start
     except BaseException:
         if viewer is not None:

@@ -30,7 +30,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from tlfleet.agent.model.faults import Fault
@@ -49,6 +49,7 @@ from tlfleet.coordinator.launch.netns_hosts import (
     require_root,
     wait_listening,
 )
+from tlfleet.coordinator.launch.plan import PlanConfig, ProcessSpec, by_name, plan_fleet
 from tlfleet.coordinator.launch.processes import Launcher, tlfleet_command
 from tlfleet.coordinator.record.rundir import default_run_dir
 
@@ -105,7 +106,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  sim_args: Sequence[str] = (), agent_args: Sequence[str] = (),
                  capture: bool = False,
                  router_timeout: float = 15.0, kill_grace: float = 3.0,
-                 prefix: str | None = None, keys: Path | None = None,
+                 prefix: str | None = None, secure: Path | None = None,
                  insecure: bool = False, lease_ms: int | None = None,
                  faults: Sequence[Fault] = (),
                  stop: threading.Event | None = None) -> HostsRun:
@@ -117,12 +118,12 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
     check_launch(scenario)  # ... and what would stop an agent at launch
-    if keys is not None and insecure:
+    if secure is not None and insecure:
         raise HostsError("--secure DIR and --insecure exclude each other")
-    if keys is not None:
+    if secure is not None:
         from tlfleet.coordinator.security.authority import check_keys
 
-        check_keys(scenario, keys)
+        check_keys(scenario, secure)
     path = str(Path(scenario_path).resolve())
     run_dir = Path(out) if out else default_run_dir(scenario.name)
     all_faults: tuple[Fault, ...] = ()
@@ -131,7 +132,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
 
         all_faults = run_faults(scenario, faults)
     peers = any(f.kind == "partition" for f in all_faults)
-    if peers and keys is not None:
+    if peers and secure is not None:
         raise HostsError("a partition run makes its own keys (its peers' certificates carry "
                          "their hosts' addresses): leave out --secure DIR, or use --insecure")
     placement = place_peers(scenario) if peers else place(scenario, hosts)
@@ -157,17 +158,12 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                            + (", routing: { router: { peers_failover_brokering: false } }"
                               if peers else "") + " }\n")
     scheme = "tcp" if insecure else "tls"
-    own_keys = None if insecure or keys is not None else Path(
+    own_keys = None if insecure or secure is not None else Path(
         tempfile.mkdtemp(prefix="tlfleet-keys-"))  # 0700: private to this user
-    lease = ["--lease-ms", str(lease_ms)] if lease_ms else []
-    client = []
+    client_conf = None
     if injecting:  # a cut client comes back within a retry period of the restore
         client_conf = run_dir / "logs" / "client.json5"
         client_conf.write_text(f"{{ {RECONNECT} }}\n")
-        client = ["--zenoh-config", str(client_conf)]
-    # with faults, agents that read only every d-th frame watch the sim's clock key too, so they
-    # notice a lost simulator within --stale-after like the others (issue 13 §2)
-    beat = ["--heartbeat"] if injecting else []
     with net:
         try:
             if own_keys is not None:
@@ -179,20 +175,23 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                            hosts=tuple(net.address(h) for h in range(hosts)),
                            addresses={certificate_name(p): [net.address(placement.host_of[p])]
                                       for p in placement.peers})
-            keydir = own_keys or keys
-            secure = () if keydir is None else ("--secure", str(Path(keydir).resolve()))
+            keydir = own_keys or secure
+            # with faults, agents that read only every d-th frame watch the sim's clock key
+            # too, so they notice a lost simulator within --stale-after like the others
+            fleet = by_name(plan_fleet(scenario, PlanConfig(
+                scenario_ref=path, mode=mode, sim_args=tuple(sim_args),
+                agent_args=tuple(agent_args), heartbeat=injecting,
+                secure=None if keydir is None else Path(keydir).resolve(), lease_ms=lease_ms,
+                zenoh_config=client_conf, supervise=("--out", str(run_dir)))))
+            router = fleet.pop("router")
             for host in sorted({placement.router_host(p) for p in placement.host_of}):
                 listen = [f"{scheme}/{net.address(host)}:{ROUTER_PORT}"] + [
                     f"{scheme}/{net.address(host)}:{placement.port_of[p]}"
                     for p in placement.host_of if placement.router_host(p) == host]
-                argv = ["router", "--fleet", scenario.fleet, "--zenoh-config", str(router_conf),
-                        *secure, *lease]
-                for endpoint in listen:
-                    argv += ["--listen", endpoint]
-                for other in range(host):
-                    argv += ["--connect", f"{scheme}/{net.address(other)}:{ROUTER_PORT}"]
+                spec = router.placed(listen=tuple(listen), zenoh_config=router_conf, connect=tuple(
+                    f"{scheme}/{net.address(other)}:{ROUTER_PORT}" for other in range(host)))
                 launcher.start(f"router-{host}", [*net.exec_prefix(host),
-                                                  *tlfleet_command(*argv)])
+                                                  *tlfleet_command(*spec.argv())])
             for host in sorted({placement.router_host(p) for p in placement.host_of}):
                 wait_listening(net, host, ROUTER_PORT, router_timeout)
 
@@ -200,27 +199,22 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                 host, port = placement.link(process)
                 return f"{scheme}/{net.address(host)}:{port}"
 
-            def links_of(process: str) -> list[str]:
-                """--connect to its router port; in the peer layout also --mode peer, --listen
-                on its own host and --connect to every fleet peer before it (the mesh)."""
-                links = ["--connect", endpoint_of(process)]
-                if process in placement.peers:
-                    links += ["--mode", "peer", "--listen",
-                              f"{scheme}/{net.address(placement.host_of[process])}:{PEER_PORT}"]
-                    for other in placement.peers[:placement.peers.index(process)]:
-                        links += ["--connect", f"{scheme}/"
-                                  f"{net.address(placement.host_of[other])}:{PEER_PORT}"]
-                return links
+            def placed(spec: ProcessSpec) -> ProcessSpec:
+                """Linked to its router port; in the peer layout also a peer listening on its
+                own host and connected to every fleet peer before it (the mesh)."""
+                name = spec.name
+                connect = [endpoint_of(name)]
+                if name not in placement.peers:
+                    return spec.placed(connect=tuple(connect))
+                connect += [f"{scheme}/{net.address(placement.host_of[other])}:{PEER_PORT}"
+                            for other in placement.peers[:placement.peers.index(name)]]
+                return spec.placed(connect=tuple(connect), mode="peer", listen=(
+                    f"{scheme}/{net.address(placement.host_of[name])}:{PEER_PORT}",))
 
-            launcher.start("sim", [*net.exec_prefix(placement.host_of["sim"]), *tlfleet_command(
-                "sim", path, f"--{mode}", *sim_args, *links_of("sim"), *secure, *lease,
-                *client)])
-            for robot in sorted(scenario.robot_ids):
-                name = f"agent-{robot}"
+            coordinator = fleet.pop("coordinator")
+            for name, spec in fleet.items():  # the sim, then the agents (ids ascending)
                 launcher.start(name, [*net.exec_prefix(placement.host_of[name]),
-                                      *tlfleet_command("agent", path, "--robot", str(robot),
-                                                       *agent_args, *beat, *links_of(name),
-                                                       *secure, *lease, *client)])
+                                      *tlfleet_command(*placed(spec).argv())])
             plan: list[str] = []
             if injecting:
                 from tlfleet.coordinator.faults.on_hosts import PLAN_NAME, write_plan
@@ -231,10 +225,10 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                                                        placement, pids, argv))]
                 for fault in faults:
                     plan += ["--fault", fault.text or fault.spec]
-            coordinator = [*net.exec_prefix(0), *tlfleet_command(
-                "supervise", path, f"--{mode}", "--connect", endpoint_of("coordinator"),
-                "--out", str(run_dir), *secure, *lease, *client, *plan, *supervise_args)]
-            done = supervise_until_done(coordinator, capture, stop)
+            coordinator = replace(coordinator.placed(connect=(endpoint_of("coordinator"),)),
+                                  tail=(*plan, *supervise_args))
+            done = supervise_until_done([*net.exec_prefix(0),
+                                         *tlfleet_command(*coordinator.argv())], capture, stop)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
             if injecting:  # what `restart:` started again, as a child of supervise

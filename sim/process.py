@@ -340,9 +340,8 @@ class SimProcess:
     def _wait_for_start(self) -> bool:
         """Publish the initial frame every ``preview_period`` until ``Control(start)``."""
         self._frame0 = self.world.mocap_poses()  # noise drawn once: start time stays irrelevant
-        # said at WARNING so that a process started by hand shows it without -v (issue 12 §1)
-        logger.warning("sim: waiting for start from a coordinator on %s (tlfleet run or "
-                       "tlfleet supervise)", keys.control(self.fleet))
+        logger.info("sim: waiting for start from a coordinator on %s (tlfleet run or "
+                    "tlfleet supervise)", keys.control(self.fleet))
         next_publish = self._now()
         while not self.stopping:
             if self._now() >= next_publish:

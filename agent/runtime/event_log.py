@@ -116,5 +116,5 @@ class EventLog:
         self.replays += 1
         self.replayed += len(again)
         if again:
-            logger.warning("%s: the coordinator is back in reach; published %d recent event(s) "
-                           "again", self.source, len(again))
+            logger.info("%s: the coordinator is back in reach; published %d recent event(s) "
+                        "again", self.source, len(again))

@@ -484,7 +484,7 @@ class AgentLoop:
         self._last_frame_wall = now
         if self._stale:
             self._stale = False
-            logger.warning("%s: mocap frames are back (t = %.3f)", self.source, frame.t)
+            logger.info("%s: mocap frames are back (t = %.3f)", self.source, frame.t)
         if frame.due:
             due = listed and frame.seq != self._last_seq
         elif frame.seq == 0 and frame.t == 0.0:

@@ -112,10 +112,9 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
             loop.publish_startup_event(event)
         logger.info("%s ready (fleet %s, divider %d, phase %d)", source, scenario.fleet, divider,
                     loop_config.phase)
-        # said at WARNING so that a process started by hand shows it without -v (issue 12 §1)
-        logger.warning("agent %d: waiting for start from a coordinator on %s and mocap frames "
-                       "from the simulator on %s", config.robot, keys.control(scenario.fleet),
-                       keys.mocap(scenario.fleet))
+        logger.info("agent %d: waiting for start from a coordinator on %s and mocap frames "
+                    "from the simulator on %s", config.robot, keys.control(scenario.fleet),
+                    keys.mocap(scenario.fleet))
         try:
             code = loop.run(stop)
         except Exception as exc:  # a bug in a core: report it, then exit non-zero

@@ -9,6 +9,7 @@ reported as ``Event(kind="fault")`` first).
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
 from tlfleet.agent.runtime.config import AgentConfig, AgentConfigError
@@ -17,6 +18,16 @@ from tlfleet.cli.transport_flags import add_transport_arguments, transport_confi
 
 NAME = "agent"
 HELP = "run the agent process of one robot"
+# a process's log says what it is doing (waiting for start, listening, ...) without -v;
+# -q leaves the warnings only (tlfleet.cli.conventions.log_level)
+DEFAULT_LOG_LEVEL = logging.INFO
+EXAMPLES = (
+    ("tlfleet agent scenario1.toml --robot 2 --connect tcp/127.0.0.1:7447",
+     "robot 2 of Scenario 1 joins the fleet whose router listens on port 7447"),
+)
+EXIT_CODES = {0: "a clean stop (Control(stop), SIGINT or SIGTERM)",
+              1: "a fault (an invalid scenario, an unsatisfiable LTL task, ...), reported as a "
+                 "fault event first"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

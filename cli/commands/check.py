@@ -10,22 +10,40 @@ predicate, a G task violated at the start poses from t = 0) are printed after th
 from __future__ import annotations
 
 import argparse
+import json
 import math
 
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
+from tlfleet.cli.conventions import add_json_argument
 
 NAME = "check"
 HELP = "validate a scenario file and summarise it"
+EXAMPLES = (
+    ("tlfleet check scenario1", "validate the bundled Scenario 1 and summarise it"),
+    ("tlfleet check my.toml --json", "validate my.toml; its summary and warnings as JSON"),
+)
+EXIT_CODES = {0: "every file is valid (warnings may be printed)",
+              1: "a file is invalid: file, field and reason on stderr"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="+", help="scenario TOML file(s)")
+    add_json_argument(parser, "print one JSON object a file (JSON Lines): its name, source, "
+                              "robots with their tasks, and warnings")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.json:
+        for path in args.scenario:
+            scenario = load_scenario(path)
+            for robot in scenario.robots:
+                if robot.ltl is not None:
+                    task_automaton(robot.ltl)
+            print(json.dumps(summary_json(scenario, stl_warnings(scenario))), flush=True)
+        return 0
     for index, path in enumerate(args.scenario):
         if index:
             print()
@@ -35,6 +53,22 @@ def run(args: argparse.Namespace) -> int:
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")
     return 0
+
+
+def summary_json(scenario: Scenario, warnings: list[str]) -> dict:
+    """``--json``: the facts :func:`summarise` prints, as data."""
+    a = scenario.arena
+    return {
+        "valid": True, "name": scenario.name, "source": str(scenario.source or ""),
+        "fleet": scenario.fleet, "duration": scenario.duration,
+        "arena": [a.xmin, a.xmax, a.ymin, a.ymax], "obstacles": len(a.obstacles),
+        "regions": [{"name": r.name, "center": list(r.center), "radius": r.radius,
+                     "labels": sorted(r.labels)} for r in scenario.regions],
+        "robots": [{"id": r.id, "kind": r.kind, "pose": list(r.pose), "radius": r.radius,
+                    "ltl": r.ltl, "stl": list(r.stl) if r.ltl is None else None}
+                   for r in sorted(scenario.robots, key=lambda r: r.id)],
+        "warnings": [str(w) for w in warnings],
+    }
 
 
 def summarise(scenario: Scenario) -> str:

@@ -13,15 +13,24 @@ from pathlib import Path
 
 from tlfleet.cli.arg_types import fault_spec
 from tlfleet.cli.run_flags import add_mode_arguments
+from tlfleet.cli.transport_flags import add_lease_argument
 from tlfleet.coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
 
 NAME = "compose"
 HELP = "write the docker compose file of a scenario's fleet"
+EXAMPLES = (
+    ("tlfleet compose scenario1.toml -o fleet/",
+     "write fleet/compose.yaml: one service per process of Scenario 1, mutual TLS"),
+    ("tlfleet compose scenario1.toml -o fleet/ --insecure --realtime",
+     "the same fleet on plain TCP, physics on wall-clock time"),
+)
+EXIT_CODES = {0: "the compose file was written",
+              1: "an invalid scenario, or a fault a compose fleet cannot do"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
-    parser.add_argument("--out", type=Path, default=Path("."),
+    parser.add_argument("-o", "--out", type=Path, default=Path("."),
                         help="directory for compose.yaml, or the .yaml file (default .)")
     add_mode_arguments(parser, "deterministic (default)")
     parser.add_argument("--wait", type=float, default=120.0, metavar="S",
@@ -32,9 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plain TCP links, no authentication, no access control (default: "
                              "mutual TLS with the keys of ${TLFLEET_KEYS}, `tlfleet keys "
                              "SCENARIO --out DIR --host router`)")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="zenoh link lease of every service [ms] (default zenoh's 10000; "
-                             "500 notices a cut within 1 s)")
+    add_lease_argument(parser, "every service's")
     parser.add_argument("--fault-subnet", default=FAULT_SUBNET, metavar="CIDR",
                         help="with faults: the fleet network's IPv4 subnet, the router at its "
                              f".2 (default {FAULT_SUBNET}; pick another when docker says the "
@@ -48,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
-                                       args.duration, secure=not args.insecure,
+                                       args.duration, insecure=args.insecure,
                                        faults=tuple(args.faults), lease_ms=args.lease_ms,
                                        fault_subnet=args.fault_subnet))
     print(path)

@@ -15,6 +15,12 @@ from tlfleet.cli.arg_types import positive_float
 
 NAME = "compose-faults"
 HELP = "the host's side of a compose fleet's faults (docker commands; run by compose-run.sh)"
+EXAMPLES = (
+    ("tlfleet compose-faults --dir runs/r1/logs/faults --project fleet1",
+     "carry out the coordinator's fault requests on project fleet1's containers"),
+)
+EXIT_CODES = {0: "its parent ended, --max-wall passed, or SIGINT/SIGTERM",
+              1: "the handoff directory cannot be read"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

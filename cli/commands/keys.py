@@ -9,11 +9,19 @@ from pathlib import Path
 
 NAME = "keys"
 HELP = "write a fleet CA, per-process certificates and the router's ACL policy"
+EXAMPLES = (
+    ("tlfleet keys scenario1.toml -o keys/",
+     "a CA, one certificate per process of Scenario 1 and the router's policy in keys/"),
+    ("tlfleet keys scenario1.toml -o keys/ --host lab-pc.local --days 30",
+     "certificates that also name the router's host lab-pc.local, valid for 30 days"),
+)
+EXIT_CODES = {0: "the keys were written",
+              1: "an invalid scenario, or key files exist already (use --force)"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
+    parser.add_argument("-o", "--out", type=Path, required=True, metavar="DIR",
                         help="key directory (created; private keys are mode 0600)")
     parser.add_argument("--force", action="store_true", help="overwrite existing key files")
     parser.add_argument("--host", action="append", default=[], metavar="NAME",

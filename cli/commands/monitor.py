@@ -22,6 +22,14 @@ from tlfleet.agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
 
 NAME = "monitor"
 HELP = "STL robustness of a recorded trajectory"
+EXAMPLES = (
+    ("tlfleet monitor scenario2.toml runs/s2/trajectory.csv",
+     "the STL robustness of every robot of a recorded Scenario 2 run"),
+    ("tlfleet monitor scenario2.toml runs/s2/trajectory.csv --json --strict",
+     "the same as JSON; exit 3 if the trace misses a window"),
+)
+EXIT_CODES = {0: "computed", 1: "an invalid scenario or trajectory file",
+              3: "--strict and the trace does not cover a sub-task's window"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

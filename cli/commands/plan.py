@@ -21,6 +21,12 @@ from tlfleet.agent.scenario import load_scenario
 
 NAME = "plan"
 HELP = "compute the optimal prefix–suffix plan of each LTL robot"
+EXAMPLES = (
+    ("tlfleet plan scenario1.toml", "the optimal prefix-suffix plan of every LTL robot"),
+    ("tlfleet plan scenario1.toml --robot 1 --json", "robot 1's plan as JSON"),
+)
+EXIT_CODES = {0: "every plan was found",
+              1: "an invalid scenario, or an LTL task no run of the map satisfies"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -21,6 +21,14 @@ from tlfleet.bus.errors import TlfleetError
 
 NAME = "replay"
 HELP = "re-log a finished run to rerun (run.rrd, --viewer)"
+EXAMPLES = (
+    ("tlfleet replay runs/scenario1-20250101-120000",
+     "write the run's run.rrd again (open it with `rerun`)"),
+    ("tlfleet replay runs/scenario1-20250101-120000 --viewer",
+     "serve the run to a web viewer; its URL is printed (works over ssh with a port forward)"),
+)
+EXIT_CODES = {0: "written (with --viewer: served until Ctrl-C or SIGTERM, the normal end)",
+              1: "a missing or unreadable input (the message names the file)"}
 
 
 def _positive(text: str) -> int:
@@ -39,7 +47,7 @@ def _port(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", type=Path, help="run directory written by `tlfleet run`")
-    parser.add_argument("--out", type=Path, default=None, metavar="FILE.rrd",
+    parser.add_argument("-o", "--out", type=Path, default=None, metavar="FILE.rrd",
                         help="recording to write (default RUN_DIR/run.rrd)")
     parser.add_argument("--every", type=_positive, default=5, metavar="N",
                         help="log every N-th trajectory row (default 5: 20 Hz at 100 Hz mocap)")

@@ -14,6 +14,13 @@ import json
 
 NAME = "report"
 HELP = "regenerate report.md/json and figures of a run"
+EXAMPLES = (
+    ("tlfleet report runs/scenario1-20250101-120000",
+     "write report.md, report.json and the figures of a run again"),
+    ("tlfleet report runs/scenario1-20250101-120000 --json --no-figures",
+     "print the report's data as JSON, draw no figure"),
+)
+EXIT_CODES = {0: "the report was written", 1: "not a run directory, or an unreadable file in it"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import threading
 
 from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
@@ -12,6 +13,14 @@ from tlfleet.sim.router.process import RouterConfig, RouterConfigError
 
 NAME = "router"
 HELP = "run a zenoh router for a fleet"
+# a process's log says what it is doing (waiting for start, listening, ...) without -v;
+# -q leaves the warnings only (tlfleet.cli.conventions.log_level)
+DEFAULT_LOG_LEVEL = logging.INFO
+EXAMPLES = (
+    ("tlfleet router --fleet scenario1 --listen tcp/127.0.0.1:7447",
+     "a router for the fleet `scenario1` on port 7447 of this machine"),
+)
+EXIT_CODES = {0: "stopped by SIGINT or SIGTERM", 1: "a bad configuration, or the port is taken"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

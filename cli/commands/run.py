@@ -21,14 +21,24 @@ when a task was not met.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
+import time
+from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float
+from tlfleet.cli.conventions import add_json_argument, add_out_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
-from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.cli.transport_flags import (
+    add_lease_argument,
+    add_secure_argument,
+    add_zenoh_config_argument,
+)
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.run import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 
@@ -38,13 +48,29 @@ if TYPE_CHECKING:
 NAME = "run"
 HELP = "launch, supervise and record a whole fleet"
 BAR_WIDTH = 30
+EXAMPLES = (
+    ("tlfleet run scenario1",
+     "run the bundled Scenario 1 in lockstep; report and figures at the end"),
+    ("tlfleet run my.toml --realtime -o runs/try1 --duration 30",
+     "30 s of my.toml on wall-clock time, recorded in runs/try1"),
+    ("tlfleet run scenario2 --json -q", "no progress bar; the result as JSON on stdout"),
+)
+EXIT_CODES = {
+    0: "clean: the run reached its end and every check passed",
+    1: "invalid scenario or a launch failure (nothing ran)",
+    3: "failed: a process died, the router was lost, a process did not stop cleanly, or the run "
+       "ended early",
+    4: "degraded: it ran to the end, with missed deadlines, watchdog stops, stale commands, "
+       "malformed input or flagged events (listed)",
+    5: "with --require-tasks: the fleet ran (clean or degraded) but a task was not met (the "
+       "'tasks:' line names each)",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file")
     add_mode_arguments(parser)
-    parser.add_argument("--out", type=Path, default=None,
-                        help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
+    add_out_argument(parser, "run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="sim time to run [s] (default: the scenario's duration)")
     parser.add_argument("--seed", type=int, default=None, help="simulator seed")
@@ -58,10 +84,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wall time for every process to come up [s] (default 60)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="zenoh link lease of every process [ms] (default zenoh's 10000): "
-                             "how fast a hung or cut-off peer is declared gone")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_lease_argument(parser, "every process's")
     parser.add_argument("--viewer", action="store_true",
                         help="serve the run live to a web viewer (URL on stderr); after the run, "
                              "keep serving until Ctrl-C")
@@ -69,11 +92,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--viewer: gRPC port on 127.0.0.1 (default: a free one)")
     parser.add_argument("--web-port", type=int, default=0, metavar="PORT",
                         help="--viewer: web viewer port (default: a free one)")
-    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
-                        help="mutual TLS with the keys of DIR (`tlfleet keys SCENARIO --out DIR`) "
-                             "and the router's access control; without it the links are plain "
-                             "TCP on 127.0.0.1")
+    add_secure_argument(parser, "and the router's access control; without it the links are "
+                                "plain TCP on 127.0.0.1")
     add_output_arguments(parser)
+    add_json_argument(parser, "print the result (verdict, run directory, report) as JSON on "
+                              "stdout instead of the report table")
     add_zenoh_config_argument(parser)
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
                         metavar="SPEC",
@@ -107,23 +130,49 @@ def add_require_tasks_argument(parser: argparse.ArgumentParser) -> None:
 
 
 class ProgressBar:
-    """``\\r[#####     ] 45.0/90.0 s`` on a terminal, redrawn at most every 0.1 s of sim time."""
+    """``\r[#####     ] 45.0/90.0 s  14.2x  ETA 0:03`` on a terminal: sim time, the speed (sim
+    seconds per wall second, over the last :data:`RATE_WINDOW` seconds of wall time) and the wall
+    time left at that speed. Redrawn at most every 0.1 s of sim time or 0.5 s of wall time."""
 
-    def __init__(self, stream: TextIO, width: int = BAR_WIDTH):
+    RATE_WINDOW = 3.0  # [s] wall: long enough to smooth a tick's jitter, short to follow a change
+
+    def __init__(self, stream: TextIO, width: int = BAR_WIDTH,
+                 clock: Callable[[], float] = time.monotonic):
         self.stream = stream
         self.width = width
+        self.clock = clock
         self._last = -1.0
+        self._last_wall = -math.inf
+        self._samples: deque[tuple[float, float]] = deque()  # (wall [s], sim time [s])
         self.drawn = False
 
+    def rate(self) -> float | None:
+        """Sim seconds per wall second over the window; None until there are two samples."""
+        if len(self._samples) < 2:
+            return None
+        (w0, t0), (w1, t1) = self._samples[0], self._samples[-1]
+        return (t1 - t0) / (w1 - w0) if w1 > w0 else None
+
     def __call__(self, t: float, duration: float) -> None:
-        if abs(t - self._last) < 0.1 and self.drawn:
+        now = self.clock()
+        if self.drawn and abs(t - self._last) < 0.1 and now - self._last_wall < 0.5:
             return
-        self._last = t
-        filled = int(self.width * min(max(t / duration, 0.0), 1.0)) if duration > 0 else 0
-        self.stream.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] "
-                          f"{t:.1f}/{duration:.1f} s")
+        self._samples.append((now, t))
+        while len(self._samples) > 2 and now - self._samples[1][0] >= self.RATE_WINDOW:
+            self._samples.popleft()
+        self._last, self._last_wall = t, now
+        self.stream.write("\r" + self.line(t, duration) + "\x1b[K")
         self.stream.flush()
         self.drawn = True
+
+    def line(self, t: float, duration: float) -> str:
+        filled = int(self.width * min(max(t / duration, 0.0), 1.0)) if duration > 0 else 0
+        text = f"[{'#' * filled}{' ' * (self.width - filled)}] {t:.1f}/{duration:.1f} s"
+        rate = self.rate()
+        if rate is not None and rate > 0:
+            left = max(duration - t, 0.0) / rate
+            text += f"  {rate:.1f}x  ETA {int(left // 60)}:{int(left % 60):02d}"
+        return text
 
     def end(self) -> None:
         if self.drawn:
@@ -146,10 +195,31 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
             viewer.close()
 
 
-def print_outputs(result: RunResult) -> None:
+def result_json(result: RunResult) -> dict:
+    """``--json``: what :func:`print_outputs` prints, as data: the verdict, the run directory, the
+    files written and the report's data (``report.json``), or the summary's without a report."""
+    report_path = result.run_dir / "report.json"
+    return {
+        "verdict": result.verdict.to_json(),
+        "tasks": None if result.tasks is None else result.tasks.to_json(),
+        "end": {"reason": result.outcome.reason, "t_end": result.outcome.t_end},
+        "run_dir": str(result.run_dir),
+        "report": str(report_path) if result.report is not None else None,
+        "figures": [str(p) for p in result.report.figures] if result.report is not None else [],
+        "rrd": None if result.rrd is None else str(result.rrd),
+        "exit_codes": result.exit_codes,
+        "data": (json.loads(report_path.read_text()) if result.report is not None
+                 and report_path.is_file() else result.summary),
+    }
+
+
+def print_outputs(result: RunResult, as_json: bool = False) -> None:
     """The report table (the summary if no report was written), the files a person opens next and
     the run directory, then the last two lines: the task tally (``tasks: 5 of 7 met; …``) and the
-    verdict (``outcome: …``)."""
+    verdict (``outcome: …``); with ``as_json`` one JSON document (:func:`result_json`) instead."""
+    if as_json:
+        print(json.dumps(result_json(result), indent=2, default=str), flush=True)
+        return
     if result.report is not None:
         print(result.report.table)
         print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
@@ -159,7 +229,8 @@ def print_outputs(result: RunResult) -> None:
         print(result.summary_text)
         print(f"summary: {result.run_dir / 'summary.txt'}")
     if result.rrd is not None:
-        print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`)")
+        print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`, or headless: "
+              f"`tlfleet replay {result.run_dir} --viewer` prints a web viewer's URL)")
     print(f"run directory: {result.run_dir}")
     if result.tasks is not None:
         print(result.tasks.line)
@@ -186,7 +257,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     sim += [] if args.max_speed is None else ["--max-speed", repr(args.max_speed)]
     with stop_on_signals() as stop:  # SIGINT / SIGTERM: interrupted, every host cleaned up
         result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
-                              keys=args.secure, insecure=args.insecure,
+                              secure=args.secure, insecure=args.insecure,
                               supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
                               faults=tuple(args.faults), stop=stop)
     return result.returncode
@@ -238,7 +309,7 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if bar is not None:
                 bar.end()
-    print_outputs(result)
+    print_outputs(result, as_json=args.json)
     verdict = result.verdict
     if result.viewer is not None:
         _linger(result.viewer, interrupted=verdict.label == "interrupted")

@@ -8,6 +8,7 @@ until sim time reaches ``--duration``, ``Control(stop)``, SIGINT or SIGTERM
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
 from tlfleet.cli.arg_types import non_negative_float, positive_float
@@ -16,6 +17,17 @@ from tlfleet.cli.transport_flags import add_transport_arguments, transport_confi
 
 NAME = "sim"
 HELP = "run the pymunk simulator process of a scenario"
+# a process's log says what it is doing (waiting for start, listening, ...) without -v;
+# -q leaves the warnings only (tlfleet.cli.conventions.log_level)
+DEFAULT_LOG_LEVEL = logging.INFO
+EXAMPLES = (
+    ("tlfleet sim scenario1.toml --lockstep --connect tcp/127.0.0.1:7447",
+     "simulate Scenario 1 in lockstep for a fleet whose router listens on port 7447"),
+    ("tlfleet sim scenario2.toml --realtime --duration 20 --connect tcp/127.0.0.1:7447",
+     "20 s of Scenario 2 on wall-clock time"),
+)
+EXIT_CODES = {0: "the run ended (its duration, Control(stop), SIGINT or SIGTERM)",
+              1: "an invalid scenario or no router at --connect"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -18,23 +18,35 @@ from pathlib import Path
 from tlfleet.bus.signals import stop_on_signals
 from tlfleet.cli.arg_types import fault_spec
 from tlfleet.cli.commands.run import ProgressBar, add_require_tasks_argument, print_outputs
+from tlfleet.cli.conventions import add_json_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
-from tlfleet.cli.transport_flags import add_zenoh_config_argument
+from tlfleet.cli.transport_flags import add_transport_arguments
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.supervise import SuperviseConfig, supervise_fleet
 
 NAME = "supervise"
 HELP = "join a running fleet: wait for it, start, supervise and record the run"
+EXAMPLES = (
+    ("tlfleet supervise scenario1.toml --connect tcp/127.0.0.1:7447 -o runs/s1",
+     "join the fleet of Scenario 1 started elsewhere, run and record it in runs/s1"),
+)
+EXIT_CODES = {
+    0: "clean: the run reached its end and every check passed",
+    1: "invalid scenario, no router at --connect, or a process missing after --wait",
+    3: "failed: a process died, the router was lost, a process did not stop cleanly, or the run "
+       "ended early",
+    4: "degraded: it ran to the end, with missed deadlines, watchdog stops, stale commands, "
+       "malformed input or flagged events (listed)",
+    5: "with --require-tasks: the fleet ran (clean or degraded) but a task was not met (the "
+       "'tasks:' line names each)",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario TOML file (the one the fleet was started with)")
-    parser.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                        help="the fleet's router, e.g. tcp/127.0.0.1:7447 (repeatable; "
-                             "default tcp/127.0.0.1:7447)")
     add_mode_arguments(parser, "the simulator runs in lockstep (default; recorded in run.json)",
                        "the simulator runs on wall-clock time")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("-o", "--out", type=Path, default=None,
                         help="run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="sim time after which the run ends [s] (default: the scenario's)")
@@ -47,14 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wall time for a router to answer at --connect [s] (default 1)")
     parser.add_argument("--wall-timeout", type=float, default=None, metavar="S",
                         help="wall-clock safety limit of the run [s] (default 3·duration + 60)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar, no waiting lines")
     add_output_arguments(parser)
-    parser.add_argument("--secure", type=Path, default=None, metavar="DIR",
-                        help="mutual TLS as `coordinator` with the keys of DIR (`tlfleet keys`); "
-                             "the endpoints must be tls/…")
-    parser.add_argument("--lease-ms", type=int, default=None, metavar="MS",
-                        help="link lease in ms (zenoh default 10000)")
-    add_zenoh_config_argument(parser)
+    add_json_argument(parser, "print the result (verdict, run directory, report) as JSON on "
+                              "stdout instead of the report table")
+    add_transport_arguments(parser, connect_default="tcp/127.0.0.1:7447", client_only=True)
     parser.add_argument("--fault", dest="faults", type=fault_spec, action="append", default=[],
                         metavar="SPEC", help="inject a fault (as `tlfleet run --fault`); needs "
                                              "--fault-plan or --fault-handoff")
@@ -101,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if bar is not None:
                 bar.end()
-    print_outputs(result)
+    print_outputs(result, as_json=args.json)
     verdict = result.verdict
     if verdict.label == "interrupted":
         say(f"the run was interrupted at t = {result.outcome.t_end:.2f} s; the run directory "

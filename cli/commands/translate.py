@@ -6,11 +6,15 @@ stderr.
 ``-F FILE`` translates one formula per line (``tlfleet.agent.ltl.batch``, like ``ltl2tgba -F``);
 ``--stats`` prints one tab-separated line per formula (states, edges, time) instead of the
 automata; ``--hoa FILE`` reads an automaton made by another tool (``tlfleet.agent.ltl.hoa_reader``).
+``--json`` prints the automaton as one JSON object (with ``-F``, one object a line, JSON Lines):
+``formula``, ``atoms``, ``initial``, ``accepting`` and ``edges`` as ``[source, target, guard]``
+with the guard in Spot's syntax over the atoms.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 
@@ -19,9 +23,16 @@ from tlfleet.agent.ltl.buchi import to_dot, to_text, translate
 from tlfleet.agent.ltl.hoa import to_hoa
 from tlfleet.agent.ltl.hoa_reader import read_hoa_file
 from tlfleet.bus.errors import LtlError
+from tlfleet.cli.conventions import add_json_argument
 
 NAME = "translate"
 HELP = "translate an LTL formula to a Büchi automaton"
+EXAMPLES = (
+    ("tlfleet translate 'G F a & G F b'", "the Büchi automaton in HOA v1 (pipe it to autfilt)"),
+    ("tlfleet translate 'F (a & F b)' --json", "the automaton as JSON"),
+    ("tlfleet translate -F formulas.txt --stats", "states, edges and time of each line's formula"),
+)
+EXIT_CODES = {0: "translated", 1: "a formula does not parse (line and column on stderr)"}
 
 _FORMATS = ("hoa", "text", "dot")
 
@@ -38,10 +49,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=_FORMATS, default="hoa",
                         help="output format (default: hoa)")
     parser.add_argument("--name", default=None, help="automaton name in the HOA output")
+    add_json_argument(parser, "print the automaton (or the --stats figures) as JSON instead; "
+                              "with -F one JSON object a line")
+
+
+def automaton_json(buchi) -> dict:
+    """The automaton as plain data (``--json``)."""
+    return {"formula": buchi.formula, "atoms": list(buchi.atoms), "states": buchi.num_states,
+            "initial": list(buchi.initial), "accepting": sorted(buchi.accepting),
+            "edges": [[q, dst, buchi.guard_text(guard)] for q, out in enumerate(buchi.edges)
+                      for dst, guard in out]}
+
+
+def _stats_json(buchi, seconds: float) -> dict:
+    return {"formula": buchi.formula, "states": buchi.num_states, "edges": buchi.num_edges,
+            "accepting": len(buchi.accepting), "initial": len(buchi.initial),
+            "ms": round(1e3 * seconds, 3)}
 
 
 def _write(buchi, args: argparse.Namespace) -> None:
-    if args.format == "hoa":
+    if args.json:
+        print(json.dumps(automaton_json(buchi)))
+    elif args.format == "hoa":
         sys.stdout.write(to_hoa(buchi, name=args.name))
     elif args.format == "text":
         sys.stdout.write(to_text(buchi))
@@ -51,14 +80,20 @@ def _write(buchi, args: argparse.Namespace) -> None:
 
 def _run_file(args: argparse.Namespace) -> int:
     failed = 0
-    if args.stats:
+    if args.stats and not args.json:
         print(STATS_HEADER)
     for result in translate_all(read_formulas(args.file)):
         if result.error is not None:
             failed += 1
             print(f"tlfleet translate: {args.file}:{result.line}: {result.error}",
                   file=sys.stderr)
-        if args.stats:
+        if args.json and result.buchi is None:
+            print(json.dumps({"line": result.line, "formula": result.formula,
+                              "error": str(result.error)}))
+        elif args.json and args.stats:
+            print(json.dumps({"line": result.line,
+                              **_stats_json(result.buchi, result.cpu_seconds)}))
+        elif args.stats:
             print(stats_line(result))
         elif result.buchi is not None:
             _write(result.buchi, args)
@@ -74,6 +109,9 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     buchi = read_hoa_file(args.hoa) if args.hoa is not None else translate(args.formula)
     elapsed = time.perf_counter() - t0
+    if args.stats and args.json:
+        print(json.dumps(_stats_json(buchi, elapsed)))
+        return 0
     if args.stats:
         print(f"{buchi.num_states}\t{buchi.num_edges}\t{1e3 * elapsed:.3f}\t{buchi.formula}")
         return 0

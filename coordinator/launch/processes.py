@@ -20,7 +20,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -47,6 +47,52 @@ def fifo_permitted() -> bool:
 
     soft, _hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
     return soft == resource.RLIM_INFINITY or soft >= FIFO_PRIORITY
+
+
+def _threads() -> list[int]:
+    """The ids of this process's threads (Linux sets a scheduling policy per thread)."""
+    try:
+        return [int(tid) for tid in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
+@contextlib.contextmanager
+def share_with_children(children_sched: str) -> Iterator[bool]:
+    """While the children run under ``SCHED_FIFO`` (``children_sched == "fifo"``), put every
+    thread of this process (zenoh's receivers, the supervision loop, the recorder) under
+    ``SCHED_FIFO`` at the children's priority; afterwards, back to the ordinary policy.
+
+    Why: an ordinary task runs only when no real-time task is runnable, and in lockstep the
+    fleet's processes hand the CPU to each other without pause, so the coordinator — which
+    records every frame and supervises the run — got no CPU until the run ended (the progress
+    bar stopped at 6.6 of 90 s; the recorder fell as far behind; bench/recorder_lag_bench.py
+    measures it). At equal FIFO priority no one preempts anyone: a woken coordinator queues
+    behind the running child for a few hundred microseconds instead of waiting for the end of the
+    run. ``SCHED_RESET_ON_FORK`` keeps a child it starts meanwhile (a fault's restart) from
+    inheriting the policy. Yields whether the policy was applied (not for other ``children_sched``,
+    nor where the OS refuses: then a warning)."""
+    if children_sched != "fifo" or not fifo_permitted():
+        yield False
+        return
+    policy = os.SCHED_FIFO | getattr(os, "SCHED_RESET_ON_FORK", 0)
+    raised: list[int] = []
+    try:
+        for tid in _threads():
+            try:
+                os.sched_setscheduler(tid, policy, os.sched_param(FIFO_PRIORITY))
+                raised.append(tid)
+            except ProcessLookupError:
+                continue
+            except OSError as exc:
+                logger.warning("the coordinator stays under the ordinary policy (%s): its "
+                               "recording may fall behind a SCHED_FIFO fleet", exc)
+                break
+        yield bool(raised)
+    finally:
+        for tid in _threads():  # threads started meanwhile inherited the policy too
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
 
 
 class LaunchError(TlfleetError, RuntimeError):

@@ -66,10 +66,9 @@ def main(config: RouterConfig, stop: threading.Event | None = None) -> int:
         raise
     try:
         transport.declare_alive(keys.alive(config.fleet, "router", 0))
-        # said at WARNING so that a router started by hand shows it without -v (issue 12 §1)
         listening = ", ".join(config.transport.listen) or "the --zenoh-config endpoints"
-        logger.warning("router: listening on %s for fleet %s; waiting for clients (stop with "
-                       "Ctrl-C)", listening, config.fleet)
+        logger.info("router: listening on %s for fleet %s; waiting for clients (stop with "
+                    "Ctrl-C)", listening, config.fleet)
         while not stop.wait(0.2):
             pass
         return 0

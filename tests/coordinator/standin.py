@@ -57,8 +57,8 @@ def main() -> int:
         transport = open_transport(TransportConfig(mode="router", listen=(args.endpoint,)))
     else:
         transport = open_transport(TransportConfig(mode="client", connect=(args.endpoint,)))
-    scenario = load_scenario(args.scenario)
-    fleet = scenario.fleet
+    scenario = load_scenario(args.scenario) if args.role != "router" else None
+    fleet = scenario.fleet if scenario is not None else ""
     started = threading.Event()
 
     def on_control(_key: str, payload: bytes) -> None:

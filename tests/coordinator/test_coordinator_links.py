@@ -5,12 +5,19 @@ each other, everything else goes through the router (``tlfleet.coordinator.run.p
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import pytest
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.transport import DEFAULT_RUNTIME
-from tlfleet.coordinator.run import PEER_LISTEN, RunConfig, default_child_argv, peer_links
+from tlfleet.coordinator.run import (
+    PEER_LISTEN,
+    RunConfig,
+    default_child_argv,
+    fleet_plan,
+    peer_links,
+)
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "scenario1.toml"
 ENDPOINT = "tcp/127.0.0.1:7447"
@@ -19,13 +26,13 @@ PEER_FLAGS = ["--mode", "peer", "--listen", PEER_LISTEN, "--zenoh-runtime", "min
 
 def argv_of(config: RunConfig) -> dict[str, list[str]]:
     scenario = load_scenario(SCENARIO)
-    roles = {"router": None, "sim": None, "agent-3": 3}
-    return {name: default_child_argv(name.split("-")[0], config, scenario, robot, ENDPOINT)
-            for name, robot in roles.items()}
+    plan = {spec.name: spec for spec in fleet_plan(config, scenario, ENDPOINT)}
+    return {name: default_child_argv(plan[name]) for name in ("router", "sim", "agent-3")}
 
 
 def has_peer_flags(argv: list[str]) -> bool:
-    return any(argv[i:i + len(PEER_FLAGS)] == PEER_FLAGS for i in range(len(argv)))
+    pairs = set(itertools.pairwise(argv))
+    return all(pair in pairs for pair in zip(PEER_FLAGS[::2], PEER_FLAGS[1::2], strict=True))
 
 
 @pytest.mark.parametrize("mode", ["lockstep", "realtime"])

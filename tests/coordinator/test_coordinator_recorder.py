@@ -154,10 +154,22 @@ def test_progress_bar_line():
 
     from tlfleet.cli.commands.run import ProgressBar
 
+    wall = [0.0]
     stream = io.StringIO()
-    bar = ProgressBar(stream, width=10)
+    bar = ProgressBar(stream, width=10, clock=lambda: wall[0])
     bar(45.0, 90.0)
-    bar(45.05, 90.0)  # less than 0.1 s of sim time later: not redrawn
+    wall[0] = 0.1
+    bar(45.05, 90.0)  # less than 0.1 s of sim time and 0.5 s of wall time later: not redrawn
+    wall[0] = 2.0
+    bar(55.0, 90.0)  # 10 s of sim time in 2 s of wall time: 5x, 35 s left = 7 s of wall time
+    wall[0] = 3.0
+    bar(55.0, 90.0)  # stalled: redrawn after 0.5 s of wall time, the rate falls
+    wall[0] = 30.0
     bar(90.0, 90.0)
     bar.end()
-    assert stream.getvalue() == "\r[#####     ] 45.0/90.0 s\r[##########] 90.0/90.0 s\n"
+    assert stream.getvalue().split("\r")[1:] == [
+        "[#####     ] 45.0/90.0 s\x1b[K",
+        "[######    ] 55.0/90.0 s  5.0x  ETA 0:07\x1b[K",
+        "[######    ] 55.0/90.0 s  3.3x  ETA 0:10\x1b[K",
+        "[##########] 90.0/90.0 s  1.3x  ETA 0:00\x1b[K\n",
+    ]

@@ -46,16 +46,15 @@ pytestmark = pytest.mark.system
 
 
 def standin_argv(extra: dict[str, list[str]] | None = None, sim_duration: float = 1.0):
-    def argv(role, config, _scenario, robot, endpoint):
-        args = [sys.executable, str(STANDIN), role, str(config.scenario_path),
-                "--endpoint", endpoint]
-        name = role
-        if robot is not None:
-            args += ["--robot", str(robot)]
-            name = f"agent-{robot}"
-        if role == "sim":
+    def argv(spec):  # a ProcessSpec of tlfleet.coordinator.launch.plan, placed
+        endpoint = (spec.links.connect or spec.links.listen)[0]
+        scenario = "-" if spec.role == "router" else spec.args[1]  # the router reads none
+        args = [sys.executable, str(STANDIN), spec.role, scenario, "--endpoint", endpoint]
+        if spec.robot is not None:
+            args += ["--robot", str(spec.robot)]
+        if spec.role == "sim":
             args += ["--duration", str(sim_duration)]
-        return args + (extra or {}).get(name, [])
+        return args + (extra or {}).get(spec.name, [])
     return argv
 
 

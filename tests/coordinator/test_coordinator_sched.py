@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.coordinator import run as runner
-from tlfleet.coordinator.run import RunConfig, child_sched, default_child_argv
+from tlfleet.coordinator.run import RunConfig, child_sched, default_child_argv, fleet_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "scenario1.toml"
@@ -39,8 +39,9 @@ def test_the_runner_asks_for_fifo_where_permitted_and_batch_in_lockstep_else(
     scenario = load_scenario(SCENARIO)
     config = RunConfig(SCENARIO, mode=mode, sched=sched)
     assert child_sched(config) == expected
+    plan = {spec.name: spec for spec in fleet_plan(config, scenario, "tcp/127.0.0.1:7447")}
     for role, robot in ROLES:
-        argv = default_child_argv(role, config, scenario, robot, "tcp/127.0.0.1:7447")
+        argv = default_child_argv(plan[role if robot is None else f"agent-{robot}"])
         assert _sched_flag(argv) == (None if expected == "default" else expected), (role, argv)
 
 

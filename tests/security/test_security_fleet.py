@@ -62,10 +62,10 @@ def fleet_run(out: Path, secure: Path | None = None, on_endpoint=None,
     ``max_speed``: sim time at most this × wall time; ``sched``: ``RunConfig.sched`` (the
     trajectory is the same whatever these two)."""
 
-    def child_argv(role, config, scenario, robot, endpoint):
-        if role == "router" and on_endpoint is not None:
-            on_endpoint(endpoint)
-        return default_child_argv(role, config, scenario, robot, endpoint)
+    def child_argv(spec):
+        if spec.role == "router" and on_endpoint is not None:
+            on_endpoint(spec.links.listen[0])
+        return default_child_argv(spec)
 
     return run_fleet(RunConfig(SCENARIO1, mode="lockstep", out=out, duration=DURATION, seed=1,
                                secure=secure, child_argv=child_argv, report=False, sched=sched,
