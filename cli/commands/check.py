@@ -39,9 +39,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         for path in args.scenario:
             scenario = load_scenario(path)
-            for robot in scenario.robots:
-                if robot.ltl is not None:
-                    task_automaton(robot.ltl)
+            check_launch(scenario)
             print(json.dumps(summary_json(scenario, stl_warnings(scenario))), flush=True)
         return 0
     for index, path in enumerate(args.scenario):
