@@ -73,7 +73,7 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
     for index, robot in enumerate(scenario.robots):
         if not robot.is_stl:
             continue
-        where = f"robots[{index}]"
+        where = robot_field(index, robot.id)
         formulas = _formulas(scenario, index)
         for k, phi in enumerate(formulas):
             field = f"{where}.stl[{k}]"
@@ -186,7 +186,7 @@ def stl_warnings(scenario: Scenario) -> list[str]:
         if not robot.is_stl:
             continue
         for k, phi in enumerate(_formulas(scenario, index)):
-            field = f"robots[{index}].stl[{k}]"
+            field = f"{robot_field(index, robot.id)}.stl[{k}]"
             text = to_text(phi)
             for literal in non_concave_literals(phi.body, ltl_ids):
                 out.append(f"{field}: predicate {to_text(literal)!r} is not concave in the "

@@ -34,16 +34,16 @@ def _with(robot: int, **fields) -> dict:
 
 
 @pytest.mark.parametrize("data,field,reason", [
-    (_with(2, stl=["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)"]), "robots[2].stl[0]",
+    (_with(2, stl=["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)"]), "robots[id=3].stl[0]",
      "does not involve robot 3's own state"),
-    (_with(2, stl=["G[0,10] (!(dist(p3, p2) <= 1))"]), "robots[2].stl[0]",
+    (_with(2, stl=["G[0,10] (!(dist(p3, p2) <= 1))"]), "robots[id=3].stl[0]",
      "unbounded above"),
     (_with(1, phase_start_times=[15.0]), None, None),  # valid: 15 ≥ b = 10
-    (_with(1, phase_start_times=[5.0]), "robots[1].phase_start_times[0]",
+    (_with(1, phase_start_times=[5.0]), "robots[id=2].phase_start_times[0]",
      "precedes the end b = 10"),
     # overlapping windows: the loader's window-order check (tlfleet.agent.scenario.validation) names
     # it
-    (_with(1, stl=["G[0,10] (x2 >= 0)", "F[5,12] (y2 >= 0)"]), "robots[1].stl[1]",
+    (_with(1, stl=["G[0,10] (x2 >= 0)", "F[5,12] (y2 >= 0)"]), "robots[id=2].stl[1]",
      "window [5, 12] overlaps the window [0, 10] of stl[0]"),
 ])
 def test_broken_stl_tasks_are_rejected_with_field_and_reason(data, field, reason):
@@ -67,8 +67,8 @@ def test_warnings_nonconcave_and_violated_from_start():
     data["robots"][1]["stl"] = ["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)",
                                 "F[20,30] (dist(p2, [0, 0.5]) >= 0.1)"]
     warnings = stl_warnings(parse_scenario(data))
-    assert any("robots[1].stl[1]" in w and "not concave" in w for w in warnings)
-    assert any("robots[2].stl[0]" in w and "violated at the start poses" in w
+    assert any("robots[id=2].stl[1]" in w and "not concave" in w for w in warnings)
+    assert any("robots[id=3].stl[0]" in w and "violated at the start poses" in w
                and "-4.0" in w for w in warnings)
 
 
@@ -79,14 +79,14 @@ def test_paper_scenarios_have_no_warning():
 
 @pytest.mark.parametrize("data,field,reason", [
     # a window the run never closes: no verdict, so never met
-    (_with(2, stl=["F[50,70] (dist(p3, p2) <= 1)"]), "robots[2].stl[0]",
+    (_with(2, stl=["F[50,70] (dist(p3, p2) <= 1)"]), "robots[id=3].stl[0]",
      r"window \[50, 70\] ends after the run \(duration = 60 s\)"),
     # bodies asked to overlap: radii 0.2 + 0.2 > 0.3, in any spelling of the distance
-    (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.3)"]), "robots[2].stl[0]",
+    (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.3)"]), "robots[id=3].stl[0]",
      "bodies of robots 3 and 2 to overlap"),
-    (_with(2, stl=["G[5,10] (x3 >= 0 & 0.35 > norm(p2 - p3))"]), "robots[2].stl[0]",
+    (_with(2, stl=["G[5,10] (x3 >= 0 & 0.35 > norm(p2 - p3))"]), "robots[id=3].stl[0]",
      "bodies of robots 2 and 3 to overlap"),
-    (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.5)"], radius=0.35), "robots[2].stl[0]",
+    (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.5)"], radius=0.35), "robots[id=3].stl[0]",
      "0.35 \\+ 0.2 = 0.55 m > 0.5 m"),
 ])
 def test_tasks_no_run_can_meet_are_rejected(data, field, reason):
@@ -105,7 +105,7 @@ def test_bodies_kept_apart_and_disjunctions_are_not_overlaps():
 def test_a_robot_overlapping_the_wall_at_its_start_is_rejected():
     with pytest.raises(ScenarioError) as info:
         parse_scenario(_with(2, pose=[3.4, 0.0, 0.0]), source="mini.toml")
-    assert info.value.field == "robots[2].pose" and "arena's wall" in info.value.reason
+    assert info.value.field == "robots[id=3].pose" and "arena's wall" in info.value.reason
     parse_scenario(_with(2, pose=[3.3, 0.0, 0.0]))  # 0.2 m from the wall: touching, allowed
 
 
@@ -115,10 +115,10 @@ def test_check_command_prints_warnings_and_rejects(tmp_path, capsys):
         "pose = [-1.5, -2.5, 0.0]", "pose = [1.0, 1.0, 0.0]"))  # G[0,90] violated at t = 0
     assert main(["check", str(good)]) == 0
     out = capsys.readouterr().out
-    assert "warning:" in out and "robots[2].stl[0]" in out and "coupling-aware leaders on" in out
+    assert "warning:" in out and "robots[id=3].stl[0]" in out and "coupling-aware leaders on" in out
     bad = tmp_path / "bad.toml"
     bad.write_text((SCENARIOS / "scenario2.toml").read_text().replace(
         'stl = ["G[0,90] (dist(p3, p1) <= 0.6)"]', 'stl = ["G[0,90] (dist(p4, p1) <= 0.6)"]'))
     assert main(["check", str(bad)]) == 1
     err = capsys.readouterr().err
-    assert str(bad) in err and "robots[2].stl[0]" in err and "own state" in err
+    assert str(bad) in err and "robots[id=3].stl[0]" in err and "own state" in err
