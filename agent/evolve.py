@@ -3,8 +3,8 @@
 ``replace`` builds the new instance through ``__init__`` (a frozen dataclass's ``__init__`` sets
 every field through ``object.__setattr__``) after reading every field back: for the 24 fields of
 the navigation's ``ExecutorState`` that costs ≈ 7.5 µs, for the 18 of the STL agent's
-``AgentState`` ≈ 5.5 µs, and the agents make one or several per tick on the fleet's latency path
-(issue 17). ``evolve`` builds the same new instance without ``__init__``:
+``AgentState`` ≈ 5.5 µs, and the agents make one or several per tick on the fleet's latency
+path. ``evolve`` builds the same new instance without ``__init__``:
 
 * a class with a ``__dict__``: copy the instance's ``__dict__`` and overwrite the changed fields
   (≈ 1.1 µs for ``ExecutorState``);

@@ -1,4 +1,4 @@
-"""What the backfill (issue 13) costs on the hot path, per frame, in-process (no fleet):
+"""What the backfill costs on the hot path, per frame, in-process (no fleet):
 
     .venv/bin/python bench/backfill_bench.py [--quick] [--out FILE.json]
 

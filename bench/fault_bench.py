@@ -1,4 +1,4 @@
-"""Benchmark of injected faults (issue 13 §3): detection, stop and recovery times.
+"""Benchmark of injected faults: detection, stop and recovery times.
 
     .venv/bin/python bench/fault_bench.py [--runs N] [--only cut,freeze,restart] [--out FILE]
 
@@ -30,7 +30,7 @@ Figures per kind, medians over the runs (from ``events.jsonl`` and ``trajectory.
 * **contacts** (robot–robot) and **corrupted files**
   (``tlfleet.coordinator.record.rundir.read_run(strict=True)`` failing), summed over the runs.
 
-Targets (issue 13): detection ≤ 1 s, stopped ≤ 0.2 s, recovery ≤ 1 s, 0 contacts, 0 corrupted.
+Targets: detection ≤ 1 s, stopped ≤ 0.2 s, recovery ≤ 1 s, 0 contacts, 0 corrupted.
 Nothing here is CPU-bound: the figures are wall/sim times of a realtime fleet on a shared 2-core
 machine, so read them as orders of magnitude; the CPU time of the children is reported beside.
 """

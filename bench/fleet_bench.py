@@ -1,4 +1,4 @@
-"""Benchmark of the ways to deploy a fleet (issue 12): local processes, 3 netns hosts, compose.
+"""Benchmark of the ways to deploy a fleet: local processes, 3 netns hosts, compose.
 
     .venv/bin/python bench/fleet_bench.py [--runs N] [--lockstep-duration S]
         [--realtime-duration S] [--only local,hosts3,compose] [--out FILE.json]

@@ -61,7 +61,7 @@ from bench.floor_probe import (  # noqa: E402
 PERIOD = 0.01  # [s] the mocap period at 100 Hz
 FRAME_PAD = b"f" * 242  # with the 8-byte period number: a 250-byte frame
 READY_TIMEOUT = 60.0  # [s] for every receiver to start (30 processes importing zenoh)
-#: a 30-robot fleet's shape since ``[sim] frame_slots`` = 5 (round 18): its frame instants a period,
+#: a 30-robot fleet's shape since ``[sim] frame_slots`` = 5: its frame instants a period,
 #: and the sender's CPU before each [µs] that puts it at the simulator's share of a core there
 SLOTS = 5
 SENDER_WORK_US = 450.0

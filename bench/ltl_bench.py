@@ -15,7 +15,7 @@ Measures, as medians over several runs, CPU time (``time.thread_time``) beside w
    ``F r1 & … & F r5`` at 40 regions: ≤ 100 ms; the reference Python implementation P_MAS_TG
    with ltl2ba takes 2.36 s).
 
-4. (issue 16) per formula family — GF-conjunctions n = 1..12, F-conjunctions, sequential
+4. per formula family — GF-conjunctions n = 1..12, F-conjunctions, sequential
    visits, response patterns, GF of sequential visits, random 6-proposition formulas of size
    20, one formula over 16…64 propositions — states, edges, CPU and wall time; and the state
    counts against Spot 2.9's ``ltl2tgba -B`` on ``--spot-sizes`` (default
@@ -236,7 +236,7 @@ def bench_issue16(quick: bool, runs: int, seed: int) -> dict:
 
 
 RANDOM_TARGET_MS = 100.0
-"""Issue 16: every random 6-proposition formula of size 20 translated within this CPU time."""
+"""Every random 6-proposition formula of size 20 translated within this CPU time."""
 
 
 def random_tail(randoms: list[dict]) -> dict:
@@ -288,7 +288,7 @@ def bench_spot(path: Path) -> dict | None:
 
 def print_issue16(result: dict) -> None:
     data = result["issue16"]
-    print("\n== families (issue 16): states / edges / CPU ms / wall ms")
+    print("\n== families: states / edges / CPU ms / wall ms")
     for row in data["families"] + data["propositions"]:
         cells = (f"{row['states']:>5} {row['edges']:>6}" if "error" not in row
                  else f"{row['error'][:40]:>12}")

@@ -73,7 +73,7 @@ def scenario_with_fleet() -> Scenario:
 
 def bench_dwa(runs: int, calls: int) -> dict:
     """One DWA cycle as the agents run it (``DwaConfig()``: the C kernel where it was built) and,
-    beside it, with the numpy kernel (issue 17: the ratio of the two in the same minute)."""
+    beside it, with the numpy kernel (the ratio of the two in the same minute)."""
     grid = grid_from_arena(Arena(), 0.25)
     path = plan_path(grid, (-2.0, 0.0), (2.5, 0.0)).waypoints
     others = five_other_robots()

@@ -16,7 +16,7 @@ record. Medians over
   the fleet's p99), ``ltl_latency_p99_ms`` the same for its LTL robots;
 * ``missed_fraction``: missed control deadlines / due ones, same runs (target ≤ 0.1 %);
 * ``lockstep_speedup``: Scenario 1 in lockstep, sim seconds per wall second of the supervised
-  phase (target ≥ 10×, issue 17), and beside it the CPU the fleet spends per simulated second
+  phase (target ≥ 10×), and beside it the CPU the fleet spends per simulated second
   (``cpu_s_per_sim_s``: every router, sim and agent process, user + system), which does not
   depend on what else the machine runs, and the speed-up that CPU allows on this machine's
   cores (``cpu_bound_speedup`` = cores / CPU-s per sim-s, a ceiling: the round trip sim → agents
@@ -139,7 +139,7 @@ class CpuSampler:
 
     def _run(self) -> None:
         # a sampler must outrank what it samples: a lockstep fleet runs under SCHED_FIFO where
-        # permitted (round 16), and this ordinary thread then missed whole runs of samples
+        # permitted, and this ordinary thread then missed whole runs of samples
         if fifo_permitted():
             with contextlib.suppress(OSError):
                 os.sched_setscheduler(threading.get_native_id(), os.SCHED_FIFO,
@@ -150,7 +150,7 @@ class CpuSampler:
         while not self._stop.is_set():
             now = time.monotonic()
             # the process tree is read from the whole of /proc: every sample until the fleet's
-            # processes are there, then every 4th (issue 17: the sampler is part of the
+            # processes are there, then every 4th (the sampler is part of the
             # coordinator's CPU it reports; a fleet's processes all start before its mission)
             if len(procs) <= 1 or scans % 4 == 0:
                 self._add_children(me, procs)
@@ -196,7 +196,7 @@ class CpuSampler:
         samples around it) to each child's last sample (it exits when the mission is over) and,
         for this process (``coordinator``, which goes on to write the report), to ``end`` (the
         last progress call), over the mission's ``t_end`` [s] of sim time. Independent of how
-        fast the run went, and of when the coordinator saw the frames (round 16: an ordinary
+        fast the run went, and of when the coordinator saw the frames (an ordinary
         coordinator beside a SCHED_FIFO lockstep fleet drains late, and sim time read from its
         progress made the fleet's CPU per sim second look higher than two cores allow)."""
         if not t_end > 0:

@@ -1,4 +1,4 @@
-"""Goals of the paper's Scenarios 1–3 (issue 15): scenario × seed × mode × coupling-awareness.
+"""Goals of the paper's Scenarios 1–3: scenario × seed × mode × coupling-awareness.
 
     .venv/bin/python bench/scenario_bench.py [--quick] [--seeds 1 2 3 4 5]
         [--modes lockstep realtime] [--coupling on off] [--scenarios 1 2 3 recovery]

@@ -1,4 +1,4 @@
-"""Benchmark of the secured fleet (issue 14): mutual TLS + the router's ACL against plain TCP.
+"""Benchmark of the secured fleet: mutual TLS + the router's ACL against plain TCP.
 
     .venv/bin/python bench/security_bench.py [--quick] [--runs N] [--baseline TRAJECTORY.csv]
                                              [--out FILE.json]

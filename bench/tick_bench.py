@@ -1,4 +1,4 @@
-"""Benchmark of the per-tick Python of the simulator and the agents, in process (issue 17).
+"""Benchmark of the per-tick Python of the simulator and the agents, in process.
 
     .venv/bin/python bench/tick_bench.py [--quick] [--out FILE.json]
 
@@ -10,11 +10,11 @@ sub-steps with the tracking law of 5 robots, then ``World.mocap_poses``). CPU of
 (``time.thread_time``) beside wall, medians of ``--runs`` runs; warm caches.
 
 A real agent process is woken 100 times a second, and on a VM whose idle vCPUs halt it pays
-several times the warm figure (``docs/performance.md``, round 11). So two figures are one STL
+several times the warm figure (``docs/performance.md``). So two figures are one STL
 agent's tick (decode the frame, step, encode the command) along a replay of Scenario 1, back to
 back and after a 10 ms sleep before every tick, and their ratio; the last two are the same for
 the agent's whole loop tick (``AgentLoop.run_once`` on the in-memory bus: channel, checks,
-inbox, step, publish) of one robot of a generated 30-robot fleet (round 15). The figures
+inbox, step, publish) of one robot of a generated 30-robot fleet. The figures
 are those of the codec ``$TLFLEET_CODEC`` selects; where that is the C codec
 (``tlfleet.bus.protocol._wire``), every codec figure and the agent tick are given with the Python
 codec too (``*_python``), the ticks interleaved. No targets: the figures

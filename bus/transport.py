@@ -29,7 +29,7 @@ class Closeable(Protocol):
 
 
 class Channel(Protocol):
-    """The samples of one concrete key, read by the thread that handles them (issue 17).
+    """The samples of one concrete key, read by the thread that handles them.
 
     A callback subscriber hands every sample from the transport's thread to the process's loop
     (a thread wake-up per sample); a channel is read by the loop itself. ``recv(timeout)``
@@ -70,8 +70,9 @@ class Transport(Protocol):
     # ``droppable``: on a link whose send queue is full, drop the query after at most a
     # millisecond instead of waiting for room (zenoh's congestion control DROP; its replies
     # follow the query's). A query that must not hold its caller (an agent's control loop,
-    # issue 13) is droppable: a dropped query is a query without replies, which its sender
-    # already handles; the default waits, up to the link's close (tlfleet.bus.zenoh.config).
+    # whose partner may be cut off) is droppable: a dropped query is a query without replies, which
+    # its sender already handles; the default waits, up to the link's close
+    # (tlfleet.bus.zenoh.config).
     def query_async(self, key_expr: str, payload: bytes, timeout: float,
                     on_done: RepliesCallback, *, droppable: bool = False) -> None: ...
 
@@ -99,7 +100,7 @@ class Handle:
 #: unacknowledged data is left, up to zenoh's SO_LINGER of 10 s (zenoh-link-tcp and -tls). A
 #: link lost to a partition (a blackhole, not a reset) holds its worker until the partition
 #: heals or 10 s pass; with 2 workers, a peer that lost both of its links to a partitioned peer
-#: received nothing from anyone, the simulator's frames included (issue 13: the partner
+#: received nothing from anyone, the simulator's frames included (the partner
 #: partition stalled a lockstep fleet for the partition's length; gdb showed rx-0 and rx-1 in
 #: close(2)). With 8, a process keeps receiving while up to 6 of its links are held so; the
 #: extra workers are parked threads when idle.
@@ -133,7 +134,7 @@ def child_environment(env: Mapping[str, str]) -> dict[str, str]:
 #: zenoh's runtime threads (``ZENOH_RUNTIME``) for a process that moves ~100 small messages a
 #: second: one async worker, and every other runtime (rx, tx, net, acc) handed over to it. A
 #: default session runs 7 OS threads (+1 per callback entity); each received sample then wakes
-#: 3–4 of them. Measured with the real fleet (issue 17, ``bench/runtime_bench.py``): less CPU per
+#: 3–4 of them. Measured with the real fleet (``bench/runtime_bench.py``): less CPU per
 #: tick in every process (router −25…40 %). Opt-in, not the default: under a flood of malformed
 #: payloads (10 000 per key, tests/security) a router with one worker fell behind and closed its
 #: clients' transports ("Unable to push non droppable network message"), taking the fleet down.

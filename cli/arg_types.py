@@ -38,7 +38,7 @@ def positive_int(text: str) -> int:
 
 
 def fault_spec(text: str):
-    """``--fault KIND:TARGET@T[+D]`` (issue 13): parsed at once, so a bad part is a usage
+    """``--fault KIND:TARGET@T[+D]``: parsed at once, so a bad part is a usage
     error naming it, before anything starts."""
     from tlfleet.agent.model.faults import FaultSpecError, parse_fault
 

@@ -1,5 +1,5 @@
 """The OS scheduling flag of the fleet's processes (``tlfleet sim``, ``agent``, ``router``):
-``--sched {default,batch,fifo}`` (issue 17, docs/performance.md rounds 9 and 16).
+``--sched {default,batch,fifo}`` (measured in docs/performance.md).
 
 ``batch`` puts the process under Linux's ``SCHED_BATCH`` before it opens its session, so every
 thread it starts (zenoh's included) inherits it. A batch task is never preempted by a task that
@@ -10,7 +10,7 @@ wake-up only interrupts the process whose output the others wait for: in Scenari
 put took 0.3–0.7 ms instead of 0.03 ms in 19–31 % of the ticks, until the simulator itself was
 a batch task. Lowering a process to ``SCHED_BATCH`` needs no privilege.
 
-``fifo`` (round 16) puts it under ``SCHED_FIFO`` at :data:`FIFO_PRIORITY`, the lowest real-time
+``fifo`` puts it under ``SCHED_FIFO`` at :data:`FIFO_PRIORITY`, the lowest real-time
 priority: it runs as soon as it wakes, before every ordinary process (the coordinator, a
 compiler, another user's job), and no task of its own priority preempts it. The fleet's
 processes block between their steps (a channel, a timed wait), so none holds a core for long,
@@ -24,9 +24,9 @@ under
 ``tlfleet run`` asks for ``fifo`` where it is permitted, in either mode (``RunConfig.sched``):
 in realtime a tick's deadline is met when every agent is woken and runs within the period, and
 under ``fifo`` Scenario 1's latency p99 was 0.81–0.91 against 1.14–1.56 ms and a 30-robot fleet
-missed 0.23–0.40 against 0.54–8.2 % of its deadlines (round 17, interleaved; an earlier series of
-round 16 had it worse in 2 of 4 pairs). Where it is not permitted a lockstep run uses ``batch``
-and a realtime run ``default`` (round 9: batch made the realtime tail worse in 4 of 4 pairs).
+missed 0.23–0.40 against 0.54–8.2 % of its deadlines (interleaved pairs; an earlier series
+had it worse in 2 of 4 pairs). Where it is not permitted a lockstep run uses ``batch``
+and a realtime run ``default`` (batch made the realtime tail worse in 4 of 4 pairs).
 Where the OS has no such policy the process says so and runs as it is.
 """
 

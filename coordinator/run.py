@@ -1,8 +1,8 @@
-"""One whole run of a fleet: validate, launch, supervise, record, summarise (issue 5 §4).
+"""One whole run of a fleet: validate, launch, supervise, record, summarise.
 
 :func:`run_fleet` is what ``tlfleet run`` does, importable for tests and benchmarks. It is the
 launcher around :mod:`tlfleet.coordinator.supervise`, the code ``tlfleet supervise`` runs alone
-(steps 2, 3 and 5–8 below are that module's; issue 12):
+(steps 2, 3 and 5–8 below are that module's):
 
 1. load the scenario (``ScenarioError`` before any process starts);
 2. create the run directory (:mod:`tlfleet.coordinator.record.recorder`), pick a free loopback
@@ -34,7 +34,7 @@ loop thread at a decimated rate; it is returned in :attr:`RunResult.viewer` stil
 caller closes it). rerun (0.9 s to import) is imported only for 8 and the live view; matplotlib only
 for 7.
 
-Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Issue 11: step 6
+Whatever happens in 3–5 (error, Ctrl-C), step 6 runs: no child is left behind. Step 6
 is exception-safe and bounded in time (:mod:`tlfleet.coordinator.launch.cleanup`); the recorder tap
 drops implausible frames and flags events whose claimed identity does not hold
 (:mod:`tlfleet.coordinator.record.trust`); silent (frozen/partitioned) agents are noticed
@@ -124,7 +124,7 @@ class RunConfig:
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     zenoh_config: Path | None = None  # JSON5 file merged under tlfleet's own settings, for
     #                                   every process of the run (tlfleet.bus.zenoh.config)
-    faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]] (issue 13)
+    faults: tuple[Fault, ...] = ()  # --fault specs, after the scenario's [[faults]]
     direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
     sched: str = "auto"  # OS scheduling of the router, sim and agents (child_sched)
@@ -136,7 +136,7 @@ PEER_LISTEN = f"tcp/{HOST}:0"
 
 def peer_links(config: RunConfig) -> bool:
     """Whether the sim, the agents and the coordinator of this run are zenoh **peers**
-    (architecture.md §1, issue 17): without ``--secure``, without ``--zenoh-config`` and without
+    (architecture.md §1): without ``--secure``, without ``--zenoh-config`` and without
     ``--via-router``, in lockstep and in realtime (``run_fleet`` also turns them off for a run
     with faults). Each then listens on a free loopback port, connects to the router and learns
     the others' locators from it (zenoh's gossip), so frames and commands go sim ↔ agent
@@ -145,7 +145,7 @@ def peer_links(config: RunConfig) -> bool:
     (:func:`_open_client`). The sim and the agents also run zenoh's minimal runtime
     (``--zenoh-runtime minimal``, :data:`tlfleet.bus.transport.MINIMAL_RUNTIME`: one worker thread
     that receives and sends too; less CPU per sample); the router and the coordinator keep zenoh's
-    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md round 7): latency p50
+    pools. Realtime Scenario 1 (6 interleaved pairs, docs/performance.md): latency p50
     2.3 → 1.8 ms, the STL robots' p99 on quiet ticks 4.0 → 3.4 ms. A secured run keeps every
     link on the router, where the access-control policy is enforced
     (:mod:`tlfleet.coordinator.security.policy`); a user's zenoh file keeps the topology it
@@ -162,9 +162,9 @@ def child_sched(config: RunConfig) -> str:
     ``auto`` is ``fifo`` where this user may ask for it (Linux ``SCHED_FIFO`` priority 1: a process
     runs as soon as it wakes), in either mode: Scenario 1 in lockstep ≈ 1.4× faster; in realtime its
     latency p99 0.81–0.91 against 1.14–1.56 ms and a 30-robot fleet's missed deadlines 0.23–0.40
-    against 0.54–8.2 % (docs/performance.md rounds 16 and 17). Without that right, ``batch`` in
-    lockstep (``SCHED_BATCH``: no process is preempted when another wakes up; ≈ 4–8 % faster,
-    round 9) and ``default`` in realtime, where batch made the latency tail worse."""
+    against 0.54–8.2 % (docs/performance.md). Without that right, ``batch`` in
+    lockstep (``SCHED_BATCH``: no process is preempted when another wakes up; ≈ 4–8 % faster) and
+    ``default`` in realtime, where batch made the latency tail worse."""
     if config.sched not in SCHED_CHOICES:
         raise ValueError(f"RunConfig.sched {config.sched!r}: expected one of "
                          f"{', '.join(SCHED_CHOICES)}")
@@ -213,7 +213,7 @@ def _open_client(endpoint: str, router: Child, config: RunConfig) -> Transport:
     router's log when the router dies or does not answer within ``router_timeout``. In a
     peer-link run (:func:`peer_links`) it is a peer too, listening on a free loopback port: the
     frames, statuses and events it records come straight from the sim and the agents instead of
-    through the router (issue 17: the router no longer forwards 100 frames per sim second)."""
+    through the router (the router no longer forwards 100 frames per sim second)."""
     client = client_config((endpoint,), secure=config.secure, lease_ms=config.lease_ms,
                            zenoh_config=config.zenoh_config)
     if peer_links(config):

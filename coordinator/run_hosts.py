@@ -1,6 +1,5 @@
 """``tlfleet run --hosts N`` and runs with link faults: a fleet launched on namespace hosts and
-supervised there (issue 12 §3, issue 13; the hosts and the placement are
-:mod:`tlfleet.coordinator.launch.netns_hosts`).
+supervised there (the hosts and the placement are :mod:`tlfleet.coordinator.launch.netns_hosts`).
 
 :func:`run_on_hosts` is launch + supervise: the routers, the simulator and the agents start in
 their namespaces (:class:`tlfleet.coordinator.launch.processes.Launcher`, logs in ``<run>/logs``),
@@ -12,7 +11,7 @@ SIGTERM), supervise is interrupted (SIGINT: it ends the run as *interrupted* and
 directory up to that point) and everything else is stopped after it. Needs root (``ip netns``);
 nft only for process cuts.
 
-Secured by default (issue 14): every link is ``tls/`` with mutual authentication and every
+Secured by default: every link is ``tls/`` with mutual authentication and every
 router enforces the fleet's access-control policy. Without ``keys``, a fresh key directory for
 this run (a CA, one certificate per process, the routers' names being the hosts' addresses, the
 mesh policy of :func:`tlfleet.coordinator.security.policy.fleet_grants`) is written to a private
@@ -110,7 +109,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
                  insecure: bool = False, lease_ms: int | None = None,
                  faults: Sequence[Fault] = (),
                  stop: threading.Event | None = None) -> HostsRun:
-    """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults`` (issue 13)
+    """``tlfleet run SCENARIO --hosts N`` (see the module docstring). With ``faults``
     the supervisor on host 0 injects them from a fault plan
     (:mod:`tlfleet.coordinator.faults.on_hosts`) and every client reconnects fast (``RECONNECT``);
     ``lease_ms`` goes to every process. A partition fault puts the fleet in the peer layout

@@ -1,4 +1,4 @@
-"""The coordinator's own part of a run, with or without the launcher (issue 12 §1).
+"""The coordinator's own part of a run, with or without the launcher.
 
 ``tlfleet run`` (:mod:`tlfleet.coordinator.run`) launches the router, the simulator and the agents
 and then does what this module does; ``tlfleet supervise`` (:func:`supervise_fleet`) does only this,
@@ -8,8 +8,8 @@ services). Both go through the same three pieces, so both record, judge and repo
 1. :func:`prepare_run` — load the scenario (``ScenarioError`` first; with ``secure`` the keys are
    checked), create the run directory, copy the scenario, write the first ``run.json``;
 2. :class:`Supervision` — over an open client session: declare ``alive/coordinator/0``,
-   subscribe the recorder tap with its plausibility checks (issue 11,
-   :mod:`tlfleet.coordinator.record.trust`), watch the agents' health
+   subscribe the recorder tap with its plausibility checks
+   (:mod:`tlfleet.coordinator.record.trust`), watch the agents' health
    (:mod:`tlfleet.coordinator.live.health`), wait for the liveliness token of every process the
    scenario needs (saying which ones are still missing, every ``waiting_period``), send
    ``Control(start)``, supervise until the end of the mission and send ``Control(stop)``
@@ -93,7 +93,7 @@ class SuperviseConfig:
     viewer: bool = False
     grpc_port: int = 0
     web_port: int = 0
-    faults: tuple[Fault, ...] = ()  # issue 13: injected with the actuator of fault_plan
+    faults: tuple[Fault, ...] = ()  # injected with the actuator of fault_plan
     # tlfleet.coordinator.faults.on_hosts (written by tlfleet run --hosts)
     fault_plan: Path | None = None
     # tlfleet.coordinator.faults.handoff: the host's executor's directory
@@ -180,7 +180,7 @@ def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mo
 
 
 def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
-    """The recorder tap's plausibility checks for this run (issue 11)."""
+    """The recorder tap's plausibility checks for this run."""
     a = scenario.arena
     dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
     return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
@@ -275,7 +275,7 @@ class Supervision:
 
     def findings(self) -> list[str]:
         """The agents' health findings, and each stretch of ``trajectory.csv`` the backfill
-        could not recover (issue 13)."""
+        could not recover."""
         return self.health.findings() + [
             f"trajectory.csv misses {r['frames']} frames (seq {r['first']}–{r['last']}, "
             f"t = {r['t_first']:.2f}–{r['t_last']:.2f} s): lost on a link, and "
@@ -292,7 +292,7 @@ def end_info(prepared: PreparedRun, outcome: Outcome, wall_start: float,
     info.update(reason=outcome.reason, t_end=outcome.t_end,
                 frames=prepared.recorder.frames_written)
     backfill = prepared.recorder.backfill_summary()
-    if backfill["gaps"]:  # issue 13: every gap of the live stream, and what stayed missing
+    if backfill["gaps"]:  # every gap of the live stream, and what stayed missing
         info["backfill"] = backfill
     info.setdefault("wall_time", time.monotonic() - wall_start)
     if info["wall_time"] > 0:
@@ -378,7 +378,7 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
     scenario = load_checked(config.scenario_path, config.secure)  # before connecting/writing
-    faults = fault_plan_checked(scenario, config)  # issue 13: bad faults fail here too
+    faults = fault_plan_checked(scenario, config)  # bad faults fail here too
     transport = open_client(client_config(config.connect, secure=config.secure,
                                           lease_ms=config.lease_ms,
                                           zenoh_config=config.zenoh_config),
@@ -437,7 +437,7 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
 
 def fault_plan_checked(scenario: Scenario, config: SuperviseConfig) -> tuple[Fault, ...]:
     """The run's faults (the scenario's and ``config.faults``), checked before connecting; they
-    need the fault plan of the launcher that placed the fleet (issue 13), or in a compose fleet
+    need the fault plan of the launcher that placed the fleet, or in a compose fleet
     the host's executor announced in the handoff directory
     (:mod:`tlfleet.coordinator.faults.handoff`)."""
     from tlfleet.coordinator.faults.plan import run_faults

@@ -1,4 +1,4 @@
-"""Commands have an age (issue 11): a command is stamped with the sim time ``t`` of the frame it
+"""Commands have an age: a command is stamped with the sim time ``t`` of the frame it
 answers (``Command.t``, tlfleet.agent.runtime.loop), and the simulator applies it only while it is
 fresh.
 

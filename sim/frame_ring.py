@@ -1,4 +1,4 @@
-"""The simulator's ring of recent frames, for the recorder's backfill (issue 13).
+"""The simulator's ring of recent frames, for the recorder's backfill.
 
 When a link is cut for longer than the zenoh lease, the session drops and every frame the
 simulator publishes until it is back never reaches the coordinator's recorder (fault-injection

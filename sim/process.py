@@ -3,7 +3,7 @@
 One loop on the main thread owns the :class:`~tlfleet.sim.world.World` and every piece of state. The
 transport's callbacks only put ``(kind, key, payload)`` on a queue (stack-notes.md §0: keep
 callbacks tiny); the loop decodes, decides and publishes. In lockstep the commands come through a
-channel the loop reads itself (issue 17, ``Transport.subscribe_channel``). Each frame goes out on
+channel the loop reads itself (``Transport.subscribe_channel``). Each frame goes out on
 ``mocap`` and on ``mocap_every/<d>/<φ>`` for the fleet's control schedules (d ≥ 2, φ) with
 ``seq % d == φ`` and on ``mocap_at/<s>`` for the every-tick robots' frame offsets s ≥ 1; in
 realtime with spread frames those keys carry frames sampled at their offsets instead.
@@ -13,7 +13,7 @@ Protocol (architecture.md §3 and the issue-5 contract):
 * before ``Control(start)``: the initial ``MocapFrame(t=0, seq=0, due=())`` every
   ``preview_period`` wall seconds, so agents can initialise;
 * tick k after start, t_k = k / mocap_rate: ``MocapFrame(t_k, k, poses, due)`` then
-  ``Clock(t_k, k, mode)`` (the frame first: the lockstep fleet waits for it, issue 17);
+  ``Clock(t_k, k, mode)`` (the frame first: the lockstep fleet waits for it);
   - **lockstep**: before tick 0 the loop waits (at most ``tick_timeout``) until it has seen
     every robot's agent alive; ``due`` = the live agents' robots due at k
     (:func:`tlfleet.sim.lockstep.due_robots`); the loop waits for their ``Command(seq=k)`` (wall
@@ -38,7 +38,7 @@ Protocol (architecture.md §3 and the issue-5 contract):
 A ``seq = 0`` command that arrives before the sim has processed the start is an agent's answer
 to a republished initial frame and is held for tick 0 (``tlfleet.sim.lockstep``, "early answers").
 
-Commands have an age (issue 11, :mod:`tlfleet.sim.command_age`): in realtime a command older than
+Commands have an age (:mod:`tlfleet.sim.command_age`): in realtime a command older than
 its robot's bound (``SimConfig.max_command_age``; default 5 control periods) is not applied, counted
 in
 ``sim_stats`` (``stale_commands``) and reported once per episode as ``Event(stale_command)``; the
@@ -46,7 +46,7 @@ watchdog then stops the robot. A decoded command outside the fleet's bounds
 (:class:`tlfleet.bus.protocol.bounds.FleetBounds`: time/seq disagreement, speeds far above the
 robot's limits) is treated like a malformed one.
 
-Backfill (issue 13, :mod:`tlfleet.sim.frame_ring`): every tick's frame is also kept, as published,
+Backfill (:mod:`tlfleet.sim.frame_ring`): every tick's frame is also kept, as published,
 in a ring of the last ``backfill_seconds`` of frames (bounded in bytes too), and the queryable
 ``sim/backfill`` answers a recorder's ``BackfillRequest`` with the frames it missed while a link
 was cut. The handler runs on a zenoh thread and touches only the ring (thread-safe); a request
@@ -256,7 +256,7 @@ class SimProcess:
         self.timing = TimingStats()
         # (kind, key, payload or liveliness, arrival wall time [s]) from the transport callbacks
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
-        self._cmds: Channel | None = None  # lockstep: the commands' channel (issue 17)
+        self._cmds: Channel | None = None  # lockstep: the commands' channel
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
                       "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
         # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
@@ -317,7 +317,7 @@ class SimProcess:
                     logger.exception("undeclaring a sim entity failed")
 
     def _open_command_channel(self, handles: list[Closeable]) -> Callable[[], None]:
-        """Lockstep (issue 17): the commands come through a channel read by this loop's thread
+        """Lockstep: the commands come through a channel read by this loop's thread
         (``Transport.subscribe_channel``, when the transport has one), so a command wakes the
         loop directly; the loop is blocked waiting for them, so the arrival time it stamps is
         the arrival. Realtime keeps the callback, which stamps arrivals while the loop sleeps
@@ -365,8 +365,8 @@ class SimProcess:
             if pacer is not None and k > 0:
                 # wait on the stop event, not on the command channel: a zenoh channel's recv
                 # may time out up to its timer's tick late (tlfleet.bus.transport.CHANNEL_TICK, 50
-                # ms; until round 17 always at a tick, which made every paced tick last ≈ 45 ms: a
-                # 10 s run at --max-speed 2 took 49 s); no command can come before the tick it
+                # ms; waiting on the channel made every paced tick last ≈ 45 ms: a 10 s run at
+                # --max-speed 2 took 49 s); no command can come before the tick it
                 # answers is published
                 while not self.stopping and (left := pacer.remaining()) > 0.0:
                     self._pump(0.0)
@@ -480,7 +480,7 @@ class SimProcess:
     # ----------------------------------------------------------------- one tick
 
     def _publish_tick(self, k: int, due: tuple[int, ...]) -> None:
-        """Tick k's output, the frame first (issue 17, architecture.md §3): in lockstep the whole
+        """Tick k's output, the frame first (architecture.md §3): in lockstep the whole
         fleet waits for it, so between the last due command and the frame the loop does only
         what the frame needs (:meth:`_advance`, the poses, the encoding, the puts). The clock,
         the frame's entry in the backfill ring and the report of the step that led here
@@ -500,7 +500,7 @@ class SimProcess:
 
         ``due``: the live robots that owed a command for tick k. Their deadline bookkeeping and
         the watchdog's and the contacts' events wait for :meth:`_report_step`, after the next
-        frame (issue 17: off the lockstep round trip). After :meth:`_advance_part` (spread
+        frame (off the lockstep round trip). After :meth:`_advance_part` (spread
         frames) the commands are applied from where that left off, and the rest of the period is
         stepped with the same disturbance; the robots due at an offset s ≥ 1 have their deadline
         at t_{k+1} + s·dt instead (``_deadlines``).
@@ -590,7 +590,7 @@ class SimProcess:
                 self._on_command(item[0], item[1], self._now())
                 item = cmds.recv(0.0)
             timeout = 0.0
-        if timeout > 0.0 or not inbox.empty():  # (issue 17: no raised Empty on every pump)
+        if timeout > 0.0 or not inbox.empty():  # (no raised Empty on every pump)
             try:
                 item = inbox.get(timeout=timeout) if timeout > 0.0 else inbox.get_nowait()
             except queue.Empty:

@@ -1,4 +1,4 @@
-"""Command timing as the simulator sees it (issue 5 §6: latency and missed control deadlines).
+"""Command timing as the simulator sees it (latency and missed control deadlines).
 
 * **Latency** of a command: its arrival at the sim (wall clock, taken in the transport callback)
   minus the publication of the frame it answers (same ``seq``, and for an answer to a frame
@@ -10,7 +10,7 @@
   sim waits (up to the tick timeout), so only timeouts miss; in realtime the step happens one
   mocap period after the frame, whatever arrived, and tick 0 owes nothing (agents cannot tell
   its frame from the preview frame, which they never answer).
-* **Shared ticks** (issue 17): the ticks on which a robot with a control divider ≥ 2 (an LTL
+* **Shared ticks**: the ticks on which a robot with a control divider ≥ 2 (an LTL
   robot at 5 Hz) is due beside the every-tick robots. ``summary(shared=…)`` splits the every-tick
   robots' latencies into those ticks and the others, which is where a fleet's tail comes from.
 """
@@ -103,7 +103,7 @@ class TimingStats:
     def _split(self, robots: set[int], shared: Callable[[int], bool]) -> dict[str, float]:
         groups: dict[str, list[float]] = {"shared": [], "alone": []}
         # ``shared`` once per tick, not once per (robot, tick): a 30-robot, 60 s run's summary
-        # took 2 s of the simulator's exit (round 17)
+        # took 2 s of the simulator's exit
         group_of: dict[int, list[float]] = {}
         for robot in robots:
             for seq, value in zip(self.robot_seqs.get(robot, ()),

@@ -1,4 +1,4 @@
-"""The pymunk world: arena walls, static obstacles and velocity-tracking robots (issue 5 §3).
+"""The pymunk world: arena walls, static obstacles and velocity-tracking robots.
 
 Plays the robots' hardware as in the paper's experiments (§IV): each robot tracks its last
 velocity command with a low-level controller, modelled here as first-order velocity tracking
@@ -27,7 +27,7 @@ Chipmunk's ``cpBodySetVelocityUpdateFunc`` through pymunk's own cffi module and 
 the body with Chipmunk's getters and setters: what ``body.velocity_func`` and the ``Body``
 properties do, without a ``Vec2d`` per read and a Python ``__setattr__`` per write (half the
 physics time); and one such callback per physics step runs the law of every robot
-(:meth:`World._install_tracking`, issue 17), instead of one per robot. That one callback runs
+(:meth:`World._install_tracking`), instead of one per robot. That one callback runs
 the law in C (``sim/tracking.c``, built at install time as ``tlfleet.sim._tracking``; several times
 cheaper than 5 Python laws) or, where the extension was not built or
 ``WorldConfig.tracking = "python"``, in Python (:meth:`SimRobot.track`): the same IEEE operations
@@ -216,7 +216,7 @@ class SimRobot:
         self.last_command_t: float | None = None  # [s] sim time of the last accepted command
         self.watchdog_tripped = False
         # the last command clipped and its result: the simulator checks a command when it
-        # arrives and applies the same tuple at the tick (issue 17: one clip per command)
+        # arrives and applies the same tuple at the tick (one clip per command)
         self._clipped_for: object = None
         self._clipped: tuple[float, ...] = ()
 
@@ -413,7 +413,7 @@ class World:
 
     def _install_tracking(self) -> None:
         """One Chipmunk velocity callback per physics step runs every robot's tracking law
-        (issue 17: a Python callback costs about as much as the law itself; 5 robots at 1 kHz
+        (a Python callback costs about as much as the law itself; 5 robots at 1 kHz
         made 5 000 of them per sim second).
 
         Chipmunk's step integrates every body's position, finds the contacts, then calls each
@@ -530,7 +530,7 @@ class World:
         n = self.substeps(duration)
         dt = duration / n
         space = self.space
-        # Chipmunk's cpSpaceStep, called as pymunk's wrapper calls it (issue 17: the wrapper's
+        # Chipmunk's cpSpaceStep, called as pymunk's wrapper calls it (the wrapper's
         # Python costs ≈ 3 µs per sub-step), while the wrapper would have nothing else to do: no
         # new body to check, nothing deferred (the contact callbacks only record), not the
         # threaded solver. Otherwise the wrapper runs the first sub-step and does what waits.
@@ -591,7 +591,7 @@ class World:
     def _read_native(self, noise: np.ndarray | None) -> tuple[tuple[int, float, float, float],
                                                                ...]:
         """:meth:`poses` (``noise`` None) or :meth:`mocap_poses` (``noise``: n × 3, C order) read
-        by ``tl_read_poses`` in one call (issue 17: 30 robots pose by pose in Python cost ≈ 40 µs
+        by ``tl_read_poses`` in one call (30 robots pose by pose in Python cost ≈ 40 µs
         per frame from cold caches); the same values to the last bit (tests/sim)."""
         ffi, out, n = _native.ffi, self._pose_buffer, len(self._tracked)
         _native.lib.tl_read_poses(self._native_cp, self._native_robots, n,

@@ -36,7 +36,7 @@ def scenarios_dir() -> Path:
     return ROOT / "scenarios"
 
 
-# ----------------------------------------------------------------- system requirements (issue 12)
+# ----------------------------------------------------------------- system requirements
 # Tests marked ``needs_system`` need root, network namespaces or docker. Where those are missing
 # they skip with the reason; with TLFLEET_REQUIRE_SYSTEM=1 (set by .ci/run) such a skip is turned
 # into a failure, so CI can never pass by skipping them.

@@ -10,8 +10,8 @@ Two representations:
 * a **guard** on an automaton edge is a reduced ordered BDD (``tlfleet.agent.ltl.bdd``): canonical,
   so equal guards are the same object; union ``|``, intersection ``&``, difference ``-`` and
   complement ``~`` cost in the size of the diagrams, not in the 2ⁿ letters, and
-  ``guard.holds(v)`` evaluates it on a letter in at most ``n`` steps. (Until issue 16 a guard was
-  a 2ⁿ-bit truth table, limited to 20 atoms.)
+  ``guard.holds(v)`` evaluates it on a letter in at most ``n`` steps. (A guard as a 2ⁿ-bit truth
+  table would limit a task to about 20 atoms.)
 
 ``Alphabet.cubes(guard)`` turns a guard into an irredundant sum of cubes (Minato–Morreale ISOP
 on the BDD) for printing (HOA, text, dot).

@@ -1,4 +1,4 @@
-"""The automaton of a robot's LTL task (ltl-planning.md §2; issue 16 "HOA input").
+"""The automaton of a robot's LTL task (ltl-planning.md §2).
 
 A scenario task is a formula — translated by :func:`tlfleet.agent.ltl.buchi.translate` — or, for
 ``ltl = { hoa = "file.hoa" }``, the text ``hoa:<absolute path>``

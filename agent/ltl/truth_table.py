@@ -7,7 +7,7 @@ operations of :mod:`tlfleet.agent.ltl.bdd` in the inner loops of
 :func:`tlfleet.agent.ltl.tgba.build_tgba` (per-letter domination, grouping, bisimulation) and of the
 direct simulation (:mod:`tlfleet.agent.ltl.simulation`); the finished automaton's guards are
 converted to the canonical BDDs, so the result is the same automaton, edge for edge. Beyond that
-many atoms the construction keeps the BDDs (a table grows as 2ⁿ, issue 16: "symbolic guards").
+many atoms the construction keeps the BDDs (a table grows as 2ⁿ).
 
 Both algebras offer ``false``, ``true``, ``cube(pos, neg)``, ``to_bdd(guard)`` and
 ``from_bdd(bdd)``; guards of

@@ -1,5 +1,5 @@
 """Fault specifications: what ``tlfleet run --fault SPEC`` and a scenario's ``[[faults]]`` mean
-(issue 13 §1; fault-injection notes §5, §6.1).
+(fault-injection notes §5, §6.1).
 
 A fault is one of
 

@@ -149,7 +149,7 @@ class LtlParams:
 
     suffix_weight: float = 10.0  # β in cost = prefix + β·suffix (P_MAS_TG default)
     control_rate: float = 5.0  # [Hz]
-    # LTL agents at phase offsets within the control period (Scenario.control_phase, issue 17):
+    # LTL agents at phase offsets within the control period (Scenario.control_phase):
     # no two of them step on the same mocap tick while there are at most d of them
     stagger: bool = True
 
@@ -179,7 +179,7 @@ class StlParams:
 
 @dataclass(frozen=True)
 class NavParams:
-    """Navigation of the LTL robots beyond the paper (docs/coupling.md, issue 15).
+    """Navigation of the LTL robots beyond the paper (docs/coupling.md).
 
     ``coupling_aware``: an LTL robot that STL tasks depend on limits its (v, ω) to what those
     robots can track (``tlfleet.agent.nav.coupling_limits``); false reproduces the purely reactive
@@ -208,14 +208,14 @@ class SimParams:
     watchdog: float = 0.5  # [s] a robot with no fresh command for this long is stopped
     # Realtime only: each robot's frames are sampled at its own offset within the mocap period
     # (Scenario.frame_offset), so the agents compute one after another instead of all at once
-    # at the tick (architecture.md §3, issue 17). Lockstep samples every frame at the tick.
+    # at the tick (architecture.md §3). Lockstep samples every frame at the tick.
     spread_frames: bool = True
     # Realtime, spread frames: the distinct frame instants a mocap period has at most. A fleet
     # with more slots than this shares them, ⌈m / frame_slots⌉ robots an instant
     # (Scenario.frame_offset): every instant wakes the simulator and costs it a publication.
     # Five instants against ten: the simulator 5-13 points of a core less; a 20-robot fleet
     # 5-23 points less; at 30 robots, saturated, the missed deadlines split with the hour
-    # (docs/performance.md, issue 17 round 18). Scenario 1 (4 slots) is unaffected.
+    # (docs/performance.md). Scenario 1 (4 slots) is unaffected.
     frame_slots: int = 5
 
 
@@ -235,7 +235,7 @@ class Scenario:
     navigation: NavParams = field(default_factory=NavParams)
     description: str = ""
     source: Path | None = None
-    faults: tuple[Fault, ...] = ()  # [[faults]] (issue 13, tlfleet.agent.model.faults)
+    faults: tuple[Fault, ...] = ()  # [[faults]] (tlfleet.agent.model.faults)
 
     def robot(self, robot_id: int) -> Robot:
         """The robot with this id; ``KeyError`` naming the known ids otherwise."""
@@ -266,7 +266,7 @@ class Scenario:
         (architecture.md §3). 0 for STL robots; for LTL robots with ``ltl.stagger`` (the
         default), the n LTL robots in id order spread evenly over the period, φ = ⌊rank·d/n⌋
         (Scenario 1's two at 5 Hz: ticks 0 and 10 of every 20), so their navigation steps never
-        share a tick while n ≤ d (issue 17); without it, 0. Computed here only, like the
+        share a tick while n ≤ d; without it, 0. Computed here only, like the
         divider: the simulator's due rule, the frame keys and the agent's loop all use it."""
         robot = self.robot(robot_id)
         divider = self.control_divider(robot_id)
@@ -283,7 +283,7 @@ class Scenario:
     def frame_offset(self, robot_id: int) -> int:
         """s_r ∈ [0, S), S = :attr:`substeps_per_tick`: in realtime with ``sim.spread_frames``
         (the default) robot r's frames are sampled s_r physics steps after their tick and
-        published then (architecture.md §3, issue 17). The period has m evenly spaced slots,
+        published then (architecture.md §3). The period has m evenly spaced slots,
         s = ⌊j·S/m⌋: one per robot due every tick (id order, slots 0 …) and, when the fleet has
         robots with divider ≥ 2 (LTL robots, whose ticks ``control_phase`` already spreads), one
         more, the last, which they share. Scenario 1 (S = 10): STL robots 3, 4, 5 at 0, 2 and 5

@@ -1,6 +1,6 @@
 """Coupling-aware velocity limits of an LTL robot: the DWA's constraints (docs/coupling.md).
 
-Beyond the paper (issue 15). Each :class:`CouplingConstraint` bounds the unicycle command
+Beyond the paper. Each :class:`CouplingConstraint` bounds the unicycle command
 (v [m/s], ω [rad/s]) of an LTL robot that an STL task of another robot depends on:
 ``a_v·|v| + a_ω·|ω| ≤ bound``. The constraints of one control step are derived from the coupled
 predicates' gradients by ``tlfleet.agent.policy.coupling`` (navigation does not depend on the STL

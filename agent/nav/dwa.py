@@ -302,7 +302,7 @@ def dwa_control(
     vertex is the goal; ``grid`` the static layer; ``others`` the other robots; ``limits`` the
     coupling limits of this step (step 5), None or empty for none.
 
-    Issue 17: a 5 Hz step of an LTL agent sits on the fleet's latency path, and on arrays of
+    a 5 Hz step of an LTL agent sits on the fleet's latency path, and on arrays of
     126 × 13 a numpy call costs more than its arithmetic. So the rollouts are coordinate arrays
     (no (…, 2) stacking), the path's geometry is plain floats, the grid lookup skips the
     off-grid test when every rollout stays a cell inside the grid, and other robots that cannot

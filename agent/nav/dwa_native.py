@@ -1,5 +1,4 @@
-"""The DWA cycle in C: the bridge from ``tlfleet.agent.nav.dwa`` to ``tlfleet.agent.nav._dwa``
-(issue 17).
+"""The DWA cycle in C: the bridge from ``tlfleet.agent.nav.dwa`` to ``tlfleet.agent.nav._dwa``.
 
 ``agent/nav/dwa_kernel.c`` runs a whole cycle of ``dwa.dwa_control`` with the numpy kernel's
 floating-point operations in the same order (docs/performance.md, *the DWA in C*); cffi builds it

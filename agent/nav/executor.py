@@ -14,7 +14,7 @@ a name equal to the previous one means "stay". Each step (5 Hz):
    paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
    Robots ahead are stamped a second time shifted to our left, so paths keep right. The
    periodic re-plans (and the re-plan around blocking robots of step 4) are *deferred*
-   (``deferred_replan``, issue 17): the step that finds one due keeps following the current
+   (``deferred_replan``): the step that finds one due keeps following the current
    path and records a :class:`PathRequest` (its pose and stamped robots); the runtime runs it
    with :meth:`Executor.refresh` after the command is on its way, and the path is followed from
    the next step on — move_base's global planner, which runs beside the controller at 1 Hz, has
@@ -353,7 +353,7 @@ class Executor:
         """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
         cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
 
-        Plain floats over the few rows (issue 17), with the array form's operations:
+        Plain floats over the few rows, with the array form's operations:
         ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
         px, py = float(pose[0]), float(pose[1])
         local_range = self.config.local_range

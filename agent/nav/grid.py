@@ -156,7 +156,7 @@ class OccupancyGrid:
     def clearance_xy(self, x: np.ndarray, y: np.ndarray,
                      within: tuple[float, float, float] | None = None) -> np.ndarray:
         """``clearance_at`` for points given as coordinate arrays ``x``, ``y`` [m] of one shape
-        (the DWA's rollouts, issue 17: no (…, 2) stacking; the same cells, the same values).
+        (the DWA's rollouts: no (…, 2) stacking on this hot path; the same cells, the same values).
 
         ``within = (cx, cy, reach)`` [m] promises that every point lies within ``reach`` of
         (cx, cy); when that disc lies a cell inside the grid, the off-grid test and the index
@@ -253,7 +253,7 @@ class OccupancyGrid:
         """For path planning: ``blocked`` and ``occupied`` exactly as ``with_discs`` gives them,
         computed only on the cells within ``r_k + inflation`` (plus a cell) of each disc, where
         a disc can change them; ``clearance`` stays the static layer's (the planner reads only
-        ``blocked``). Issue 17: a deferred re-plan of an LTL agent stamps 4–8 discs, and the
+        ``blocked``). Why: a deferred re-plan of an LTL agent stamps 4–8 discs, and the
         whole-grid clearance cost ≈ 0.1 ms per disc.
         """
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)

@@ -91,7 +91,7 @@ def astar_cells(
     blocked = np.asarray(blocked, dtype=bool)
     ny, nx = blocked.shape
     width = nx + 2
-    # Issue 17: the padded free mask as bytes (a copy, not a 20 000-element list) and g / parent
+    # the padded free mask as bytes (a copy, not a 20 000-element list) and g / parent
     # as dicts of the cells reached (a search of a re-plan touches a few hundred).
     padded = np.zeros((ny + 2, width), dtype=bool)
     np.logical_not(blocked, out=padded[1:-1, 1:-1])

@@ -3,7 +3,7 @@
 A polyline is an array (M, 2) of vertices [m]; segment k joins vertices k and k+1.
 
 Paths here have a handful of vertices and are read once per 5 Hz control step, so everything
-but the distance of many points is computed in plain floats over the vertex list (issue 17: a
+but the distance of many points is computed in plain floats over the vertex list (a
 numpy call costs 1–13 µs here, more than the arithmetic). The operations and their order are
 those of the array form (``s = clip((p − a)·(b − a) / ‖b − a‖², 0, 1)`` with the dot product
 summed x then y, ``‖·‖ = sqrt(x² + y²)``, cumulative sums left to right, numpy's pairwise sum

@@ -1,6 +1,6 @@
 """What an LTL robot may do so that the STL robots coupled to it can track it (docs/coupling.md).
 
-Beyond the paper (issue 15): a robot L under an LTL task moves as its navigation stack likes
+Beyond the paper: a robot L under an LTL task moves as its navigation stack likes
 (paper §III-A), while STL robots j track it through predicates μ = (h(x̄) ≥ 0) whose x̄ contains
 x_L = [z_Lᵀ, θ_L]ᵀ (Scenario 2: ``dist(p3, p1) <= 0.6``; Scenario 3: a slot 1 m beside robot 1
 that turns with θ_1). Robot j can change h at most at the rate its saturated input allows

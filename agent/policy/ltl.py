@@ -26,7 +26,7 @@ no two translations have to number states alike. One step (5 Hz, ``scenario.ltl.
 4. an :class:`LtlProgress` every step.
 
 A robot whose first step finds it more than ``JOIN_DISTANCE`` from the scenario's start pose (a
-restarted agent process, or one joining a running fleet: issue 13 §2) first plans again from
+restarted agent process, or one joining a running fleet) first plans again from
 where it is (:meth:`LtlAgent.plan_from`): Algorithm 1 over a transition system whose start is
 the current position, from the automaton's initial states. A new process does not know what the
 robot did before, so it satisfies the whole task from now on — a suffix of the trajectory that
@@ -251,7 +251,7 @@ class LtlAgent:
 
     def after_command(self, state: LtlState) -> LtlState:
         """The work a step deferred until its command is sent: the executor's periodic global
-        re-plan (``Executor.refresh``, issue 17). Pure; skipping it changes nothing but when the
+        re-plan (``Executor.refresh``). Pure; skipping it changes nothing but when the
         work runs (the next step runs it first)."""
         if state.executor.pending is None:
             return state

@@ -125,8 +125,7 @@ class AgentState:
     orphaned: tuple[int, int] | None = None
 
 
-# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
-# (issue 17).
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
 @dataclass(slots=True)
 class StepInput:
     """``unreachable``: peers the runtime knows it cannot reach (liveliness token gone, or a
@@ -145,7 +144,7 @@ class StepInput:
     inbox: Sequence[Message] = ()
     unreachable: frozenset[int] = frozenset()
     # True: ``poses`` is a dict of float tuples already (the runtime's decoded rows), so the step
-    # uses it as it is instead of copying it (issue 17: one loop over the fleet less per tick)
+    # uses it as it is instead of copying it (one loop over the fleet less per tick)
     tuples: bool = False
 
 
@@ -169,8 +168,7 @@ class LogRecord:
     recovered: bool = False
 
 
-# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
-# (issue 17).
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
 @dataclass(slots=True)
 class StepOutput:
     u: tuple[float, float, float]  # world frame (v_x [m/s], v_y [m/s], ω [rad/s])
@@ -340,7 +338,7 @@ class StlAgent:
         """One control step: the phases of the module docstring (stl-funnel.md §12), in order,
         on one scratch :class:`_Tick`; the new state is the old one with the phases' changes."""
         # tuples (as the runtime decodes them) pass as they are: hasattr fails slowly, once per
-        # robot and tick (issue 17)
+        # robot and tick
         tick = _Tick(t=inputs.t, poses=inputs.poses if inputs.tuples else {
             j: p if type(p) is tuple else p.tolist() if hasattr(p, "tolist") else p
             for j, p in inputs.poses.items()})

@@ -6,7 +6,7 @@ only store bytes and return (stack-notes.md §0, §1.7). Everything here is buil
 * :class:`Mailbox`: the newest mocap frame (latest-value slot: older frames are simply
   overwritten, so a slow loop never works through a backlog of stale poses), pending control
   payloads, and a stop flag, behind one condition variable the loop waits on. The agent's
-  callback validates a frame before storing it (issue 11), so garbage never displaces a valid
+  callback validates a frame before storing it, so garbage never displaces a valid
   frame: the slot holds the newest *valid* frame, with its decoded message.
 * :class:`CollabInbox`: decoded collaboration messages for the pure STL step, handed over with the
   deterministic one-step latency of the pure harness (``stl_harness``, latency 1).
@@ -28,8 +28,7 @@ from tlfleet.bus.protocol.messages import Event
 logger = logging.getLogger(__name__)
 
 
-# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
-# (issue 17).
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
 @dataclass(slots=True)
 class Wakeup:
     """What :meth:`Mailbox.wait` hands the loop: a new frame payload (or None), the control
@@ -65,7 +64,7 @@ class Mailbox:
             self._cond.notify_all()
 
     def keep_frame(self, payload: bytes, decoded: object = None) -> None:
-        """Store a frame the loop's own thread read itself (a channel, issue 17): nobody waits
+        """Store a frame the loop's own thread read itself (a channel): nobody waits
         for it, so neither the lock nor a notification; only that thread may call this, and it
         takes frames with :meth:`take`."""
         if self._frame is not None:

@@ -3,7 +3,7 @@
 :class:`AgentLoop` is transport-agnostic (a :class:`~tlfleet.bus.transport.Transport`: zenoh in
 processes, ``FakeNetwork`` in tests) and core-agnostic: the LTL and the STL agents are a
 :class:`Core` each, whose ``step(state, TickInput) -> (state, TickOutput)`` holds all the logic.
-The loop implements the time protocol of architecture.md §3 (contract of issue 5):
+The loop implements the time protocol of architecture.md §3:
 
 * mission start: ``Control(start)``, or a frame that lists this robot in ``due`` (a lockstep sim
   only lists agents after the start, so a start message overtaken by the first frame costs
@@ -20,7 +20,7 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   first and the queries are only issued, so round trips delay neither this command nor the
   next frame; then status and events; then the core's optional
   ``after_command(state) -> state``: work the step deferred so as not to delay the command (the
-  LTL executor's periodic global re-plan, issue 17);
+  LTL executor's periodic global re-plan);
 * frames: an agent whose robot has control divider d ≥ 2 and phase φ reads
   ``mocap_every/<d>/<φ>`` (the frames with ``seq % d == φ``, ``LoopConfig.decimated``) instead
   of every frame on ``mocap``: it can only be due at those ticks, lockstep or realtime; an
@@ -30,18 +30,18 @@ The loop implements the time protocol of architecture.md §3 (contract of issue 
   the gap between its frames, ``LoopConfig.stale_limit``, or of the gap they lately came at
   when a lockstep fleet runs slower than real time, ``LoopConfig.stale_limit_at``; with
   ``LoopConfig.heartbeat`` it
-  also calls mocap stale after ``stale_after`` without the sim's ``Clock``, issue 13 §2) → the
+  also calls mocap stale after ``stale_after`` without the sim's ``Clock``) → the
   zero command (with the
   last frame's t and seq) is published at once and every ``stale_after`` while it lasts, with one
   ``Event(stale_mocap)`` per episode; the next frame ends the episode;
 * malformed payloads on mocap / control / collab are counted, logged rate-limited and reported as
   ``Event(malformed_message)``; they never end the loop;
-* (issue 11) a mocap frame is decoded and checked in the transport callback, before it reaches
+* a mocap frame is decoded and checked in the transport callback, before it reaches
   the mailbox: undecodable, outside the fleet's bounds (``LoopConfig.bounds``) or an implausible
   sequence jump (``LoopConfig.max_jump``, :class:`tlfleet.bus.protocol.plausibility.FrameGate`) →
   counted and dropped, so garbage never displaces the newest valid frame; a frame older than the
   last one handled is ignored;
-* (issue 11) resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
+* resuming: in realtime, a due frame that comes more than ``stale_limit`` after the
   previous one (the process was frozen, or the link cut) first drains the backlog the transport
   delivers on resumption (``resume_settle``) and answers only the newest frame, reported as
   ``Event(resumed)``;
@@ -96,10 +96,10 @@ class LoopConfig:
     mocap_rate: float = 100.0  # [Hz] the sim's frame rate (used only when decimated)
     # A decimated loop also watches the sim's ``clock`` key (one tiny ``Clock`` every tick) and
     # calls mocap stale after ``stale_after`` without one, so it notices a lost simulator as
-    # fast as a loop that reads every frame (issue 13 §2) at the price of a callback per tick.
+    # fast as a loop that reads every frame at the price of a callback per tick.
     heartbeat: bool = False
     # the tick of each control period at which the robot is due, in [0, divider)
-    # (Scenario.control_phase: the LTL agents spread over the period, issue 17)
+    # (Scenario.control_phase: the LTL agents spread over the period)
     phase: int = 0
     # physics steps after its tick at which a realtime simulator samples this robot's frames
     # (Scenario.frame_offset); with ``decimated``, an every-tick robot at offset s ≥ 1 reads
@@ -147,8 +147,7 @@ class LoopConfig:
         return self.heartbeat and self.frames_decimated
 
 
-# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
-# (issue 17).
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
 @dataclass(slots=True)
 class TickInput:
     """One due frame, the collaboration messages delivered for it (core messages) and the peers
@@ -159,8 +158,7 @@ class TickInput:
     unreachable: frozenset[int] = frozenset()
 
 
-# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x
-# (issue 17).
+# A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
 @dataclass(slots=True)
 class TickOutput:
     """The command ``u`` (unicycle (v [m/s], ω [rad/s]); omni world-frame (vx, vy [m/s],
@@ -253,7 +251,7 @@ class AgentLoop:
 
     def open(self) -> None:
         """Subscribe. Frames come through a channel read by the loop's own thread when the
-        transport has ``subscribe_channel`` (zenoh, the fake bus; issue 17: no thread hand-over
+        transport has ``subscribe_channel`` (zenoh, the fake bus: no thread hand-over
         per frame), else through a callback into the mailbox."""
         box = self.mailbox
         subscribe_channel = getattr(self.transport, "subscribe_channel", None)
@@ -339,7 +337,7 @@ class AgentLoop:
         is next due (the frame limit, the heartbeat's silence limit, or the next zero command
         while stale; at least 1 ms), at most ``wait_slice``. Frames arrive far more often, so a
         steady loop is woken by them, and a zenoh channel's timer only at these deadlines
-        (issue 17 round 17: 4 instead of 20 timer wake-ups a second)."""
+        (4 instead of 20 timer wake-ups a second)."""
         config = self.config
         if not self.started or self._last_frame_wall is None:
             return config.wait_slice

@@ -42,7 +42,7 @@ LINGER = 0.1  # [s] wall between the last publication and closing the session
 
 
 def plausibility(scenario: Scenario) -> dict[str, Any]:
-    """The loop's frame checks for ``scenario`` (issue 11): the arena box and robots, and the
+    """The loop's frame checks for ``scenario``: the arena box and robots, and the
     sequence gate. The run's duration may be overridden on the simulator's command line, which
     the agent does not see, so times are only bounded by the codec's MAX_TIME here."""
     if not isinstance(scenario, Scenario):  # a test double: no plausibility checks
@@ -56,7 +56,7 @@ def plausibility(scenario: Scenario) -> dict[str, Any]:
 
 def frame_subscription(scenario: Scenario, robot: int) -> dict[str, Any]:
     """The loop reads only the frames it can be due for, at its frame offset
-    (``keys.robot_frames``, issue 17): the simulator of a real scenario publishes them. Test
+    (``keys.robot_frames``): the simulator of a real scenario publishes them. Test
     doubles keep reading every frame on ``mocap``."""
     if not isinstance(scenario, Scenario):
         return {}

@@ -71,7 +71,7 @@ class StlCore:
         # (x, y, θ) tuples as decoded: the pure step reads them as it reads arrays (it would
         # turn arrays back into lists), and 30 small arrays per tick cost more than the step;
         # the dict is built in C where the codec is (a 30-row comprehension from cold caches
-        # was ≈ 8 % of an agent's tick, round 15)
+        # was ≈ 8 % of an agent's tick)
         poses = pose_map(frame.poses)
         before = state.agent
         after, out = self.agent.step(before, StepInput(t, poses, inputs.inbox,

@@ -22,7 +22,7 @@ File layout (every section but ``robots`` is optional)::
     [[robots]]  id, kind = "unicycle"|"omni", pose = [x, y, θ], radius,
                 ltl = "..." | stl = ["...", ...], phase_start_times, rho_opt, [robots.limits]
     [[faults]]  spec = "cut:robot3@20+3" | kind, target (targets for a partition), at, duration
-                (issue 13, agent/model/faults.py)
+                (agent/model/faults.py)
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ RESERVED_ATOMS = frozenset({"true", "false", "xor"})
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; ``ScenarioError`` on any problem."""
     path = Path(path)
-    data = validation.parse_toml(validation.read_text(path), str(path))  # issue 11: file limits
+    data = validation.parse_toml(validation.read_text(path), str(path))  # file limits
     return parse_scenario(data, source=str(path))
 
 
@@ -132,7 +132,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
         source=Path(source) if source and not source.startswith("<") else None,
         faults=faults,
     )
-    validation.check_scenario(scenario, source)  # issue 11: sizes, rates, geometry
+    validation.check_scenario(scenario, source)  # sizes, rates, geometry
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
         where = robot_field(index, robot.id)
@@ -140,7 +140,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
             _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
         for k, text in enumerate(robot.stl):
             _check_stl_task(text, scenario.robot_ids, source, f"{where}.stl[{k}]")
-    validation.check_tasks(scenario, source)  # issue 11: satisfiability, STL windows
+    validation.check_tasks(scenario, source)  # satisfiability, STL windows
     from tlfleet.agent.scenario.stl_checks import check_stl_tasks
 
     check_stl_tasks(scenario, source)

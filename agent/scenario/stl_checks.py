@@ -1,4 +1,4 @@
-"""Scenario checks of the STL tasks beyond syntax (issue 15): what ``tlfleet run`` would only find
+"""Scenario checks of the STL tasks beyond syntax: what ``tlfleet run`` would only find
 when an agent exits, and what runs but cannot mean what it says.
 
 Rejections (``ScenarioError`` with the file, the field path and the reason), called by the

@@ -1,4 +1,5 @@
-"""The scenario checks that close the holes of issue 11, called by the loader (architecture.md §5).
+"""The scenario checks beyond types, called by the loader (architecture.md §5): what a well-typed
+file could still get wrong.
 
 Every problem is a :class:`~tlfleet.bus.errors.ScenarioError` naming the file, the field path and
 the reason; no input — however large, deep, strange or hostile — gives a traceback:

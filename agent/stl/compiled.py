@@ -1,4 +1,4 @@
-"""ψ compiled once into straight-line Python: the control step's ρ^ψ and ∂ρ^ψ/∂x̄ (issue 17).
+"""ψ compiled once into straight-line Python: the control step's ρ^ψ and ∂ρ^ψ/∂x̄.
 
 The generic evaluator (``tlfleet.agent.stl.evaluate.compile_expr`` +
 ``tlfleet.agent.stl.robustness.CompiledPsi``) walks a tree of closures at every step, allocating a

@@ -1,4 +1,4 @@
-"""Robustness recovery: raise r again after repairs lowered it (paper §V, future work; issue 15).
+"""Robustness recovery: raise r again after repairs lowered it (paper §V, future work).
 
 The repair scheme (paper Alg. 2, stl-funnel.md §7) only ever lowers r_i: stage 1 halves it,
 stages 2–3 subtract δ, and after t* every repair yields a constant funnel (l = 0). Once the cause

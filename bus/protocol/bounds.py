@@ -1,4 +1,4 @@
-"""Limits of every message kind, declared beside the messages (issue 11, architecture.md §2).
+"""Limits of every message kind, declared beside the messages (architecture.md §2).
 
 Two layers, both applied by receivers so that a payload is either a valid, plausible message or
 dropped (never half-applied, never a crash):
@@ -146,7 +146,7 @@ def _clock(msg: Any) -> None:
 def _mocap(msg: Any) -> None:
     _time(".t", msg.t)
     _int(".seq", msg.seq, 0)
-    # the happy path builds no strings (issue 17: every process checks 100 frames a second); a
+    # the happy path builds no strings (every process checks 100 frames a second); a
     # row out of range (or NaN, which fails every comparison) is checked again below with paths
     for _robot_id, x, y, th in msg.poses:
         if not (0 <= _robot_id <= MAX_ROBOT_ID and -MAX_COORD <= x <= MAX_COORD
@@ -261,7 +261,7 @@ _frame_plausible: Callable[..., bool] | None = None
 
 
 def use_frame_check(check: Callable[..., bool] | None) -> None:
-    """Install (or with None remove) the C confirmation of frames (issue 17: the check runs on
+    """Install (or with None remove) the C confirmation of frames (the check runs on
     every frame an agent or the recorder receives, 30 rows at 30 robots)."""
     global _frame_plausible
     _frame_plausible = check

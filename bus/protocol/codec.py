@@ -7,7 +7,7 @@ the version, the kind and the type of every field against the dataclass annotati
 ``ProtocolError`` naming the message, the field path and what was expected, so a malformed or
 foreign payload is rejected whole and never half-applied.
 
-``decode`` is *total* (issue 11): whatever the bytes, it returns a valid message or raises
+``decode`` is *total*: whatever the bytes, it returns a valid message or raises
 ``ProtocolError``, never anything else. Before unpacking, the payload size is checked against the
 kind's :data:`tlfleet.bus.protocol.bounds.LIMITS`, and msgpack is told the longest array, map and
 string it may build; after conversion, every number is checked against its declared range
@@ -137,7 +137,7 @@ def peek_kind(data: bytes) -> str | None:
 # --------------------------------------------------------------------------- encoding
 
 
-#: field values that are never dataclasses: encoded as they are, without asking (issue 17: a
+#: field values that are never dataclasses: encoded as they are, without asking (a
 #: command, a frame or a status is encoded 100 times a second in every process)
 _PLAIN = frozenset({float, int, str, bool, bytes, tuple, list, dict, type(None)})
 

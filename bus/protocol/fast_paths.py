@@ -1,4 +1,4 @@
-"""Straight-line codec paths of the three messages sent every tick (issue 17, architecture.md §2).
+"""Straight-line codec paths of the three messages sent every tick (architecture.md §2).
 
 Every simulator tick a ``MocapFrame`` and a ``Clock`` go out and one ``Command`` per due robot
 comes back; every agent and the recorder decode the frame. The generic codec
@@ -23,9 +23,9 @@ for a canonical payload that passes every check of :func:`_frame` / :func:`_comm
 same message — and ``None`` for anything else, and then these Python functions decide. It also
 writes them: the same bytes as the Python encoder, for messages of exact ints, floats and
 tuples (``None`` otherwise, and the Python encoder writes them). A 5-robot frame is decoded in
-≈ 43 µs instead of ≈ 100 µs after a 10 ms sleep (docs/performance.md, round 12).
+≈ 43 µs instead of ≈ 100 µs after a 10 ms sleep (docs/performance.md).
 The same switch installs the C confirmation of a frame's fleet bounds
-(``_wire.frame_plausible``, :func:`tlfleet.bus.protocol.bounds.use_frame_check`; round 16).
+(``_wire.frame_plausible``, :func:`tlfleet.bus.protocol.bounds.use_frame_check`).
 ``$TLFLEET_CODEC``: ``auto`` (default: C when built), ``native`` (C, an error when not built),
 ``python``; read once, at import (:func:`use_codec` switches later).
 """

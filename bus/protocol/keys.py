@@ -89,7 +89,7 @@ def frame_schedules(schedules: Iterable[Schedule]) -> tuple[Schedule, ...]:
 
 def sim_backfill(fleet: str) -> str:
     """Queryable of the simulator: ``BackfillRequest`` → ``BackfillReply``, the frames a
-    recorder missed during a link cut, from the simulator's ring (issue 13)."""
+    recorder missed during a link cut, from the simulator's ring."""
     return f"{prefix(fleet)}/sim/backfill"
 
 

@@ -170,7 +170,7 @@ class Control:
 
 @dataclass(frozen=True, slots=True)
 class BackfillRequest:
-    """Recorder → simulator (query on ``sim/backfill``, issue 13): publish again, as a reply, the
+    """Recorder → simulator (query on ``sim/backfill``): publish again, as a reply, the
     frames with ``first`` ≤ seq ≤ ``last`` that the recorder missed (a link cut longer than the
     zenoh lease loses what the simulator published meanwhile)."""
 

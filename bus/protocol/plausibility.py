@@ -1,4 +1,4 @@
-"""Which mocap frames a receiver trusts when the sequence number jumps (issue 11).
+"""Which mocap frames a receiver trusts when the sequence number jumps.
 
 The simulator's frames move forward one tick at a time; a receiver may skip some (its mailbox
 keeps only the newest) but never sees ``seq`` go backwards or leap far ahead unless something is

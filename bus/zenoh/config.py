@@ -1,6 +1,6 @@
 """``--zenoh-config FILE.json5``: a zenohd-style configuration file under tlfleet's own settings.
 
-A process's zenoh session is built in two layers (issue 12 §1):
+A process's zenoh session is built in two layers:
 
 1. the user's file, as zenoh reads it (``zenoh.Config.from_json5``): anything zenoh can configure
    — TLS or QUIC endpoints and their certificates, access control, shared memory, timeouts;
@@ -81,9 +81,10 @@ def own_settings(config: TransportConfig, from_file: frozenset[str] = frozenset(
         # a link whose send queue stays full is closed after the same time as a silent one:
         # zenoh waits 5 s by default, and a sender with congestion control "block" (a query, a
         # reply) can be held that long on a link a partition blackholed. (This was first taken
-        # for the cause of issue 13's partner-partition stall; that one was zenoh's receive
-        # runtime blocked in close(2), tlfleet.bus.transport.RX_WORKERS. The bound stays: no sender
-        # should wait longer for a dead link than the lease takes to call it dead.)
+        # for the cause of a stall of agents whose stage-2 partner was partitioned away; that one
+        # was zenoh's receive runtime blocked in close(2), tlfleet.bus.transport.RX_WORKERS. The
+        # bound stays: no sender should wait longer for a dead link than the lease takes to call it
+        # dead.)
         settings.append((BLOCK_WAIT_BEFORE_CLOSE, config.lease_ms * 1000))
     settings.extend(config.extra.items())
     return settings

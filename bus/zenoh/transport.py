@@ -133,7 +133,7 @@ class ZenohTransport:
 
     def subscribe_channel(self, key_expr: str, wake_key: str | None = None,
                           capacity: int | None = None) -> ZenohChannel:
-        """A :class:`tlfleet.bus.transport.Channel` of ``key_expr`` (issue 17); ``wake_key``: the
+        """A :class:`tlfleet.bus.transport.Channel` of ``key_expr``; ``wake_key``: the
         concrete key matching it that ``wake()`` uses (default ``key_expr`` itself);
         ``capacity``: samples queued at most (default :attr:`ZenohChannel.CAPACITY`)."""
         channel = ZenohChannel(self._session, key_expr, wake_key, capacity)
@@ -179,7 +179,7 @@ class ZenohTransport:
         ``droppable`` the query uses DROP instead: on a congested link it is dropped after
         ``wait_before_drop`` (1 ms by default) and finishes, at its timeout, without replies —
         so the call never holds its caller: an agent's collaboration queries to a partitioned
-        partner must not hold its control loop (issue 13), and a lockstep loop waits for their
+        partner must not hold its control loop, and a lockstep loop waits for their
         replies at most the query timeout.
 
         The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
@@ -240,7 +240,7 @@ class ZenohTransport:
 
 
 class ZenohChannel:
-    """:class:`tlfleet.bus.transport.Channel` on a ``FifoChannel`` subscriber (issue 17).
+    """:class:`tlfleet.bus.transport.Channel` on a ``FifoChannel`` subscriber.
 
     ``recv`` blocks in zenoh's own ``recv`` on the calling thread, so a sample wakes that thread
     directly. zenoh's ``recv`` has no timeout: ``wake()`` puts a session-local DELETE on the key
@@ -249,7 +249,7 @@ class ZenohChannel:
     timer sleeps until the deadline of the ``recv`` it finds blocked (then, if a newer ``recv``
     has a later one, until that), and :data:`tlfleet.bus.transport.CHANNEL_TICK` when it finds none:
     a reader that blocks in slices of T s is visited every T s, not 1 / CHANNEL_TICK times a
-    second (issue 17 round 17: an agent's timer thread woke 20 times a second, ≈ 70 µs of CPU
+    second (an agent's timer thread woke 20 times a second, ≈ 70 µs of CPU
     each). The timer starts with the first ``recv`` that may block: a channel only polled with
     ``recv(0.0)`` (the coordinator's recorder) has none.
     """

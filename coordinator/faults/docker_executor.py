@@ -1,5 +1,5 @@
 """The host's side of faults in a compose fleet: the executor that runs the docker commands the
-coordinator asks for (issue 13 §2 "In compose"; fault-injection notes §4.1; the handoff protocol
+coordinator asks for (fault-injection notes §4.1; the handoff protocol
 is :mod:`tlfleet.coordinator.faults.handoff`).
 
 ``tlfleet compose-faults --dir RUN/logs/faults --project P`` (started in the background by

@@ -1,5 +1,5 @@
-"""Faults in a docker compose fleet: the coordinator's side of the handoff (issue 13 §2 "In
-compose"; fault-injection notes §4.1).
+"""Faults in a docker compose fleet: the coordinator's side of the handoff (fault-injection notes
+§4.1).
 
 In a compose fleet ``tlfleet supervise`` runs in a container: it sees the sim time, so it keeps
 scheduling the faults (:class:`tlfleet.coordinator.faults.schedule.FaultScheduler`: the same

@@ -1,4 +1,4 @@
-"""Faults on namespace hosts: link cuts (issue 13 §1; fault-injection notes §5.3, §5.5).
+"""Faults on namespace hosts: link cuts (fault-injection notes §5.3, §5.5).
 
 ``tlfleet run --fault cut:…`` goes to namespace hosts
 (:func:`tlfleet.coordinator.run_hosts.run_on_hosts`), where every process reaches the fleet through

@@ -1,5 +1,5 @@
 """The faults of one run: the scenario's ``[[faults]]`` and the ``--fault`` specs, checked
-before anything starts (issue 13 §1).
+before anything starts.
 
 :func:`run_faults` merges both lists and checks each against the run (its robots exist, it starts
 before the end of the run: :func:`tlfleet.agent.model.faults.check_fault`), so a bad spec exits 1

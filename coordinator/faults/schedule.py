@@ -1,4 +1,4 @@
-"""Scheduled faults, driven by the sim time the coordinator sees (issue 13 §1).
+"""Scheduled faults, driven by the sim time the coordinator sees.
 
 :class:`FaultScheduler` is polled once per supervision step (every ``poll_period``, 50 ms) with
 the newest frame time; a fault starts at the first poll where sim time ≥ its ``at`` and, when it

@@ -1,4 +1,4 @@
-"""Exception-safe, time-bounded clean-up of a run (issue 11).
+"""Exception-safe, time-bounded clean-up of a run.
 
 ``tlfleet run`` must end whatever the fleet did: every clean-up step (drain and close the recorder
 tap, close the supervisor and the zenoh session, stop every child's process group, close the

@@ -1,4 +1,4 @@
-"""Fleets across hosts, with network namespaces as stand-in hosts (issue 12 §3).
+"""Fleets across hosts, with network namespaces as stand-in hosts.
 
 ``tlfleet run SCENARIO --hosts N`` places the fleet on N **hosts**, each with its own zenoh router;
 the routers connect to each other and every process connects to its own host's router — the
@@ -16,7 +16,7 @@ of its own; nothing is attached to the root namespace, so nothing can leave the 
   come back after a cut, fault-injection notes §5.5).
 
 **Peer layout** (``layout="peers"``, chosen by :func:`tlfleet.coordinator.run_hosts.run_on_hosts`
-when a fault partitions two processes, issue 13 §1): one router only, on host 0 with the
+when a fault partitions two processes): one router only, on host 0 with the
 coordinator; the simulator on host 1 and robot number ``j`` on host ``2 + j``, each a zenoh **peer**
 listening on
 ``PEER_PORT`` of its own host, connected to its port on router 0 and, explicitly, to every fleet

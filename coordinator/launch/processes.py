@@ -242,7 +242,7 @@ class Launcher:
         return child
 
     def restart(self, name: str) -> Child:
-        """Start child ``name`` again with the same argv (issue 13's ``restart:`` fault), once
+        """Start child ``name`` again with the same argv (the ``restart:`` fault), once
         its process has exited; the new child takes the old one's place (its log goes on in the
         same file)."""
         old = next((c for c in self.children if c.name == name), None)

@@ -1,4 +1,4 @@
-"""Frozen or partitioned agents: noticed from their silence, and their recovery (issue 11).
+"""Frozen or partitioned agents: noticed from their silence, and their recovery.
 
 A process that is stopped (SIGSTOP), wedged or cut off keeps its liveliness token until the
 zenoh lease expires (10 s by default) — or forever, if the process is only frozen — so the

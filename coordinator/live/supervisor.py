@@ -1,4 +1,4 @@
-"""Supervision of a running fleet: readiness, start, deaths, end of run (issue 5 §4).
+"""Supervision of a running fleet: readiness, start, deaths, end of run.
 
 Protocol (architecture.md §1–§3, the runtime contract):
 
@@ -20,7 +20,7 @@ simulator exits by itself after ``sim_done``: its end counts as a death only whe
 not arrived ``end_grace`` later, and its lost token not at all when it comes back within that
 grace while the process runs (``Event(kind="token_blip")``: the link blinked).
 
-Issue 11: a ``sim_done`` ends the run only when it is plausible (:attr:`Supervisor.sim_done`: the
+a ``sim_done`` ends the run only when it is plausible (:attr:`Supervisor.sim_done`: the
 simulator has ended, the frames reached the end of the run, or no newer frame followed it for
 ``end_grace``); one followed by newer frames is reported and recorded as ``flagged_event``.
 When the router is gone, the other processes' lost tokens are its consequence: reported as one
@@ -129,7 +129,7 @@ class Supervisor:
         self._sim_done_count = 0  # sim_done events judged so far
         self._sim_done_pending: tuple[float, float] | None = None  # (wall, sim time) of the last
         self.stopping = False
-        # issue 13: processes whose link a fault cuts → until when [s monotonic] (inf: still
+        # processes whose link a fault cuts → until when [s monotonic] (inf: still
         # cut) a lost token of theirs is a link loss, not a death; and the losses now open
         self.cut: dict[str, float] = {}
         self.link_lost: dict[str, float] = {}  # process -> wall time (time.time()) of the loss
@@ -146,7 +146,7 @@ class Supervisor:
 
     @property
     def sim_done(self) -> bool:
-        """True once a plausible ``Event(kind="sim_done")`` has been recorded (issue 11).
+        """True once a plausible ``Event(kind="sim_done")`` has been recorded.
 
         A ``sim_done`` counts at once when the simulator has ended or the frames reached the end
         of the run (:func:`tlfleet.coordinator.record.trust.sim_done_plausible`); otherwise when no
@@ -263,7 +263,7 @@ class Supervisor:
         self.tap.recorder.on_event(event)
 
     def _link_event(self, kind: str, name: str) -> None:
-        """``link_lost`` (a cut process's token went: issue 13) or ``link_restored``."""
+        """``link_lost`` (a cut process's token went) or ``link_restored``."""
         wall = time.time()
         data: dict[str, object] = {"process": name, "wall": wall}
         if kind == "link_lost":

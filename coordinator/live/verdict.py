@@ -1,4 +1,4 @@
-"""The verdict of a run: ``clean``, ``degraded``, ``failed`` or ``interrupted`` (issue 11).
+"""The verdict of a run: ``clean``, ``degraded``, ``failed`` or ``interrupted``.
 
 ``tlfleet run`` exits with the verdict's code (README "Exit codes"):
 

@@ -1,4 +1,4 @@
-"""The recorder's frames merged by sequence number across gaps (issue 13: the backfill).
+"""The recorder's frames merged by sequence number across gaps (the backfill).
 
 In realtime, a link cut longer than the zenoh lease loses every frame the simulator publishes
 until the link is back (fault-injection notes §5.3); the first frame after it reveals the gap:

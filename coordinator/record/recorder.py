@@ -6,7 +6,7 @@ the last second. :class:`Recorder` is a plain consumer of decoded messages (no t
 :class:`RecorderTap` wires it to a transport with callbacks that only queue bytes
 (stack-notes.md §0) and decodes in the coordinator's loop.
 
-Backfill (issue 13): frames reach ``trajectory.csv`` through a
+Backfill: frames reach ``trajectory.csv`` through a
 :class:`~tlfleet.coordinator.record.frame_merge.FrameMerger`, so a gap in the live stream (a link
 cut longer than the zenoh lease) is held open while :class:`RecorderTap` asks the simulator for the
 missing frames (``BackfillRequest`` on ``sim/backfill``); they are merged by seq, and what cannot be
@@ -202,19 +202,19 @@ class Recorder:
 class RecorderTap:
     """Subscribes a :class:`Recorder` to a fleet's mocap, status and event keys.
 
-    The samples wait in one channel per key (``Transport.subscribe_channel``; issue 17: no
+    The samples wait in one channel per key (``Transport.subscribe_channel``: no
     Python thread is woken per sample, 100+ times a second) or, on a transport without
     channels, are queued by callbacks; :meth:`drain` (called from the coordinator's loop)
     decodes and records. Undecodable payloads are counted per key kind in ``malformed`` and
     per (kind, claimed source) in ``malformed_by_source``, logged at most once a second per kind,
-    never raised. With ``bounds``/``max_jump`` (issue 11), implausible frames (outside the run,
+    never raised. With ``bounds``/``max_jump``, implausible frames (outside the run,
     the arena, or a sequence jump not confirmed by the next frame: ``FrameGate``) count as
     malformed and are not recorded, so a spoofed frame neither ends the run (t = 10⁹) nor makes the
     recorder drop real rows (a high seq). With ``robot_ids``, events and statuses whose claimed
     identity does not hold (:mod:`tlfleet.coordinator.record.trust`) are recorded as
     ``flagged_event`` instead.
 
-    Backfill (issue 13): each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
+    Backfill: each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
     simulator's ``sim/backfill`` queryable (``query_async``: the replies are queued by the
     transport's thread and recorded by a later drain). Every frame of a reply is decoded and
     checked (``bounds``) like a live one, but not by the gate: it is an old frame asked for. A

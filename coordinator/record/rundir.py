@@ -75,7 +75,7 @@ def default_run_dir(scenario_name: str, root: Path = Path("runs"),
                     now: datetime | None = None) -> Path:
     """``runs/<scenario>-<YYYYmmdd-HHMMSS>`` (UTC); a suffix ``-2``, ``-3``… if it exists.
 
-    Always a direct child of ``root`` (issue 11): a name that would leave it (a path separator,
+    Always a direct child of ``root``: a name that would leave it (a path separator,
     ``..``) is refused even if the loader let it through.
     """
     stamp = (now or datetime.now(UTC)).strftime("%Y%m%d-%H%M%S")

@@ -1,4 +1,4 @@
-"""What the coordinator believes of the messages it records (issue 11).
+"""What the coordinator believes of the messages it records.
 
 The transport does not say which session published a sample (full authentication comes with the
 security issue), so the coordinator checks what it can: that a message's claimed identity is one

@@ -1,4 +1,4 @@
-"""The faults of a run as the report lists them (issue 13 §2: "the report lists each fault with
+"""The faults of a run as the report lists them ("the report lists each fault with
 its detection time and the robots' minimum clearance during it").
 
 From ``events.jsonl`` (``fault_start`` / ``fault_end``, :mod:`tlfleet.coordinator.faults.schedule`)

@@ -47,7 +47,7 @@ S1_P4_SECOND = "F[83,87] (dist(p4, [2,2]) <= 0.1)"
 S1_P5_FIRST = "G[21,30] (dist(p5, [0,2]) <= 0.1)"
 S1_P5_SECOND = "F[44,47] (dist(p5, [-1,0.5]) <= 0.1)"
 
-# Scenario 2 has no best value in scenarios.md; this is our kinematic estimate (issue 5 note). The
+# Scenario 2 has no best value in scenarios.md; this is our kinematic estimate. The
 # leader drives its leg of L [m] at 0.3 m/s, the escort is capped at 0.2 m/s, so over one leg the
 # escort loses L/3 [m]. A reactive follower starting at contact distance 0.4 m behind ends the leg
 # ≈ 0.4 + L/3 away (ρ ≈ 0.2 − L/3); one that starts each leg L/6 ahead and ends L/6 behind

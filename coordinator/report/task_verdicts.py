@@ -1,4 +1,4 @@
-"""Per-sub-task verdicts of a run, independent of the paper's bounds (issue 15).
+"""Per-sub-task verdicts of a run, independent of the paper's bounds.
 
 Every STL sub-task gets one of
 

@@ -6,7 +6,7 @@ Importing rerun costs ≈ 0.9 s, so callers import this module lazily, when they
 ``rr.RecordingStream`` (no global recording), on the timeline ``sim_time`` (a duration [s]).
 ``rr.set_time`` is thread-local: every method must run on the logging thread. Entities::
 
-    /world                 static flip y → −y (rerun's 2D views draw y downwards; rerun issue 1387)
+    /world                 static flip y → −y (rerun's 2D views draw y downwards)
     /world/arena           static border (LineStrips2D)
     /world/obstacles/rects, /world/obstacles/discs       static (Boxes2D, Ellipses2D)
     /world/obstacles/names static names at the obstacles' centres (Points2D labels)

@@ -1,5 +1,5 @@
 """``tlfleet keys SCENARIO --out DIR``: the fleet's certificate authority, one key pair and
-certificate per process, and the router's access-control policy (issue 14).
+certificate per process, and the router's access-control policy.
 
 The directory holds
 

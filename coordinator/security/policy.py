@@ -1,4 +1,4 @@
-"""The access-control policy of a scenario's fleet (issue 14): who may put, subscribe, serve,
+"""The access-control policy of a scenario's fleet: who may put, subscribe, serve,
 query and declare what, as :class:`tlfleet.bus.zenoh.security.Grant` s over the fleet's keys
 (``tlfleet.bus.protocol.keys``, architecture.md §2). Pure: a loaded scenario in, grants out.
 
@@ -12,7 +12,7 @@ identity       grants (every key under ``tlfleet/<fleet>/``)
                s ≥ 1: ``mocap_at/s``), ``clock``, ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
                ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``, ``event``;
-               subscribe ``robot/*/cmd``, ``control``; serve ``sim/backfill`` (issue 13);
+               subscribe ``robot/*/cmd``, ``control``; serve ``sim/backfill``;
                token ``alive/sim/0``; watch ``alive/**``
 ``coordinator`` publish ``control``, ``event``; subscribe ``**``; query ``sim/backfill``;
                token ``alive/coordinator/0``; watch ``alive/**``

@@ -1,4 +1,4 @@
-"""The router's log of access-control denials (issue 14: "the denial is logged by the router").
+"""The router's log of access-control denials ("the denial is logged by the router").
 
 Zenoh 1.10 reports its ACL decisions only as ``TRACE`` events of the target
 ``zenoh::net::routing::interceptor::access_control``, written by its Rust log subscriber to the

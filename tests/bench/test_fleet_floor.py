@@ -1,4 +1,4 @@
-"""``bench/fleet_floor.py``, the fleet size's floor (issue 17): N agent-like processes answering a
+"""``bench/fleet_floor.py``, the fleet size's floor: N agent-like processes answering a
 sim-like process's spread frames over zenoh on loopback. Checked: every receiver starts, answers
 and reports its CPU; the deadlines are counted per (receiver, period) as the simulator counts
 them, so receivers whose work outlasts the period miss most of them and quick ones few."""

@@ -1,4 +1,4 @@
-"""``bench/floor_probe.py``'s lockstep floor (issue 17): the lockstep fleet's shape with fixed work
+"""``bench/floor_probe.py``'s lockstep floor: the lockstep fleet's shape with fixed work
 per process, over bare UDP and over zenoh. Checked: every run completes on loopback, the sender
 really waits for every agent's answer before the next frame (a frame cannot go faster than one
 agent's work), and the speed-up is the frame rate over the 100 Hz mocap rate."""

@@ -1,4 +1,4 @@
-"""``bench/runtime_bench.py``'s CPU per simulated second (issue 17 round 16): from the mission's
+"""``bench/runtime_bench.py``'s CPU per simulated second: from the mission's
 start (interpolated between samples) to each child's last sample, the coordinator to the last
 progress call, over the mission's sim time; independent of when the coordinator saw frames."""
 

@@ -1,7 +1,7 @@
 """``bench/tick_bench.py`` runs in quick mode and writes the figures it promises (no timings are
 judged: the benchmark has no targets), including an STL agent's tick back to back and after a
-10 ms sleep (issue 17, docs/performance.md round 11), and one agent's whole loop tick of a
-30-robot fleet (round 15: the loop itself raises if a frame went unanswered)."""
+10 ms sleep (docs/performance.md round 11), and one agent's whole loop tick of a
+30-robot fleet (the loop itself raises if a frame went unanswered)."""
 
 from __future__ import annotations
 

@@ -67,7 +67,7 @@ coords = st.floats(-3.0, 3.0)
 @given(p=params, own=st.tuples(coords, coords),
        others=st.lists(st.tuples(coords, coords, st.floats(-math.pi, math.pi)), max_size=8))
 def test_poses_with_the_own_one_among_them_give_the_same_sum(p, own, others):
-    """The agent passes every pose of the frame, its own included, as (x, y, θ) (issue 17: no
+    """The agent passes every pose of the frame, its own included, as (x, y, θ) (no
     per-tick list of the others): the own pose is at distance 0 and adds nothing, θ is not read,
     and the sum is the same to the last bit as over the others' (x, y)."""
     positions = [(x, y) for x, y, _ in others]

@@ -1,4 +1,4 @@
-"""The coordinator never hangs and never lies (issue 11): the verdict and its exit code, events
+"""The coordinator never hangs and never lies: the verdict and its exit code, events
 whose claimed identity does not hold, spoofed frames and sim_done, router loss, recovery after a
 partition, silent agents, exception-safe bounded clean-up."""
 

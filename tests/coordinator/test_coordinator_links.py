@@ -1,4 +1,4 @@
-"""Which links a run's processes use (issue 17, architecture.md §1): in an unsecured run
+"""Which links a run's processes use (architecture.md §1): in an unsecured run
 (lockstep or realtime) the simulator, the agents and the coordinator are zenoh peers linked to
 each other, everything else goes through the router (``tlfleet.coordinator.run.peer_links``,
 ``default_child_argv``)."""

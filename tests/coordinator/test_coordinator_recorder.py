@@ -42,7 +42,7 @@ def test_trajectory_rows_after_start_only_strictly_increasing(tmp_path):
     rec.start()
     rec.on_mocap(frame(0))  # a late pre-start frame …
     rec.on_mocap(frame(0))  # … and tick 0 (the later one wins)
-    for seq in (1, 2, 4, 3, 5, 2):  # 3 after 4 fills the gap it left (issue 13); 2 again: stale
+    for seq in (1, 2, 4, 3, 5, 2):  # 3 after 4 fills the gap it left; 2 again: stale
         rec.on_mocap(frame(seq))
     rec.close()
     traj = read_trajectory_csv(tmp_path / "trajectory.csv")

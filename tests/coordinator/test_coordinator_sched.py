@@ -1,4 +1,4 @@
-"""OS scheduling of a run's processes (issue 17, ``tlfleet.cli.process_flags``): ``tlfleet run``
+"""OS scheduling of a run's processes (``tlfleet.cli.process_flags``): ``tlfleet run``
 starts the router, the sim and the agents under Linux's ``SCHED_FIFO`` where the user may ask for
 it, and elsewhere a lockstep run under ``SCHED_BATCH`` and a realtime run as the OS starts it
 (``--sched``). Checked on the argv the runner builds, on the flags, on the policy a real process

@@ -1,4 +1,4 @@
-"""Faults in compose without docker (issue 13 §2 "In compose"): what a compose fleet refuses, the
+"""Faults in compose without docker: what a compose fleet refuses, the
 handoff between the coordinator's actuator and the host's executor through a directory, the
 docker commands of each fault, and the compose file that carries the faults."""
 

@@ -1,4 +1,4 @@
-"""Which faults need namespace hosts, and what a run on them rejects up front (issue 13 §1)."""
+"""Which faults need namespace hosts, and what a run on them rejects up front."""
 
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def test_namespace_hosts_reject_what_they_cannot_do(scenarios_dir):
 
 
 def test_the_peer_layout_gives_every_process_a_host_and_partitions_pairs(scenarios_dir):
-    """Issue 13 §1: a partition needs processes that reach each other only over their own direct
+    """A partition needs processes that reach each other only over their own direct
     link (peers; a router does not relay between peers), each on a host of its own."""
     placement = place_peers(load_scenario(scenarios_dir / "scenario1.toml"))
     assert placement.layout == "peers" and placement.hosts == 7
@@ -108,7 +108,7 @@ def test_the_peer_layout_gives_every_process_a_host_and_partitions_pairs(scenari
 
 def test_a_restart_on_hosts_starts_the_plans_command_again_and_the_launcher_stops_it(
         scenarios_dir, tmp_path):
-    """``restart:`` on namespace hosts (issue 13 §2): the actuator (in ``tlfleet supervise``)
+    """``restart:`` on namespace hosts: the actuator (in ``tlfleet supervise``)
     kills the group, starts the plan's argv again, records the new pid for the launcher; no
     namespace is needed to check that much."""
     placement = place(load_scenario(scenarios_dir / "scenario1.toml"), 1)

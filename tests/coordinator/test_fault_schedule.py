@@ -1,4 +1,4 @@
-"""The fault scheduler (issue 13 §1) on fake clocks, and the process actuator on real processes."""
+"""The fault scheduler on fake clocks, and the process actuator on real processes."""
 
 from __future__ import annotations
 

@@ -74,7 +74,7 @@ def test_the_pure_agent_visits_its_regions_and_tracks_the_buchi_states(scenarios
 
 
 def test_a_robot_that_joins_away_from_its_start_plans_again_from_where_it_is(scenarios_dir):
-    """Issue 13 §2 (a restarted agent): the first step finds Scenario 3's robot 1 at region a3,
+    """A restarted agent: the first step finds Scenario 3's robot 1 at region a3,
     not at its start pose, so it plans Algorithm 1 again from there — the cheapest order of the
     other four regions, checked by brute force over Euclidean distances — from the automaton's
     initial states, and says so in a plan_ready notice."""

@@ -1,5 +1,5 @@
 """The guards' BDD package against truth tables (the representation it replaced), and the
-symbolic translation paths it enables (issue 16)."""
+symbolic translation paths it enables."""
 
 from __future__ import annotations
 

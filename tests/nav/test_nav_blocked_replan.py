@@ -1,4 +1,4 @@
-"""Issue 15 (no navigation deadlock): a robot blocked by another robot re-plans around it."""
+"""No navigation deadlock: a robot blocked by another robot re-plans around it."""
 
 from __future__ import annotations
 

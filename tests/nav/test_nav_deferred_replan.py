@@ -1,4 +1,4 @@
-"""Issue 17: the executor's periodic global re-plan is deferred until after the command.
+"""The executor's periodic global re-plan is deferred until after the command.
 
 The step that finds a re-plan due keeps following its current path and records the request
 (``ExecutorState.pending``); ``Executor.refresh`` runs it. Whether the caller refreshes after

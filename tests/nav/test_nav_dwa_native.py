@@ -1,6 +1,6 @@
 """The DWA's C kernel (``agent/nav/dwa_kernel.c``, built at install time as
 ``tlfleet.agent.nav._dwa``) against its numpy kernel, the checked reference of
-test_nav_dwa_reference.py (issue 17).
+test_nav_dwa_reference.py.
 
 The C kernel does the numpy kernel's floating-point operations in the same order, with libm's
 sin, cos and exp. Where numpy's own sin, cos and exp are libm's (this machine kind: x86-64

@@ -1,4 +1,4 @@
-"""The DWA and the polyline helpers against their plain array form, to the last bit (issue 17).
+"""The DWA and the polyline helpers against their plain array form, to the last bit.
 
 ``tlfleet.agent.nav.dwa.dwa_control`` and ``tlfleet.agent.nav.polyline`` compute in plain floats and
 on coordinate arrays, and leave out other robots that cannot matter; the reference below is the

@@ -140,7 +140,7 @@ def test_hand_made_grid_blocks_exactly_the_occupied_cells_without_inflation():
 
 
 def test_coordinate_and_point_lookups_equal_clearance_at():
-    """Issue 17: the DWA's lookups on coordinate arrays and on one point read the same cells and
+    """The DWA's lookups on coordinate arrays and on one point read the same cells and
     values as ``clearance_at`` — on the grid, on cell borders and off it."""
     grid = grid_from_arena(Arena(obstacles=(RectObstacle(-0.1, -3.5, 0.1, 1.0),)), 0.3)
     rng = np.random.default_rng(7)

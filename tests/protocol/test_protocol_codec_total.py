@@ -1,4 +1,4 @@
-"""The codec is total (issue 11): for arbitrary bytes and for arbitrary structurally valid msgpack,
+"""The codec is total: for arbitrary bytes and for arbitrary structurally valid msgpack,
 ``decode`` returns a valid message or raises ``ProtocolError`` — never anything else; bounds on
 sizes, nesting, lengths and every number; the schema version is an exact integer."""
 
@@ -126,7 +126,7 @@ HOSTILE = [
     (messages.Control, msgpack.packb({"v": True, **CONTROL_OK}), "schema version True"),
     (messages.Control, msgpack.packb({"v": [1], **CONTROL_OK}), "schema version a list"),
     (MocapFrame, msgpack.packb({"v": 1, **MOCAP_OK, "k": nested(900)}), "MocapFrame"),
-    # issue 13: the backfill's request and reply
+    # the backfill's request and reply
     (messages.BackfillRequest, pack(k="BackfillRequest", first=10, last=3),
      r"BackfillRequest.last: 3 is outside \[10, "),
     (messages.BackfillRequest, pack(k="BackfillRequest", first=-1, last=3),

@@ -1,4 +1,4 @@
-"""The C decoders of ``MocapFrame`` and ``Command`` (``bus/protocol/wire_kernel.c``, issue 17)
+"""The C decoders of ``MocapFrame`` and ``Command`` (``bus/protocol/wire_kernel.c``)
 against the Python fast path they stand in front of (``tlfleet.bus.protocol.fast_paths``).
 
 The contract: C returns a message only when the Python path returns an equal one, and ``None``

@@ -1,4 +1,4 @@
-"""The report's fault rows (tlfleet.coordinator.report.fault_table, issue 13 §2): detection and
+"""The report's fault rows (tlfleet.coordinator.report.fault_table): detection and
 clearance."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The run report (issue 6): values against independent recomputation, LTL acceptance, figures,
+"""The run report: values against independent recomputation, LTL acceptance, figures,
 paper values and bad inputs.
 
 Run directories: a synthetic one written here from analytic trajectories (exact recomputation),

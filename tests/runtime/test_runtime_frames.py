@@ -1,4 +1,4 @@
-"""Issue 17: an agent with control divider d ≥ 2 reads only ``mocap_every/<d>``, and frames reach
+"""An agent with control divider d ≥ 2 reads only ``mocap_every/<d>``, and frames reach
 the loop through a channel read by its own thread (the fake bus's queue here; zenoh's FIFO
 channel in tests/transport)."""
 
@@ -63,7 +63,7 @@ def test_a_decimated_loop_reads_only_its_frame_key():
 
 
 def test_a_staggered_loop_reads_and_answers_the_ticks_of_its_phase():
-    """Issue 17: phase 10 of 20 — decimated, only ``mocap_every/20/10``; reading every frame
+    """Phase 10 of 20 — decimated, only ``mocap_every/20/10``; reading every frame
     in realtime, a new control period begins at seq ≡ 10 (mod 20)."""
     network = FakeNetwork()
     loop, _ = make(network, divider=20, phase=10, decimated=True)
@@ -158,7 +158,7 @@ def test_the_channel_loop_keeps_the_newest_valid_frame():
 
 
 def test_a_decimated_loop_with_heartbeat_notices_a_silent_simulator_within_stale_after():
-    """Issue 13 §2: the clock key (every tick) is the decimated loop's heartbeat; frames alone
+    """The clock key (every tick) is the decimated loop's heartbeat; frames alone
     would take stale_after plus two frame gaps."""
     network = FakeNetwork()
     loop, clock = make(network, divider=20, decimated=True, stale_after=0.15, heartbeat=True)

@@ -1,4 +1,4 @@
-"""Every receiver survives (issue 11): garbage never displaces the newest valid frame, implausible
+"""Every receiver survives: garbage never displaces the newest valid frame, implausible
 frames and jumps are dropped and counted per key and source, an agent resuming after a freeze
 answers the newest frame only; the sim ignores stale commands."""
 

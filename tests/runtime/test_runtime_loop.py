@@ -143,7 +143,7 @@ def test_stale_mocap_means_zero_command_until_frames_return():
 
 
 def test_the_loop_blocks_until_its_next_staleness_check_and_at_most_wait_slice():
-    """``block_for`` (issue 17 round 17): a wait ends when ``_check_stale`` can next act — the
+    """``block_for``: a wait ends when ``_check_stale`` can next act — the
     frame limit, then every zero command while stale — so a zenoh channel's timer need wake no
     more often; never longer than ``wait_slice``, never less than 1 ms."""
     network = FakeNetwork()
@@ -374,7 +374,7 @@ class DeferringCore(RecordingCore):
 
 @pytest.mark.parametrize("lockstep", [True, False])
 def test_after_command_runs_once_per_step_after_the_command_is_published(lockstep):
-    """Issue 17: the work a step defers (the LTL global re-plan) runs after its command."""
+    """The work a step defers (the LTL global re-plan) runs after its command."""
     network = FakeNetwork()
     sim = FakeSim(network, FLEET)
     clock = FakeClock()

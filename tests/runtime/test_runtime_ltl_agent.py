@@ -91,7 +91,7 @@ def test_ltl_agents_plan_drive_visit_and_report(scenario1):
             r: sum(e.data["region"] == r for e in visits) for r in regions}
         assert last.buchi_states  # the visited regions never violated the task
         assert last.mode == "navigate" and last.target in regions
-        # issue 17: the periodic global re-plans ran after the commands (LtlCore.after_command),
+        # the periodic global re-plans ran after the commands (LtlCore.after_command),
         # none is left for the next step
         assert loops[j].state.executor.pending is None
         assert loops[j].summary()["mean_after_command_ms"] > 0.0

@@ -68,6 +68,6 @@ def test_lockstep_sends_in_waves_and_waits_for_every_reply():
     assert not sender.is_alive() and result["failures"] == 1
     assert (link.sent, link.failed) == (3, 1)
     assert link.unreachable == frozenset({5})
-    # never a query that waits for room on a congested link (issue 13): the loop waits for the
+    # never a query that waits for room on a congested link: the loop waits for the
     # replies, bounded by the timeout, and for nothing else
     assert transport.blocking == []

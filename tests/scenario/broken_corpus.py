@@ -1,4 +1,4 @@
-"""A corpus of broken scenario files (issue 11): each case is a file a careless user or an attacker
+"""A corpus of broken scenario files: each case is a file a careless user or an attacker
 could hand to ``tlfleet check`` / ``tlfleet run``, with the field path and the reason a specific
 error must give. Used by ``tests/scenario/test_broken_corpus.py`` (every case specific) and by
 ``bench/scenario_corpus.py`` (the before/after table: specific / vague / crash / accepted).

@@ -1,4 +1,4 @@
-"""Every file of the broken-scenario corpus (issue 11) is rejected by what ``tlfleet check`` and
+"""Every file of the broken-scenario corpus is rejected by what ``tlfleet check`` and
 ``tlfleet run`` both run — the loader, then every agent built as its process would
 (:func:`tlfleet.agent.policy.preflight.check_launch`) — with a specific error: the file, the
 field path and the reason; never a traceback, never accepted."""

@@ -1,4 +1,4 @@
-"""Fault specs (issue 13 §1): every kind parses; every bad part is named; the [[faults]] table
+"""Fault specs: every kind parses; every bad part is named; the [[faults]] table
 is validated like the other scenario fields (file, field path, reason)."""
 
 from __future__ import annotations

@@ -82,9 +82,11 @@ BAD = [
     ("robots", [], "robots", "expected at least one \\[\\[robots\\]\\] table"),
     ("robots", DELETE, "robots", "missing, expected an array of tables"),
     ("robots.0.id", 0, "robots[0].id", "expected a positive integer, got 0"),
-    ("robots.1.id", 1, "robots[1]", "duplicate robot id 1 \\(first at robots\\[0\\]: the 2nd \\[\\[robots\\]\\] table "
-     "repeats the 1st"),
-    ("robots.1.kind", "tank", "robots[id=2].kind", "expected one of 'unicycle', 'omni', got 'tank'"),
+    ("robots.1.id", 1, "robots[1]",
+     "duplicate robot id 1 \\(first at robots\\[0\\]: the 2nd \\[\\[robots\\]\\] table repeats "
+     "the 1st"),
+    ("robots.1.kind", "tank", "robots[id=2].kind",
+     "expected one of 'unicycle', 'omni', got 'tank'"),
     ("robots.0.pose", [0.0, 0.0], "robots[id=1].pose", "expected a list of 3 numbers, got list"),
     ("robots.0.pose", [0.0, math.nan, 0.0], "robots[id=1].pose", "expected finite numbers"),
     ("robots.0.pose", [5.0, 0.0, 0.0], "robots[id=1].pose", r"position \(5.0, 0.0\) lies outside"),
@@ -97,7 +99,8 @@ BAD = [
     ("robots.0.kind", "unicycle", "robots[id=1].stl", "STL tasks run on omni robots"),
     ("robots.1.phase_start_times", [6.0, 7.0], "robots[id=2].phase_start_times",
      "expected 1 times \\(one per sub-task after the first\\), got 2"),
-    ("robots.1.rho_opt", [0.1], "robots[id=2].rho_opt", "expected one value per STL sub-task \\(2\\)"),
+    ("robots.1.rho_opt", [0.1], "robots[id=2].rho_opt",
+     "expected one value per STL sub-task \\(2\\)"),
     ("robots.0.limits", {"max_v": 1.0}, "robots[id=1].limits.max_v", "unknown key 'max_v'"),
     ("robots.0.limits", {"max_lin": -1.0}, "robots[id=1].limits.max_lin", "expected a positive"),
     ("robots.0.colour", "red", "robots[id=1].colour", "unknown key 'colour'"),
@@ -151,7 +154,7 @@ def test_scenario1_matches_the_design_table(scenarios_dir: Path):
         0.02, 0.2, 0.6, 0.7, 2.0)
     # the paper's Algorithm 2 through each F window, not the authors' code's F-hold
     assert (s.stl.hold_f_above_r, s.stl.complete_f_on_satisfaction) == (False, False)
-    # issue 17: the two LTL agents step at ticks 0 and 10 of every 20 (ltl.stagger default)
+    # the two LTL agents step at ticks 0 and 10 of every 20 (ltl.stagger default)
     assert s.ltl.stagger and [s.control_phase(r.id) for r in s.robots] == [0, 10, 0, 0, 0]
 
 
@@ -183,7 +186,8 @@ def test_ltl_task_errors_name_the_robot_field(tmp_path: Path):
 
 def test_ltl_on_omni_robot_is_rejected():
     data = mutated("robots.0", {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "ltl": "F a1"})
-    with pytest.raises(ScenarioError, match=r"robots\[id=1\].ltl: LTL tasks run on unicycle robots"):
+    with pytest.raises(ScenarioError,
+                       match=r"robots\[id=1\].ltl: LTL tasks run on unicycle robots"):
         parse_scenario(data, source="s.toml")
 
 

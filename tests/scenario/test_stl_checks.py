@@ -61,7 +61,7 @@ def test_unbounded_negation_is_accepted_with_an_explicit_rho_opt():
 
 
 def test_warnings_nonconcave_and_violated_from_start():
-    # issue 15's 6th robot: 4.6 m from robot 1 at t = 0
+    # 6th robot: 4.6 m from robot 1 at t = 0
     data = _with(2, stl=["G[0,50] (dist(p3, p1) <= 0.6)"], pose=[1.0, 1.0, 0.0])
     data["duration"] = 50.0
     data["robots"][1]["stl"] = ["G[0,10] (dist(p2, [0.5, 0]) <= 0.1)",

@@ -236,7 +236,7 @@ def test_sim_and_coordinator(policy):
 
 
 def test_only_the_sim_serves_the_backfill_and_only_the_coordinator_asks_for_it(policy):
-    """Issue 13: ``sim/backfill`` (the frames a recorder missed during a link cut)."""
+    """``sim/backfill`` (the frames a recorder missed during a link cut)."""
     key = keys.sim_backfill(F)
     assert allowed(policy, "sim", "ingress", "declare_queryable", key)
     assert allowed(policy, "sim", "ingress", "reply", key)
@@ -335,7 +335,7 @@ def test_denial_filter_drops_cache_lines_and_reports_each_denial_once(fast):
 
 
 def test_ltl_robots_read_only_their_decimated_frames(policy):
-    """Issue 17: robot 1 (LTL, divider 20, phase 0) subscribes mocap_every/20/0 instead of
+    """Robot 1 (LTL, divider 20, phase 0) subscribes mocap_every/20/0 instead of
     mocap, robot 2 (LTL, phase 10) mocap_every/20/10; the sim publishes both; an STL robot
     (divider 1) keeps mocap."""
     every, other = keys.mocap_every(F, 20, 0), keys.mocap_every(F, 20, 10)

@@ -334,7 +334,7 @@ def malformed_payloads(seed: int, valid: bytes, types: tuple[type, ...], n: int
                        ) -> tuple[list[bytes], list[str]]:
     """``n`` payloads that no type in ``types`` decodes (each is rejected with ``ProtocolError``
     or makes ``decode`` raise something else), and those other exceptions: payloads on which the
-    codec is not total (issue 11). They stay in the stream: a receiver must count them too."""
+    codec is not total. They stay in the stream: a receiver must count them too."""
     rng = random.Random(seed)
     out: list[bytes] = []
     crashes: list[str] = []
@@ -444,7 +444,7 @@ def test_fuzzer_sent_every_payload_on_every_key_robot3_may_write(fuzzed):
     assert fuzzer.finished.is_set(), "the fuzzer did not finish"
     assert fuzzer.gone_before_finish == set(), (fuzzer.gone_before_finish, fuzzer.seconds)
     assert fuzzer.sent == {key: FUZZ_PER_KEY for key in valid_examples()}
-    # the codec is total (issue 11): every malformed payload on every key is a ProtocolError
+    # the codec is total: every malformed payload on every key is a ProtocolError
     assert {key for key, found in crashes.items() if found} == set()
 
 

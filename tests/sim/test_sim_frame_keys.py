@@ -1,4 +1,4 @@
-"""Issue 17: the simulator publishes each frame on ``mocap`` and, for every control schedule
+"""The simulator publishes each frame on ``mocap`` and, for every control schedule
 (divider d ≥ 2, phase φ) of the fleet, on ``mocap_every/<d>/<φ>`` when ``seq % d == φ``
 (architecture.md §2)."""
 

@@ -1,4 +1,4 @@
-"""The simulator's ring of recent frames (issue 13, tlfleet.sim.frame_ring) and its ``sim/backfill``
+"""The simulator's ring of recent frames (tlfleet.sim.frame_ring) and its ``sim/backfill``
 queryable, on the fake bus."""
 
 from __future__ import annotations

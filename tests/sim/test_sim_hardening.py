@@ -1,4 +1,4 @@
-"""The simulator survives hostile commands and ignores stale ones (issue 11)."""
+"""The simulator survives hostile commands and ignores stale ones."""
 
 from __future__ import annotations
 

@@ -44,7 +44,7 @@ def test_due_robots(tick, alive, expected):
 
 
 def test_ltl_robots_are_staggered_over_their_control_period():
-    """Issue 17: n LTL robots at divider d are due at phases ⌊rank·d/n⌋ (id order), so no two
+    """N LTL robots at divider d are due at phases ⌊rank·d/n⌋ (id order), so no two
     step on the same tick; STL robots and ``stagger = false`` keep phase 0."""
     scen = scenario(unicycle(3, 0, 0), omni(2, 1, 0), unicycle(1, 2, 0), omni(4, 0, 1))
     phases = control_phases(scen)
@@ -200,7 +200,7 @@ def test_timing_stats_latency_and_missed_deadlines():
 
 
 def test_timing_stats_split_the_every_tick_robots_by_shared_ticks():
-    """Issue 17: the every-tick robots' latencies on the ticks an LTL robot is due too
+    """The every-tick robots' latencies on the ticks an LTL robot is due too
     (``shared``) and on the others."""
     stats = TimingStats()
     for seq in range(40):

@@ -369,7 +369,7 @@ def test_realtime_counts_missed_control_deadlines():
 
 
 def test_lockstep_tick_0_waits_for_an_agent_the_sim_has_not_seen_yet():
-    """Issue 17 (peer links): the start may reach the sim before an agent's liveliness token;
+    """Peer links: the start may reach the sim before an agent's liveliness token;
     the sim waits for every robot's agent before tick 0 (at most the tick timeout), so the
     late agent is due at tick 0 like the others."""
     net = FakeNetwork()

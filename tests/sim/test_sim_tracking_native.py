@@ -1,7 +1,7 @@
 """The C tracking law (``sim/tracking.c``, built at install time as ``tlfleet.sim._tracking``)
 against the Python law (``SimRobot.track``), its fallback: the same trajectories to the last bit, on
 the paper's scenarios and on robots pushing each other and the walls, and the same velocity after
-one physics step from random states around the acceleration limits (issue 17).
+one physics step from random states around the acceleration limits.
 
 The C law is an accelerator a user's install may lack (no C compiler): the tests that need it
 skip without it, but fail under ``TLFLEET_REQUIRE_SYSTEM=1`` (CI), where it must have been built.

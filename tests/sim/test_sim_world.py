@@ -1,5 +1,5 @@
 """The pymunk world: velocity tracking, limits, no lateral slip, walls, obstacles, contacts,
-disturbance, mocap noise, watchdog and determinism (issue 5 §3)."""
+disturbance, mocap noise, watchdog and determinism."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``tlfleet.agent.evolve.evolve`` against ``dataclasses.replace`` (issue 17: per-tick agent
+"""``tlfleet.agent.evolve.evolve`` against ``dataclasses.replace`` (per-tick agent
 states)."""
 
 from __future__ import annotations

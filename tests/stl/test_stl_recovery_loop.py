@@ -61,7 +61,7 @@ def test_after_a_forced_slowdown_recovery_brings_rho_back_within_10_s():
 
 
 def test_sixth_robot_far_from_its_leader_follows_it():
-    """Issue 15: G[0,60] (dist(p6, p1) <= 0.6) from 4.6 m. Cause: the task starts late (a = 0)
+    """G[0,60] (dist(p6, p1) <= 0.6) from 4.6 m. Cause: the task starts late (a = 0)
     violated, so the funnel is constant (stl-funnel.md §5 late start) and as wide as the initial
     error; once ρ^ψ reaches its middle, ε ≈ 0 and the robot stops, never touching a boundary —
     no critical event, no repair, no motion. Recovery re-contracts the funnel once ρ has room."""
@@ -91,7 +91,7 @@ def test_scenario1_style_g_task_with_room_is_unchanged_when_satisfied(recovery):
 @pytest.mark.parametrize("formula", ["G[0,30] (dist(p2, [0, 0]) <= 0.5)",
                                      "F[0,30] (dist(p2, [0, 0]) <= 0.5)"])
 def test_a_satisfied_stl_robot_still_yields_to_a_robot_entering_its_collision_radius(formula):
-    """Issue 15 (no deadlock): the STL robot sits satisfied (G: mid-funnel, ε ≈ 0; F: done and
+    """No deadlock: the STL robot sits satisfied (G: mid-funnel, ε ≈ 0; F: done and
     idle); an LTL robot drives at it and stops 0.45 m away. Eq. (6)'s collision term is always
     mixed in, so the STL robot moves out of the way."""
     task = build_task(formula, 2, 0, robot_ids=(1, 2), stl_ids=(2,))

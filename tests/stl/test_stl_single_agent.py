@@ -155,7 +155,7 @@ def test_code_faithful_random_mode_is_reproducible_and_keeps_the_bound():
 
 
 def test_tuple_poses_taken_as_they_are_step_as_the_copied_ones(repo_root):
-    """``StepInput(tuples=True)`` (the runtime's decoded rows, issue 17) skips the step's copy of
+    """``StepInput(tuples=True)`` (the runtime's decoded rows) skips the step's copy of
     the poses: along a kinematic replay of Scenario 1's three coupled STL agents (repairs and
     stage 2 included) every state and output equals the copying step's."""
     from tlfleet.agent.policy.stl import build_agents

@@ -124,7 +124,7 @@ def still_while(t: np.ndarray, xy: np.ndarray, wants: np.ndarray, window: float 
 
 
 def assert_restarted_agent_drove_again(run_dir: Path, robot: int) -> None:
-    """After ``restart:robot<N>`` (issue 13): one death and one recovery, one log holding both
+    """After ``restart:robot<N>``: one death and one recovery, one log holding both
     processes, and robot N driven again from a second after the recovery."""
     evs = events(run_dir)
     kinds = [e["kind"] for e in evs]

@@ -1,4 +1,4 @@
-"""``tlfleet check`` agrees with ``tlfleet run`` (issue: check said valid, the run refused).
+"""``tlfleet check`` agrees with ``tlfleet run``: no file that check calls valid fails at launch.
 
 Over a corpus of valid scenario files written the way a researcher writes them
 (``tests/scenario/corpus``, the paper's three, the broken corpus's base file) and of the broken

@@ -79,6 +79,6 @@ def test_ctrl_c_stops_every_process_and_exits_130(tmp_path):
         proc.kill()
     assert proc.returncode == 130
     assert "run directory:" in out
-    assert "outcome: interrupted" in out  # issue 11: the run says it was interrupted
+    assert "outcome: interrupted" in out  # the run says it was interrupted
     assert "the run was interrupted at t = " in err
     assert leftover_in_groups(tmp_path / "run") == []

@@ -1,4 +1,4 @@
-"""docker compose fleets (issue 12 §2, §4d): ``tlfleet compose``, the committed compose file, and
+"""docker compose fleets (§4d): ``tlfleet compose``, the committed compose file, and
 ``make compose-run``'s script giving Scenario 1's lockstep ``trajectory.csv`` byte for byte.
 
 The docker tests need root, docker.io, docker-compose and mmdebstrap (installed by .ci/run); they
@@ -43,7 +43,7 @@ def test_compose_writes_one_service_per_process(tmp_path):
     assert services == ["router", "sim", *(f"robot{i}" for i in range(1, 6)), "coordinator",
                         "fleet"]  # "fleet": the one network
     assert text.count("condition: service_healthy") == 7  # every client waits for the router
-    # secured by default (issue 14): tls, --secure, the key directory mounted read-only
+    # secured by default: tls, --secure, the key directory mounted read-only
     assert '["agent", "/fleet/scenario.toml", "--robot", "3", "--connect", "tls/router:7447", ' \
         '"--secure", "/fleet/keys"]' in text
     assert '"--listen", "tls/0.0.0.0:7447", "--secure", "/fleet/keys"]' in text

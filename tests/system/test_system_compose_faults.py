@@ -1,4 +1,4 @@
-"""Faults in a docker compose fleet (issue 13 §2 "In compose"): ``docker network disconnect`` /
+"""Faults in a docker compose fleet: ``docker network disconnect`` /
 ``connect`` of robot 3's container and ``docker pause`` / ``unpause`` of robot 1's give the
 outcomes the namespace-host cut (test_system_link_faults.py) and the process freeze
 (test_system_fault_injection.py) give; ``docker kill`` + ``docker start`` of robot 2's container

@@ -92,7 +92,7 @@ def test_a_restarted_agent_comes_back_and_the_run_completes(tmp_path):
 
 
 def test_a_restarted_ltl_agent_plans_again_from_where_its_robot_is(tmp_path):
-    """Issue 13 §2: the new process of LTL robot 1 (``G F a1 & G F a2``), restarted inside a1
+    """The new process of LTL robot 1 (``G F a1 & G F a2``), restarted inside a1
     on its way out, finds its robot away from the start pose, plans again from there
     (``plan_ready`` with ``reason.joined``, the plan starting at a1) and goes on to a2."""
     run_dir = tmp_path / "run"
@@ -156,7 +156,7 @@ def test_a_killed_router_ends_the_run_with_every_file_parseable_and_flushed(tmp_
 
 
 def test_a_restarted_router_is_rejoined_by_every_client_and_the_run_completes(tmp_path):
-    """Issue 13 §2: the router is killed and started again on the same endpoint; every token
+    """The router is killed and started again on the same endpoint; every token
     goes and comes back with it (link losses and restorations, not deaths), the clients
     reconnect within zenoh's retry period (250 ms in fault runs), the run completes and every
     file parses; the frames published while the coordinator had no router are backfilled."""
@@ -177,7 +177,7 @@ def test_a_restarted_router_is_rejoined_by_every_client_and_the_run_completes(tm
     assert not [e for e in files.events if e.kind == "process_died"]
     t = files.trajectory.t
     assert t[-1] == pytest.approx(8.0) and (np.diff(t) > 0).all()
-    # the frames published while the coordinator had no router were backfilled (issue 13):
+    # the frames published while the coordinator had no router were backfilled:
     # one row per tick, none twice
     assert np.allclose(np.diff(t), 0.01, atol=1e-9)
     fills = [e for e in files.events if e.kind == "backfill"]

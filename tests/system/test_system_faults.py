@@ -1,4 +1,4 @@
-"""System tests of faults (issue 5 §5): a killed agent, malformed payloads on every key.
+"""System tests of faults: a killed agent, malformed payloads on every key.
 
 The fleet runs in realtime in a background thread (``run_fleet`` installs no signal handler);
 the test finds the children by command line and disturbs them from the main thread.

@@ -97,7 +97,7 @@ def hostile(rng: random.Random, key_kind: str) -> bytes:
 
 
 def fleet_keys(fleet: str) -> list[tuple[str, str]]:
-    # robot 1 (LTL, 5 Hz) reads only the frames it can be due for (issue 17)
+    # robot 1 (LTL, 5 Hz) reads only the frames it can be due for
     targets = [("mocap", keys.mocap(fleet)), ("mocap_every", keys.mocap_every(fleet, 20)),
                ("clock", keys.clock(fleet)),
                ("control", keys.control(fleet)), ("event", keys.event(fleet))]

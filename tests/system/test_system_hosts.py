@@ -1,4 +1,4 @@
-"""Fleets across namespace hosts (issue 12 §3, §4c): ``tlfleet run --hosts N``.
+"""Fleets across namespace hosts (§4c): ``tlfleet run --hosts N``.
 
 Root only (``ip netns``); elsewhere these skip with the reason, and fail under
 TLFLEET_REQUIRE_SYSTEM=1. Every namespace is created and deleted by the test (nothing attached
@@ -132,7 +132,7 @@ def test_scenario1_across_three_hosts_is_byte_identical_to_tlfleet_run(tmp_path,
     assert "tlft-s1" not in netns_list()
     info = json.loads((tmp_path / "run" / "run.json").read_text())
     assert info["clean"] and info["hosts"]["hosts"] == 3
-    # secured by default (issue 14): mutual TLS, the mesh policy, keys made for the run and gone
+    # secured by default: mutual TLS, the mesh policy, keys made for the run and gone
     assert info["secure"] is True
     assert set(info["fingerprints"]) == {"ca", "router", "sim", "coordinator",
                                          *(f"robot{i}" for i in range(1, 6))}

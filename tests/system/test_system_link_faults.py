@@ -1,4 +1,4 @@
-"""Link cuts on namespace hosts (issue 13 §2): ``tlfleet run --fault cut:…`` switches the run to
+"""Link cuts on namespace hosts: ``tlfleet run --fault cut:…`` switches the run to
 namespace hosts by itself; the cut is an nft drop of the process's own router port.
 
 Root only (``ip netns``, ``nft``); elsewhere these skip with the reason, and fail under
@@ -238,7 +238,7 @@ def test_the_simulators_link_cut_stops_every_agent_and_the_run_resumes(tmp_path)
     assert lost["data"]["wall"] - start["data"]["wall"] < 1.0
     assert by_kind(run_dir, "process_died") == []
     # the run resumes, and trajectory.csv has every frame once: the frames published while the
-    # sim's session was down (after the lease) were backfilled from its ring (issue 13)
+    # sim's session was down (after the lease) were backfilled from its ring
     t, _states = load_trajectory(run_dir)
     assert t[-1] == pytest.approx(10.0)
     seq = np.rint(t * rate).astype(int)

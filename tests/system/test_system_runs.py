@@ -1,4 +1,4 @@
-"""System tests (issue 5 §5): real router, simulator and agent processes on loopback.
+"""System tests: real router, simulator and agent processes on loopback.
 
 Each test runs ``tlfleet run`` (``tlfleet.coordinator.run.run_fleet``) and asserts on the recorded
 run directory; robustness is recomputed here with numpy (``system_helpers``), not with the monitor
@@ -41,7 +41,7 @@ def test_two_robot_fleet(tmp_path, mode):
     result = run(TWO, tmp_path / "run", mode=mode)
     assert result.clean, result.summary_text
     assert result.outcome.reason in ("sim_done", "duration")
-    assert read_json(tmp_path / "run" / RUN_INFO)["links"] == "peer"  # both modes (issue 17)
+    assert read_json(tmp_path / "run" / RUN_INFO)["links"] == "peer"  # both modes
     t, s = load_trajectory(tmp_path / "run")
     assert t[0] == 0.0 and t[-1] == pytest.approx(20.0)
     if mode == "lockstep":
@@ -69,7 +69,7 @@ def test_lockstep_runs_with_the_same_seed_are_identical(tmp_path):
 
 
 def test_lockstep_over_peer_links_is_the_run_through_the_router(tmp_path):
-    """Issue 17: an unsecured lockstep run links the sim and the agents as zenoh peers; the
+    """An unsecured lockstep run links the sim and the agents as zenoh peers; the
     trajectory is byte for byte the one of the same run with every sample through the
     router (``--via-router``)."""
     peer = run(TWO, tmp_path / "peer", duration=8.0, seed=11)
@@ -102,7 +102,7 @@ def test_scenario1_paper_bounds(scenario1_run):
               "phi''5": 0.05}
     failing = {k: v for k, v in measured.items() if not v >= bounds[k]}
     assert failing == {}, f"below the paper's bounds {bounds}: {failing}"
-    # issue 15: within 0.05 of the best achievable of scenarios.md (0.1 each), except φ′4, whose
+    # within 0.05 of the best achievable of scenarios.md (0.1 each), except φ′4, whose
     # −0.9 − 0.05 is jointly feasible with φ′3's and φ′5's goals only at one knife-edge point
     # (docs/coupling.md §3): φ′4 is held within 0.05 of its joint bound −0.9 − (ρ′3 + ρ′5)/2
     # and to 1e-3 of its bound given robots 3 and 5's trajectories, 1 − max ‖z3 − z5‖/2
@@ -144,7 +144,7 @@ def test_recovery_case_escort_back_within_10_s_of_the_leader_stop(tmp_path):
 @pytest.mark.slow
 def test_scenario3_formation_and_all_regions(tmp_path):
     """Robot 1 visits the five regions; with its coupling-aware limits (docs/coupling.md) the
-    three escorts hold their slots (issue 15: ρ ≥ −0.1, predicate held ≥ 90 % of [10, 100])."""
+    three escorts hold their slots (ρ ≥ −0.1, predicate held ≥ 90 % of [10, 100])."""
     path = SCENARIOS / "scenario3.toml"
     result = run(path, tmp_path / "run")
     assert result.clean, result.summary_text
@@ -155,7 +155,7 @@ def test_scenario3_formation_and_all_regions(tmp_path):
     assert robot_robot_contacts(tmp_path / "run") == []
     for robot in (2, 3, 4):  # the summary's robustness is the trajectory's, and finite
         assert math.isfinite(result.summary["stl"][robot]["robustness"])
-    # issue 15 goals (coupling-aware leader): every formation task ρ ≥ −0.1 and held ≥ 90 %
+    # goals (coupling-aware leader): every formation task ρ ≥ −0.1 and held ≥ 90 %
     t, s = load_trajectory(tmp_path / "run")
     window = (t >= 10.0) & (t <= 100.0)
     for robot, side in ((2, "right"), (3, "left"), (4, "behind")):

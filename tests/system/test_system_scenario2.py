@@ -1,4 +1,4 @@
-"""System test of Scenario 2 (issue 5 §5, issue 15): STL robots 3 and 4 keep within 0.6 m of the
+"""System test of Scenario 2 (issue 5 §5): STL robots 3 and 4 keep within 0.6 m of the
 LTL robots 1 and 2 while those cycle their regions, all over Zenoh with real processes.
 
 Asserted: each STL task's robustness, recomputed here with numpy from trajectory.csv, is at least
@@ -47,7 +47,7 @@ def test_scenario2_escorts_keep_their_guarantee_and_leaders_keep_cycling(tmp_pat
         assert subtask["robustness"] == pytest.approx(rho, abs=1e-9)
         assert rho >= subtask["r_least"], (escort, rho, subtask["r_least"])  # ρ^φ ≥ r̄
         assert rho > -2.0  # the escort follows: parked, it would end at −4.4 (3) / −3.4 (4)
-        assert rho >= -0.2, (escort, rho)  # issue 15 goal (paper: −0.45 / −0.47)
+        assert rho >= -0.2, (escort, rho)  # goal (paper: −0.45 / −0.47)
         psi = 0.6 - dist_to(states, escort, leader)
         assert still_while(t, states[escort][:, :2], psi < -0.1) == [], escort
     regions = {r.name: r for r in load_scenario(path).regions}

@@ -1,4 +1,4 @@
-"""``tlfleet supervise`` (issue 12 §1, §4b): a fleet whose processes were started by hand.
+"""``tlfleet supervise`` (§4b): a fleet whose processes were started by hand.
 
 The processes are started with the command lines a user types (``by_hand.start_by_hand``), on
 loopback; ``tlfleet supervise`` joins them, records the run like ``tlfleet run`` and must give a

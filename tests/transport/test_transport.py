@@ -141,7 +141,7 @@ def test_zenoh_query_async_returns_before_the_reply(loopback_pair):
 
 @pytest.mark.system
 def test_zenoh_channel_is_read_by_the_calling_thread(loopback_pair):
-    """Issue 17: a FIFO channel subscriber: samples in order, recv(timeout) returns None on
+    """A FIFO channel subscriber: samples in order, recv(timeout) returns None on
     time, wake() from another thread ends a blocked recv, and the wake-up (a session-local
     DELETE) never reaches another session."""
     import time
@@ -193,7 +193,7 @@ class _CountingEvent(threading.Event):
 @pytest.mark.system
 def test_zenoh_channel_timer_wakes_at_the_deadline_and_sleeps_through_a_steady_reader(
         loopback_pair):
-    """Issue 17 round 17: a blocked ``recv`` is woken at its deadline (at most ``CHANNEL_TICK``
+    """Round 17: a blocked ``recv`` is woken at its deadline (at most ``CHANNEL_TICK``
     late), and while samples keep a reader that blocks in 0.25 s slices busy, the timer sleeps
     until each slice's deadline instead of looking every ``CHANNEL_TICK`` (20 times a second)."""
     import time
@@ -280,7 +280,7 @@ def test_block_when_congested_declares_blocking_publishers_once_per_key():
 
 
 def test_droppable_queries_use_congestion_control_drop():
-    """Issue 13: a query's default congestion control (BLOCK) can hold the caller until zenoh
+    """A query's default congestion control (BLOCK) can hold the caller until zenoh
     closes a blackholed link; ``droppable`` asks zenoh to drop instead (the replies follow the
     query's). The default is kept for every other query (the recorder's backfill), which
     retries."""

@@ -1,4 +1,4 @@
-"""``--zenoh-config FILE.json5`` (issue 12 §1): the file under tlfleet's own settings; a file
+"""``--zenoh-config FILE.json5``: the file under tlfleet's own settings; a file
 zenoh refuses is rejected naming the file and the key."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""zenoh's receive runtime in tlfleet processes (tlfleet.bus.transport.RX_WORKERS, issue 13): enough
+"""zenoh's receive runtime in tlfleet processes (tlfleet.bus.transport.RX_WORKERS): enough
 workers that links held in close(2) by a partition (zenoh's 10 s SO_LINGER) leave the others
 received. Checked on the threads zenoh really starts, in a fresh process (zenoh reads
 ``ZENOH_RUNTIME`` once per process)."""
