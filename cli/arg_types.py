@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 
 def _number(text: str, ok, bound: str) -> float:
@@ -46,3 +47,18 @@ def fault_spec(text: str):
         return parse_fault(text)
     except FaultSpecError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def scenario_file(text: str) -> Path:
+    """A scenario TOML file, or the name of a bundled one (``scenario1``: ``tlfleet run scenario1``
+    from any directory; :mod:`tlfleet.agent.scenario.bundled`). A bare name that is neither is a
+    usage error listing the bundled names; a path is left to the loader, whose error names it."""
+    from tlfleet.agent.scenario.bundled import bundled_scenarios, resolve_scenario
+
+    path = resolve_scenario(text)
+    if not path.exists() and len(path.parts) == 1 and path.suffix != ".toml":
+        names = ", ".join(bundled_scenarios()) or "none installed"
+        raise argparse.ArgumentTypeError(f"no file {text!r} and no bundled scenario of that name "
+                                         f"(bundled: {names}; `tlfleet init NAME` writes a new "
+                                         "one)")
+    return path

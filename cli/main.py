@@ -27,6 +27,7 @@ from tlfleet.cli.conventions import (
 # lists them without imports. Each module also declares EXAMPLES and EXIT_CODES (the help's
 # epilog, tlfleet.cli.conventions).
 COMMANDS: dict[str, tuple[str, str]] = {
+    "init": ("init", "write a commented starter scenario that passes `tlfleet check`"),
     "check": ("check", "validate a scenario file and summarise it"),
     "translate": ("translate", "LTL formula to Büchi automaton"),
     "plan": ("plan", "optimal prefix–suffix plans of the LTL robots"),
@@ -43,6 +44,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                          "compose-run.sh)"),
     "report": ("report", "regenerate report.md/json and figures of a run"),
     "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "echo": ("echo", "print a running fleet's messages as JSON lines (by key name or pattern)"),
+    "topics": ("topics", "list a running fleet's keys (kind, publisher, rate) and its processes"),
+    "hz": ("hz", "rates of a running fleet's keys, once a second"),
     "completion": ("completion", "print a shell completion script (bash, zsh, tcsh)"),
 }
 

@@ -158,14 +158,6 @@ def _apply(a: Bdd, b: Bdd, unit: Bdd, zero: Bdd, cache: dict[tuple[int, int], Bd
     return r
 
 
-def _and(a: Bdd, b: Bdd) -> Bdd:
-    return _apply(a, b, TRUE, FALSE, _and_cache)
-
-
-def _or(a: Bdd, b: Bdd) -> Bdd:
-    return _apply(a, b, FALSE, TRUE, _or_cache)
-
-
 def _not(a: Bdd) -> Bdd:
     if a is TRUE:
         return FALSE

@@ -79,10 +79,6 @@ class Plan:
     timings: Timings
     robot: int | None = None
 
-    @property
-    def accepting_state(self) -> tuple[str, int]:
-        return self.suffix_run[0]
-
     def to_dict(self) -> dict:
         """JSON-ready summary (used by ``tlfleet plan --json``)."""
         return {

@@ -71,10 +71,6 @@ class TransitionSystem:
         )
         return TransitionSystem(self.names, self.labels, edges, self.initial)
 
-    def with_initial(self, name: str) -> TransitionSystem:
-        """A copy that starts in ``name``."""
-        return TransitionSystem(self.names, self.labels, self.edges, self.index(name))
-
 
 def euclidean(p: Point, q: Point) -> float:
     """Straight-line distance [m]."""

@@ -58,11 +58,6 @@ class VelocityLimits:
         return min((c.bound / c.a_omega for c in self.constraints if c.a_omega > 0),
                    default=math.inf)
 
-    def binding(self) -> CouplingConstraint | None:
-        """The constraint with the smallest v_max (for logs and the report)."""
-        with_v = [c for c in self.constraints if c.a_v > 0]
-        return min(with_v, key=lambda c: c.bound / c.a_v) if with_v else None
-
 
 
     @staticmethod

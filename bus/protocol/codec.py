@@ -134,6 +134,16 @@ def peek_kind(data: bytes) -> str | None:
     return body.get("k") if isinstance(body, dict) and isinstance(body.get("k"), str) else None
 
 
+def decode_any(data: bytes) -> Any:
+    """The message a payload holds, whatever its kind (``tlfleet echo``); ``ProtocolError`` when
+    it is no tlfleet message or not a valid one. Checked as :func:`decode` checks."""
+    kind = peek_kind(data)
+    cls = _KINDS.get(kind) if kind is not None else None
+    if cls is None:
+        raise ProtocolError(f"not a tlfleet message (kind {_show_short(kind)})")
+    return decode(cls, data)
+
+
 # --------------------------------------------------------------------------- encoding
 
 

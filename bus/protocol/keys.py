@@ -147,3 +147,26 @@ def parse_alive(key: str) -> tuple[str, str] | None:
     """``(role, id)`` of a liveliness key, or ``None`` when it is not one."""
     match = re.search(r"/alive/([A-Za-z]+)/([A-Za-z0-9_-]+)$", key)
     return (match.group(1), match.group(2)) if match else None
+
+
+def publisher_of(key: str) -> str:
+    """Who publishes on ``key``, read from the key layout above (architecture.md §2): ``sim``
+    (clock, frames, backfill), ``robot<N>`` (its commands, statuses, collaboration),
+    ``coordinator`` (control), ``any`` (events: the ``source`` field names the sender),
+    ``<role> <id>`` for a liveliness token, else ``?``."""
+    alive = parse_alive(key)
+    if alive is not None:
+        return f"{alive[0]} {alive[1]}"
+    parts = key.split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
+        return "?"
+    rest = parts[2:]
+    if rest[0] in ("clock", "mocap", "mocap_every", "mocap_at", "sim"):
+        return "sim"
+    if rest[0] == "robot" and len(rest) >= 2 and rest[1].isdigit():
+        return f"robot{rest[1]}"
+    if rest[0] == "control":
+        return "coordinator"
+    if rest[0] == "event":
+        return "any"
+    return "?"

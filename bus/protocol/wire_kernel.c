@@ -46,6 +46,21 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+
+/* Built against the stable ABI (setup.py: Py_LIMITED_API = 3.11, an abi3 binary that loads in
+ * every CPython >= 3.11). The limited API hides PyTypeObject's fields and the unchecked macros:
+ * the slots' get/set functions and the types' allocators are looked up once, in configure(), with
+ * PyType_GetSlot, and the macros become the checked calls (every argument here is already known
+ * to be of the exact type). Without Py_LIMITED_API the same source builds against the full API. */
+#ifdef Py_LIMITED_API
+#define PyBytes_GET_SIZE(o) PyBytes_Size(o)
+#define PyBytes_AS_STRING(o) PyBytes_AsString(o)
+#define PyDict_GET_SIZE(o) PyDict_Size(o)
+#define PyFloat_AS_DOUBLE(o) PyFloat_AsDouble(o)
+#define PyTuple_GET_ITEM(o, i) PyTuple_GetItem(o, i)
+#define PyTuple_GET_SIZE(o) PyTuple_Size(o)
+#define PyTuple_SET_ITEM(o, i, v) PyTuple_SetItem(o, i, v)
+#endif
 #include <stdint.h>
 #include <string.h>
 
@@ -62,8 +77,11 @@ typedef struct {
 static struct {
     int ready;
     PyTypeObject *frame_type, *command_type;
+    allocfunc frame_alloc, command_alloc;
     PyObject *frame_slots[4];   /* t, seq, poses, due: member descriptors */
     PyObject *command_slots[4]; /* robot, t, seq, u */
+    descrgetfunc frame_get[4], command_get[4];
+    descrsetfunc frame_set[4], command_set[4];
     PyObject *empty;            /* () */
     int64_t schema_version, max_int, max_robot_id;
     double max_time, max_coord, max_angle, max_speed;
@@ -220,16 +238,17 @@ static int next_key(Reader *r, const char *kind, unsigned *seen, const unsigned 
 }
 
 /* A new instance of a slotted dataclass with its four fields set (steals the values). */
-static PyObject *build(PyTypeObject *type, PyObject *const *slots, PyObject *values[4]) {
+static PyObject *build(PyTypeObject *type, allocfunc alloc, PyObject *const *slots,
+                       descrsetfunc const *set, PyObject *values[4]) {
     PyObject *obj = NULL;
     for (int i = 0; i < 4; i++)
         if (values[i] == NULL)
             goto fail;
-    obj = type->tp_alloc(type, 0);
+    obj = alloc(type, 0);
     if (obj == NULL)
         goto fail;
     for (int i = 0; i < 4; i++) {
-        if (Py_TYPE(slots[i])->tp_descr_set(slots[i], obj, values[i]) < 0)
+        if (set[i](slots[i], obj, values[i]) < 0)
             goto fail;
     }
     for (int i = 0; i < 4; i++)
@@ -359,7 +378,7 @@ static PyObject *decode_frame(PyObject *self, PyObject *data) {
         }
         values[3] = due;
     }
-    return build(W.frame_type, W.frame_slots, values);
+    return build(W.frame_type, W.frame_alloc, W.frame_slots, W.frame_set, values);
 }
 
 /* ---------------------------------------------------------------- Command */
@@ -430,7 +449,7 @@ static PyObject *decode_command(PyObject *self, PyObject *data) {
     }
     PyObject *values[4] = {PyLong_FromLongLong(robot), PyFloat_FromDouble(t),
                            PyLong_FromLongLong(seq), u};
-    return build(W.command_type, W.command_slots, values);
+    return build(W.command_type, W.command_alloc, W.command_slots, W.command_set, values);
 }
 
 /* ---------------------------------------------------------------- encoders */
@@ -512,9 +531,10 @@ static PyObject *finish(unsigned char *buf, Writer *w) {
 }
 
 /* The four fields of a message (borrowed: the message holds them); -1 with an exception set. */
-static int fields_of(PyObject *msg, PyTypeObject *type, PyObject *const *slots, PyObject *f[4]) {
+static int fields_of(PyObject *msg, PyTypeObject *type, PyObject *const *slots,
+                     descrgetfunc const *get, PyObject *f[4]) {
     for (int i = 0; i < 4; i++) {
-        f[i] = Py_TYPE(slots[i])->tp_descr_get(slots[i], msg, (PyObject *)type);
+        f[i] = get[i](slots[i], msg, (PyObject *)type);
         if (f[i] == NULL)
             return -1;
         Py_DECREF(f[i]);
@@ -555,7 +575,7 @@ static PyObject *encode_command(PyObject *self, PyObject *msg) {
     if (!W.ready || Py_TYPE(msg) != W.command_type)
         Py_RETURN_NONE;
     PyObject *f[4];
-    if (fields_of(msg, W.command_type, W.command_slots, f))
+    if (fields_of(msg, W.command_type, W.command_slots, W.command_get, f))
         return NULL;
     return write_command(f[0], f[1], f[2], f[3]);
 }
@@ -586,7 +606,7 @@ static PyObject *pose_map(PyObject *self, PyObject *rows) {
         if (!PyTuple_CheckExact(row) || PyTuple_GET_SIZE(row) != 4)
             Py_RETURN_NONE;
     }
-    PyObject *out = _PyDict_NewPresized(n);
+    PyObject *out = PyDict_New();
     if (out == NULL)
         return NULL;
     for (Py_ssize_t j = 0; j < n; j++) {
@@ -679,7 +699,7 @@ static PyObject *encode_frame(PyObject *self, PyObject *msg) {
     if (!W.ready || Py_TYPE(msg) != W.frame_type)
         Py_RETURN_NONE;
     PyObject *f[4];
-    if (fields_of(msg, W.frame_type, W.frame_slots, f))
+    if (fields_of(msg, W.frame_type, W.frame_slots, W.frame_get, f))
         return NULL;
     int64_t seq;
     double t;
@@ -732,20 +752,34 @@ static PyObject *encode_frame(PyObject *self, PyObject *msg) {
 
 /* ---------------------------------------------------------------- configure */
 
-static int slots_of(PyObject *type, const char *const names[4], PyObject *out[4]) {
+/* The member descriptors of a slotted class's four fields and their get/set functions. */
+static int slots_of(PyObject *type, const char *const names[4], PyObject *out[4],
+                    descrgetfunc get[4], descrsetfunc set[4]) {
     for (int i = 0; i < 4; i++) {
         PyObject *descr = PyObject_GetAttrString(type, names[i]);
         if (descr == NULL)
             return -1;
-        if (Py_TYPE(descr)->tp_descr_set == NULL) {
-            PyErr_Format(PyExc_TypeError, "%s.%s is not a slot", ((PyTypeObject *)type)->tp_name,
-                         names[i]);
+        get[i] = (descrgetfunc)PyType_GetSlot(Py_TYPE(descr), Py_tp_descr_get);
+        set[i] = (descrsetfunc)PyType_GetSlot(Py_TYPE(descr), Py_tp_descr_set);
+        if (get[i] == NULL || set[i] == NULL) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_TypeError, "%R.%s is not a slot", type, names[i]);
             Py_DECREF(descr);
             return -1;
         }
-        Py_XSETREF(out[i], descr);
+        PyObject *old = out[i];
+        out[i] = descr;
+        Py_XDECREF(old);
     }
     return 0;
+}
+
+/* type's allocator (tp_alloc), or NULL with an exception set */
+static allocfunc alloc_of(PyObject *type) {
+    allocfunc alloc = (allocfunc)PyType_GetSlot((PyTypeObject *)type, Py_tp_alloc);
+    if (alloc == NULL && !PyErr_Occurred())
+        PyErr_Format(PyExc_TypeError, "%R has no allocator", type);
+    return alloc;
 }
 
 static PyObject *configure(PyObject *self, PyObject *args) {
@@ -762,13 +796,19 @@ static PyObject *configure(PyObject *self, PyObject *args) {
     static const char *const frame_fields[4] = {"t", "seq", "poses", "due"};
     static const char *const command_fields[4] = {"robot", "t", "seq", "u"};
     W.ready = 0;
-    if (slots_of(frame_type, frame_fields, W.frame_slots)
-        || slots_of(command_type, command_fields, W.command_slots))
+    if (slots_of(frame_type, frame_fields, W.frame_slots, W.frame_get, W.frame_set)
+        || slots_of(command_type, command_fields, W.command_slots, W.command_get, W.command_set))
         return NULL;
+    if ((W.frame_alloc = alloc_of(frame_type)) == NULL
+        || (W.command_alloc = alloc_of(command_type)) == NULL)
+        return NULL;
+    PyTypeObject *old_frame = W.frame_type, *old_command = W.command_type;
     Py_INCREF(frame_type);
-    Py_XSETREF(W.frame_type, (PyTypeObject *)frame_type);
+    W.frame_type = (PyTypeObject *)frame_type;
     Py_INCREF(command_type);
-    Py_XSETREF(W.command_type, (PyTypeObject *)command_type);
+    W.command_type = (PyTypeObject *)command_type;
+    Py_XDECREF((PyObject *)old_frame);
+    Py_XDECREF((PyObject *)old_command);
     if (W.empty == NULL && (W.empty = PyTuple_New(0)) == NULL)
         return NULL;
     W.schema_version = version;

@@ -13,6 +13,7 @@ import logging
 from pathlib import Path
 
 from tlfleet.agent.runtime.config import AgentConfig, AgentConfigError
+from tlfleet.cli.arg_types import scenario_file
 from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
 from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
@@ -31,7 +32,8 @@ EXIT_CODES = {0: "a clean stop (Control(stop), SIGINT or SIGTERM)",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("--robot", type=int, required=True, metavar="ID", help="robot id")
     parser.add_argument("--stale-after", type=float, default=0.5, metavar="S",
                         help="no mocap frame for S seconds (wall) → zero command (default 0.5)")

@@ -17,6 +17,7 @@ from tlfleet.agent.model import Scenario
 from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
+from tlfleet.cli.arg_types import scenario_file
 from tlfleet.cli.conventions import add_json_argument
 
 NAME = "check"
@@ -30,7 +31,8 @@ EXIT_CODES = {0: "every file is valid (warnings may be printed)",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", nargs="+", help="scenario TOML file(s)")
+    parser.add_argument("scenario", nargs="+", type=scenario_file,
+                        help="scenario TOML file(s) or a bundled scenario's name")
     add_json_argument(parser, "print one JSON object a file (JSON Lines): its name, source, "
                               "robots with their tasks, and warnings")
 

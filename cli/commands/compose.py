@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tlfleet.cli.arg_types import fault_spec
+from tlfleet.cli.arg_types import fault_spec, scenario_file
 from tlfleet.cli.run_flags import add_mode_arguments
 from tlfleet.cli.transport_flags import add_lease_argument
 from tlfleet.coordinator.compose import FAULT_SUBNET, ComposeConfig, write_compose
@@ -29,7 +29,8 @@ EXIT_CODES = {0: "the compose file was written",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("-o", "--out", type=Path, default=Path("."),
                         help="directory for compose.yaml, or the .yaml file (default .)")
     add_mode_arguments(parser, "deterministic (default)")

@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tlfleet.cli.arg_types import scenario_file
+
 NAME = "keys"
 HELP = "write a fleet CA, per-process certificates and the router's ACL policy"
 EXAMPLES = (
@@ -20,7 +22,8 @@ EXIT_CODES = {0: "the keys were written",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("-o", "--out", type=Path, required=True, metavar="DIR",
                         help="key directory (created; private keys are mode 0600)")
     parser.add_argument("--force", action="store_true", help="overwrite existing key files")

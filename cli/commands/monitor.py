@@ -19,6 +19,7 @@ import sys
 
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.stl.monitor import evaluate_trajectory, read_trajectory_csv
+from tlfleet.cli.arg_types import scenario_file
 
 NAME = "monitor"
 HELP = "STL robustness of a recorded trajectory"
@@ -33,7 +34,8 @@ EXIT_CODES = {0: "computed", 1: "an invalid scenario or trajectory file",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("trajectory", help="trajectory CSV (t,x1,y1,th1,...)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--smooth", action="store_true",

@@ -18,6 +18,7 @@ import sys
 from tlfleet.agent.ltl.planner import Plan, plan_robot
 from tlfleet.agent.nav.grid_planner import path_length_function
 from tlfleet.agent.scenario import load_scenario
+from tlfleet.cli.arg_types import scenario_file
 
 NAME = "plan"
 HELP = "compute the optimal prefix–suffix plan of each LTL robot"
@@ -30,7 +31,8 @@ EXIT_CODES = {0: "every plan was found",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     parser.add_argument("--robot", type=int, default=None, help="only this robot id")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.add_argument("--weights", choices=("map", "euclidean"), default="map",

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
-from tlfleet.cli.arg_types import fault_spec, positive_float
+from tlfleet.cli.arg_types import fault_spec, positive_float, scenario_file
 from tlfleet.cli.conventions import add_json_argument, add_out_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
 from tlfleet.cli.transport_flags import (
@@ -68,7 +68,8 @@ EXIT_CODES = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     add_mode_arguments(parser)
     add_out_argument(parser, "run directory (default runs/<scenario>-<YYYYmmdd-HHMMSS>)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",

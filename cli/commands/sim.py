@@ -11,7 +11,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from tlfleet.cli.arg_types import non_negative_float, positive_float
+from tlfleet.cli.arg_types import non_negative_float, positive_float, scenario_file
 from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
 from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
@@ -31,7 +31,8 @@ EXIT_CODES = {0: "the run ended (its duration, Control(stop), SIGINT or SIGTERM)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--lockstep", dest="realtime", action="store_false",
                       help="wait for every due agent's command each tick (default; deterministic)")

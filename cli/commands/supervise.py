@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from tlfleet.bus.signals import stop_on_signals
-from tlfleet.cli.arg_types import fault_spec
+from tlfleet.cli.arg_types import fault_spec, scenario_file
 from tlfleet.cli.commands.run import ProgressBar, add_require_tasks_argument, print_outputs
 from tlfleet.cli.conventions import add_json_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
@@ -43,7 +43,9 @@ EXIT_CODES = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario TOML file (the one the fleet was started with)")
+    parser.add_argument("scenario", type=scenario_file,
+                        help="scenario TOML file or a bundled scenario's name (the one the fleet "
+                             "was started with)")
     add_mode_arguments(parser, "the simulator runs in lockstep (default; recorded in run.json)",
                        "the simulator runs on wall-clock time")
     parser.add_argument("-o", "--out", type=Path, default=None,

@@ -58,7 +58,7 @@ def _threads() -> list[int]:
 
 
 @contextlib.contextmanager
-def share_with_children(children_sched: str) -> Iterator[bool]:
+def share_with_children(children_sched: str, above: bool = False) -> Iterator[bool]:
     """While the children run under ``SCHED_FIFO`` (``children_sched == "fifo"``), put every
     thread of this process (zenoh's receivers, the supervision loop, the recorder) under
     ``SCHED_FIFO`` at the children's priority; afterwards, back to the ordinary policy.
@@ -69,18 +69,24 @@ def share_with_children(children_sched: str) -> Iterator[bool]:
     bar stopped at 6.6 of 90 s; the recorder fell as far behind; bench/recorder_lag_bench.py
     measures it). At equal FIFO priority no one preempts anyone: a woken coordinator queues
     behind the running child for a few hundred microseconds instead of waiting for the end of the
-    run. ``SCHED_RESET_ON_FORK`` keeps a child it starts meanwhile (a fault's restart) from
-    inheriting the policy. Yields whether the policy was applied (not for other ``children_sched``,
-    nor where the OS refuses: then a warning)."""
+    run. ``above`` (lockstep): one priority above the children, so that a woken coordinator runs at
+    once: at equal priority it queued behind the fleet and the record trailed the simulator by up
+    to 3.5 s of sim time (bench/recorder_lag_bench.py). Its work is bounded by the messages it
+    records, so the fleet loses little (Scenario 1's lockstep wall time within the noise). Threads
+    it starts meanwhile inherit the policy (``SCHED_RESET_ON_FORK`` would reset them too), and so
+    would a child it starts (a fault's restart), which sets its own ``--sched`` first thing.
+    Yields whether the policy was applied (not for other ``children_sched``, nor where the OS
+    refuses: then a warning)."""
     if children_sched != "fifo" or not fifo_permitted():
         yield False
         return
-    policy = os.SCHED_FIFO | getattr(os, "SCHED_RESET_ON_FORK", 0)
+    policy = os.SCHED_FIFO
+    priority = FIFO_PRIORITY + 1 if above else FIFO_PRIORITY
     raised: list[int] = []
     try:
         for tid in _threads():
             try:
-                os.sched_setscheduler(tid, policy, os.sched_param(FIFO_PRIORITY))
+                os.sched_setscheduler(tid, policy, os.sched_param(priority))
                 raised.append(tid)
             except ProcessLookupError:
                 continue

@@ -337,9 +337,6 @@ class RunFiles:
     def skipped_event_lines(self) -> list[int]:
         return [p.line for p in self.problems if p.file == EVENTS]
 
-    def statuses_of(self, robot: int, kind: type[Status]) -> list[Status]:
-        return [s for s in self.statuses if isinstance(s, kind) and s.robot == robot]
-
 
 def read_run(run_dir: str | Path, *, strict: bool = False,
              scenario: Scenario | None = None) -> RunFiles:

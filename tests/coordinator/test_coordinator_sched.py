@@ -154,3 +154,61 @@ def test_an_unknown_policy_is_a_value_error():
 
     with pytest.raises(ValueError, match="'rr'"):
         apply_scheduling("rr")
+
+
+def _policy_of_threads() -> set[tuple[int, int]]:
+    """(policy without the reset-on-fork flag, priority) of every thread of this process."""
+    flag = getattr(os, "SCHED_RESET_ON_FORK", 0)
+    out = set()
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            policy = os.sched_getscheduler(int(tid)) & ~flag
+            out.add((policy, os.sched_getparam(int(tid)).sched_priority))
+        except ProcessLookupError:
+            continue
+    return out
+
+
+@pytest.mark.needs_system
+@pytest.mark.parametrize("above", [False, True])
+def test_the_coordinator_shares_the_fifo_of_its_children_during_supervision(above):
+    """Inside ``share_with_children("fifo")`` every thread of the coordinator (one started
+    before, one started inside) runs SCHED_FIFO at the children's priority (one above in
+    lockstep); afterwards all are ordinary again."""
+    import threading
+
+    from tlfleet.coordinator.launch.processes import (
+        FIFO_PRIORITY,
+        fifo_permitted,
+        share_with_children,
+    )
+
+    if not fifo_permitted():
+        pytest.skip("SCHED_FIFO is not permitted to this user (root or RLIMIT_RTPRIO)")
+    release = threading.Event()
+    before = threading.Thread(target=release.wait, daemon=True)
+    before.start()
+    inside = None
+    try:
+        with share_with_children("fifo", above=above) as applied:
+            inside = threading.Thread(target=release.wait, daemon=True)
+            inside.start()
+            assert applied
+            expected = FIFO_PRIORITY + 1 if above else FIFO_PRIORITY
+            assert _policy_of_threads() == {(os.SCHED_FIFO, expected)}
+        assert _policy_of_threads() == {(os.SCHED_OTHER, 0)}
+    finally:
+        release.set()
+        before.join(5)
+        if inside is not None:
+            inside.join(5)
+
+
+@pytest.mark.parametrize("sched", ["batch", "default"])
+def test_no_share_unless_the_children_are_fifo(sched):
+    from tlfleet.coordinator.launch.processes import share_with_children
+
+    policies = _policy_of_threads()
+    with share_with_children(sched) as applied:
+        assert not applied
+        assert _policy_of_threads() == policies
