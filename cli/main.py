@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import die_with_parent
 from tlfleet.cli.conventions import (
     add_verbosity_arguments,
     epilog,
@@ -107,6 +108,14 @@ def full_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling (imports, parsing)
+        print("tlfleet: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser, subparsers = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     # Let the chosen command declare its own arguments before the full parse.
@@ -124,6 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     merge_verbosity(args)
+    die_with_parent()  # started by a coordinator: end with it, even when it is SIGKILLed
     default = getattr(module, "DEFAULT_LOG_LEVEL", logging.WARNING)
     logging.basicConfig(level=log_level(args, default),
                         format="%(levelname)s %(name)s: %(message)s")

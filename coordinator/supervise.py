@@ -49,6 +49,7 @@ from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
 from tlfleet.coordinator.live.verdict import (
+    RunEnd,
     Verdict,
     classify,
     control_periods,
@@ -56,6 +57,7 @@ from tlfleet.coordinator.live.verdict import (
 )
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
 from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
+from tlfleet.coordinator.record.trust import RecordCheck
 from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
 from tlfleet.coordinator.report.task_tally import TASKS_NOT_MET, TaskTally
 
@@ -63,6 +65,9 @@ logger = logging.getLogger(__name__)
 
 Say = Callable[[str], None]
 CLEAN_ENDS = ("sim_done", "duration")
+#: mocap periods a run's last recorded frame may fall short of its duration and still be at its
+#: end (the simulator's last tick is the last whole period)
+END_TOLERANCE = 1.5
 
 
 class SuperviseError(TlfleetError, RuntimeError):
@@ -183,10 +188,13 @@ def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
     """The recorder tap's plausibility checks for this run."""
     a = scenario.arena
     dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
-    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
-                                  scenario.sim.mocap_rate, scenario.speed_limits()),
-            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
-            "robot_ids": scenario.robot_ids}
+    rate = scenario.sim.mocap_rate
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration, rate,
+                                  scenario.speed_limits()),
+            "max_jump": max_jump_ticks(rate, dividers),
+            "robot_ids": scenario.robot_ids,
+            "record_check": RecordCheck({r.id: r.radius for r in scenario.robots}, rate,
+                                        round(duration * rate))}
 
 
 class Supervision:
@@ -329,7 +337,10 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
                         deadlines=data.get("deadlines") or {},
                         event_kinds=mission_event_kinds(events, outcome.t_end,
                                                         periods=control_periods(scenario)),
-                        findings=extra, lingering=lingering)
+                        findings=extra, lingering=lingering,
+                        end=RunEnd(outcome.t_end, prepared.duration, outcome.reason),
+                        tolerance=END_TOLERANCE / prepared.scenario.sim.mocap_rate,
+                        sim_reached=outcome.sim_reached)
 
     text, data, report, rrd, verdict, tally = write_outputs(
         prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note, say,

@@ -75,6 +75,7 @@ import numpy as np
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import ORPHAN_AFTER, CoordinatorWatch
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
@@ -176,6 +177,7 @@ class SimProcessConfig:
     max_command_age: float | None = None  # [s] sim time (None: 5 control periods)
     max_speed: float | None = None  # lockstep: at most this × wall-clock time (None: free)
     backfill_seconds: float = BACKFILL_SECONDS  # [s] sim time of frames kept for the backfill
+    orphan_after: float = ORPHAN_AFTER  # [s] wall: exit once the coordinator is gone this long
 
 
 @dataclass
@@ -258,7 +260,8 @@ class SimProcess:
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._cmds: Channel | None = None  # lockstep: the commands' channel
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
-                      "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
+                      "event": keys.event(self.fleet, "sim", 0),
+                      "backfill": keys.sim_backfill(self.fleet)}
         # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
         # the last step's tick, due robots and watchdog stops, reported after the next frame
@@ -789,9 +792,14 @@ def main(config: SimProcessConfig) -> int:
     stop = threading.Event()
     install_signal_handlers(stop)
     transport = open_transport(config.transport)
+    watch = None
     try:
+        watch = CoordinatorWatch(transport, keys.alive(scenario.fleet, "coordinator", 0), stop,
+                                 config.orphan_after, "sim")
         code = run_sim(transport, scenario, sim_config, stop)
         time.sleep(LINGER)  # let zenoh deliver the last frame and sim_done before closing
         return code
     finally:
+        if watch is not None:
+            watch.close()
         transport.close()

@@ -32,6 +32,7 @@ from dataclasses import replace
 
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.events import role_of_source
 from tlfleet.bus.protocol.messages import EVENT_REPLAYED, Event
 from tlfleet.bus.transport import Closeable, Transport
 
@@ -42,7 +43,7 @@ WINDOW = 5.0  # [s] wall: events published this long before the loss are replaye
 
 
 class EventLog:
-    """Publishes an agent's events on ``event`` and replays the recent ones after the
+    """Publishes an agent's events on its ``event/agent/<id>`` and replays the recent ones after the
     coordinator's token returns (module docstring). Thread-safe: events are published from the
     loop's thread, the replay runs on the transport's liveliness callback thread."""
 
@@ -57,7 +58,10 @@ class EventLog:
         self.source = source
         self.window = window
         self._clock = clock
-        self._key = keys.event(fleet)
+        role = role_of_source(source)
+        if role is None:
+            raise ValueError(f"EventLog source {source!r} names no process (sim, agent/<id>)")
+        self._key = keys.event(fleet, *role)
         self._coordinator = keys.alive(fleet, "coordinator", 0)
         self._recent: deque[tuple[float, Event]] = deque(maxlen=capacity)
         self._lock = threading.Lock()

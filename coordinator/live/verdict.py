@@ -33,9 +33,26 @@ FINISHED = ("sim_done", "duration")
 
 
 @dataclass(frozen=True)
+class RunEnd:
+    """Where and why the supervised run ended: sim time ``t`` [s] of its ``duration`` [s]."""
+
+    t: float
+    duration: float
+    reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_lost
+
+    @property
+    def text(self) -> str:
+        return f"ended at t = {self.t:.2f} s of {self.duration:g} s: {self.reason}"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": self.t, "duration": self.duration, "reason": self.reason}
+
+
+@dataclass(frozen=True)
 class Verdict:
     label: str  # clean | degraded | failed | interrupted
     reasons: tuple[str, ...] = field(default_factory=tuple)
+    end: RunEnd | None = None
 
     @property
     def exit_code(self) -> int:
@@ -43,18 +60,25 @@ class Verdict:
 
     @property
     def line(self) -> str:
-        """One line for the summary and the console: ``outcome: degraded (3 watchdog stops)``."""
-        return f"outcome: {self.label}" + (f" ({'; '.join(self.reasons)})" if self.reasons else "")
+        """One line for the summary and the console: ``outcome: degraded (ended at t = 90.00 s
+        of 90 s: sim_done; 3 watchdog stop(s))``."""
+        parts = ([self.end.text] if self.end is not None else []) + list(self.reasons)
+        return f"outcome: {self.label}" + (f" ({'; '.join(parts)})" if parts else "")
 
     def to_json(self) -> dict[str, Any]:
-        return {"label": self.label, "exit_code": self.exit_code, "reasons": list(self.reasons)}
+        out = {"label": self.label, "exit_code": self.exit_code, "reasons": list(self.reasons)}
+        if self.end is not None:
+            out["end"] = self.end.to_json()
+        return out
 
 
 def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
              router_clean: bool, mode: str, deadlines: Mapping[str, Any],
              event_kinds: Mapping[str, int], findings: Iterable[str] = (),
              lingering: Iterable[str] = (),
-             max_missed_fraction: float = MAX_MISSED_FRACTION) -> Verdict:
+             max_missed_fraction: float = MAX_MISSED_FRACTION,
+             end: RunEnd | None = None, tolerance: float = 0.0,
+             sim_reached: float | None = None) -> Verdict:
     """The verdict of a run (see the module docstring).
 
     ``reason``: how supervision ended; ``deaths``: processes reported dead (recovered ones
@@ -63,7 +87,34 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
     events per kind *during the mission*; ``findings``: extra degradations already worded
     (silent agents, recoveries, flagged sim_done…); ``lingering``: processes this coordinator
     did not start (``tlfleet supervise``) whose liveliness token outlived ``Control(stop)``.
+
+    ``end``: where the run ended (its last recorded frame) of its duration; a run that ends more
+    than ``tolerance`` [s] before its duration is never clean — *failed* when the simulator did
+    not get there either, *degraded* when it did (``sim_reached``: the sim time of its own
+    ``sim_done``) and only the frames of the end were not recorded.
     """
+    verdict = _classify(reason=reason, deaths=deaths, exit_codes=exit_codes,
+                        router_clean=router_clean, mode=mode, deadlines=deadlines,
+                        event_kinds=event_kinds, findings=findings, lingering=lingering,
+                        max_missed_fraction=max_missed_fraction)
+    if end is None:
+        return verdict
+    short = end.t < end.duration - tolerance
+    if verdict.label == "interrupted" or not short or reason not in FINISHED:
+        return Verdict(verdict.label, verdict.reasons, end)
+    if sim_reached is not None and sim_reached >= end.duration - tolerance:
+        label = "degraded" if verdict.label == "clean" else verdict.label
+        return Verdict(label, (f"the frames after t = {end.t:.2f} s were not recorded (the "
+                               f"simulator reached t = {sim_reached:.2f} s)", *verdict.reasons),
+                       end)
+    return Verdict("failed", (f"the run ended {end.duration - end.t:.2f} s before its duration",
+                              *verdict.reasons), end)
+
+
+def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
+              router_clean: bool, mode: str, deadlines: Mapping[str, Any],
+              event_kinds: Mapping[str, int], findings: Iterable[str],
+              lingering: Iterable[str], max_missed_fraction: float) -> Verdict:
     if reason == "interrupted":
         return Verdict("interrupted", (f"stopped at the user's request ({reason})",))
     failures: list[str] = []

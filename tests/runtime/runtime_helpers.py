@@ -24,7 +24,7 @@ class FakeSim:
         self.events: list[Event] = []
         self.statuses: list[LtlStatus | StlStatus] = []
         self.transport.subscribe(keys.all_cmds(fleet), self._on_cmd)
-        self.transport.subscribe(keys.event(fleet), self._on_event)
+        self.transport.subscribe(keys.all_events(fleet), self._on_event)
         self.transport.subscribe(keys.all_statuses(fleet), self._on_status)
 
     def _on_cmd(self, _key: str, payload: bytes) -> None:

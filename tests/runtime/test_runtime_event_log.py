@@ -30,7 +30,7 @@ class Wall:
 
 
 def published_events(net: FakeNetwork) -> list[Event]:
-    return [decode(Event, p) for k, p in net.published if k == keys.event(FLEET)]
+    return [decode(Event, p) for k, p in net.published if keys.parse_event(k) is not None]
 
 
 def test_replays_the_window_before_the_loss_and_after_it_when_the_coordinator_returns():

@@ -100,7 +100,7 @@ def fleet_keys(fleet: str) -> list[tuple[str, str]]:
     # robot 1 (LTL, 5 Hz) reads only the frames it can be due for
     targets = [("mocap", keys.mocap(fleet)), ("mocap_every", keys.mocap_every(fleet, 20)),
                ("clock", keys.clock(fleet)),
-               ("control", keys.control(fleet)), ("event", keys.event(fleet))]
+               ("control", keys.control(fleet)), ("event", keys.event(fleet, "sim", 0))]
     for robot in (1, 2):
         targets += [("cmd", keys.cmd(fleet, robot)), ("status", keys.status(fleet, robot))]
     return targets
