@@ -112,7 +112,8 @@ class RunConfig:
     agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
     child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
     report: bool = True  # write report.md/json after the run
-    figures: bool = True  # ... and the PNG figures
+    figures: bool = True  # ... and the figures
+    figure_format: str = "png"  # png | pdf | svg (tlfleet.coordinator.report.figures.FORMATS)
     rrd: bool = True  # write run.rrd after the run
     rrd_every: int = 5  # log every n-th trajectory row to run.rrd
     viewer: bool = False  # serve the run live to a web viewer

@@ -93,6 +93,7 @@ class SuperviseConfig:
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     report: bool = True
     figures: bool = True
+    figure_format: str = "png"  # png | pdf | svg
     rrd: bool = True
     rrd_every: int = 5
     viewer: bool = False

@@ -20,8 +20,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from tlfleet.agent.policy.stl import AgentState, LogRecord, StepInput, StlAgent
+from tlfleet.agent.stl.control_law import ControlParams
+from tlfleet.agent.stl.funnel import FunnelParams
 from tlfleet.agent.stl.messages import Message
 from tlfleet.agent.stl.monitor import Trajectory
+from tlfleet.agent.stl.repair import ProtocolParams
+
+
+def authors_design(**params) -> dict:
+    """``AgentConfig`` keyword arguments of the authors' design, which the regression vectors of
+    stl-funnel.md §11 and the paper's narratives were computed with: exponential funnels (§5,
+    §7.3), the hold rule and F done at r < ρ < ρ_max (§6.1 step 5, §8), no look-ahead.
+    ``params`` override them (e.g. ``control=ControlParams(hold_F_when_above_r=False)``)."""
+    base = {"funnel": FunnelParams(saturation_aware=False),
+            "control": ControlParams(hold_F_when_above_r=True),
+            "protocol": ProtocolParams(f_done_at_goal=False), "lookahead": False}
+    return {**base, **params}
 
 
 @dataclass(frozen=True)

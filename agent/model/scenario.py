@@ -166,12 +166,38 @@ class StlParams:
     r_sense: float = 0.7  # [m] R, collision-avoidance sensing radius
     beta: float = 2.0  # β_i, collision weight in eq. (6)
     control_rate: float = 100.0  # [Hz]
-    # F-task termination (stl-funnel.md §6.1 step 5 and §8). Both default to the authors' code:
-    # an agent holds still once ρ > r on its own F task and is done at the first instant of the
-    # window with r < ρ < ρ_max, so F robustness ends just above r̄. With both false the funnel
-    # controller runs through the whole window (paper Alg. 2 without the code's hold rule).
-    hold_f_above_r: bool = True
+    # F-task termination (stl-funnel.md §6.1 step 5 and §8; docs/stl-saturation.md §6). The
+    # defaults meet feasible tasks: no hold, and an F sub-task is done at the first instant of its
+    # window where ρ reaches the level its first funnel aimed at (r_frac·ρ_max > 0), or where it
+    # has been met already and the next sub-task needs the robot (look-ahead). The authors' code:
+    # hold_f_above_r = true, complete_f_on_satisfaction = true, complete_f_at_goal = false (done at
+    # the first r < ρ < ρ_max, below 0 once repairs lowered r). The paper's Algorithm 2: the first
+    # two false (the funnel controller runs through the whole window).
+    hold_f_above_r: bool = False
     complete_f_on_satisfaction: bool = True
+    complete_f_at_goal: bool = True
+    lookahead: bool = True  # F sub-tasks met early enough for the next one (stl-saturation.md §6)
+    # Saturation-aware funnels (docs/stl-saturation.md §3-§4): the lower boundary climbs at most
+    # at saturation_share × the rate the speed limit allows; false: the authors' exponential
+    # funnel whatever the limit.
+    saturation_aware: bool = True
+    saturation_share: float = 0.9
+    # ρ_opt of a sub-task without rho_opt: the supremum over the arena (bodies, walls, obstacles
+    # and coupled pairs kept apart; stl-saturation.md §5); false: the literal bound (§3).
+    rho_opt_from_arena: bool = True
+    # Robots coupled by a literal avoid each other with radii from their bodies:
+    # R1 = r_i + r_j + coupled_r1_margin, R = r_i + r_j + coupled_r_margin [m] (stl-saturation.md
+    # §7); false: R1 and R above for every pair (paper eq. (6)).
+    coupled_radii: bool = True
+    coupled_r1_margin: float = 0.03  # [m]
+    coupled_r_margin: float = 0.08  # [m]
+    # Walls and static obstacles in eq. (6) (stl-saturation.md §8): full repulsion below
+    # r + wall_r1_margin from a surface, none beyond r + wall_r_margin [m]; route_around: a
+    # sub-task whose goal is out of sight follows a grid-planner route around the obstacles.
+    wall_avoidance: bool = True
+    wall_r1_margin: float = 0.03  # [m]
+    wall_r_margin: float = 0.10  # [m]
+    route_around: bool = True
     # Robustness recovery (tlfleet.agent.stl.recovery, docs/coupling.md §2; beyond the paper, §V):
     # raise r again once the robustness has room. False reproduces Algorithm 2 as published.
     recovery: bool = True

@@ -36,9 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.scenario.stl_setup import naming, stl_sequences
 from tlfleet.agent.stl.evaluate import compile_expr
-from tlfleet.agent.stl.parser import robot_subtasks
-from tlfleet.agent.stl.sequencer import build_sequence
 from tlfleet.agent.stl.syntax import (
     BinOp,
     Call,
@@ -47,7 +46,6 @@ from tlfleet.agent.stl.syntax import (
     Predicate,
     literals,
     predicate_function,
-    robots_of,
     to_text,
 )
 from tlfleet.agent.stl.task import Task
@@ -91,18 +89,14 @@ class CouplingModel:
     def from_scenario(scenario: Scenario, leader: int) -> CouplingModel:
         """Every literal of every STL sub-task that involves ``leader`` and its owner's state."""
         params = scenario.navigation
-        stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
         terms: list[_Term] = []
+        # only the tasks that name the leader: another robot's task, however broken, is that
+        # robot's agent's to report, never a reason for this one to fail
+        sequences = stl_sequences(scenario, only=naming(scenario, frozenset({leader})))
         for robot in scenario.robots:
-            # only the tasks that name the leader: another robot's task, however broken, is
-            # that robot's agent's to report, never a reason for this one to fail
-            if not robot.is_stl or not any(leader in robots_of(phi.body)
-                                           for phi in robot_subtasks(robot)):
+            if robot.id not in sequences:
                 continue
-            seq = build_sequence(robot.id, robot_subtasks(robot), robot_ids=scenario.robot_ids,
-                                 stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=scenario.stl.eta,
-                                 warn=False)
-            for task in seq:
+            for task in sequences[robot.id]:
                 if leader not in task.participants:
                     continue
                 for k, literal in enumerate(literals(task.psi)):

@@ -30,10 +30,19 @@ from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
-from tlfleet.agent.control.collision import CollisionParams, collision_velocity
+from tlfleet.agent.control.collision import (
+    CollisionParams,
+    StaticAvoidance,
+    collision_velocity,
+    static_velocity,
+)
 from tlfleet.agent.control.mixing import mix
 from tlfleet.agent.control.saturation import saturate
 from tlfleet.agent.evolve import evolve
+from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle
+from tlfleet.agent.policy.route import Route, RoutePlanner
+from tlfleet.agent.scenario import stl_setup
+from tlfleet.agent.scenario.stl_timing import PositionGrid, position_grid, reach_time, transfer_time
 from tlfleet.agent.stl import recovery as rec
 from tlfleet.agent.stl.control_law import ControlParams, nominal_velocity
 from tlfleet.agent.stl.funnel import Funnel, FunnelParams, epsilon
@@ -44,11 +53,17 @@ from tlfleet.agent.stl.messages import (
     Message,
     StatusAnnounce,
 )
-from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.agent.stl.repair import ProtocolParams, choose_stage, stage2_enabled
-from tlfleet.agent.stl.sequencer import build_sequence, check_phase_start_times
-from tlfleet.agent.stl.syntax import robots_of
+from tlfleet.agent.stl.sequencer import check_phase_start_times
+from tlfleet.agent.stl.supremum import Workspace, maximize
+from tlfleet.agent.stl.syntax import literals
 from tlfleet.agent.stl.task import Task
+from tlfleet.agent.stl.timing import (
+    conjunct_rates,
+    design_rate,
+    minimal_time,
+    smoothing_offset,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -74,6 +89,20 @@ class AgentConfig:
     protocol: ProtocolParams = field(default_factory=ProtocolParams)
     recovery: rec.RecoveryParams = field(default_factory=rec.RecoveryParams)
     random_seed: int | None = None  # None: fixed fractions (§5); int: code-faithful U(0,1) draws
+    # docs/stl-saturation.md §6: an F sub-task followed by another one must be met early enough
+    # for the next one to stay feasible at the speed limit (its deadline), and is done there
+    # once it has been satisfied
+    lookahead: bool = True
+    # where the robots can be (the goal state of a sub-task, its supremum: tlfleet.agent.stl.
+    # supremum); None: the whole plane
+    workspace: Workspace | None = field(default=None, compare=False)
+    # docs/stl-saturation.md §7: robots coupled to this one by a literal, each with its own
+    # (smaller) avoidance radii; every other robot gets ``collision``
+    pair_collision: Mapping[int, CollisionParams] = field(default_factory=dict, compare=False)
+    static: StaticAvoidance | None = None  # walls and obstacles in eq. (6) (§8); None: none
+    # §8: routes around obstacles when a sub-task's goal is out of sight (None: never)
+    router: RoutePlanner | None = field(default=None, compare=False)
+    route_check_period: float = 0.5  # [s] how often an unrouted sub-task looks for a blocked goal
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,6 +152,10 @@ class AgentState:
     # (requester, its sub-task) this agent released itself from because the requester was
     # unreachable, not on its CollabRelease: its next CollabUpdate means it still counts on us
     orphaned: tuple[int, int] | None = None
+    r_goal: float = math.nan  # r_frac·ρ_max of sub-task k's first funnel: an F is met there
+    leave_by: float = math.inf  # [s] sub-task k's look-ahead deadline (docs/stl-saturation.md §6)
+    route: Route | None = None  # the route the funnel follows around obstacles (§8), if any
+    route_checked: float = -math.inf  # [s] last look for a blocked goal
 
 
 # A per-tick value, never changed once built; not frozen: a frozen __init__ costs 3-4x.
@@ -179,10 +212,11 @@ class StepOutput:
 class StlAgent:
     """The step function of one STL agent bound to its immutable :class:`AgentConfig`."""
 
-    __slots__ = ("cfg",)
+    __slots__ = ("_grid", "cfg")
 
     def __init__(self, config: AgentConfig):
         self.cfg = config
+        self._grid: PositionGrid | None = None  # positions of the workspace, built once
 
     @property
     def robot_id(self) -> int:
@@ -277,10 +311,142 @@ class StlAgent:
             orphaned = None  # following someone (again, or on a request): nobody is orphaned
         return follow, follow_subtask, follow_funnel, peers, released, orphaned
 
+    def _rate(self, task: Task, tick: _Tick, funnel: Funnel | None) -> float | None:
+        """v = κ·(the rate at which the robot can raise ρ^ψ towards the funnel's goal at its
+        speed limit) [1/s] (tlfleet.agent.stl.timing.design_rate; docs/stl-saturation.md §1):
+        towards r_frac·ρ_max of a new funnel (``funnel`` None), towards r of a repaired one.
+        None when the funnels are not saturation-aware."""
+        fp, cp = self.cfg.funnel, self.cfg.control
+        if not fp.saturation_aware:
+            return None
+        if tick.route is not None:
+            # along a route ρ̃ rises at the speed limit times ‖∂ρ̃/∂z_i‖ (route.py)
+            b0 = task.block(self.cfg.robot_id)
+            g = tick.grad_ctl
+            return fp.saturation_share * cp.max_lin * math.hypot(g[b0], g[b0 + 1])
+        rho = tick.rho_own
+        if funnel is None:
+            base = max(0.0, rho)
+            level = fp.r_frac * (base + fp.rho_max_frac * (task.rho_opt - base))
+        else:
+            level = funnel.r
+        rate = design_rate(task, task.stacked_state(tick.poses), self.cfg.robot_id, rho, level,
+                           cp.max_lin, cp.max_ang, at_least=self._reach_time(task, tick, level))
+        return fp.saturation_share * rate
+
+    def _reach_time(self, task: Task, tick: _Tick, level: float) -> float:
+        """The minimal-time bound [s] to the set where ψ's conjuncts hold at ``level`` (+ the
+        smoothing offset) at once (tlfleet.agent.scenario.stl_timing); 0 without a workspace or
+        where ρ^ψ is at the level already."""
+        grid = self._position_grid()
+        if grid is None or tick.rho_own >= level:
+            return 0.0
+        cp = self.cfg.control
+        smooth = smoothing_offset(len(literals(task.psi)), task.eta)
+        need = reach_time(task, self.cfg.robot_id, tick.poses, grid, level, cp.max_lin,
+                          cp.max_ang, smooth)
+        return need if math.isfinite(need) else 0.0
+
+    def _route(self, state: AgentState, tick: _Tick, task: Task, activating: bool) -> None:
+        """The route of the tick (docs/stl-saturation.md §8): planned at activation, looked for
+        every ``route_check_period`` while there is none (a goal that moved, or a robot pushed,
+        out of sight: the funnel is then re-initialised on ρ̃), advanced past reached waypoints;
+        sets ``tick.rho_ctl``/``tick.grad_ctl`` to ρ̃ and its gradient."""
+        cfg = self.cfg
+        router, t, i = cfg.router, tick.t, cfg.robot_id
+        route = None if activating else state.route
+        pose = tick.poses[i]
+        x, y = pose[0], pose[1]
+        if route is not None:
+            route = route.advanced(x, y, router.reach)
+        elif activating or t - state.route_checked >= cfg.route_check_period:
+            goal = self._goal_pose(task, tick.poses)
+            route = router.plan((x, y), (goal[0], goal[1]))
+            tick.changes["route_checked"] = t
+            if route is not None and not activating:
+                logger.info("robot %d: sub-task %d's goal out of sight at t=%.2f: route %s", i,
+                            tick.k + 1, t, route.waypoints)
+                tick.reinit = True
+        if route is not state.route:
+            tick.changes["route"] = route
+        tick.route = route
+        if route is None or tick.grad_own is None:
+            return
+        penalty, dx, dy = route.penalty(x, y)
+        b0 = task.block(i)
+        grad = list(tick.grad_own)
+        grad[b0] += dx
+        grad[b0 + 1] += dy
+        tick.rho_ctl, tick.grad_ctl = tick.rho_own - penalty, grad
+
+    def _leave_by(self, k: int, poses: Mapping[int, object], at_goal: bool = True) -> float:
+        """Look-ahead deadline of sub-task k (docs/stl-saturation.md §6.2): an F sub-task
+        followed by sub-task k+1 must be met by rel(k+1) − T/κ, with T the minimal-time bound
+        to the goal level of ψ_(k+1), from the best point where ψ_k is at its goal level
+        (``at_goal``: the funnel's deadline, over the workspace grid) or from where the robot
+        is now (the others where they are now), and rel = a of a G, b of an F; inf for a G, the
+        last sub-task, forced phase starts or without look-ahead."""
+        cfg = self.cfg
+        tasks = cfg.subtasks
+        if (not cfg.lookahead or k + 1 >= len(tasks) or tasks[k].kind != "F"
+                or cfg.phase_start_times is not None):
+            return math.inf
+        task, after = tasks[k], tasks[k + 1]
+        i, cp, fp = cfg.robot_id, cfg.control, cfg.funnel
+        if any(j not in poses for j in (*task.participants, *after.participants)):
+            return math.inf
+        level = fp.r_frac * fp.rho_max_frac * after.rho_opt
+        smooth = smoothing_offset(len(literals(after.psi)), after.eta)
+        if at_goal:
+            grid = self._position_grid()
+            if grid is None:
+                return math.inf
+            need = transfer_time(task, after, i, poses, grid, cp.max_lin,
+                                 fp.r_frac * fp.rho_max_frac * task.rho_opt, level + smooth)
+        else:  # every tick once met: the conjuncts' bound, no grid (docs §6.2)
+            rates = conjunct_rates(after, after.stacked_state(poses), i, cp.max_lin,
+                                   cp.max_ang)
+            need = minimal_time(rates, level, smooth=smooth)
+        if not math.isfinite(need):
+            return math.inf
+        due = after.a if after.kind == "G" else after.b
+        return due - need / fp.saturation_share
+
+    def _position_grid(self) -> PositionGrid | None:
+        """The robot's positions over its workspace (tlfleet.agent.scenario.stl_timing), built
+        once; None without a workspace."""
+        workspace = self.cfg.workspace
+        if workspace is None:
+            return None
+        if self._grid is None:
+            self._grid = position_grid(workspace.arena,
+                                       workspace.clearance_of(self.cfg.robot_id))
+        return self._grid
+
+    def _goal_pose(self, task: Task, poses: Mapping[int, object]) -> tuple[float, float, float]:
+        """The own pose that maximises ρ^ψ with the other participants where they are now
+        (tlfleet.agent.stl.supremum.maximize from the current pose and the supremum's state)."""
+        i = self.cfg.robot_id
+        b0 = task.block(i)
+        current = task.stacked_state(poses)
+        starts = [current]
+        if task.goal:
+            hinted = list(current)
+            hinted[b0:b0 + 3] = task.goal[b0:b0 + 3]
+            starts.append(hinted)
+        workspace = self.cfg.workspace
+        if workspace is None:
+            return tuple(current[b0:b0 + 3]) if not task.goal else tuple(task.goal[b0:b0 + 3])
+        free = [j == i for j in task.participants]
+        best = maximize(task.compiled.value_grad, task.participants, workspace, starts, free=free)
+        return tuple(best.state[b0:b0 + 3])
+
     def _repair(self, task: Task, funnel: Funnel, rho: float, t: float, ce: int, c: int,
-                peers: Mapping[int, StatusAnnounce]) -> tuple[Funnel, int, int, list[Message]]:
-        """Critical event number ``ce`` of the owner: stage choice (§7.4), repair (§7.3) and the
-        stage-2 messages. Returns (new funnel, new c_i, stage, outgoing messages)."""
+                peers: Mapping[int, StatusAnnounce],
+                rate: float | None = None) -> tuple[Funnel, int, int, list[Message]]:
+        """Critical event number ``ce`` of the owner: stage choice (§7.4), repair (§7.3, with the
+        ramp of a saturation-aware funnel at ``rate``) and the stage-2 messages. Returns (new
+        funnel, new c_i, stage, outgoing messages)."""
         cfg = self.cfg
         i = cfg.robot_id
         fp = cfg.funnel
@@ -289,20 +455,20 @@ class StlAgent:
         rng = self._rng(task.index, ce, t)
         messages: list[Message] = []
         if stage == 1:
-            funnel = funnel.repair(1, rho, t, fp, rng)
+            funnel = funnel.repair(1, rho, t, fp, rng, rate=rate)
         elif stage == 2 and c != i:  # entry (Alg. 2 lines 10–12)
             if cfg.protocol.stage2_entry_repair:
-                funnel = funnel.repair(2, rho, t, fp, rng)
+                funnel = funnel.repair(2, rho, t, fp, rng, rate=rate)
             c = i
             messages = [CollabRequest(sender=i, receiver=v, subtask=task.index, funnel=funnel, c=i)
                         for v in task.v_ctrl if v != i]
         elif stage == 2:  # repeat while c_i = i (lines 13–15): stage-3 computation + update
-            funnel = funnel.repair(3, rho, t, fp, rng)
+            funnel = funnel.repair(3, rho, t, fp, rng, rate=rate)
             if cfg.protocol.stage2_repeat_broadcast:
                 messages = [CollabUpdate(sender=i, receiver=v, subtask=task.index, funnel=funnel)
                             for v in task.v_ctrl if v != i]
         else:
-            funnel = funnel.repair(3, rho, t, fp, rng)
+            funnel = funnel.repair(3, rho, t, fp, rng, rate=rate)
         logger.debug("robot %d: critical event %d at t=%.2f, stage %d: %s", i, ce, t, stage,
                      funnel)
         return funnel, c, stage, messages
@@ -385,18 +551,34 @@ class StlAgent:
         ce_before = state.ce if tick.active else 0
         if task is not None and (tick.active or t >= self._activation_time(state)):
             tick.rho_own, tick.grad_own = task.compiled.value_grad(task.stacked_state(tick.poses))
+            tick.rho_ctl, tick.grad_ctl = tick.rho_own, tick.grad_own
+            if cfg.router is not None and tick.follow is None:
+                self._route(state, tick, task, activating=not tick.active)
             if not tick.active:
                 tick.active = True
-                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
-                                          t, fp, self._rng(tick.k, ce_before, t))
+                leave_by = self._leave_by(tick.k, tick.poses)
+                rate = self._rate(task, tick, None)
+                if rate and math.isfinite(leave_by):
+                    # the next sub-task's need never dooms this one: the deadline is at least
+                    # when this one can reach its goal level at the rate v
+                    base = max(0.0, tick.rho_ctl)
+                    level = fp.r_frac * (base + fp.rho_max_frac * (task.rho_opt - base))
+                    leave_by = max(leave_by, t + (level - tick.rho_ctl + fp.ramp_margin) / rate)
+                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_ctl,
+                                          t, fp, self._rng(tick.k, ce_before, t), rate=rate,
+                                          deadline=None if math.isinf(leave_by) else leave_by)
                 changes.update(active=True, funnel=tick.funnel, ce=0, c=0, stage=0,
                                events=(0, 0, 0), rho_phi=math.nan,
-                               recovery=rec.RecoveryState.start(tick.funnel, fp, cfg.recovery))
+                               recovery=rec.RecoveryState.start(tick.funnel, fp, cfg.recovery),
+                               r_goal=fp.r_frac * tick.funnel.rho_max, leave_by=leave_by)
                 logger.debug("robot %d: sub-task %d active at t=%.2f: %s", i, tick.k + 1, t,
                              tick.funnel)
             elif tick.reinit:
-                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_own,
-                                          t, fp, self._rng(tick.k, ce_before, t))
+                leave_by = state.leave_by
+                tick.funnel = Funnel.init(task.kind, task.a, task.b, task.rho_opt, tick.rho_ctl,
+                                          t, fp, self._rng(tick.k, ce_before, t),
+                                          rate=self._rate(task, tick, None),
+                                          deadline=None if math.isinf(leave_by) else leave_by)
                 floor = state.recovery.r_floor if state.recovery is not None else math.inf
                 changes.update(funnel=tick.funnel, stage=0, recovery=replace(
                     rec.RecoveryState.start(tick.funnel, fp, cfg.recovery),
@@ -429,22 +611,31 @@ class StlAgent:
             else:
                 rho_phi = max(rho_phi, rho_own)
             changes["rho_phi"] = rho_phi
-        inside = funnel.r < rho_own < funnel.rho_max
+        rho_ctl = tick.rho_ctl  # ρ̃ on a route (≤ ρ^ψ), else ρ^ψ: what the funnel holds
+        inside = funnel.r < rho_ctl < funnel.rho_max
+        if task.kind == "F" and cfg.protocol.f_done_at_goal:
+            # docs/stl-saturation.md §6.1: met once ρ^ψ reaches the level the first funnel
+            # aimed at (r_frac·ρ_max > 0), not merely r, which repairs may take below 0
+            inside = rho_ctl > funnel.r and rho_own >= changes.get("r_goal", state.r_goal)
         by_rule = False
         if tick.follow is None and inside and cfg.protocol.complete_on_satisfaction and (
                 (task.kind == "F" and task.a <= t <= task.b)
                 or (task.kind == "G" and t >= task.b)):
             tick.done = by_rule = True
+        elif (tick.follow is None and task.kind == "F" and task.a <= t <= task.b
+              and rho_phi > 0.0 and t >= self._leave_by(tick.k, tick.poses, at_goal=False)):
+            # §6.2: met already, and the next sub-task needs the robot now
+            tick.done = by_rule = True
         elif (task.kind == "G" and t >= task.b) or (task.kind == "F" and t > task.b):
             tick.done = True
             if (task.kind == "G" and tick.follow is None
-                    and not -1.0 < funnel.zeta(rho_own, t) < 0.0):
+                    and not -1.0 < funnel.zeta(rho_ctl, t) < 0.0):
                 # [OUR CHOICE] a critical event on the last sample of a G window is still
                 # repaired (stage 1 or 3: the window is over, nobody can help any more) so
                 # that the recorded r̄ keeps ρ^φ ≥ r̄ (paper Alg. 2 line 28).
                 tick.ce += 1
                 stage = self._local_stage(tick.ce)
-                funnel = tick.funnel = funnel.repair(stage, rho_own, t, cfg.funnel,
+                funnel = tick.funnel = funnel.repair(stage, rho_ctl, t, cfg.funnel,
                                                      self._rng(tick.k, tick.ce, t))
                 _count_repair(tick, stage, funnel=funnel)
         if tick.done:
@@ -490,9 +681,9 @@ class StlAgent:
             tick.u_nom = nominal_velocity(epsilon(z, fp.zeta_clip), g, cp.normalize_grad,
                                           cp.k_eps)
         elif tick.active and not tick.done:
-            task, rho = tick.task, tick.rho_own
+            task, rho = tick.task, tick.rho_ctl
             tick.rho_log = rho
-            grad_own = tick.grad_own
+            grad_own = tick.grad_ctl
             if grad_own is not None:
                 b0 = task.block(i)
                 grad_own = grad_own[b0:b0 + 3]
@@ -503,7 +694,8 @@ class StlAgent:
                 if not -1.0 < z < 0.0:
                     tick.ce += 1
                     tick.funnel, tick.c, stage, messages = self._repair(
-                        task, tick.funnel, rho, t, tick.ce, tick.c, tick.peers)
+                        task, tick.funnel, rho, t, tick.ce, tick.c, tick.peers,
+                        self._rate(task, tick, tick.funnel))
                     tick.out.extend(messages)
                     _count_repair(tick, stage, funnel=tick.funnel, c=tick.c)
                     z = tick.funnel.zeta(rho, t)
@@ -521,11 +713,30 @@ class StlAgent:
         tick.u_nom = saturate(tick.u_nom, cp.max_lin, cp.max_ang, cp.saturation)
 
     def _avoid_and_mix(self, tick: _Tick) -> tuple[float, float, float]:
-        """Phase 6: u = saturate(β·ū_col + ū_nom) over every robot within R (§6.2, eq. (6))."""
-        col, cp, i = self.cfg.collision, self.cfg.control, self.cfg.robot_id
+        """Phase 6: u = saturate(β·ū_col + ū_nom) over every robot within R (§6.2, eq. (6)), a
+        coupled robot within its pair's radii, walls and obstacles within their radii
+        (docs/stl-saturation.md §7, §8)."""
+        cfg = self.cfg
+        col, cp, i = cfg.collision, cfg.control, cfg.robot_id
         own_pose = tick.poses[i]
+        own = (own_pose[0], own_pose[1])
+        pairs = cfg.pair_collision
         # every pose, its own included: at distance 0 it contributes nothing
-        u_col = collision_velocity((own_pose[0], own_pose[1]), tick.poses.values(), col)
+        if not pairs:
+            u_col = collision_velocity(own, tick.poses.values(), col)
+        else:
+            vx, vy, _ = collision_velocity(
+                own, [p for j, p in tick.poses.items() if j not in pairs], col)
+            for j, params in pairs.items():
+                pose = tick.poses.get(j)
+                if pose is not None:
+                    px, py, _ = collision_velocity(own, (pose,), params)
+                    vx += px
+                    vy += py
+            u_col = (vx, vy, 0.0)
+        if cfg.static is not None:
+            sx, sy, _ = static_velocity(own, cfg.static)
+            u_col = (u_col[0] + sx, u_col[1] + sy, 0.0)
         return mix(tick.u_nom, u_col, col.beta, cp.max_lin, cp.max_ang, cp.saturation)
 
     def _finish(self, state: AgentState, tick: _Tick,
@@ -575,6 +786,9 @@ class _Tick:
     task: Task | None = None
     rho_own: float = math.nan  # ρ^ψ of the own sub-task
     grad_own: np.ndarray | None = None  # ∂ρ^ψ/∂(stacked state)
+    rho_ctl: float = math.nan  # what the funnel holds: ρ̃ on a route (route.py), else ρ^ψ
+    grad_ctl: object = None  # its gradient (stacked state)
+    route: Route | None = None
     ce: int = 0
     c: int = 0
     stage: int = 0
@@ -626,21 +840,18 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     """
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
-    wanted = frozenset(robots if robots is not None else stl_ids)
     library: dict[tuple[int, int], Task] = {}
-    sequences: dict[int, tuple[Task, ...]] = {}
-    for robot in scenario.robots:
-        # the agents' own tasks and those that name them (a requester's task, followed in
-        # stage 2): another robot's task, however broken, is that robot's agent's to report
-        if not robot.is_stl or not (robot.id in wanted or any(
-                wanted & robots_of(phi.body) for phi in robot_subtasks(robot))):
-            continue
-        seq = build_sequence(robot.id, robot_subtasks(robot), robot_ids=scenario.robot_ids,
-                             stl_ids=stl_ids, rho_opt=robot.rho_opt, eta=p.eta, warn=warn)
-        sequences[robot.id] = seq
+    # the agents' own tasks and those that name them (a requester's task, followed in stage 2):
+    # another robot's task, however broken, is that robot's agent's to report
+    needed = None if robots is None else stl_setup.naming(scenario, frozenset(robots))
+    sequences = stl_setup.stl_sequences(scenario, warn=warn, only=needed)
+    for seq in sequences.values():
         for task in seq:
-            library[(robot.id, task.index)] = task
-    fparams = funnel or FunnelParams(n_stage1=p.n_stage1, delta=p.delta, zeta_l=p.zeta_l)
+            library[(task.owner, task.index)] = task
+    workspace = stl_setup.scenario_workspace(scenario)
+    fparams = funnel or FunnelParams(n_stage1=p.n_stage1, delta=p.delta, zeta_l=p.zeta_l,
+                                     saturation_aware=p.saturation_aware,
+                                     saturation_share=p.saturation_share)
     agents = {}
     for robot_id in robots if robots is not None else stl_ids:
         robot = scenario.robot(robot_id)
@@ -659,11 +870,57 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
             collision=CollisionParams(r1=p.r1, r_sense=p.r_sense, beta=p.beta,
                                       max_lin=cparams.max_lin),
             protocol=protocol or ProtocolParams(
-                complete_on_satisfaction=p.complete_f_on_satisfaction),
+                complete_on_satisfaction=p.complete_f_on_satisfaction,
+                f_done_at_goal=p.complete_f_at_goal),
             recovery=rec.RecoveryParams(enabled=p.recovery),
+            lookahead=p.lookahead,
+            workspace=workspace,
+            pair_collision=_pair_collision(scenario, robot_id, cparams.max_lin),
+            static=_static_avoidance(scenario, robot, cparams.max_lin),
+            router=_router(scenario, robot),
         )
         agents[robot_id] = StlAgent(config)
     return agents
+
+
+def _pair_collision(scenario, robot_id: int, max_lin: float) -> dict[int, CollisionParams]:
+    """The robots coupled to ``robot_id`` and their avoidance radii (docs/stl-saturation.md §7;
+    ``[stl] coupled_radii``)."""
+    p = scenario.stl
+    if not p.coupled_radii:
+        return {}
+    out = {}
+    for a, b in sorted(stl_setup.coupled_pairs(scenario)):
+        if robot_id in (a, b):
+            other = b if a == robot_id else a
+            r1, big_r = stl_setup.pair_radii(scenario, robot_id, other)
+            out[other] = CollisionParams(r1=r1, r_sense=big_r, beta=p.beta, max_lin=max_lin)
+    return out
+
+
+def _static_avoidance(scenario, robot, max_lin: float) -> StaticAvoidance | None:
+    """Walls and obstacles of the arena for eq. (6) (docs/stl-saturation.md §8; ``[stl]
+    wall_avoidance``)."""
+    if not scenario.stl.wall_avoidance:
+        return None
+    arena = scenario.arena
+    rects = tuple((o.xmin, o.ymin, o.xmax, o.ymax) for o in arena.obstacles
+                  if isinstance(o, RectObstacle))
+    discs = tuple((o.center[0], o.center[1], o.radius) for o in arena.obstacles
+                  if isinstance(o, DiscObstacle))
+    r1, big_r = stl_setup.wall_radii(scenario, robot)
+    return StaticAvoidance((arena.xmin, arena.xmax, arena.ymin, arena.ymax), rects, discs,
+                           r1=r1, r_sense=big_r, max_lin=max_lin)
+
+
+def _router(scenario, robot) -> RoutePlanner | None:
+    """Routes around the arena's obstacles (docs/stl-saturation.md §8; ``[stl] route_around``),
+    planned with the clearance of the wall term's outer radius (or its inner one through a
+    narrower door)."""
+    if not scenario.stl.route_around or not scenario.arena.obstacles:
+        return None
+    r1, big_r = stl_setup.wall_radii(scenario, robot)
+    return RoutePlanner(scenario.arena, clearance=big_r + 0.02, tight=r1 + 0.01)
 
 
 def single_agent(robot_id: int, subtasks: Sequence[Task], *,

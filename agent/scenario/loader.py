@@ -13,7 +13,11 @@ File layout (every section but ``robots`` is optional)::
     [arena]   xmin/xmax/ymin/ymax [m], [[arena.obstacles]] shape = "rect"|"disc"
     [ltl]     suffix_weight, control_rate, stagger      (LtlParams)
     [stl]     eta, n_stage1, delta, zeta_l, r1, r_sense, beta, control_rate, hold_f_above_r,
-              complete_f_on_satisfaction, recovery   (StlParams; recovery: docs/coupling.md)
+              complete_f_on_satisfaction, complete_f_at_goal, lookahead, saturation_aware,
+              saturation_share, rho_opt_from_arena, coupled_radii, coupled_r1_margin,
+              coupled_r_margin, wall_avoidance, wall_r1_margin, wall_r_margin, route_around,
+              recovery   (StlParams; recovery: docs/coupling.md; the others:
+              docs/stl-saturation.md)
     [sim]     physics_rate, mocap_rate, disturbance, mocap_noise, seed, watchdog, spread_frames,
               frame_slots
               (SimParams)
@@ -107,6 +111,16 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     if stl.r1 >= stl.r_sense:
         raise ScenarioError(source, "stl.r1",
                             f"must be below stl.r_sense = {stl.r_sense}, got {stl.r1}")
+    if stl.saturation_share > 1.0:
+        raise ScenarioError(source, "stl.saturation_share",
+                            f"must be in (0, 1] (a share of the achievable rate), got "
+                            f"{stl.saturation_share}")
+    for inner, outer in (("coupled_r1_margin", "coupled_r_margin"),
+                         ("wall_r1_margin", "wall_r_margin")):
+        if getattr(stl, inner) >= getattr(stl, outer):
+            raise ScenarioError(source, f"stl.{inner}",
+                                f"must be below stl.{outer} = {getattr(stl, outer)}, got "
+                                f"{getattr(stl, inner)}")
     regions = tuple(_region(t, arena) for t in top.array_of_tables("regions", required=False))
     _unique(source, "regions", [(r.name, i) for i, r in enumerate(regions)], "region name")
     robots = tuple(_robot(t, arena, i) for i, t in enumerate(top.array_of_tables("robots")))

@@ -6,10 +6,13 @@ loader (``tlfleet.agent.scenario.loader.parse_scenario``):
 
 * a sub-task whose ψ does not involve its own robot's state (stl-funnel.md §6.1: the control law
   uses ∂ρ/∂x_i, identically zero then);
-* a negated predicate whose robustness is unbounded above (``!(dist(p1, p2) <= 1)``: −h grows
-  without bound) with no ``rho_opt`` override: the funnel needs ρ_opt = sup ρ^ψ (stl-funnel.md
-  §3, §5) — other unbounded predicates (``x2 >= 0``) get a warning, as the agent needs the
-  override too;
+* with ``[stl] rho_opt_from_arena = false`` only: a negated predicate whose robustness is
+  unbounded above (``!(dist(p1, p2) <= 1)``: −h grows without bound) with no ``rho_opt`` override
+  (the funnel needs ρ_opt = sup ρ^ψ; other unbounded predicates get a warning). By default ρ_opt is
+  the supremum over the arena, bounded for every predicate (docs/stl-saturation.md §5);
+* a predicate that asks two robots to be closer than their bodies allow (``dist(p2, p3) <= 0.3``
+  between two 0.2 m bodies): its supremum with the bodies apart (‖z_i − z_j‖ ≥ r_i + r_j, each
+  centre its radius from the walls) is ≤ 0 (docs/stl-saturation.md §7);
 * sub-task windows that overlap (§9: sub-tasks run in sequence, b^(k) ≤ a^(k+1));
 * ``phase_start_times`` entries that come before the previous window ends, or the wrong number
   of them (§9 item 4, §13 item 6);
@@ -18,6 +21,12 @@ loader (``tlfleet.agent.scenario.loader.parse_scenario``):
 
 Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
+* a predicate whose robustness is unbounded above, with no ``rho_opt`` override (only with
+  ``rho_opt_from_arena = false``);
+* a predicate that two coupled robots can meet with their bodies apart but not outside each
+  other's avoidance radius R_ij (docs/stl-saturation.md §7);
+* a robot's sequence of sub-tasks that its speed limits cannot meet, by the minimal-time bound,
+  naming the sub-tasks (docs/stl-saturation.md §6.3);
 * a non-concave literal in the controlled states (paper Assumption 1);
 * a G sub-task whose window opens at t = 0 while its predicate is violated at the start poses:
   ρ^φ ≤ ρ^ψ(x̄(0)) < 0 whatever the robots do (the funnel starts late, stl-funnel.md §5).
@@ -25,10 +34,15 @@ Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
 from __future__ import annotations
 
+from itertools import combinations
+
 from tlfleet.agent.model.scenario import Scenario
+from tlfleet.agent.scenario import stl_setup
 from tlfleet.agent.scenario.fields import robot_field
 from tlfleet.agent.stl.analysis import literal_sup, non_concave_literals
 from tlfleet.agent.stl.parser import robot_subtasks
+from tlfleet.agent.stl.robustness import participants
+from tlfleet.agent.stl.supremum import Workspace, psi_supremum
 from tlfleet.agent.stl.syntax import (
     And,
     BinOp,
@@ -84,7 +98,17 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
                     f"(p{robot.id}, x{robot.id}, y{robot.id} or th{robot.id}): its gradient "
                     f"w.r.t. robot {robot.id} is zero, so robot {robot.id} cannot act on it")
             override = robot.rho_opt[k] if k < len(robot.rho_opt) else None
-            if override is None:
+            for literal, sup, pair in _pair_literals(scenario, phi, separated="bodies"):
+                if sup <= 0.0:
+                    i, j = pair
+                    bodies = scenario.robot(i).radius + scenario.robot(j).radius
+                    raise ScenarioError(
+                        source, field,
+                        f"predicate {to_text(literal)!r} asks robots {i} and {j} to be closer "
+                        f"than their bodies allow ({bodies:g} m between centres): its "
+                        f"robustness is at most {sup:+.3f} with the bodies apart, so it can "
+                        f"never hold")
+            if override is None and not scenario.stl.rho_opt_from_arena:
                 for literal in literals(phi.body):
                     if isinstance(literal, Not) and literal_sup(literal) == float("inf"):
                         raise ScenarioError(
@@ -188,10 +212,23 @@ def stl_warnings(scenario: Scenario) -> list[str]:
         for k, phi in enumerate(_formulas(scenario, index)):
             field = f"{robot_field(index, robot.id)}.stl[{k}]"
             text = to_text(phi)
+            override = robot.rho_opt[k] if k < len(robot.rho_opt) else None
+            unbounded = [lit for lit in literals(phi.body) if literal_sup(lit) == float("inf")]
+            if unbounded and override is None and not scenario.stl.rho_opt_from_arena:
+                out.append(f"{field}: the robustness of {to_text(unbounded[0])!r} is unbounded "
+                           f"above: the agent needs {robot_field(index, robot.id)}.rho_opt[{k}]")
             for literal in non_concave_literals(phi.body, ltl_ids):
                 out.append(f"{field}: predicate {to_text(literal)!r} is not concave in the "
                            f"controlled states (paper Assumption 1): the funnel guarantees do "
                            f"not apply to it")
+            if scenario.stl.coupled_radii:
+                for literal, sup, (i, j) in _pair_literals(scenario, phi, separated="radii"):
+                    if sup <= 0.0:
+                        _, big_r = stl_setup.pair_radii(scenario, i, j)
+                        out.append(f"{field}: predicate {to_text(literal)!r} needs robots {i} and "
+                                   f"{j} closer than their mutual avoidance radius "
+                                   f"R = {big_r:g} m (bodies + [stl] coupled_r_margin): its "
+                                   f"robustness is at most {sup:+.3f} outside it")
             if k == 0 and phi.op == "G" and phi.a <= 0.0:
                 from tlfleet.agent.stl.sequencer import build_sequence  # numpy: only for warnings
 
@@ -203,4 +240,60 @@ def stl_warnings(scenario: Scenario) -> list[str]:
                     out.append(f"{field}: {text!r} is violated at the start poses "
                                f"(ρ^ψ(x̄(0)) = {rho0:+.3f}), and its window opens at t = 0, so "
                                f"ρ^φ ≤ {rho0:+.3f} whatever the robots do")
+    out.extend(speed_limit_warnings(scenario))
+    return out
+
+
+def _pair_literals(scenario: Scenario, phi: Temporal, separated: str):
+    """(literal, sup, (i, j)) for every literal of ``phi`` in which the positions of two or more
+    robots enter: its supremum over the arena with the centres of every such pair ≥ r_i + r_j
+    apart (``separated="bodies"``) or ≥ their avoidance radius R_ij (``"radii"``), each centre its
+    radius from the walls and obstacles; (i, j) the first such pair."""
+    for literal in literals(phi.body):
+        movers = sorted(stl_setup.positions_of(literal))
+        if len(movers) < 2:
+            continue
+        pairs = list(combinations(movers, 2))
+        if separated == "bodies":
+            sep = tuple((i, j, scenario.robot(i).radius + scenario.robot(j).radius)
+                        for i, j in pairs)
+        else:
+            sep = tuple((i, j, stl_setup.pair_radii(scenario, i, j)[1]) for i, j in pairs)
+        workspace = Workspace(scenario.arena, tuple((r.id, r.radius) for r in scenario.robots),
+                              sep)
+        robots = participants(literal)
+        sup = psi_supremum(literal, robots, scenario.stl.eta, workspace,
+                           tuple(p for p in stl_setup.start_poses(scenario) if p[0] in robots))
+        yield literal, sup.value, pairs[0]
+
+
+def speed_limit_warnings(scenario: Scenario) -> list[str]:
+    """A warning for every STL robot whose sequence of sub-tasks its speed limits cannot meet
+    (``tlfleet.agent.stl.timing.sequence_infeasibilities``, docs/stl-saturation.md §6.3): from
+    the start pose, or from where sub-task k can end to sub-task k+1, naming both."""
+    from tlfleet.agent.scenario.stl_timing import position_grid, sequence_infeasibilities
+
+    poses = {r.id: r.pose for r in scenario.robots}
+    sequences = stl_setup.stl_sequences(scenario)
+    out: list[str] = []
+    for index, robot in enumerate(scenario.robots):
+        if not robot.is_stl:
+            continue
+        tasks = sequences[robot.id]
+        grid = position_grid(scenario.arena, robot.radius)
+        for bad in sequence_infeasibilities(tasks, robot.id, poses, grid, robot.omni.max_lin,
+                                            robot.omni.max_ang, robot.phase_start_times):
+            where = f"{robot_field(index, robot.id)}.stl[{bad.to}]"
+            target = f"{tasks[bad.to].text!r} by t = {bad.due:g} s"
+            if bad.source < 0:
+                out.append(f"{where}: at its speed limit ({robot.omni.max_lin:g} m/s) robot "
+                           f"{robot.id} needs at least {bad.needed:.1f} s from its start pose "
+                           f"to meet {target}: infeasible (minimal-time bound)")
+            else:
+                out.append(f"{robot_field(index, robot.id)}.stl[{bad.source}] -> stl[{bad.to}]: at "
+                           f"its speed "
+                           f"limit ({robot.omni.max_lin:g} m/s) robot {robot.id} needs at least "
+                           f"{bad.needed:.1f} s from where stl[{bad.source}] "
+                           f"({tasks[bad.source].text!r}) can end (t >= {bad.t_from:g} s) to "
+                           f"meet {target}: the sequence is infeasible (minimal-time bound)")
     return out

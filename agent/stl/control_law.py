@@ -23,7 +23,7 @@ class ControlParams:
     max_ang: float = 6.28  # [rad/s] bound on |ω|
     normalize_grad: bool = True  # §6.1 step 1 [OUR CHOICE, code behaviour]
     k_eps: float = 1.0  # §6.1 step 2 [AUTHORS' CODE: no gain]
-    hold_F_when_above_r: bool = True  # §6.1 step 5 [OUR CHOICE, code behaviour]
+    hold_F_when_above_r: bool = False  # §6.1 step 5, the authors' code (docs/stl-saturation.md §6)
     saturation: Literal["separate", "norm"] = "separate"  # §6.1 step 4 [OUR CHOICE]; "norm" is
     # the paper's single norm over (v_x, v_y, ω) with u_max = max_lin
 

@@ -10,6 +10,17 @@ A critical event is ζ ∉ (−1, 0) (§7.1). Every funnel built here is checked
 §5/§7.3 and a violation raises :class:`FunnelInvariantError` (an internal error, never ``assert``).
 The random draws of the authors' code are replaced by fixed fractions unless a
 ``numpy.random.Generator`` is passed (then U(0,1) is drawn as the code does, §13 item 2).
+
+**Saturation-aware funnels** (docs/stl-saturation.md). Given the rate v [1/s] at which the robot can
+raise ρ at its speed limit (times a share κ < 1), :meth:`Funnel.init` and :meth:`Funnel.repair`
+build a funnel whose lower boundary never climbs faster than v: a linear *ramp*
+γ(t) = γ_0 − v·(t − t_r) until the knee t_k, where the lower boundary reaches the goal level, then
+the exponential tail with the same slope at the knee (l = v/(γ_k − γ_∞), C¹)::
+
+    γ(t) = γ_0 − v·(t − t_r)                          t_r ≤ t < t_k
+    γ(t) = (γ_k − γ_∞)·exp(−l·(t − t_k)) + γ_∞        t ≥ t_k,   γ_k = γ_0 − v·(t_k − t_r)
+
+``ramp = 0`` is the exponential funnel of §4.1 (t_k plays no part).
 """
 
 from __future__ import annotations
@@ -41,6 +52,12 @@ class FunnelParams:
     guard_a_eps: float = 1e-4  # Guard A: ρ_max := ρ + eps if ρ ≥ ρ_max [OUR CHOICE]
     guard_b_margin: float = 1e-3  # Guard B margin [OUR CHOICE]
     zeta_clip: float = 1e-9  # ζ clipped to [−1 + clip, −clip] for ε [OUR CHOICE]
+    # docs/stl-saturation.md: with a rate bound the funnel's lower boundary climbs at most at
+    # ``saturation_share``·(the rate the speed limit allows); False: the authors' exponential
+    # design whatever the limit (§5, §7.3)
+    saturation_aware: bool = True
+    saturation_share: float = 0.9  # κ: share of the achievable dρ/dt the lower boundary may ask
+    ramp_margin: float = 0.05  # cap on the initial gap ρ_0 − lower(t_r) of a ramped funnel
 
 
 def _draw(rng: np.random.Generator | None, fraction: float) -> float:
@@ -67,23 +84,31 @@ class Funnel:
     t_star: float  # [s]
     t_r: float  # [s]
     zeta_u: float
+    ramp: float = 0.0  # [1/s] v, climb of the lower boundary before the knee (0: no ramp)
+    t_knee: float = 0.0  # [s] t_k, end of the ramp (read only when ramp > 0)
 
     # ----------------------------------------------------------------- §5
 
     @classmethod
     def init(cls, kind: Literal["G", "F"], a: float, b: float, rho_opt: float, rho0: float,
              t_r: float, params: FunnelParams = FunnelParams(),
-             rng: np.random.Generator | None = None) -> Funnel:
-        """Initial parameters at time ``t_r`` with ρ_0 = ρ^ψ(x̄(t_r)) (stl-funnel.md §5)."""
+             rng: np.random.Generator | None = None, *, rate: float | None = None,
+             deadline: float | None = None) -> Funnel:
+        """Initial parameters at time ``t_r`` with ρ_0 = ρ^ψ(x̄(t_r)) (stl-funnel.md §5).
+
+        With ``rate`` (v [1/s], the share κ already applied), ``params.saturation_aware`` and no
+        ``rng``: the saturation-aware funnel of :meth:`init_saturated`; ``deadline`` [s] (F only)
+        is the latest time the sub-task may be met for the next one to stay feasible."""
+        if (params.saturation_aware and rng is None and rate is not None
+                and math.isfinite(rate) and rate > 0.0):
+            return cls.init_saturated(kind, a, b, rho_opt, rho0, t_r, rate, params,
+                                      deadline=deadline)
         p = params
-        base = max(0.0, rho0)
-        rho_max = base + p.rho_max_frac * (rho_opt - base)
-        if rho_max < rho0 + p.guard_a_eps:
-            # ρ_0 at (or numerically above) the supremum ρ_opt: no admissible ρ_max in
-            # (ρ_0, ρ_opt) exists, so lift it just above ρ_0 as Guard A does (§7.3) [OUR CHOICE].
-            rho_max = rho0 + p.guard_a_eps
+        shift = _shift(rho_opt, p)
+        rho_max = _top(rho_opt - shift, rho0 - shift, p) + shift
         zeta_u = max(0.0, rho_opt - rho_max) / max(p.n_stage1, 2)
-        r = rho_max * (0.5 * float(rng.uniform()) if rng is not None else p.r_frac)
+        r = shift + (rho_max - shift) * (0.5 * float(rng.uniform()) if rng is not None
+                                         else p.r_frac)
         t_star = a if kind == "G" else a + p.f_tstar_frac * (b - a)
         late = t_star - t_r <= p.tau_min
         if late:
@@ -103,8 +128,19 @@ class Funnel:
     # ----------------------------------------------------------------- §4
 
     def gamma(self, t: float) -> float:
-        """γ(t) = (γ_0 − γ_∞)·e^{−l(t − t_r)} + γ_∞."""
+        """γ(t) = (γ_0 − γ_∞)·e^{−l(t − t_r)} + γ_∞, after the ramp γ_0 − v·(t − t_r) if any."""
+        if self.ramp > 0.0:
+            if t < self.t_knee:
+                return self.gamma0 - self.ramp * (t - self.t_r)
+            knee = self.gamma0 - self.ramp * (self.t_knee - self.t_r)
+            return (knee - self.gamma_inf) * math.exp(-self.l * (t - self.t_knee)) + self.gamma_inf
         return (self.gamma0 - self.gamma_inf) * math.exp(-self.l * (t - self.t_r)) + self.gamma_inf
+
+    def climb(self) -> float:
+        """Steepest climb of the lower boundary, max_t −γ̇(t) [1/s] (at t_r, or on the ramp)."""
+        if self.ramp > 0.0:
+            return self.ramp
+        return self.l * (self.gamma0 - self.gamma_inf)
 
     def lower(self, t: float) -> float:
         """Lower funnel boundary ρ_max − γ(t)."""
@@ -118,8 +154,13 @@ class Funnel:
 
     def repair(self, stage: Literal[1, 2, 3], rho: float, t: float,
                params: FunnelParams = FunnelParams(),
-               rng: np.random.Generator | None = None) -> Funnel:
-        """New funnel after a critical event at time ``t`` with ρ = ρ^ψ(x̄(t)): R1–R10 + guards."""
+               rng: np.random.Generator | None = None, *, rate: float | None = None) -> Funnel:
+        """New funnel after a critical event at time ``t`` with ρ = ρ^ψ(x̄(t)): R1–R10 + guards.
+
+        With ``rate`` (v [1/s]) and ``params.saturation_aware`` (no ``rng``), a new funnel whose
+        exponential decay would climb faster than v gets a ramp instead (docs/stl-saturation.md
+        §4): its lower boundary climbs at v to the r of R5 by t*, or, when v cannot reach it by
+        then, to the level it can reach, which becomes r."""
         p = params
         t_r = t  # R1
         t_star = self.b if self.kind == "F" else self.t_star  # R2
@@ -144,8 +185,78 @@ class Funnel:
             else:
                 l = -math.log((r + gamma_inf - rho_max) / (gamma_inf - gamma_tr)) / (t_star - t)
         funnel = replace(self, rho_max=rho_max, r=r, gamma0=gamma_tr, gamma_inf=gamma_inf, l=l,
-                         t_star=t_star, t_r=t_r)  # R10: γ_0 := γ_tr
+                         t_star=t_star, t_r=t_r, ramp=0.0, t_knee=0.0)  # R10: γ_0 := γ_tr
+        if (p.saturation_aware and rng is None and rate is not None and math.isfinite(rate)
+                and rate > 0.0 and l > 0.0 and funnel.climb() > rate):
+            funnel = funnel._ramped(rate, p)
         funnel.check(rho, t, f"stage-{stage} repair")
+        return funnel
+
+    def _ramped(self, rate: float, p: FunnelParams) -> Funnel:
+        """This decaying funnel (l > 0: its lower boundary reaches r at t* > t_r) with a ramp of
+        slope ``rate`` instead (docs/stl-saturation.md §4): r lowered to what the ramp reaches
+        by t* when it cannot reach r earlier; the knee at the level r; the tail as in §3."""
+        lower0 = self.rho_max - self.gamma0
+        reach = lower0 + rate * (self.t_star - self.t_r)
+        r = self.r if reach >= self.r else reach - p.r_snap
+        gamma_knee = self.rho_max - max(r, min(self.r, reach))
+        gamma_inf = min(self.gamma_inf, p.ginf_frac * gamma_knee)
+        if not self.gamma0 > gamma_knee > gamma_inf > 0.0:
+            return self
+        t_knee = self.t_r + (self.gamma0 - gamma_knee) / rate
+        return replace(self, r=r, gamma_inf=gamma_inf, l=rate / (gamma_knee - gamma_inf),
+                       ramp=rate, t_knee=t_knee)
+
+    @classmethod
+    def init_saturated(cls, kind: Literal["G", "F"], a: float, b: float, rho_opt: float,
+                       rho0: float, t_r: float, rate: float,
+                       params: FunnelParams = FunnelParams(), *,
+                       deadline: float | None = None) -> Funnel:
+        """Saturation-aware initial funnel at ``t_r`` (docs/stl-saturation.md §3).
+
+        ρ_max and ζ_u as in §5; the goal r_g = r_frac·ρ_max; γ_0 = (ρ_max − ρ_0) + m with
+        m = min(gamma0_margin·(ρ_max − ρ_0), ramp_margin); the lower boundary ramps up at
+        v = ``rate`` from ρ_0 − m and reaches r_g at the knee t_k = t_r + (r_g − ρ_0 + m)/v, as
+        early as v allows. The deadline D is a for G, min(b, ``deadline``) for F: if t_k ≤ D,
+        r = r_g; otherwise r is the level the ramp reaches at D (less r_snap), the least
+        violation v can promise. A late start (D − t_r ≤ τ_min) gets r = min(r_g, ρ_0 − m −
+        r_snap). t* = a for G, the time the lower boundary reaches r for F (≤ D). After the knee
+        the tail γ_∞ = ginf_frac·(ρ_max − r_g), l = v/(γ_k − γ_∞) (C¹ at t_k)."""
+        p = params
+        shift = _shift(rho_opt, p)
+        rho_max = _top(rho_opt - shift, rho0 - shift, p) + shift
+        zeta_u = max(0.0, rho_opt - rho_max) / max(p.n_stage1, 2)
+        r_goal = shift + p.r_frac * (rho_max - shift)
+        gap = rho_max - rho0
+        margin = min(p.gamma0_margin * gap, p.ramp_margin)
+        gamma0 = gap + margin
+        lower0 = rho0 - margin
+        due = a if kind == "G" else (b if deadline is None else min(b, deadline))
+        if due - t_r <= p.tau_min:  # late: the window is open (G) or closing (F) already
+            r = min(r_goal, lower0 - p.r_snap)
+            t_star = due
+        elif lower0 >= r_goal:
+            r = r_goal
+            t_star = a if kind == "G" else t_r
+        else:
+            t_goal = t_r + (r_goal - lower0) / rate
+            if t_goal <= due:
+                r = r_goal
+                t_star = a if kind == "G" else t_goal
+            else:
+                r = lower0 + rate * (due - t_r) - p.r_snap
+                t_star = due
+        gamma_knee = rho_max - r_goal
+        if gamma0 > gamma_knee:
+            gamma_inf = p.ginf_frac * gamma_knee
+            t_knee = t_r + (gamma0 - gamma_knee) / rate
+            funnel = cls(kind, a, b, rho_opt, rho_max, r, gamma0, gamma_inf,
+                         rate / (gamma_knee - gamma_inf), t_star, t_r, zeta_u, rate, t_knee)
+        else:  # the lower boundary starts at or above r_g: the tail alone, climbing at v
+            gamma_inf = p.ginf_frac * min(gamma0, rho_max - r)
+            funnel = cls(kind, a, b, rho_opt, rho_max, r, gamma0, gamma_inf,
+                         rate / (gamma0 - gamma_inf), t_star, t_r, zeta_u)
+        funnel.check(rho0, t_r, "saturation-aware initialisation")
         return funnel
 
     def check(self, rho: float, t: float, what: str) -> None:
@@ -162,9 +273,32 @@ class Funnel:
                             f"{self.rho_max - self.r:.6g}")
         if not (0.0 <= self.l < math.inf):
             problems.append(f"need 0 <= l = {self.l!r} < inf")
+        if self.ramp > 0.0 and not (math.isfinite(self.ramp) and self.t_knee >= self.t_r
+                                    and self.gamma(self.t_knee) > self.gamma_inf):
+            problems.append(f"ramp {self.ramp!r} needs t_knee = {self.t_knee!r} >= t_r and "
+                            f"gamma(t_knee) > gamma_inf")
         if problems:
             raise FunnelInvariantError(f"{what} at t = {t:.4f} with rho = {rho:.6g}: "
                                        + "; ".join(problems) + f" ({self})")
+
+
+def _top(rho_opt: float, rho0: float, p: FunnelParams) -> float:
+    """ρ_max = max(0, ρ_0) + rho_max_frac·(ρ_opt − max(0, ρ_0)) (§5), lifted just above ρ_0 when
+    ρ_0 is at (or numerically above) the supremum: no admissible ρ_max in (ρ_0, ρ_opt) exists
+    then, so it is lifted as Guard A does (§7.3) [OUR CHOICE]."""
+    base = max(0.0, rho0)
+    rho_max = base + p.rho_max_frac * (rho_opt - base)
+    return max(rho_max, rho0 + p.guard_a_eps)
+
+
+def _shift(rho_opt: float, p: FunnelParams) -> float:
+    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: a goal inside an
+    obstacle, two robots asked to be closer than they may; docs/stl-saturation.md §5) gets the
+    design of a ψ whose supremum is c = max(|ρ_opt|, 2δ), shifted down by c − ρ_opt, so that its
+    goal r and ρ_max sit just under the supremum: the least violation."""
+    if rho_opt > 0.0:
+        return 0.0
+    return rho_opt - max(abs(rho_opt), 2.0 * p.delta)
 
 
 def epsilon(zeta: float, clip: float = 1e-9) -> float:

@@ -100,9 +100,12 @@ class RecoveryState:
 
     @staticmethod
     def start(funnel: Funnel, fparams: FunnelParams, params: RecoveryParams) -> RecoveryState:
-        """At activation (or re-initialisation) of a sub-task with its initial funnel."""
-        return RecoveryState(r0=max(funnel.r, fparams.r_frac * funnel.rho_max),
-                             dwell=params.dwell)
+        """At activation (or re-initialisation) of a sub-task with its initial funnel. A
+        saturation-aware funnel's r is planned (the level the speed limit lets it promise by its
+        deadline, docs/stl-saturation.md §3): recovery restores that, never more."""
+        # (its r is below r_frac·ρ_max only where it ramps: ``Funnel.init_saturated``)
+        r0 = funnel.r if funnel.ramp > 0.0 else max(funnel.r, fparams.r_frac * funnel.rho_max)
+        return RecoveryState(r0=r0, dwell=params.dwell)
 
 
 def recovered_funnel(funnel: Funnel, rho: float, t: float, r_target: float, rate: float,
@@ -123,7 +126,8 @@ def recovered_funnel(funnel: Funnel, rho: float, t: float, r_target: float, rate
     # t* := t_r: a later repair of this funnel is "late" (R4 snaps r below ρ, R6/R9 give a
     # constant funnel whose lower boundary stays above r), so ρ^φ ≥ r̄ survives repairs made
     # before the lower boundary has reached r' (reach_time).
-    new = replace(funnel, r=r_new, gamma0=gamma0, gamma_inf=gamma_inf, l=l, t_star=t, t_r=t)
+    new = replace(funnel, r=r_new, gamma0=gamma0, gamma_inf=gamma_inf, l=l, t_star=t, t_r=t,
+                  ramp=0.0, t_knee=0.0)
     new.check(rho, t, "recovery")
     return new
 
@@ -149,7 +153,7 @@ def _f_candidate(funnel: Funnel, rho: float, t: float, r_new: float, t_star: flo
     if not 0.0 < gamma_inf < gamma0:
         return None
     return replace(funnel, r=r_new, gamma0=gamma0, gamma_inf=gamma_inf, l=l, t_star=t_star,
-                   t_r=t)
+                   t_r=t, ramp=0.0, t_knee=0.0)
 
 
 def f_deadlines(funnel: Funnel, t: float, fparams: FunnelParams) -> tuple[float, ...]:
@@ -198,6 +202,15 @@ def reach_time(funnel: Funnel, level: float) -> float:
     """First t ≥ t_r [s] with lower(t) ≥ ``level`` (inf if never)."""
     if funnel.lower(funnel.t_r) >= level:
         return funnel.t_r
+    if funnel.ramp > 0.0:
+        if funnel.lower(funnel.t_knee) >= level:  # on the ramp
+            return funnel.t_r + (funnel.gamma0 - (funnel.rho_max - level)) / funnel.ramp
+        knee = funnel.gamma(funnel.t_knee)
+        target_gamma = funnel.rho_max - level
+        if funnel.l <= 0.0 or target_gamma <= funnel.gamma_inf:
+            return math.inf
+        return funnel.t_knee + math.log((knee - funnel.gamma_inf)
+                                        / (target_gamma - funnel.gamma_inf)) / funnel.l
     target_gamma = funnel.rho_max - level
     if funnel.l <= 0.0 or target_gamma <= funnel.gamma_inf:
         return math.inf

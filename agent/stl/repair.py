@@ -27,6 +27,9 @@ class ProtocolParams:
     # on changes) [OUR CHOICE]; the stage-2 rule reads these announcements
     complete_on_satisfaction: bool = True  # §8: F done at the first a ≤ t ≤ b with r < ρ < ρ_max;
     # False runs every sub-task to its window end (F at t > b), as in §11.2's last variant
+    f_done_at_goal: bool = True  # F done (with the rule above) only once ρ ≥ r_frac·ρ_max of its
+    # first funnel, or ρ^φ > 0 at its look-ahead deadline (docs/stl-saturation.md §6); False:
+    # the authors' r < ρ < ρ_max, met even where repairs took r below 0
     followers_detect: bool = False  # followers run no detection (paper Alg. 2 line 5); True: the
     # authors' code behaviour, a follower repairs its local copy (stage 1 while ce ≤ K, else 3)
 

@@ -14,6 +14,7 @@ from collections.abc import Iterable, Sequence
 
 from tlfleet.agent.stl.errors import StlTaskError
 from tlfleet.agent.stl.parser import parse_task
+from tlfleet.agent.stl.supremum import Workspace
 from tlfleet.agent.stl.syntax import And, Temporal, literals
 from tlfleet.agent.stl.task import Task, build_task
 
@@ -56,8 +57,11 @@ def check_phase_start_times(owner: int, tasks: Sequence[Task],
 def build_sequence(owner: int, texts: Iterable[str | Temporal], *,
                    robot_ids: Iterable[int] | None = None, stl_ids: Iterable[int] | None = None,
                    rho_opt: Sequence[float | None] = (), eta: float = 10.0,
-                   warn: bool = True) -> tuple[Task, ...]:
-    """Parse, merge and build every sub-task of robot ``owner`` (``rho_opt[k]``: override or None).
+                   warn: bool = True, workspace: Workspace | None = None,
+                   poses: tuple[tuple[int, tuple[float, float, float]], ...] = ()
+                   ) -> tuple[Task, ...]:
+    """Parse, merge and build every sub-task of robot ``owner`` (``rho_opt[k]``: override or None;
+    without one, the supremum over ``workspace`` from the start ``poses``, ``build_task``).
 
     Overrides are matched to the sub-tasks after merging (a merged pair takes the first override).
     """
@@ -68,7 +72,7 @@ def build_sequence(owner: int, texts: Iterable[str | Temporal], *,
     for k, phi in enumerate(merged):
         override = rho_opt[k] if k < len(rho_opt) else None
         tasks.append(build_task(phi, owner, k, robot_ids=ids, stl_ids=stl_ids, rho_opt=override,
-                                eta=eta, warn=warn))
+                                eta=eta, warn=warn, workspace=workspace, poses=poses))
     return tuple(tasks)
 
 

@@ -1,7 +1,9 @@
 """One STL sub-task ready to run: window, ψ, participants, V_ctrl, ρ_opt and compiled ψ.
 
-stl-funnel.md §2 (participants vs. V_ctrl), §3 (ρ_opt default: LSE_η of the conjunct suprema,
-override allowed), paper Assumption 1 (concavity warning, rule in ``tlfleet.agent.stl.analysis``).
+stl-funnel.md §2 (participants vs. V_ctrl), §3 (ρ_opt: an override, else the supremum over the
+arena's workspace (``tlfleet.agent.stl.supremum``, docs/stl-saturation.md §5), else the LSE_η of
+the conjunct suprema), paper Assumption 1 (concavity warning, rule in
+``tlfleet.agent.stl.analysis``).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from tlfleet.agent.stl.compiled import StraightLinePsi
 from tlfleet.agent.stl.errors import StlConcavityWarning, StlTaskError
 from tlfleet.agent.stl.parser import parse_task
 from tlfleet.agent.stl.robustness import CompiledPsi, participants, smooth_and
+from tlfleet.agent.stl.supremum import Workspace, psi_supremum
 from tlfleet.agent.stl.syntax import Psi, Temporal, Top, literals, to_text
 
 logger = logging.getLogger(__name__)
@@ -29,7 +32,8 @@ class Task:
 
     ``participants``: every robot whose state enters ψ (ascending; the layout of the stacked state
     x̄ = [x_j1, y_j1, θ_j1, …]); ``v_ctrl``: the STL-controlled ones (V_i of §7);
-    ``rho_opt``: sup ρ^ψ used by the funnel (§5), resolved (override or default).
+    ``rho_opt``: sup ρ^ψ used by the funnel (§5), resolved (override or default); ``goal``: a
+    stacked state that attains it when it was computed over a workspace (else empty).
     """
 
     owner: int
@@ -43,6 +47,7 @@ class Task:
     rho_opt: float
     eta: float
     compiled: CompiledPsi | StraightLinePsi = field(compare=False, repr=False)
+    goal: tuple[float, ...] = field(default=(), compare=False, repr=False)
 
     @property
     def text(self) -> str:
@@ -84,13 +89,19 @@ def build_task(
     rho_opt: float | None = None,
     eta: float = 10.0,
     warn: bool = True,
+    workspace: Workspace | None = None,
+    poses: tuple[tuple[int, tuple[float, float, float]], ...] = (),
 ) -> Task:
     """Parse (if needed), analyse and compile one sub-task of robot ``owner``.
 
     ``stl_ids``: the STL robots of the scenario (default: every participant); the others are
     exogenous signals, not in V_ctrl, and treated as parameters by the concavity rule.
+    Without ``rho_opt``, ρ_opt is the supremum of ρ^ψ over ``workspace`` (the ascent starting
+    from ``poses``: (robot, (x, y, θ)) pairs), or without a workspace the LSE of the literal
+    suprema (stl-funnel.md §3).
     Raises ``FormulaSyntaxError`` (parse), ``StlTaskError`` (owner absent from ψ, ψ = ⊤, unbounded
-    ρ_opt without override); warns ``StlConcavityWarning`` for non-concave conjuncts.
+    ρ_opt without override or workspace); warns ``StlConcavityWarning`` for non-concave
+    conjuncts.
     """
     phi = formula if isinstance(formula, Temporal) else parse_task(formula, robot_ids)
     where = f"robot {owner} sub-task {index + 1} ({to_text(phi)!r})"
@@ -107,9 +118,17 @@ def build_task(
             warnings.warn(StlConcavityWarning(
                 f"{where}: predicate {to_text(literal)!r} is not concave in the controlled states "
                 f"(paper Assumption 1); the funnel guarantees do not apply to it"), stacklevel=2)
-    resolved = default_rho_opt(phi.body, eta) if rho_opt is None else float(rho_opt)
+    goal: tuple[float, ...] = ()
+    if rho_opt is not None:
+        resolved = float(rho_opt)
+    elif workspace is not None:
+        sup = psi_supremum(phi.body, robots, eta, workspace,
+                           tuple(p for p in poses if p[0] in robots))
+        resolved, goal = sup.value, sup.state
+    else:
+        resolved = default_rho_opt(phi.body, eta)
     if not math.isfinite(resolved):
         raise StlTaskError(f"{where}: sup of the robustness is unbounded; give rho_opt explicitly")
     return Task(owner=owner, index=index, kind=phi.op, a=phi.a, b=phi.b, psi=phi.body,
                 participants=robots, v_ctrl=v_ctrl, rho_opt=resolved, eta=eta,
-                compiled=StraightLinePsi(phi.body, robots, eta))
+                compiled=StraightLinePsi(phi.body, robots, eta), goal=goal)

@@ -211,9 +211,9 @@ def _collab(msg: Any) -> None:
     _number(".a", msg.a, -MAX_TIME, MAX_TIME, nan_ok=True)  # NaN: no active sub-task
     _number(".b", msg.b, -MAX_TIME, MAX_TIME, nan_ok=True)
     if msg.funnel is not None:  # the receiving core validates the funnel itself (NaN: unset)
-        for name in ("a", "b", "t_star", "t_r"):
+        for name in ("a", "b", "t_star", "t_r", "t_knee"):
             _number(f".funnel.{name}", getattr(msg.funnel, name), -MAX_TIME, MAX_TIME, True)
-        for name in ("rho_opt", "rho_max", "r", "gamma0", "gamma_inf", "l", "zeta_u"):
+        for name in ("rho_opt", "rho_max", "r", "gamma0", "gamma_inf", "l", "zeta_u", "ramp"):
             _number(f".funnel.{name}", getattr(msg.funnel, name), -MAX_VALUE, MAX_VALUE, True)
 
 

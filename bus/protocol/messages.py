@@ -108,6 +108,8 @@ class FunnelWire:
     t_star: float
     t_r: float
     zeta_u: float
+    ramp: float = 0.0  # the lower boundary's climb before the knee (0: no ramp)
+    t_knee: float = 0.0
 
 
 CollabKind = Literal["request", "update", "release", "status"]

@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         duration=args.duration, seed=args.seed, connect_timeout=args.connect_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
         zenoh_config=args.zenoh_config, secure=args.secure, lease_ms=args.lease_ms,
-        report=args.report, figures=args.figures, rrd=args.rrd, faults=tuple(args.faults),
+        report=args.report, figures=args.figures, figure_format=args.figure_format,
+        rrd=args.rrd, faults=tuple(args.faults),
         fault_plan=args.fault_plan, fault_handoff=args.fault_handoff)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 

@@ -53,12 +53,14 @@ def start_viewer(scenario: Scenario, config: OutputSettings, say: Say) -> Any:
 
 
 def write_report(files: RunFiles, summary: dict[str, Any], figures: bool,
-                 say: Say, tally: TaskTally | None = None) -> tuple[Any, str]:
+                 say: Say, tally: TaskTally | None = None,
+                 figure_format: str = "png") -> tuple[Any, str]:
     """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
     try:
         from tlfleet.coordinator.report.run_report import write_report as write
 
-        return write(files, figures=figures, summary=summary, tally=tally), ""
+        return write(files, figures=figures, summary=summary, tally=tally,
+                     figure_format=figure_format), ""
     except Exception as exc:
         say(f"report not written ({type(exc).__name__}: {exc})")
         return None, f"{type(exc).__name__}: {exc}"
@@ -107,7 +109,8 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
             summary_file.write("".join(line + "\n" for line in closing))
     report_result = None
     if config.report:
-        report_result, error = write_report(files, data, config.figures, say, tally)
+        report_result, error = write_report(files, data, config.figures, say, tally,
+                                            getattr(config, "figure_format", "png"))
         info["report"] = {"error": error} if error else {
             "path": str(run_dir / rundir.REPORT_MD),
             "figures": [str(path) for path in report_result.figures]}

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from runtime_helpers import FakeClock, FakeSim, stl_loop
-from stl_harness import run_closed_loop
+from stl_harness import authors_design, run_closed_loop
 from tlfleet.agent.control.collision import CollisionParams
 from tlfleet.agent.policy.stl import (
     LogRecord,
@@ -43,8 +43,8 @@ def make_pair():
     }
     library = {(j, t.index): t for j, seq in tasks.items() for t in seq}
     col = CollisionParams(beta=0.0)
-    a3 = single_agent(3, tasks[3], library=library, peers=[4], collision=col)
-    a4 = single_agent(4, tasks[4], library=library, peers=[3], collision=col)
+    a3 = single_agent(3, tasks[3], library=library, peers=[4], **authors_design(collision=col))
+    a4 = single_agent(4, tasks[4], library=library, peers=[3], **authors_design(collision=col))
     return a3, a4
 
 

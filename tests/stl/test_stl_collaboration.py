@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from stl_harness import run_closed_loop
+from stl_harness import authors_design, run_closed_loop
 from tlfleet.agent.control.collision import CollisionParams
 from tlfleet.agent.policy.stl import StepInput, single_agent
 from tlfleet.agent.stl.funnel import Funnel
@@ -65,8 +65,10 @@ def make_pair(latency_collision=None, recovery=None):
     library = {(j, t.index): t for j, seq in lib_tasks.items() for t in seq}
     col = latency_collision or CollisionParams(beta=0.0)
     extra = {} if recovery is None else {"recovery": recovery}
-    a3 = single_agent(3, lib_tasks[3], library=library, peers=[4], collision=col, **extra)
-    a4 = single_agent(4, lib_tasks[4], library=library, peers=[3], collision=col, **extra)
+    a3 = single_agent(3, lib_tasks[3], library=library, peers=[4],
+                      **authors_design(collision=col, **extra))
+    a4 = single_agent(4, lib_tasks[4], library=library, peers=[3],
+                      **authors_design(collision=col, **extra))
     return a3, a4, lib_tasks
 
 
@@ -171,8 +173,8 @@ def test_requester_ignores_requests_and_followers_detect_option():
     assert after.follow is None
     # followers_detect=True (the authors' code): a follower repairs its local copy, no messages
     lib = dict(a4.cfg.library)
-    detecting = single_agent(4, tasks[4], library=lib, peers=[3],
-                             protocol=ProtocolParams(followers_detect=True))
+    detecting = single_agent(4, tasks[4], library=lib, peers=[3], **authors_design(
+        protocol=ProtocolParams(followers_detect=True, f_done_at_goal=False)))
     s4, _ = detecting.step(detecting.initial_state(), StepInput(30.0, poses))
     tight = Funnel.init("F", 57, 58, tasks[3][0].rho_opt, -1.3, 30.0)
     request = CollabRequest(sender=3, receiver=4, subtask=0, funnel=tight, c=3)

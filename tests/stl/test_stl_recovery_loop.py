@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from stl_harness import ScriptedRobot, run_closed_loop
+from stl_harness import ScriptedRobot, authors_design, run_closed_loop
 from tlfleet.agent.policy.stl import single_agent
 from tlfleet.agent.stl.recovery import RecoveryParams
 from tlfleet.agent.stl.task import build_task
@@ -28,7 +28,7 @@ def _leader_shuttle(t: float):
 
 def _run(formula: str, start, leader, duration: float, recovery: bool):
     task = build_task(formula, 2, 0, robot_ids=(1, 2), stl_ids=(2,))
-    agent = single_agent(2, [task], recovery=RecoveryParams(enabled=recovery))
+    agent = single_agent(2, [task], **authors_design(recovery=RecoveryParams(enabled=recovery)))
     result = run_closed_loop([agent], {2: start}, duration,
                              exogenous=[ScriptedRobot(1, pose_at=leader)])
     traj = result.trajectory

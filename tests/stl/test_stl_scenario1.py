@@ -78,12 +78,13 @@ def test_phi5_second_is_satisfied_and_above_its_bound_rbar(run):
 
 
 def test_code_default_f_termination_ends_phi5_just_above_rbar(repo_root):
-    """With the authors' code behaviour (F-hold + first-instant completion, tlfleet's defaults)
-    an F task ends just above r̄ ≤ r_frac·ρ_max = 0.0225: the reason scenario1.toml runs the
-    paper's Algorithm 2 through the window instead (see its [stl] comment)."""
+    """With the authors' code behaviour (F-hold + completion at the first r < ρ < ρ_max) an F task
+    ends just above r̄ ≤ r_frac·ρ_max = 0.0225: the reason scenario1.toml runs the paper's
+    Algorithm 2 through the window instead (see its [stl] comment)."""
     scenario = load_scenario(repo_root / "scenarios" / "scenario1.toml")
     code_like = replace(scenario, stl=replace(scenario.stl, hold_f_above_r=True,
-                                              complete_f_on_satisfaction=True))
+                                              complete_f_on_satisfaction=True,
+                                              complete_f_at_goal=False))
     agents = build_agents(code_like, robots=[3, 4, 5])
     result = run_closed_loop(list(agents.values()),
                              {j: scenario.robot(j).pose for j in (3, 4, 5)}, scenario.duration)

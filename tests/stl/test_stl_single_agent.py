@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis_budget import examples
-from stl_harness import run_closed_loop
+from stl_harness import authors_design, run_closed_loop
 from tlfleet.agent.policy.stl import StepInput, single_agent
 from tlfleet.agent.stl.control_law import ControlParams
 from tlfleet.agent.stl.monitor import task_robustness
@@ -22,7 +22,7 @@ G_REGION = "dist(p1, [0,-2]) <= 0.1"
 
 def run_single(text, start, duration, **params):
     task = build_task(text, 1)
-    agent = single_agent(1, [task], **params)
+    agent = single_agent(1, [task], **authors_design(**params))
     result = run_closed_loop([agent], {1: (*start, 0.0)}, duration)
     (outcome,) = result.states[1].outcomes
     return task, result, outcome
@@ -102,7 +102,7 @@ def test_log_record_fields_and_funnel_containment_after_every_repair():
 
 def test_step_is_pure_and_idle_after_completion():
     task = build_task("F[1,2] (dist(p1, [0.05,0]) <= 0.1)", 1)
-    agent = single_agent(1, [task])
+    agent = single_agent(1, [task], **authors_design())
     state = agent.initial_state()
     poses = {1: np.array([0.0, 0.0, 0.0])}
     s1, out1 = agent.step(state, StepInput(0.0, poses))
@@ -130,7 +130,8 @@ def test_repair_loop_keeps_invariants_under_disturbance(kind, a, length, x, y, s
     achieved ρ^φ is at least the final r̄ (paper Alg. 2 line 28)."""
     text = f"{kind}[{a},{a + length}] (dist(p1, [0.5,-0.5]) <= 0.2)"
     task = build_task(text, 1)
-    result = run_closed_loop([single_agent(1, [task])], {1: (x, y, 0.0)}, a + length + 0.5,
+    result = run_closed_loop([single_agent(1, [task], **authors_design())], {1: (x, y, 0.0)},
+                             a + length + 0.5,
                              disturbance=disturbance, rng=np.random.default_rng(seed))
     for rec in result.logs[1]:
         if rec.repair:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from stl_harness import run_closed_loop
+from stl_harness import authors_design, run_closed_loop
 from tlfleet.agent.control.collision import CollisionParams
 from tlfleet.agent.policy.stl import StepInput, single_agent
 from tlfleet.agent.stl.funnel import Funnel
@@ -25,8 +25,10 @@ def make_pair():
     }
     library = {(j, t.index): t for j, seq in tasks.items() for t in seq}
     col = CollisionParams(beta=0.0)
-    return (single_agent(3, tasks[3], library=library, peers=[4], collision=col),
-            single_agent(4, tasks[4], library=library, peers=[3], collision=col), tasks)
+    return (single_agent(3, tasks[3], library=library, peers=[4],
+                         **authors_design(collision=col)),
+            single_agent(4, tasks[4], library=library, peers=[3],
+                         **authors_design(collision=col)), tasks)
 
 
 def test_an_unreachable_peer_is_forgotten_and_blocks_stage_2():
