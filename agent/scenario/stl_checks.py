@@ -16,8 +16,7 @@ loader (``tlfleet.agent.scenario.loader.parse_scenario``):
 * sub-task windows that overlap (§9: sub-tasks run in sequence, b^(k) ≤ a^(k+1));
 * ``phase_start_times`` entries that come before the previous window ends, or the wrong number
   of them (§9 item 4, §13 item 6);
-* a window that ends after the scenario's ``duration`` (:func:`check_windows_in_run`);
-* a conjunct that asks two robots' bodies to overlap (:func:`check_bodies_apart`).
+* a window that ends after the scenario's ``duration`` (:func:`check_windows_in_run`).
 
 Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
@@ -44,13 +43,7 @@ from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.agent.stl.robustness import participants
 from tlfleet.agent.stl.supremum import Workspace, psi_supremum
 from tlfleet.agent.stl.syntax import (
-    And,
-    BinOp,
-    Call,
-    Const,
     Not,
-    Position,
-    Predicate,
     Temporal,
     literals,
     robots_of,
@@ -138,53 +131,6 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
                         f"{t:g} precedes the end b = {windows[k][1]:g} of sub-task {k + 1} "
                         f"(stl-funnel.md §9: a forced start needs the previous window closed)")
     check_windows_in_run(scenario, source)
-    check_bodies_apart(scenario, source)
-
-
-def _pair_bound(literal: object) -> tuple[int, int, float] | None:
-    """``(i, j, d)`` when ``literal`` is ``dist(pi, pj) <= d`` (or ``< d``, ``d >= dist(…)``,
-    ``norm(pi - pj)``) with two different robots and a constant d [m]; None otherwise."""
-    if not isinstance(literal, Predicate):
-        return None
-    if literal.cmp in ("<=", "<"):
-        distance, bound = literal.lhs, literal.rhs
-    else:
-        distance, bound = literal.rhs, literal.lhs
-    if not isinstance(bound, Const) or not isinstance(distance, Call):
-        return None
-    args = distance.args
-    if distance.func == "norm" and len(args) == 1 and isinstance(args[0], BinOp) \
-            and args[0].op == "-":
-        args = (args[0].left, args[0].right)
-    elif distance.func != "dist":
-        return None
-    if len(args) != 2 or not all(isinstance(a, Position) for a in args):
-        return None
-    i, j = args[0].robot, args[1].robot  # type: ignore[union-attr]
-    return (i, j, float(bound.value)) if i != j else None
-
-
-def check_bodies_apart(scenario: Scenario, source: str) -> None:
-    """A sub-task whose every satisfying state puts two robots' centres closer than their radii
-    allow — a conjunct ``dist(pi, pj) <= d`` with d < r_i + r_j — asks their bodies to overlap:
-    no run meets it (the simulator keeps bodies apart) and the funnel would push them into
-    contact."""
-    radius = {r.id: r.radius for r in scenario.robots}
-    for index, robot in enumerate(scenario.robots):
-        for k, phi in enumerate(_formulas(scenario, index)):
-            body = phi.body
-            conjuncts = body.children if isinstance(body, And) else (body,)
-            for literal in conjuncts:
-                pair = _pair_bound(literal)
-                if pair is None or pair[0] not in radius or pair[1] not in radius:
-                    continue
-                i, j, d = pair
-                if d < radius[i] + radius[j]:
-                    raise ScenarioError(
-                        source, f"{robot_field(index, robot.id)}.stl[{k}]",
-                        f"{to_text(literal)!r} asks the bodies of robots {i} and {j} to overlap: "
-                        f"their centres can come no closer than the sum of their radii, "
-                        f"{radius[i]:g} + {radius[j]:g} = {radius[i] + radius[j]:g} m > {d:g} m")
 
 
 def check_windows_in_run(scenario: Scenario, source: str) -> None:

@@ -300,15 +300,17 @@ CASES: list[Case] = [
          "robots[id=1].ltl", "cannot be satisfied"),
     Case("ltl G a & G b on disjoint regions", edit(LTL1, 'ltl = "G a1 & G a2"'),
          "robots[id=1].ltl", "cannot be satisfied"),
-    Case("stl half-plane without rho_opt", stl2(["G[5,15] (dist(p2, [1,0]) <= 0.2)",
-                                                 "F[20,30] (x2 >= 0.5)"]),
+    Case("stl half-plane without rho_opt", _text(BASE.replace("[sim]", "[stl]\n"
+                                                              "rho_opt_from_arena = false\n\n[sim]")
+                                               .replace(STL2, 'stl = ["G[5,15] (dist(p2, [1,0]) '
+                                                              '<= 0.2)", "F[20,30] (x2 >= 0.5)"]')),
          "robots[id=2].stl", "unbounded"),
     Case("robot over the arena wall at its start", edit("pose = [1.0, 1.0, 0.0]",
                                                         "pose = [3.45, 1.0, 0.0]"),
          "robots[id=2].pose", "arena's wall"),
     Case("stl bodies asked to overlap", edit('stl = ["G[0,40] (dist(p3, p2) <= 2.5)"]',
                                              'stl = ["G[0,40] (dist(p3, p2) <= 0.3)"]'),
-         "robots[id=3].stl[0]", "bodies of robots 3 and 2 to overlap"),
+         "robots[id=3].stl[0]", "closer than their bodies allow"),
     Case("stl window beyond the duration", edit('stl = ["G[0,40] (dist(p3, p2) <= 2.5)"]',
                                                 'stl = ["G[0,45] (dist(p3, p2) <= 2.5)"]'),
          "robots[id=3].stl[0]", "ends after the run"),

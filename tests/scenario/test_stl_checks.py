@@ -84,11 +84,11 @@ def test_paper_scenarios_have_no_warning():
      r"window \[50, 70\] ends after the run \(duration = 60 s\)"),
     # bodies asked to overlap: radii 0.2 + 0.2 > 0.3, in any spelling of the distance
     (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.3)"]), "robots[id=3].stl[0]",
-     "bodies of robots 3 and 2 to overlap"),
+     "closer than their bodies allow"),
     (_with(2, stl=["G[5,10] (x3 >= 0 & 0.35 > norm(p2 - p3))"]), "robots[id=3].stl[0]",
-     "bodies of robots 2 and 3 to overlap"),
+     "closer than their bodies allow"),
     (_with(2, stl=["F[5,10] (dist(p3, p2) <= 0.5)"], radius=0.35), "robots[id=3].stl[0]",
-     "0.35 \\+ 0.2 = 0.55 m > 0.5 m"),
+     r"closer than their bodies allow \(0.55 m between centres\)"),
 ])
 def test_tasks_no_run_can_meet_are_rejected(data, field, reason):
     import re
