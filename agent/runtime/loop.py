@@ -308,7 +308,7 @@ class AgentLoop:
             "events_replayed": self.events.replayed}
         if self.link is not None:
             out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
-                       collab_received=self.link.received,
+                       collab_received=self.link.received, collab_refused=self.link.refused,
                        mean_collab_ms=1e3 * st.collab_time / max(self.link.sent, 1),
                        max_collab_ms=1e3 * st.max_collab_time)
         return out
