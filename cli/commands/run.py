@@ -30,6 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float, scenario_file
 from tlfleet.cli.conventions import add_json_argument, add_out_argument
@@ -54,6 +55,8 @@ EXAMPLES = (
     ("tlfleet run my.toml --realtime -o runs/try1 --duration 30",
      "30 s of my.toml on wall-clock time, recorded in runs/try1"),
     ("tlfleet run scenario2 --json -q", "no progress bar; the result as JSON on stdout"),
+    ("tlfleet run my.toml --hardware lab.toml",
+     "real robots on ROS 2 (docs/hardware.md): `tlfleet hw` in the simulator's place, realtime"),
 )
 EXIT_CODES = {
     0: "clean: the run reached its end and every check passed",
@@ -121,6 +124,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
+    parser.add_argument("--mcap", action="store_true",
+                        help="also write run.mcap at the end: the run in ROS 2 messages for "
+                             "Foxglove and ros2 bag (tlfleet export-mcap; the tlfleet[ros2] extra)")
+    parser.add_argument("--hardware", type=Path, default=None, metavar="LAB.toml",
+                        help="real robots on ROS 2: start `tlfleet hw --lab LAB.toml` in the "
+                             "simulator's place (realtime only; docs/hardware.md)")
+    parser.set_defaults(mode=None)  # lockstep, or realtime with --hardware
     add_require_tasks_argument(parser)
 
 
@@ -214,6 +224,16 @@ def result_json(result: RunResult) -> dict:
     }
 
 
+def _write_mcap(run_dir: Path, report) -> None:
+    """``--mcap``: run.mcap beside the report; a failure is reported, never fails the run."""
+    try:
+        from tlfleet.coordinator.report.mcap_export import export_mcap
+
+        report(f"wrote {export_mcap(run_dir)}")
+    except (ImportError, TlfleetError, OSError) as exc:
+        report(f"run.mcap not written: {exc}")
+
+
 def print_outputs(result: RunResult, as_json: bool = False) -> None:
     """The report table (the summary if no report was written), the files a person opens next and
     the run directory, then the last two lines: the task tally (``tasks: 5 of 7 met; …``) and the
@@ -265,6 +285,16 @@ def run_hosts(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.hardware is not None:
+        if args.mode == "lockstep":
+            print("tlfleet run: --hardware runs in realtime only: real robots do not wait for a "
+                  "lockstep tick (drop --lockstep)", file=sys.stderr)
+            return 2
+        if args.hosts or args.faults:
+            print("tlfleet run: --hardware cannot be combined with --hosts or --fault (they act "
+                  "on the simulator's processes and links)", file=sys.stderr)
+            return 2
+    args.mode = args.mode or ("realtime" if args.hardware is not None else "lockstep")
     if not args.hosts:
         from tlfleet.coordinator.faults.plan import hosts_for
 
@@ -292,7 +322,7 @@ def run(args: argparse.Namespace) -> int:
         rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        direct_links=args.direct_links, sched=args.sched,
+        direct_links=args.direct_links, sched=args.sched, hardware=args.hardware,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
@@ -311,6 +341,8 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if bar is not None:
                 bar.end()
+    if args.mcap:
+        _write_mcap(result.run_dir, report)
     print_outputs(result, as_json=args.json)
     verdict = result.verdict
     if result.viewer is not None:

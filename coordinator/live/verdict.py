@@ -146,6 +146,10 @@ def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, in
     kinds = Counter(event_kinds)
     for kind, what in (("watchdog_stop", "watchdog stop(s)"),
                        ("stale_command", "stale-command episode(s)"),
+                       ("tracking_lost", "hardware halt(s): a mocap body lost, every robot "
+                                         "held at zero"),
+                       ("geofence", "hardware halt(s): a robot left the geofence, every robot "
+                                    "held at zero"),
                        ("stale_mocap", "stale-mocap episode(s) during the mission"),
                        ("flagged_event", "flagged event(s): claimed identity does not hold"),
                        ("resumed", "agent resume(s) after a freeze or partition"),
