@@ -144,9 +144,11 @@ class RunResult:
 
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
     """The scenario (``ScenarioError`` names file and field; every agent built as its process
-    would, :func:`tlfleet.agent.policy.preflight.check_launch`); with ``secure``, its key directory
-    checked against it (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): both before
-    anything starts."""
+    would, :func:`tlfleet.agent.policy.preflight.check_launch`, an LTL robot's plan included:
+    the reason names the region in the way when the keep-out rule leaves none,
+    docs/ltl-navigation.md §2); with ``secure``, its key directory checked against it
+    (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): all before anything
+    starts."""
     scenario = load_scenario(scenario_path)
     check_launch(scenario)  # what would stop an agent at launch, refused before any starts
     if secure is not None:
