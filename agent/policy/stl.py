@@ -863,14 +863,18 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     """One :class:`StlAgent` per STL robot of a loaded ``tlfleet.agent.model.scenario.Scenario``.
 
     Parameters come from the scenario's ``[stl]`` table and each robot's limits unless given.
-    ``robots`` restricts which STL agents are built (the library still holds every STL task).
+    ``robots`` restricts which STL agents are built; the library holds their own sub-tasks and
+    every sub-task of a robot whose tasks name one of them (the stage-2 requests they may follow,
+    the announcements they owe), and nothing else.
     Each agent announces its status to :func:`status_readers` only.
     """
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
     library: dict[tuple[int, int], Task] = {}
-    # one place for the agents and `tlfleet check` (ρ_opt from the arena, coupled pairs)
-    sequences = stl_setup.stl_sequences(scenario, warn=warn)
+    # the agents' own tasks and those that name them (a requester's task, followed in stage 2):
+    # another robot's task, however broken, is that robot's agent's to report
+    needed = None if robots is None else stl_setup.naming(scenario, frozenset(robots))
+    sequences = stl_setup.stl_sequences(scenario, warn=warn, only=needed)
     for seq in sequences.values():
         for task in seq:
             library[(task.owner, task.index)] = task
