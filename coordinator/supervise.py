@@ -38,6 +38,7 @@ from tlfleet.agent.model.faults import Fault
 from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.limits import bounded
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.plausibility import max_jump_ticks
@@ -155,8 +156,9 @@ def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
     docs/ltl-navigation.md §2); with ``secure``, its key directory checked against it
     (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): all before anything
     starts."""
-    scenario = load_scenario(scenario_path)
-    check_launch(scenario)  # what would stop an agent at launch, refused before any starts
+    with bounded(str(scenario_path)):  # a task may ask for exponential work: bounded
+        scenario = load_scenario(scenario_path)
+        check_launch(scenario)  # what would stop an agent at launch, refused before any starts
     if secure is not None:
         from tlfleet.coordinator.security.authority import (
             check_keys,  # cryptography: imported for secured runs only

@@ -108,6 +108,8 @@ from tlfleet.sim.world import WALL, World, WorldConfig, native_tracking_availabl
 logger = logging.getLogger(__name__)
 
 SOURCE = "sim"
+MAX_MALFORMED_KEYS = 64  # distinct keys counted apart in sim_stats' malformed_by_key
+OTHER_KEYS = "(other keys)"
 LINGER = 0.1  # [s] wall between the last publication and closing the session
 SWITCH_INTERVAL = 0.0005  # [s] GIL switch interval: callbacks not held ~5 ms (stack-notes §2.3)
 
@@ -259,7 +261,8 @@ class SimProcess:
         self.stats = SimStats()
         self.malformed: Counter[str] = Counter()
         self._reported: dict[str, tuple[int, float]] = {}  # key -> (count reported, wall time)
-        self.timing = TimingStats()
+        self.timing = TimingStats(shared=self._shared_tick,
+                                  every_tick=[r for r, d in self.dividers.items() if d == 1])
         # (kind, key, payload or liveliness, arrival wall time [s]) from the transport callbacks
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._cmds: Channel | None = None  # lockstep: the commands' channel
@@ -738,6 +741,9 @@ class SimProcess:
         self._publish(self._keys["event"], Event(t, SOURCE, kind, dict(data)))
 
     def _malformed(self, key: str, reason: str) -> None:
+        if key not in self._cmd_robot and key not in self._keys.values() and \
+                key not in self.malformed and len(self.malformed) >= MAX_MALFORMED_KEYS:
+            key = OTHER_KEYS  # a stranger's endless key names: counted, not one entry each
         self.malformed[key] += 1
         if self.malformed[key] == 1:  # later ones are logged as counts by _report_malformed
             logger.warning("malformed message on %s: %s", key, reason)
@@ -772,8 +778,7 @@ class SimProcess:
             "malformed_by_key": dict(self.malformed),
             "stale_commands": sum(self.ages.stale.values()),
             "backfill": self.ring.stats(),
-            **self.timing.summary(every_tick=[r for r, d in self.dividers.items() if d == 1],
-                                  shared=self._shared_tick),
+            **self.timing.summary(),
         }
 
     def _log_summary(self, summary: dict[str, object]) -> None:

@@ -9,7 +9,8 @@ HOA (one automaton after the other, as Spot does) or, with ``--stats``, as one l
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,16 +36,22 @@ def read_formulas(path: str | Path) -> list[tuple[int, str]]:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise LtlError(f"{path}: cannot read the formula file: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise LtlError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     return [(i, line.strip()) for i, line in enumerate(text.splitlines(), 1)
             if line.strip() and not line.lstrip().startswith("#")]
 
 
-def translate_all(formulas: Iterable[tuple[int, str]]) -> Iterator[BatchResult]:
-    """Translate each ``(line, formula)``; errors are returned, not raised."""
+def translate_all(formulas: Iterable[tuple[int, str]],
+                  bound: Callable[[], AbstractContextManager] = nullcontext
+                  ) -> Iterator[BatchResult]:
+    """Translate each ``(line, formula)``, each inside ``bound()`` (the caller's time and memory
+    bound); errors are returned, not raised."""
     for line, text in formulas:
         cpu0, wall0 = time.process_time(), time.perf_counter()
         try:
-            buchi, error = translate(text), None
+            with bound():
+                buchi, error = translate(text), None
         except TlfleetError as exc:
             buchi, error = None, exc
         yield BatchResult(line, text, buchi, error, time.process_time() - cpu0,

@@ -41,6 +41,13 @@ from tlfleet.agent.ltl.graphs import nontrivial, reachable, strongly_connected_c
 from tlfleet.agent.ltl.guards import MAX_ATOMS, Alphabet, Guard, TooManyPropositions, valuation
 from tlfleet.agent.ltl.parser import parse
 from tlfleet.agent.ltl.printer import to_string
+from tlfleet.agent.ltl.recurrence import (
+    MIN_RECURRENCES,
+    TRIVIAL,
+    propositional_guard,
+    round_robin,
+    split_recurrences,
+)
 from tlfleet.agent.ltl.rewrite import normalize
 from tlfleet.agent.ltl.simulation import (
     is_deterministic,
@@ -177,7 +184,8 @@ def _collector_paused():
             gc.enable()
 
 
-def translation_candidates(formula: Formula | str, only_best: bool = False) -> list[Buchi]:
+def translation_candidates(formula: Formula | str, only_best: bool = False, *,
+                           index: dict[str, int] | None = None) -> list[Buchi]:
     """Equivalent automata of ``formula``: the smallest of the TGBA variants (the one or two
     markings of ``build_tgba``, each also with postponed branching, ``tlfleet.agent.ltl.branching``,
     when it has several initial states)
@@ -188,11 +196,20 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
     that happens to win.
     """
     tree = parse(formula) if isinstance(formula, str) else formula
-    atoms = _atoms_in_order(tree)
-    if len(atoms) > MAX_ATOMS:
-        raise TooManyPropositions(len(atoms))
-    index = {a: i for i, a in enumerate(atoms)}
+    if index is None:
+        atoms = _atoms_in_order(tree)
+        if len(atoms) > MAX_ATOMS:
+            raise TooManyPropositions(len(atoms))
+        index = {a: i for i, a in enumerate(atoms)}
+    else:  # a part of a larger formula: its guards over the whole formula's atoms
+        atoms = tuple(sorted(index, key=index.__getitem__))
     text = to_string(tree)
+    rest, recurrences = split_recurrences(normalize(tree))
+    if len(recurrences) >= MIN_RECURRENCES:  # G F φ_1 ∧ … ∧ G F φ_n: linear, not 2^n edges
+        base = TRIVIAL if rest is None else _as_tuple(
+            translation_candidates(rest, only_best=True, index=index)[0])
+        aut = round_robin(base, [propositional_guard(phi, index) for phi in recurrences])
+        return [_renumbered(text, atoms, *_cheap_reduce(_remove_useless(*aut))[1:])]
     variants = [reduce_tgba(tgba, len(atoms)) for tgba in build_tgba(normalize(tree), index)]
     for tgba in list(variants):
         # Several initial states (a disjunction at the top): merge the choice into one state.
@@ -242,6 +259,11 @@ def translation_candidates(formula: Formula | str, only_best: bool = False) -> l
     if 1 < min(b.num_states for b in result) <= 8 and _is_valid(result[0], negation):
         return [Buchi(text, atoms, (0,), frozenset({0}), (((0, TRUE),),))]
     return result
+
+
+def _as_tuple(buchi: Buchi):
+    return (buchi.num_states, buchi.initial, buchi.accepting,
+            [list(out) for out in buchi.edges])
 
 
 def _is_valid(buchi: Buchi, negation) -> bool:

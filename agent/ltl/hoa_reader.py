@@ -30,9 +30,12 @@ def _fail(source: str, line: int, what: str) -> LtlError:
 class _Label:
     """Recursive-descent parser of a HOA label expression: ``or := and ('|' and)*`` …"""
 
+    MAX_DEPTH = 256  # nested parentheses a label may have (Spot writes flat sums of cubes)
+
     def __init__(self, text: str, aliases: dict[str, Bdd], num_ap: int, fail):
         self.tokens = re.findall(r"\d+|@[\w\-.]+|[tf]|[&|!()]|\S", text)
         self.pos = 0
+        self.depth = 0
         self.aliases = aliases
         self.num_ap = num_ap
         self.fail = fail
@@ -65,13 +68,22 @@ class _Label:
         if token is None:
             raise self.fail("label ends early")
         self.pos += 1
-        if token == "!":
-            return ~self.atom()
+        if token == "!":  # a run of negations read in a loop: no recursion per '!'
+            negations = 1
+            while self.peek() == "!":
+                self.pos += 1
+                negations += 1
+            inner = self.atom()
+            return ~inner if negations % 2 else inner
         if token == "(":
+            self.depth += 1
+            if self.depth > self.MAX_DEPTH:
+                raise self.fail(f"label nested more than {self.MAX_DEPTH} parentheses deep")
             inner = self.disjunction()
             if self.peek() != ")":
                 raise self.fail("expected ')' in label")
             self.pos += 1
+            self.depth -= 1
             return inner
         if token == "t":
             return TRUE
@@ -238,4 +250,6 @@ def read_hoa_file(path: str | Path):
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise LtlError(f"{path}: cannot read the HOA automaton: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise LtlError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     return read_hoa(text, str(path))

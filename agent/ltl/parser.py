@@ -101,6 +101,33 @@ def _depth_of_repeat(letter: str, low: int, high: int | None) -> int:
     return low + (1 if high is None else 2 * (high - low))
 
 
+class _Chain:
+    """An n-ary ``&`` or ``|`` still being gathered by the parser (``items``, flattened)."""
+
+    __slots__ = ("cls", "items")
+
+    def __init__(self, cls: type, items: list):
+        self.cls = cls
+        self.items = items
+
+
+def _of_kind(f: object, cls: type) -> bool:
+    return isinstance(f, cls) or (isinstance(f, _Chain) and f.cls is cls)
+
+
+def _flat(f: object, cls: type):
+    if isinstance(f, _Chain) and f.cls is cls:
+        return f.items
+    return f.args if isinstance(f, cls) else (_done(f),)
+
+
+def _done(f: object) -> Formula:
+    """The formula of an operand: a gathered chain becomes its ``And`` / ``Or``."""
+    if isinstance(f, _Chain):
+        return f.cls(tuple(f.items)) if len(f.items) > 1 else f.items[0]
+    return f
+
+
 class _Parser:
     def __init__(self, text: str):
         self.text = text
@@ -125,6 +152,7 @@ class _Parser:
             op = operators.pop()
             if op.kind in _UNARY:
                 arg, depth = operands.pop()
+                arg = _done(arg)
                 if op.kind == lx.REPEAT:
                     letter, low, high = op.value
                     tree = _expand_repeat(letter, low, high, arg)
@@ -134,13 +162,19 @@ class _Parser:
                 return
             right, rd = operands.pop()
             left, ld = operands.pop()
-            tree = BINARY_PRECEDENCE[op.kind][2](left, right)
-            if isinstance(tree, And | Or):  # flattened: a same-kind operand adds no level
-                ld += type(left) is not type(tree)
-                rd += type(right) is not type(tree)
-                push(tree, max(ld, rd), op)
+            make = BINARY_PRECEDENCE[op.kind][2]
+            if make is conj or make is disj:
+                # flattened: a same-kind operand adds no level; the operands are gathered in
+                # one list, so a chain of n operators costs O(n), not O(n²) tuple copies
+                cls = And if make is conj else Or
+                ld += not _of_kind(left, cls)
+                rd += not _of_kind(right, cls)
+                items = left.items if isinstance(left, _Chain) and left.cls is cls \
+                    else list(_flat(left, cls))
+                items.extend(_flat(right, cls))
+                push(_Chain(cls, items), max(ld, rd), op)
             else:
-                push(tree, 1 + max(ld, rd), op)
+                push(make(_done(left), _done(right)), 1 + max(ld, rd), op)
 
         for token in self.tokens:
             kind = token.kind
@@ -200,7 +234,7 @@ class _Parser:
                                        f"got {_describe(token)}")
             previous = token
         (tree, _depth), = operands
-        return tree
+        return _done(tree)
 
 
 def parse(text: str) -> Formula:

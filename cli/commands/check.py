@@ -17,6 +17,7 @@ from tlfleet.agent.model import Scenario
 from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
+from tlfleet.bus.limits import bounded
 from tlfleet.cli.arg_types import scenario_file
 from tlfleet.cli.conventions import add_json_argument
 
@@ -40,15 +41,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.json:
         for path in args.scenario:
-            scenario = load_scenario(path)
-            check_launch(scenario)
+            with bounded(str(path)):  # a task may ask for exponential work: bounded
+                scenario = load_scenario(path)
+                check_launch(scenario)
             print(json.dumps(summary_json(scenario, stl_warnings(scenario))), flush=True)
         return 0
     for index, path in enumerate(args.scenario):
         if index:
             print()
-        scenario = load_scenario(path)
-        check_launch(scenario)  # every agent built as its process would: check <=> run
+        with bounded(str(path)):
+            scenario = load_scenario(path)
+            check_launch(scenario)  # every agent built as its process would: check <=> run
         print(summarise(scenario))
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")

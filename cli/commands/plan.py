@@ -21,6 +21,7 @@ import sys
 from tlfleet.agent.ltl.planner import Plan, plan_robot
 from tlfleet.agent.policy.ltl import plan_on_map
 from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.limits import bounded
 from tlfleet.cli.arg_types import scenario_file
 
 NAME = "plan"
@@ -63,7 +64,8 @@ def format_plan(p: Plan) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario)
+    with bounded(str(args.scenario)):  # a task may ask for exponential work: bounded
+        scenario = load_scenario(args.scenario)
     if args.robot is not None:
         if args.robot not in scenario.robot_ids:
             known = ", ".join(str(i) for i in scenario.robot_ids)

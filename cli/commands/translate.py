@@ -23,6 +23,8 @@ from tlfleet.agent.ltl.buchi import to_dot, to_text, translate
 from tlfleet.agent.ltl.hoa import to_hoa
 from tlfleet.agent.ltl.hoa_reader import read_hoa_file
 from tlfleet.bus.errors import LtlError
+from tlfleet.bus.limits import MEMORY_LIMIT, TIME_LIMIT, bounded
+from tlfleet.cli.arg_types import positive_float, positive_int
 from tlfleet.cli.conventions import add_json_argument
 
 NAME = "translate"
@@ -51,6 +53,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--name", default=None, help="automaton name in the HOA output")
     add_json_argument(parser, "print the automaton (or the --stats figures) as JSON instead; "
                               "with -F one JSON object a line")
+    add_limit_arguments(parser, "one formula's translation (or reading the HOA file)")
+
+
+def add_limit_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--time-limit", type=positive_float, default=TIME_LIMIT, metavar="S",
+                        help=f"wall time {what} may take [s] (default {TIME_LIMIT:g})")
+    parser.add_argument("--memory-limit", type=positive_int, default=MEMORY_LIMIT,
+                        metavar="MB", help=f"memory {what} may add [MB] (default "
+                                           f"{MEMORY_LIMIT})")
+
+
+def _bound(args: argparse.Namespace, what: str):
+    return bounded(what, args.time_limit, args.memory_limit,
+                   " (raise --time-limit / --memory-limit)")
 
 
 def automaton_json(buchi) -> dict:
@@ -82,7 +98,8 @@ def _run_file(args: argparse.Namespace) -> int:
     failed = 0
     if args.stats and not args.json:
         print(STATS_HEADER)
-    for result in translate_all(read_formulas(args.file)):
+    for result in translate_all(read_formulas(args.file),
+                                bound=lambda: _bound(args, "translation")):
         if result.error is not None:
             failed += 1
             print(f"tlfleet translate: {args.file}:{result.line}: {result.error}",
@@ -107,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
     if args.file is not None:
         return _run_file(args)
     t0 = time.perf_counter()
-    buchi = read_hoa_file(args.hoa) if args.hoa is not None else translate(args.formula)
+    with _bound(args, "reading the HOA file" if args.hoa is not None else "translation"):
+        buchi = read_hoa_file(args.hoa) if args.hoa is not None else translate(args.formula)
     elapsed = time.perf_counter() - t0
     if args.stats and args.json:
         print(json.dumps(_stats_json(buchi, elapsed)))
