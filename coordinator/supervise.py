@@ -47,6 +47,7 @@ from tlfleet.bus.zenoh.config import clean_reason
 from tlfleet.bus.zenoh.security import fingerprints, secure_transport
 from tlfleet.bus.zenoh.transport import open_transport
 from tlfleet.coordinator.launch.cleanup import Cleanup
+from tlfleet.coordinator.launch.processes import group_alive
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
 from tlfleet.coordinator.live.verdict import (
@@ -300,7 +301,7 @@ class Supervision:
     def findings(self) -> list[str]:
         """The agents' health findings, and each stretch of ``trajectory.csv`` the backfill
         could not recover."""
-        return self.health.findings() + [
+        return self.health.findings() + self.supervisor.findings() + [
             f"trajectory.csv misses {r['frames']} frames (seq {r['first']}–{r['last']}, "
             f"t = {r['t_first']:.2f}–{r['t_last']:.2f} s): lost on a link, and "
             + ("the simulator did not answer the backfill" if r["oldest_held"] is None else
@@ -509,4 +510,10 @@ def hosts_schedule(faults: tuple[Fault, ...], config: SuperviseConfig, session: 
 
         assert config.fault_plan is not None
         actuator = HostsActuator.from_file(config.fault_plan, session.supervisor)
+        # the plan's pids (a restart updates them): a process whose token is gone while its
+        # pid runs is unreachable, not dead
+        for name in actuator.pids:
+            if name == "sim" or name.startswith("agent-"):
+                session.supervisor.probes[name] = \
+                    lambda name=name: group_alive(actuator.pids[name])  # zombies are gone
     return FaultScheduler(faults, actuator, session.prepared.recorder.on_event, say)

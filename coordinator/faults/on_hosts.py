@@ -181,15 +181,24 @@ class HostsActuator:
             return {"how": f"nft drop of port {port} in {self.net.name(host)}"}
         pid = self.pids[target]
         if fault.kind == "restart":
-            return self._restart(target)
+            return self._restart(target, fault)
         if fault.kind == "freeze":  # a frozen process misses its keep-alives: a link loss
             self._mark(target, math.inf)
         os.killpg(pid, signal.SIGSTOP if fault.kind == "freeze" else signal.SIGKILL)
+        if fault.kind == "kill":
+            self._killed(target, fault)
         return {"pid": pid}
 
-    def _restart(self, name: str) -> dict[str, Any]:
+    def _killed(self, name: str, fault: Fault) -> None:
+        """The supervisor learns the death from us: it follows this process by the plan's pid,
+        which a restart replaces before the old token's loss is seen."""
+        if self.supervisor is not None and hasattr(self.supervisor, "process_killed"):
+            self.supervisor.process_killed(name, f"killed by fault {fault.text or fault.spec}")
+
+    def _restart(self, name: str, fault: Fault) -> dict[str, Any]:
         pid = self.pids[name]
         kill_group(pid, self.kill_wait)
+        self._killed(name, fault)
         assert self.log_dir is not None  # check() made sure
         if self._launcher is None:
             self._launcher = Launcher(self.log_dir)

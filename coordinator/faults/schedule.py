@@ -103,11 +103,16 @@ class FaultScheduler:
             self._start(self.pending.pop(0))
 
     def close(self) -> None:
-        """End every active fault now (the run is over); pending ones never start."""
+        """End every active fault now (the run is over); pending ones never start, each
+        recorded as ``Event(fault_skipped)`` with the reason (the report's fault table lists
+        it)."""
         for active in list(self.active):
             self._end(active, early=True)
         for fault in self.pending:
-            self.log.append({**fault.as_dict(), "started": False})
+            reason = (f"the run ended at t = {self.sim_time:.2f} s, before the fault's time "
+                      f"t = {fault.at:g} s")
+            self.log.append({**fault.as_dict(), "started": False, "reason": reason})
+            self._event("fault_skipped", fault, {"reason": reason})
         self.pending.clear()
 
     def findings(self) -> list[str]:
@@ -115,7 +120,7 @@ class FaultScheduler:
         out = []
         for entry in self.log:
             if not entry.get("started"):
-                out.append(f"fault {entry['spec']} never started (the run ended first)")
+                out.append(f"fault {entry['spec']} skipped: {entry.get('reason', 'never due')}")
                 continue
             end = entry.get("end_t")
             lasted = entry.get("lasted")
@@ -285,6 +290,8 @@ class ProcessActuator:
         if fault.kind == "restart" and name == "router":
             self._mark_everyone(math.inf)
         pid = self._kill(name)
+        if self.supervisor is not None and name != "router":
+            self.supervisor.process_killed(name, f"killed by fault {fault.text or fault.spec}")
         if fault.kind == "kill":
             return {"pid": pid}
         child = self.launcher.restart(name)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import signal
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -86,7 +87,9 @@ class Death:
 class Outcome:
     """How the supervised phase ended."""
 
-    reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_lost
+    # sim_done | duration | sim_ended (exited 0, its sim_done not received) | wall_timeout |
+    # interrupted | sim_died | router_lost
+    reason: str
     t_end: float  # [s] sim time
     deaths: list[Death] = field(default_factory=list)
     sim_reached: float | None = None  # [s] where the simulator says it ended, once it ended
@@ -136,6 +139,11 @@ class Supervisor:
         # cut) a lost token of theirs is a link loss, not a death; and the losses now open
         self.cut: dict[str, float] = {}
         self.link_lost: dict[str, float] = {}  # process -> wall time (time.time()) of the loss
+        # children whose token is gone while their process runs -> (sim time, wall) it went
+        self.unreachable: dict[str, tuple[float, float]] = {}
+        self.sim_exited = False  # the simulator exited 0 without a sim_done received
+        # processes known by pid, not started here (namespace hosts): name -> "still runs?"
+        self.probes: dict[str, Callable[[], bool]] = {}
         self._alive_queue: queue.SimpleQueue[tuple[str, bool]] = queue.SimpleQueue()
         self._handles: list[Closeable] = [
             transport.watch_alive(keys.all_alive(self.fleet),
@@ -197,6 +205,7 @@ class Supervisor:
                 if name in self.link_lost:
                     self._link_event("link_restored", name)
                 self._lift_suspicion(name)
+                self._reachable_again(name)
                 self._maybe_recovered(name)
             else:
                 self.alive.discard(name)
@@ -204,20 +213,97 @@ class Supervisor:
                         and not self.tap.recorder.event_kinds["sim_done"]):
                     self._link_event("link_lost", name)
                 elif not self.stopping:
-                    self._suspect(name, "liveliness token lost", None)
+                    self._token_lost(name)
+
+    def _token_lost(self, name: str) -> None:
+        """A token gone is a death only when the process is gone too: a child of ours that
+        still runs (frozen, starved, cut off past the lease) is *unreachable* until it exits or
+        comes back. The simulator's lost token waits ``end_grace`` first (its own end: its
+        ``sim_done`` may still be in flight). Without a handle on the process (``tlfleet
+        supervise``) the token is all there is: a death, recovered if the token returns."""
+        if self._router_lost():  # everybody's token went with it: one router loss
+            self._died(name, "liveliness token lost", None)
+        elif name in FINISHERS:
+            self._suspect(name, "liveliness token lost", None)
+        elif self._runs(name):
+            self._unreachable(name)
+        else:
+            self._suspect(name, "liveliness token lost", None)
+
+    def _runs(self, name: str) -> bool | None:
+        """Whether process ``name`` still runs: a child's exit code, a probe's answer (a
+        process this coordinator knows by pid), or None (unknown)."""
+        child = self.children.get(name)
+        if child is not None:
+            return child.returncode is None
+        probe = self.probes.get(name)
+        return probe() if probe is not None else None
+
+    def process_killed(self, name: str, how: str) -> None:
+        """A fault killed ``name`` (``kill:``, or ``restart:`` before its new process starts):
+        a death now, whatever its token does next (a restart's new token is a recovery)."""
+        self.unreachable.pop(name, None)
+        self._suspects.pop(name, None)
+        self._died(name, how, -signal.SIGKILL)
+
+    def _unreachable(self, name: str) -> None:
+        if name in self.unreachable or name in self.deaths:
+            return
+        wall = time.time()
+        self.unreachable[name] = (self.sim_time, wall)
+        self._report(f"{name} unreachable at t = {self.sim_time:.2f} s: its liveliness token is "
+                     "gone and its process still runs (frozen, starved or cut off?)")
+        self.tap.recorder.on_event(Event(t=self.sim_time, source=COORDINATOR_SOURCE,
+                                         kind="process_unreachable",
+                                         data={"process": name, "wall": wall}))
+
+    def _reachable_again(self, name: str) -> None:
+        episode = self.unreachable.pop(name, None)
+        if episode is None:
+            return
+        t, wall = episode
+        lost_for = time.time() - wall
+        self._report(f"{name} reachable again at t = {self.sim_time:.2f} s after {lost_for:.2f} s")
+        self.tap.recorder.on_event(Event(t=self.sim_time, source=COORDINATOR_SOURCE,
+                                         kind="process_reachable",
+                                         data={"process": name, "lost_at": t,
+                                               "lost_for": lost_for, "wall": time.time()}))
 
     def _poll_children(self) -> None:
         for name, child in self.children.items():
             code = child.returncode
             if code is not None and name not in self.deaths and not self.stopping:
+                self.unreachable.pop(name, None)  # it is not unreachable: it is gone
                 self._suspect(name, f"exited with code {code}", code)
+        for name in [n for n in self.unreachable if n in self.probes]:
+            if not self.probes[name]() and not self.stopping:
+                del self.unreachable[name]
+                self._suspect(name, "its process exited", None)
         now = self._clock()
         for name, (since, how, code, _t) in list(self._suspects.items()):
             if self.sim_done:
                 del self._suspects[name]  # the simulator ended the mission: not a death
             elif now - since >= self.config.end_grace:
                 del self._suspects[name]
-                self._died(name, how, code)
+                if code is None and self._runs(name):
+                    self._unreachable(name)  # its token only: the process still runs
+                elif code == 0 and name == "sim":
+                    self._sim_ended()
+                else:
+                    self._died(name, how, code)
+
+    def _sim_ended(self) -> None:
+        """The simulator exited 0 without a ``sim_done`` the coordinator received (a starved
+        or cut link lost it, and its last frames): it ended by itself, it did not die."""
+        if self.sim_exited:
+            return
+        self.sim_exited = True
+        self._report(f"sim exited 0 at t = {self.sim_time:.2f} s (the frames recorded end "
+                     "there): its end and its last frames never reached the coordinator")
+        self.tap.recorder.on_event(Event(t=self.sim_time, source=COORDINATOR_SOURCE,
+                                         kind="process_exited",
+                                         data={"process": "sim", "returncode": 0,
+                                               "wall": time.time()}))
 
     def _suspect(self, name: str, how: str, returncode: int | None) -> None:
         """The simulator exits by itself right after ``sim_done``, which may still be in flight:
@@ -363,6 +449,8 @@ class Supervisor:
                 progress(self.sim_time, self.duration)
             if "sim" in self.deaths:
                 reason = "sim_died"
+            elif self.sim_exited:
+                reason = "sim_ended"
             elif "router" in self.deaths:
                 reason = "router_lost"
             elif self.sim_done:
@@ -404,6 +492,11 @@ class Supervisor:
         self.tap.drain()
         self._process_alive_queue()
         return {n: c.returncode for n, c in waiting.items()}
+
+    def findings(self) -> list[str]:
+        """The processes still unreachable when the run ended (the verdict's degradations)."""
+        return [f"{name} unreachable from t = {t:.2f} s to the end of the run (token gone, "
+                "process running)" for name, (t, _wall) in sorted(self.unreachable.items())]
 
     def close(self) -> None:
         for handle in self._handles:

@@ -29,7 +29,7 @@ from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
 
 EXIT_CODES = {"clean": 0, "failed": 3, "degraded": 4, "interrupted": 130}
 MAX_MISSED_FRACTION = 0.05  # realtime: missed control deadlines / due above this → degraded
-FINISHED = ("sim_done", "duration")
+FINISHED = ("sim_done", "duration", "sim_ended")
 
 
 @dataclass(frozen=True)
@@ -156,6 +156,8 @@ def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, in
                        ("process_recovered", "process recovery(ies)"),
                        ("token_blip", "liveliness blip(s): a token gone and back at once"),
                        ("agent_silent", "silent agent episode(s)"),
+                       ("process_unreachable", "unreachable process episode(s) (token gone, "
+                                               "process running)"),
                        ("link_lost", "link loss(es)")):
         if kinds[kind]:
             degraded.append(f"{kinds[kind]} {what}")

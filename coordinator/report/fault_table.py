@@ -74,6 +74,14 @@ def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | N
     radii = {r.id: r.radius for r in scenario.robots}
     rows = []
     for n, start in enumerate(events):
+        if start.kind == "fault_skipped":
+            data = start.data if isinstance(start.data, dict) else {}
+            rows.append({"spec": data.get("spec"), "kind": data.get("kind"),
+                         "targets": [t for t in data.get("targets", []) if isinstance(t, str)],
+                         "start_t": None, "end_t": None, "lasted": None,
+                         "error": f"skipped: {data.get('reason', '')}", "detection": None,
+                         "min_clearance": None})
+            continue
         if start.kind != "fault_start":
             continue
         data = start.data if isinstance(start.data, dict) else {}
@@ -123,7 +131,9 @@ def render_fault_lines(rows: list[dict[str, Any]]) -> list[str]:
     for r in rows:
         d = r["detection"] or {}
         after = d.get("after_wall", d.get("after_sim"))
-        out.append(f"| `{r['spec']}`{' (failed: ' + r['error'] + ')' if r['error'] else ''} | "
+        why = "" if not r["error"] else f" ({r['error']})" \
+            if r["error"].startswith("skipped") else f" (failed: {r['error']})"
+        out.append(f"| `{r['spec']}`{why} | "
                    f"{num(r['start_t'], '.2f')} | {num(r['end_t'], '.2f')} | "
                    f"{num(r['lasted'], '.2f')} | {d.get('kind', 'not detected')} | "
                    f"{num(after, '.2f')} | {num(r['min_clearance'], '+.3f')} |")

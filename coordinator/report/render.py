@@ -105,6 +105,12 @@ def render_markdown(data: dict[str, Any]) -> str:
     if data["trajectory_error"]:
         out.append(f"* **trajectory unusable**: {data['trajectory_error']} — robustness, visits "
                    f"and figures from the trajectory are missing")
+    lost = data.get("lost_frames") or []
+    if lost:
+        out.append("* **frames not recorded**: " + "; ".join(
+            f"t = {g['t_from']:.2f}–{g['t_to']:.2f} s ({g['frames']} frames)" for g in lost)
+                   + " — lost on a link and not backfilled, or after the coordinator lost the "
+                     "simulator; robustness and visits see only the frames recorded")
     if data["events_skipped_lines"]:
         out.append(f"* events.jsonl: line(s) {', '.join(map(str, data['events_skipped_lines']))} "
                    f"not JSON (torn write?), skipped")

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from tlfleet.agent.model import Scenario
+from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.bus.protocol.messages import LtlStatus, StlStatus
 from tlfleet.coordinator.record import rundir
@@ -184,6 +185,8 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None,
         "timing": _timing(summary["deadlines"]),
         "process_deaths": summary["process_deaths"],
         "faults": fault_rows(scenario, events, traj),
+        "lost_frames": lost_frames(traj, scenario.duration if run.get("duration") is None
+                                   else float(run["duration"]), scenario.sim.mocap_rate),
         "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
     }
     data["verdicts"] = task_verdicts.collect(scenario, traj, events, t_end, data["stl"])
@@ -195,6 +198,27 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None,
     context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
                "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context
+
+
+def lost_frames(traj: Trajectory | None, duration: float, rate: float,
+                gap: float = 1.5) -> list[dict[str, Any]]:
+    """The stretches of sim time ``trajectory.csv`` has no frame for, read off the file itself:
+    a gap between two rows longer than ``gap`` mocap periods, and the end of the run (its
+    ``duration`` [s]) when the last row falls short of it — frames lost on a link and never
+    backfilled, or the end of a run whose simulator the coordinator lost. Each ``{"t_from",
+    "t_to" [s], "frames"}`` (the frames missing)."""
+    if traj is None or len(traj.t) == 0:
+        return []
+    period = 1.0 / rate
+    t = np.asarray(traj.t)
+    out = []
+    for k in np.flatnonzero(np.diff(t) > gap * period):
+        out.append({"t_from": float(t[k]), "t_to": float(t[k + 1]),
+                    "frames": round(float(t[k + 1] - t[k]) / period) - 1})
+    if t[-1] < duration - gap * period:
+        out.append({"t_from": float(t[-1]), "t_to": float(duration),
+                    "frames": round((duration - float(t[-1])) / period)})
+    return out
 
 
 def _timing(deadlines: dict[str, Any]) -> dict[str, Any]:

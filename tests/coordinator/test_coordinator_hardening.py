@@ -249,12 +249,22 @@ def test_an_agent_back_after_a_partition_is_recovered_not_dead(fleet, launched):
     sup.start()
     peers["agent-2"].kill()  # token gone: the lease expired during a partition
     sup.check()
-    assert "agent-2" in sup.deaths
+    kinds = sup.tap.recorder.event_kinds
+    if launched:  # its process still runs: unreachable, never dead
+        assert "agent-2" not in sup.deaths and "agent-2" in sup.unreachable
+        assert kinds["process_unreachable"] == 1 and "unreachable" in reports[-1]
+    else:  # the token is all there is
+        assert "agent-2" in sup.deaths
     net.transport("agent-2-again").declare_alive(keys.alive(scenario.fleet, "agent", 2))
     sup.check()
-    assert "agent-2" not in sup.deaths and [d.process for d in sup.recovered] == ["agent-2"]
-    assert "agent-2 is back" in reports[-1]
-    assert sup.tap.recorder.event_kinds["process_recovered"] == 1
+    assert "agent-2" not in sup.deaths and not sup.unreachable
+    if launched:
+        assert kinds["process_reachable"] == 1 and "reachable again" in reports[-1]
+        assert sup.recovered == [] and kinds["process_died"] == 0
+    else:
+        assert [d.process for d in sup.recovered] == ["agent-2"]
+        assert "agent-2 is back" in reports[-1]
+        assert kinds["process_recovered"] == 1
 
 
 class Clock:
@@ -352,3 +362,44 @@ def test_the_verdict_compares_the_end_with_the_duration():
     stopped = _judge(17.33, reason="interrupted")
     assert stopped.label == "interrupted" and "ended at t = 17.33 s of 45 s" in stopped.line
     assert _judge(3.0, reason="sim_died").label == "failed"
+
+
+def test_a_sim_whose_token_is_gone_while_it_runs_is_unreachable_not_dead(fleet):  # noqa: F811
+    """A frozen or starved simulator (its process runs, its lease lapsed): unreachable until
+    its token comes back, never a death that aborts the run."""
+    scenario, net, sup, _children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    peers["sim"].kill()
+    deadline = time.monotonic() + sup.config.end_grace + 1.0
+    while "sim" not in sup.unreachable and time.monotonic() < deadline:
+        sup.check()
+        time.sleep(0.02)
+    assert "sim" in sup.unreachable and "sim" not in sup.deaths
+    assert sup.findings() == ["sim unreachable from t = 0.00 s to the end of the run (token "
+                              "gone, process running)"]
+    declare(net, scenario, ["sim"])
+    sup.check()
+    kinds = sup.tap.recorder.event_kinds
+    assert not sup.unreachable and kinds["process_unreachable"] == 1
+    assert kinds["process_reachable"] == 1 and kinds["process_died"] == 0
+    assert not any("died" in r for r in reports)
+
+
+def test_a_sim_that_exits_0_without_its_sim_done_ended_it_did_not_die(fleet):  # noqa: F811
+    """A link starved to the end: the simulator finished and exited 0, but neither its last
+    frames nor its sim_done reached the coordinator."""
+    scenario, net, sup, children, reports = fleet
+    peers = declare(net, scenario, ["sim", "agent-1", "agent-2"])
+    sup.wait_ready()
+    sup.start()
+    peers["sim"].publish(keys.mocap(scenario.fleet), encode(MocapFrame(1.3, 130, POSES)))
+    children["sim"].returncode = 0
+    peers["sim"].kill()
+    outcome = sup.supervise()
+    assert outcome.reason == "sim_ended" and outcome.deaths == []
+    assert outcome.t_end == pytest.approx(1.3)
+    assert any("sim exited 0 at t = 1.30 s" in r for r in reports)
+    verdict = _judge(1.3, duration=5.0, reason="sim_ended")
+    assert verdict.label == "failed" and "3.70 s before its duration" in verdict.line

@@ -118,7 +118,8 @@ def test_start_death_and_sim_done(fleet):
                         encode(MocapFrame(k / 10, k, ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0)))))
             if k == 10:
                 killed_at["wall"] = time.time()
-                peers["agent-2"].kill()  # its token disappears, as for a dead process
+                sup.children["agent-2"].returncode = -9  # the process is gone
+                peers["agent-2"].kill()  # and its token with it
             time.sleep(0.005)
         sim.publish(keys.event(scenario.fleet, "sim", 0), encode(Event(4.9, "sim", "sim_done", {})))
 
@@ -134,7 +135,7 @@ def test_start_death_and_sim_done(fleet):
     assert "goes on without it" in reports[0]
     codes = sup.finish()
     assert controls == ["start", "stop"]
-    assert codes == {"sim": None, "agent-1": None, "agent-2": None}  # fakes never exit
+    assert codes == {"sim": None, "agent-1": None, "agent-2": -9}  # the other fakes never exit
     assert sup.tap.recorder.event_kinds["process_died"] == 1
 
 

@@ -86,8 +86,12 @@ def test_close_ends_active_faults_and_reports_those_that_never_started():
     schedule.poll(1.0)
     schedule.close()
     assert actuator.calls == [("start", "cut:agent-1@1+10"), ("end", "cut:agent-1@1+10")]
-    assert events[-1].kind == "fault_end" and events[-1].data["early"] is True
-    assert schedule.findings()[1] == "fault cut:robot2@50+1 never started (the run ended first)"
+    assert events[-2].kind == "fault_end" and events[-2].data["early"] is True
+    skipped = events[-1]  # recorded, so the report's fault table lists it with its reason
+    assert skipped.kind == "fault_skipped" and skipped.data["spec"] == "cut:robot2@50+1"
+    reason = "the run ended at t = 1.00 s, before the fault's time t = 50 s"
+    assert skipped.data["reason"] == reason
+    assert schedule.findings()[1] == f"fault cut:robot2@50+1 skipped: {reason}"
     schedule.close()  # idempotent
     assert len(actuator.calls) == 2
 

@@ -55,3 +55,42 @@ def test_a_partition_is_detected_by_its_targets_themselves(scenarios_dir):
     (row,) = fault_rows(scenario, [start(36.0, spec, "partition", ["agent-3", "agent-4"]),
                                    end(39.0, spec, 6.0)], None)
     assert row["detection"] is None  # nobody noticed
+
+
+def test_skipped_and_failed_faults_are_rows_with_their_reason(scenarios_dir):
+    """A fault the run never reached and one the actuator could not inject are in the table,
+    each saying why, not left out."""
+    from tlfleet.coordinator.report.fault_table import render_fault_lines
+
+    scenario = load_scenario(scenarios_dir / "scenario1.toml")
+    failed = Event(5.0, "coordinator", "fault_start",
+                   {"spec": "kill:robot9@5", "kind": "kill", "targets": ["agent-9"],
+                    "wall": 1000.0, "error": "no child agent-9"})
+    skipped = Event(20.0, "coordinator", "fault_skipped",
+                    {"spec": "cut:robot2@50+1", "kind": "cut", "targets": ["agent-2"],
+                     "wall": 1001.0, "reason": "the run ended at t = 20.00 s, before the "
+                                               "fault's time t = 50 s"})
+    rows = fault_rows(scenario, [failed, skipped], None)
+    assert [(r["spec"], r["error"]) for r in rows] == [
+        ("kill:robot9@5", "no child agent-9"),
+        ("cut:robot2@50+1", "skipped: the run ended at t = 20.00 s, before the fault's time "
+                            "t = 50 s")]
+    lines = render_fault_lines(rows)
+    assert any("`kill:robot9@5` (failed: no child agent-9)" in line for line in lines)
+    assert any("`cut:robot2@50+1` (skipped: the run ended at t = 20.00 s" in line
+               for line in lines)
+
+
+def test_the_report_names_the_frames_it_lost():
+    """Read off trajectory.csv itself: a gap between rows and an end that falls short."""
+    import numpy as np
+    from tlfleet.agent.stl.monitor import Trajectory
+    from tlfleet.coordinator.report.run_report import lost_frames
+
+    t = np.concatenate([np.arange(0, 301) / 100, np.arange(500, 1321) / 100])  # 3.00 → 5.00
+    traj = Trajectory(t=t, states={1: np.zeros((len(t), 3))})
+    assert lost_frames(traj, duration=40.0, rate=100.0) == [
+        {"t_from": 3.0, "t_to": 5.0, "frames": 199},
+        {"t_from": 13.2, "t_to": 40.0, "frames": 2680}]
+    whole = Trajectory(t=np.arange(0, 4001) / 100, states={1: np.zeros((4001, 3))})
+    assert lost_frames(whole, duration=40.0, rate=100.0) == []

@@ -202,3 +202,25 @@ def test_bad_fault_specs_exit_before_anything_starts(tmp_path):
         assert message in done.stderr, done.stderr
         assert not out.exists()  # nothing was written, nothing started
     assert load_scenario(TWO).faults == ()
+
+
+@pytest.mark.parametrize("spec", ["freeze:sim@3+2", "freeze:router@3+2", "freeze:robot2@3+2"])
+def test_with_a_short_lease_a_frozen_process_is_unreachable_and_the_run_completes(tmp_path,
+                                                                                   spec):
+    """README's fault examples with ``--lease-ms 500``: the frozen process's token (or, for the
+    router, everybody's) lapses while its process runs — unreachable, never dead — and the run
+    ends at its duration with an honest verdict: degraded, the episode listed."""
+    run_dir = tmp_path / "run"
+    result = run(TWO, run_dir, mode="realtime", duration=9.0, rrd=False, report=True,
+                 figures=False, lease_ms=500, faults=(parse_fault(spec),))
+    assert result.outcome.reason in ("sim_done", "duration") and result.outcome.deaths == []
+    assert result.outcome.t_end == pytest.approx(9.0)
+    assert result.verdict.label == "degraded", result.verdict.line
+    kinds = collections.Counter(e["kind"] for e in events(run_dir))
+    assert kinds["process_died"] == 0
+    lost = {e["data"]["process"] for e in events(run_dir) if e["kind"] == "process_unreachable"}
+    back = {e["data"]["process"] for e in events(run_dir) if e["kind"] == "process_reachable"}
+    assert lost and lost == back, (lost, back)  # every one of them came back
+    target = spec.split(":")[1].split("@")[0].replace("robot", "agent-")
+    assert target in lost or target == "router"
+    assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
