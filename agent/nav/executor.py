@@ -1,42 +1,54 @@
 """Plan executor: drives a unicycle along its LTL plan, one pure step per control tick.
 
-ltl-planning.md §6 and paper §III-A. The plan is the projection on regions of the optimal
+docs/ltl-navigation.md and paper §III-A. The plan is the projection on regions of the optimal
 prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``, with the planner's
-conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` may be the virtual ``"start"`` state, and
-a name equal to the previous one means "stay". Each step (5 Hz):
+conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` (``suffix[0]`` when the prefix is
+empty) is where the robot is, possibly the virtual ``"start"`` state, and a name equal to the
+previous one means "stay". Each step (5 Hz):
 
-1. **Visits.** The current target counts as visited when the robot is inside the region or within
-   ``xy_goal_tolerance`` of its centre; the executor then advances (stays pass at once, without a
-   new visit). A suffix that loops on one region ends the motion (``PlanFinished``): the robot
-   drives on to that region's centre and holds there.
-2. **Global path** (``grid_planner.plan_path``) from the pose to the target centre, on the
-   static grid with the other robots within ``local_range`` stamped in as inflated discs — the
-   paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
-   Robots ahead are stamped a second time shifted to our left, so paths keep right. The
-   periodic re-plans (and the re-plan around blocking robots of step 4) are *deferred*
-   (``deferred_replan``): the step that finds one due keeps following the current
-   path and records a :class:`PathRequest` (its pose and stamped robots); the runtime runs it
-   with :meth:`Executor.refresh` after the command is on its way, and the path is followed from
-   the next step on — move_base's global planner, which runs beside the controller at 1 Hz, has
-   the same one-period lag. A step that finds a request still pending runs it first, so the
-   trajectory is the same whether or not the caller refreshes between steps. A new target (a
-   region reached, a new plan) has no path to follow yet and is planned at once.
-3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
-   velocity estimated from two consecutive pose frames.
-4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
-   ``progress_epsilon``. With none for ``blocked_after`` the global path is re-planned with the
-   nearby robots stamped at full size (they become obstacles of the global plan, so a robot
-   blocking the way is passed around); with none for ``stuck_timeout`` the executor emits
-   ``Stuck``, rotates in
-   place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
-   emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
-   answer with a new plan (``ExecutorInputs.new_plan``); its ``prefix[0]``, when it is the last
-   region visited, counts as reached.
+1. **The run's word** (docs/ltl-navigation.md §1). The regions whose disc the centre entered
+   since the last step (the segment between the two poses meets the disc; re-entry only after
+   leaving by ``region_hysteresis``): an entry into the target is a visit (``RegionVisited``)
+   and the plan advances (stays pass at once, without a new visit); an entry into the word's last
+   letter is a stutter; any other entry is a letter the plan did not schedule
+   (``RegionEntered``: the plan does not advance, the agent decides). A suffix that loops on one
+   region ends the motion (``PlanFinished``): the robot drives on to that region's centre and
+   holds there.
+2. **Global path** (``grid_planner.plan_path``, preferring ``path_clearance`` from obstacles)
+   from the pose to the target centre, on the keep-out grid of the transition (the word's last
+   letter → the target: every other region is an obstacle, docs/ltl-navigation.md §2) with the
+   other robots within ``local_range`` stamped in as inflated discs — the paper's local cost map
+   — re-planned every ``replan_period`` and whenever the target changes. Robots ahead are stamped
+   a second time shifted to our left, so paths keep right. The periodic re-plans (and the
+   re-plan around blocking robots of step 5) are *deferred* (``deferred_replan``): the step that
+   finds one due keeps following the current path and records a :class:`PathRequest` (its pose
+   and the robots to stamp); the runtime runs it with :meth:`Executor.refresh` after the command
+   is on its way, and the path is followed from the next step on — move_base's global planner,
+   which runs beside the controller at 1 Hz, has the same one-period lag. A step that finds a
+   request still pending runs it first, so the trajectory is the same whether or not the caller
+   refreshes between steps. A new target (a region reached, a new plan) has no path to follow
+   yet and is planned at once.
+3. **Right of way** (``traffic``, docs/ltl-navigation.md §6): in a narrow passage or at a
+   crossing, the robot without the right of way yields (mode ``yield``, ``Yielding`` events),
+   in a passage from a refuge beside its path.
+4. **DWA** (``dwa.dwa_control``) follows the path on the same keep-out grid, with the other
+   robots as discs moving at the velocity estimated from two consecutive pose frames.
+5. **Stuck detection and recovery** (docs/ltl-navigation.md §5). Progress is a decrease of the
+   remaining path length by at least ``progress_epsilon``. With none for ``blocked_after`` the
+   global path is re-planned with the nearby robots stamped at full size (a robot that blocks
+   the way is passed around); with none for ``stuck_timeout`` the executor emits ``Stuck``,
+   rotates in place (``rotate_time``), backs off (``back_off_time``, only if the space behind is
+   free), waits (``wait_time``), and drives on to the same target (``Recovered``) while a path to
+   it exists with the robots stamped at full size, at most ``max_recoveries`` times; otherwise it
+   emits ``ReplanRequest`` with the edge (last letter → target). The runtime may answer with a
+   new plan (``ExecutorInputs.new_plan``); its first state, when it is the word's last letter,
+   counts as reached.
 
-Progress: visits per region, ``rounds`` (GF progress: visits of the least visited suffix
-region), ``cycles`` (complete passes through the suffix), the target and the mode. Every command
-respects the unicycle's velocity and acceleration limits relative to the previous command (the
-dynamic window of one controller period).
+Progress: visits per region (entries of the word), ``rounds`` (GF progress: visits of the least
+visited suffix region), ``cycles`` (complete passes through the suffix), the target and the mode
+(frozen once the agent has declared the task lost, :meth:`Executor.lose`). Every command respects
+the unicycle's velocity and acceleration limits relative to the previous command (the dynamic
+window of one controller period).
 """
 
 from __future__ import annotations
