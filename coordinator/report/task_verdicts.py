@@ -13,8 +13,9 @@ from one never formed; ``stationary`` — episodes in which a robot stood still 
 turned < 0.1 rad over ``window`` seconds) while its task wanted it to move (LTL: before its plan
 finished or its task was lost, and not while it waited for the right of way, inside a ``yield``
 of at most ``YIELD_LIMIT``, docs/ltl-navigation.md §6; STL: ρ^ψ < −0.1 throughout, inside the
-window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving would help), the symptom of a navigation deadlock; and the run's switches: coupling-aware
-leaders (``[navigation] coupling_aware``, docs/coupling.md) and robustness recovery
+window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving would help), the symptom of a navigation
+deadlock; and the run's switches: coupling-aware leaders (``[navigation] coupling_aware``,
+docs/coupling.md) and robustness recovery
 (``[stl] recovery``) with the number of recoveries.
 """
 
