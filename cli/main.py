@@ -35,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("monitor", "STL robustness of a recorded trajectory"),
     "router": ("router", "run a zenoh router for a fleet"),
     "sim": ("sim", "run the pymunk simulator process of a scenario"),
+    "hw": ("hw", "run the hardware bridge: real robots on ROS 2 in the simulator's place"),
     "agent": ("agent", "run the agent process of one robot"),
     "run": ("run", "launch, supervise and record a whole fleet"),
     "keys": ("keys", "write a fleet CA, per-process certificates and the router's ACL policy"),
@@ -45,6 +46,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                          "compose-run.sh)"),
     "report": ("report", "regenerate report.md/json and figures of a run"),
     "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "export-mcap": ("export_mcap", "write a run directory as an MCAP file with ROS 2 messages "
+                                   "(Foxglove, ros2 bag)"),
+    "ros-mirror": ("ros_mirror", "publish a running fleet on ROS 2 for rviz2 and Foxglove "
+                                 "(read-only)"),
     "echo": ("echo", "print a running fleet's messages as JSON lines (by key name or pattern)"),
     "topics": ("topics", "list a running fleet's keys (kind, publisher, rate) and its processes"),
     "hz": ("hz", "rates of a running fleet's keys, once a second"),

@@ -201,16 +201,20 @@ class SimProcess:
 
     def __init__(self, transport: Transport, scenario: Scenario, config: SimConfig,
                  stop: threading.Event | None = None,
-                 now: Callable[[], float] = time.monotonic):
+                 now: Callable[[], float] = time.monotonic, world: Any = None):
         self.transport = transport
         self.scenario = scenario
         self.config = config
         self.stop_event = stop or threading.Event()
         self._now = now
         self.fleet = scenario.fleet
-        self.world = World.from_scenario(scenario, np.random.default_rng(config.seed),
-                                         config.world)
-        if self.world.config.native_tracking:
+        # ``world``: what stands in for the pymunk world (the hardware bridge's robots,
+        # tlfleet.sim.hardware): the same interface, the same frames, keys and events
+        self.world = world if world is not None else World.from_scenario(
+            scenario, np.random.default_rng(config.seed), config.world)
+        if world is not None:
+            logger.info("world: %s", type(world).__name__)
+        elif self.world.config.native_tracking:
             logger.info("tracking law: C (tlfleet.sim._tracking)")
         elif native_tracking_available():
             logger.info("tracking law: Python (tracking = %r)", self.world.config.tracking)
@@ -280,11 +284,11 @@ class SimProcess:
         """Declare presence, subscribe, run until done or stopped; undeclare. Returns 0."""
         handles: list[Closeable] = []
         try:
-            inbox, now = self._inbox, self._now
+            inbox = self._inbox
             wake = self._open_command_channel(handles)
             if self._cmds is None:
-                handles.append(self.transport.subscribe(
-                    keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
+                handles.append(self.transport.subscribe(keys.all_cmds(self.fleet),
+                                                        self._command_sample))
             handles.append(self.transport.subscribe(
                 keys.control(self.fleet), lambda k, p: (inbox.put(("control", k, p, 0.0)),
                                                         wake())))
@@ -333,6 +337,11 @@ class SimProcess:
                                        wake_key=keys.cmd(self.fleet, self.world.ids[0]))
         handles.append(self._cmds)
         return self._cmds.wake
+
+    def _command_sample(self, key: str, payload: bytes) -> None:
+        """A command's sample (on a transport thread, realtime): queued for the loop with its
+        arrival time."""
+        self._inbox.put(("cmd", key, payload, self._now()))
 
     @property
     def stopping(self) -> bool:

@@ -23,7 +23,7 @@ from typing import Any
 
 #: the kinds only the simulator makes
 SIM_KINDS = frozenset({"sim_done", "sim_stats", "contact", "deadline_miss", "watchdog_stop",
-                       "stale_command"})
+                       "stale_command", "tracking_lost", "geofence"})  # the last two: tlfleet hw
 #: the kinds only an agent makes
 AGENT_KINDS = frozenset({"agent_stats", "stale_mocap", "resumed", "plan_ready", "critical_event",
                          "repair", "recovery", "collab_request", "collab_release",
@@ -65,6 +65,8 @@ FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
     "watchdog_stop": {"robot": (INT,), "last_command_t": (NUM, NONE)},
     "stale_command": {"robot": (INT,), "command_t": (NUM,)},
     "contact": {"a": (ID,), "b": (ID,), "what": (STR,)},
+    "tracking_lost": {"robots": (LIST,), "age": (MAP,), "lost_after": (NUM,)},
+    "geofence": {"robot": (INT,), "x": (NUM,), "y": (NUM,), "fence": (LIST,)},
     "malformed_message": {"key": (STR,), "count": (INT,)},
     "stale_mocap": {"silence": (NUM,), "sim_silence": (NUM,), "last_seq": (INT,)},
     "critical_event": {"stage": (INT,), "ce": (INT,), "rho": (NUM,), "subtask": (INT,),

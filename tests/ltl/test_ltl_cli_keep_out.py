@@ -54,7 +54,10 @@ def test_no_plan_through_a_keep_out_zone_is_one_line_naming_it(tmp_path: Path, c
     err = [line for line in capsys.readouterr().err.strip().splitlines()
            if "links are plain TCP" not in line]  # run's notice about its links comes first
     assert len(err) == 1, err
-    assert err[0].startswith(f"tlfleet {command[0]}: robot 1: task ")
+    # plan names the robot; check and run name the file and the field first (check_launch)
+    head = "" if command[0] == "plan" else f"{path}: robots[id=1].ltl: robot 1's agent cannot " \
+        "start: "
+    assert err[0].startswith(f"tlfleet {command[0]}: {head}robot 1: task "), err[0]
     assert "every way from a to b enters region 'spill'" in err[0]
     assert not out.exists()  # nothing started, no run directory
 
