@@ -179,14 +179,6 @@ def plan_on_map(scenario: Scenario, robot_id: int, *, buchi: Buchi | None = None
                                 reason) from None
 
 
-def plan_all(scenario: Scenario) -> dict[int, Plan]:
-    """:func:`plan_on_map` for every LTL robot of the scenario, by id: what ``tlfleet check``
-    and ``tlfleet run`` do before anything starts, so a task with no plan under the agent's
-    rules stops them with the same one-line :class:`UnsatisfiableTask` as ``tlfleet plan``."""
-    return {robot.id: plan_on_map(scenario, robot.id)
-            for robot in sorted(scenario.robots, key=lambda r: r.id) if robot.ltl is not None}
-
-
 def keep_out_reason(scenario: Scenario, robot_id: int, paths: RegionPaths,
                     buchi: Buchi | None = None) -> str | None:
     """Why no plan keeps out of the other regions, in one sentence naming the region in the way,
