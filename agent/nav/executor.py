@@ -1,7 +1,7 @@
 """Plan executor: drives a unicycle along its LTL plan, one pure step per control tick.
 
 docs/ltl-navigation.md and paper §III-A. The plan is the projection on regions of the optimal
-prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``, with the planner's
+prefix–suffix run (paper Algorithm 1): targets ``τ = prefix · suffix^ω``, with the planner's
 conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` (``suffix[0]`` when the prefix is
 empty) is where the robot is, possibly the virtual ``"start"`` state, and a name equal to the
 previous one means "stay". Each step (5 Hz):

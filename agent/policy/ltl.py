@@ -148,7 +148,7 @@ def penalised(edge_length: EdgeLength, penalties: Sequence[tuple[str, str, float
               ) -> EdgeLength:
     """``edge_length`` with ``penalty`` [m] added on the directed edges ``(source, target)``
     given by region name (``"start"`` for the start point): how a ``ReplanRequest`` (a blocked
-    edge) becomes weights for the replanning (ltl-planning.md §5)."""
+    edge) becomes weights for the replanning (docs/ltl-navigation.md §5)."""
     extra: dict[tuple[str, str], float] = {}
     for source, target, penalty in penalties:
         extra[(source, target)] = extra.get((source, target), 0.0) + float(penalty)
@@ -411,8 +411,8 @@ class LtlAgent:
 
     def replan(self, state: LtlState, request: ReplanRequest, t: float
                ) -> tuple[LtlState, Notice]:
-        """A new plan with the edge ``from_region → to_region`` penalised (ltl-planning.md §5):
-        the target stayed out of reach through the executor's recoveries."""
+        """A new plan with the edge ``from_region → to_region`` penalised: the target stayed out
+        of reach through the executor's recoveries (docs/ltl-navigation.md §5)."""
         source = request.from_region if request.from_region is not None else START
         penalties = (*state.penalties, (source, request.to_region, float(request.penalty)))
         state = evolve(state, penalties=penalties)
