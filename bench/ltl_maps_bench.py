@@ -319,9 +319,11 @@ def _drive_in(root: Path | None, files: list[str], budget: dict) -> list[dict]:
 
 # ----------------------------------------------------------------------------- the corpus
 
-def run_corpus(seeds: list[int], out_dir: Path, root: Path | None = None) -> dict:
+def run_corpus(seeds: list[int], out_dir: Path, root: Path | None = None,
+               rejudge: bool = False) -> dict:
     """Every corpus file for every seed through ``tlfleet run --lockstep`` of this tree, or of
-    ``root``'s (its ``.venv``), judged by this tree's ``tests/ltl_corpus.py``."""
+    ``root``'s (its ``.venv``), judged by this tree's ``tests/ltl_corpus.py``; ``rejudge``: the
+    runs are in ``out_dir`` already (an earlier ``--runs-dir``), only judge them."""
     from ltl_corpus import CORPUS, analyse
 
     python = str(root / ".venv" / "bin" / "python") if root else sys.executable
@@ -330,7 +332,7 @@ def run_corpus(seeds: list[int], out_dir: Path, root: Path | None = None) -> dic
         for seed in seeds:
             run_dir = out_dir / f"{case.name}-s{seed}"
             t0 = time.perf_counter()
-            proc = subprocess.run(
+            proc = subprocess.CompletedProcess([], 0) if rejudge else subprocess.run(
                 [python, "-m", "tlfleet.cli", "run", str(case.path), "--lockstep",
                  "--out", str(run_dir), "--quiet", "--no-rrd", "--no-figures",
                  "--seed", str(seed)], capture_output=True, text=True, timeout=1800,
@@ -492,6 +494,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--corpus-root", type=Path, default=None,
                         help="run the corpus with another checkout's tlfleet (its .venv), "
                              "e.g. to measure the table before a change")
+    parser.add_argument("--rejudge", action="store_true",
+                        help="judge the corpus runs already in --runs-dir instead of running "
+                             "them again")
     parser.add_argument("--skip", default="", help="comma list of corpus,maps,step,paper")
     parser.add_argument("--runs-dir", type=Path, default=None,
                         help="keep the run directories here (default: a temporary directory)")
@@ -516,7 +521,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = args.runs_dir or Path(tmp)
         if "corpus" not in skip:
             print(f"corpus, seeds {seeds}:", flush=True)
-            results["corpus"] = run_corpus(seeds, runs / "corpus", args.corpus_root)
+            results["corpus"] = run_corpus(seeds, runs / "corpus", args.corpus_root,
+                                           rejudge=args.rejudge)
         if "maps" not in skip:
             print(f"{n_maps} random maps:", flush=True)
             results["maps"] = run_maps(n_maps, args.map_seed, args.base_root)

@@ -11,8 +11,9 @@ Beside it: ``held`` — the fraction of the samples of [a, min(b, t_end)] at whi
 ψ held (ρ^ψ ≥ 0, standard semantics), the figure that tells a formation kept 95 % of the time
 from one never formed; ``stationary`` — episodes in which a robot stood still (moved < 5 cm and
 turned < 0.1 rad over ``window`` seconds) while its task wanted it to move (LTL: before its plan
-finished or its task was lost, and not while it waited for the right of way, inside a ``yield``
-of at most ``YIELD_LIMIT``, docs/ltl-navigation.md §6; STL: ρ^ψ < −0.1 throughout, inside the
+finished or its task was lost; time inside a ``yield`` is waiting for the right of way, so the
+episode counts when it lasted ``window`` or more outside yields or waited longer than
+``YIELD_LIMIT`` in them, docs/ltl-navigation.md §6; STL: ρ^ψ < −0.1 throughout, inside the
 window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving would help), the symptom of a navigation
 deadlock; and the run's switches: coupling-aware leaders (``[navigation] coupling_aware``,
 docs/coupling.md) and robustness recovery
@@ -155,9 +156,9 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
             while j + 1 < len(flagged) and flagged[j + 1]:
                 j += 1
             start, end = float(t[k]), float(t[j + n])
-            waiting = any(a - 0.5 <= start and end <= b + 0.5
-                          for a, b in yields.get(robot.id, ()))
-            if not (waiting and end - start <= YIELD_LIMIT):
+            waited = sum(max(0.0, min(end, b) - max(start, a))
+                         for a, b in yields.get(robot.id, ()))
+            if end - start - waited >= window or waited > YIELD_LIMIT:
                 out.append({"robot": robot.id, "t_start": start, "t_end": end})
             k = j + 1
     return out
