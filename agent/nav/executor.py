@@ -548,54 +548,52 @@ class Executor:
     ) -> tuple[MovingDiscs, Traffic | None]:
         """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
         cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
-        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``:
-        within its ``crossing_range``, or all of them when the path has a narrow stretch), or
-        None with the rule off.
+        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``):
+        with a narrow stretch on the path every robot, else the moving ones within its
+        ``crossing_range`` (a standing robot is no crossing); None with the rule off.
 
         Plain floats over the few rows, with the array form's operations:
         ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
         px, py = float(pose[0]), float(pose[1])
         local_range = self.config.local_range
         rule = self.config.traffic
-        reach = (math.inf if s.path_narrow else rule.crossing_range) if rule.enabled else -1.0
-        rows = []
+        narrow = bool(s.path_narrow)
+        reach = (math.inf if narrow else rule.crossing_range) if rule.enabled else -1.0
+        previous = None
+        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
+            dt = t - s.prev_time
+            cap = self.config.max_other_speed
+            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
+        radii_by_id = dict(self.other_radii)
+        default = self.config.default_other_radius
+        centers, velocities, radii, rows = [], [], [], []
         for row in frame.tolist():
             if row[0] == self.robot_id:
                 continue
             dx, dy = row[1] - px, row[2] - py
             distance = math.sqrt(dx * dx + dy * dy)
-            if distance <= local_range or distance <= reach:
-                rows.append((row, distance))
-        if not rows:
-            return MovingDiscs.empty(), (Traffic(()) if rule.enabled else None)
-        velocities = [(0.0, 0.0)] * len(rows)
-        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
-            dt = t - s.prev_time
-            cap = self.config.max_other_speed
-            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
-            for k, (row, _) in enumerate(rows):
-                before = previous.get(int(row[0]))
-                if before is not None:
-                    ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
-                    speed = math.sqrt(ux * ux + uy * uy)
-                    if speed > cap:
-                        ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
-                    velocities[k] = (ux, uy)
-        radii_by_id = dict(self.other_radii)
-        default = self.config.default_other_radius
-        near = [k for k, (_, d) in enumerate(rows) if d <= local_range]
-        traffic = None
-        if rule.enabled:
-            traffic = Traffic(tuple(
-                (int(row[0]), row[1], row[2], *velocities[k],
-                 radii_by_id.get(int(row[0]), default), int(row[0]) in self.ruled)
-                for k, (row, d) in enumerate(rows) if d <= reach))
-        if not near:
+            local = distance <= local_range
+            if not (local or distance <= reach):
+                continue
+            rid = int(row[0])
+            ux = uy = 0.0
+            before = previous.get(rid) if previous is not None else None
+            if before is not None:
+                ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
+                speed = math.sqrt(ux * ux + uy * uy)
+                if speed > cap:
+                    ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
+            radius = radii_by_id.get(rid, default)
+            if local:
+                centers.append((row[1], row[2]))
+                velocities.append((ux, uy))
+                radii.append(radius)
+            if distance <= reach and (narrow or ux * ux + uy * uy >= 4e-4):
+                rows.append((rid, row[1], row[2], ux, uy, radius, rid in self.ruled))
+        traffic = Traffic(tuple(rows)) if rule.enabled else None
+        if not centers:
             return MovingDiscs.empty(), traffic
-        return (MovingDiscs(np.array([(rows[k][0][1], rows[k][0][2]) for k in near]),
-                            np.array([velocities[k] for k in near]),
-                            np.array([radii_by_id.get(int(rows[k][0][0]), default)
-                                      for k in near])),
+        return (MovingDiscs(np.array(centers), np.array(velocities), np.array(radii)),
                 traffic)
 
     def _ramp(self, current: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
@@ -694,9 +692,8 @@ class Executor:
         narrow = False
         rule = self.config.traffic
         spent = s.yielded + (t - s.mode_since if s.mode == YIELD else 0.0)
-        if (not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait
-                or (not s.path_narrow and not any(row[3] or row[4] for row in traffic.rows))):
-            other = None  # nobody near, or only standing robots and no passage: no conflict
+        if not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait:
+            other = None  # nobody that could conflict (``_local_obstacles``)
         else:
             px, py = float(pose[0]), float(pose[1])
             rid = self.robot_id if self.robot_id is not None else 0
@@ -931,6 +928,10 @@ class Executor:
             limits,
         )
         return s, (result.v, result.omega)
+
+    def progress(self, s: ExecutorState) -> Progress:
+        """The progress record of state ``s`` (the one each step reports)."""
+        return self._progress(s)
 
     def _progress(self, s: ExecutorState) -> Progress:
         return Progress(

@@ -338,9 +338,12 @@ class LtlAgent:
         if first_step and not entered and state.word_last is None:
             state = evolve(state, word_last=START)  # started in no region: the letter ∅
         ex_state = state.executor
-        report = LtlProgress(t, ex_state.prefix, ex_state.suffix, ex_state.target,
-                             tuple(sorted(state.buchi_states)), ex_state.visits,
-                             ex_state.rounds, ex_state.mode)
+        progress = ex_out.progress
+        if progress.mode != ex_state.mode:  # the agent stopped it this step (task lost)
+            progress = self.executor.progress(ex_state)
+        report = LtlProgress(t, ex_state.prefix, ex_state.suffix, progress.target,
+                             tuple(sorted(state.buchi_states)), progress.visits,
+                             progress.rounds, progress.mode)
         return state, LtlStepOutput((ex_out.v, ex_out.omega), report, tuple(notices))
 
     def _label(self, name: str | None) -> frozenset[str]:
