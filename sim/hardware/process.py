@@ -224,6 +224,7 @@ def main(config: BridgeProcessConfig) -> int:
         transport = open_transport(config.transport)
         process = BridgeProcess(transport, scenario, sim_config, world, stop)
         code = process.run()
+        process.stop_robots("stopping")  # first: the linger below is for zenoh, not the robots
         time.sleep(LINGER)
         return code
     finally:
