@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.lifeline import child_environment as tie_to_this_process
 from tlfleet.coordinator.launch.netns_hosts import (
@@ -118,6 +119,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     (:func:`place_peers`; ``hosts`` is then the layout's own count)."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    check_launch(scenario)  # ... and what would stop an agent at launch
     if secure is not None and insecure:
         raise HostsError("--secure DIR and --insecure exclude each other")
     if secure is not None:

@@ -68,6 +68,7 @@ class EventLog:
         self._lost_at: float | None = None  # [s] wall when the coordinator's token went
         self.replays = 0  # times the log was published again
         self.replayed = 0  # events published again, in all
+        self._startup: list[Event] = []  # published before the start, again at the start
 
     def watch(self) -> Closeable:
         """Watch the coordinator's token; the caller closes the handle."""
@@ -78,6 +79,28 @@ class EventLog:
         with self._lock:
             self._recent.append((self._clock(), event))
         self.transport.publish(self._key, encode(event))
+
+    def publish_startup(self, event: Event) -> None:
+        """Publish a start-up event (``plan_ready``, ``coupling_limits``: made before the start)
+        and keep it for :meth:`replay_startup`."""
+        self._startup.append(event)
+        self.publish(event)
+
+    def replay_startup(self) -> int:
+        """At the mission start: publish the start-up events again, marked replayed.
+
+        Why: they are published as soon as the liveliness token is up, when the agent's session
+        may not yet know the route to the coordinator's subscriber (a zenoh sample with no known
+        subscriber is dropped: 2 of 13 first ``plan_ready`` were recorded). ``Control(start)``
+        has come from the coordinator, whose subscriber was declared before it, so the route is
+        known now; the recorder drops the copy of one it already has
+        (:mod:`tlfleet.coordinator.record.replay_dedup`). Returns how many were published."""
+        again, self._startup = self._startup, []
+        for event in again:
+            self.transport.publish(self._key, encode(
+                replace(event, data={**event.data, EVENT_REPLAYED: True})))
+        self.replayed += len(again)
+        return len(again)
 
     def _on_coordinator(self, _key: str, alive: bool) -> None:
         if not alive:

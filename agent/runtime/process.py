@@ -112,7 +112,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         loop.open()
         loop.ready()
         for event in events:
-            loop.publish_event(event)
+            loop.publish_startup_event(event)
         logger.info("%s ready (fleet %s, divider %d, phase %d)", source, scenario.fleet, divider,
                     loop_config.phase)
         logger.info("agent %d: waiting for start from a coordinator on %s and mocap frames "

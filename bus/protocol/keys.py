@@ -112,8 +112,27 @@ def all_statuses(fleet: str) -> str:
 
 
 def collab(fleet: str, robot: int) -> str:
-    """Queryable of STL agent ``robot``: stage-2 ``CollabMessage`` → ``CollabReply``."""
+    """The stage-2 collaboration keys of STL agent ``robot``: its queryable serves
+    ``collab/*`` (:func:`collab_all`), and robot j queries ``collab/j`` (:func:`collab_from`)."""
     return f"{prefix(fleet)}/robot/{int(robot)}/collab"
+
+
+def collab_from(fleet: str, receiver: int, sender: int) -> str:
+    """Where STL agent ``sender`` sends its ``CollabMessage`` s to ``receiver``: a key of its
+    own, so in a secured fleet (the access policy lets robot i query only ``…/collab/i``) the
+    key names the sender, and the receiver can check the message's claimed ``sender``."""
+    return f"{collab(fleet, receiver)}/{int(sender)}"
+
+
+def collab_all(fleet: str, receiver: int) -> str:
+    """The queryable of STL agent ``receiver``: every sender's collaboration key."""
+    return f"{collab(fleet, receiver)}/*"
+
+
+def collab_sender(key: str) -> int | None:
+    """The sender named by a :func:`collab_from` key, or ``None``."""
+    match = re.search(r"/robot/\d+/collab/(\d+)$", key)
+    return int(match.group(1)) if match else None
 
 
 def event(fleet: str, role: str, ident: str | int) -> str:

@@ -13,7 +13,9 @@ Exit codes (the run's verdict, :mod:`tlfleet.coordinator.live.verdict`, printed 
 …``): 0 clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost,
 a process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
 missed deadlines, watchdog stops, stale commands, malformed input, flagged events, silent or
-recovered agents: listed); 130 interrupted (a message says so).
+recovered agents: listed); 130 interrupted (a message says so). The line before it is the task
+tally (:mod:`tlfleet.coordinator.report.task_tally`); with ``--require-tasks``, 5 instead of 0 or 4
+when a task was not met.
 """
 
 from __future__ import annotations
@@ -63,6 +65,8 @@ EXIT_CODES = {
        "ended early",
     4: "degraded: it ran to the end, with missed deadlines, watchdog stops, stale commands, "
        "malformed input or flagged events (listed)",
+    5: "with --require-tasks: the fleet ran (clean or degraded) but a task was not met (the "
+       "'tasks:' line names each)",
 }
 
 
@@ -127,6 +131,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="real robots on ROS 2: start `tlfleet hw --lab LAB.toml` in the "
                              "simulator's place (realtime only; docs/hardware.md)")
     parser.set_defaults(mode=None)  # lockstep, or realtime with --hardware
+    add_require_tasks_argument(parser)
+
+
+def add_require_tasks_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--require-tasks", action="store_true",
+                        help="exit 5 when the fleet ran (clean or degraded) but a task was not "
+                             "met: the tally's line 'tasks: N of M met; …' names them")
 
 
 class ProgressBar:
@@ -201,6 +212,7 @@ def result_json(result: RunResult) -> dict:
     report_path = result.run_dir / "report.json"
     return {
         "verdict": result.verdict.to_json(),
+        "tasks": None if result.tasks is None else result.tasks.to_json(),
         "end": {"reason": result.outcome.reason, "t_end": result.outcome.t_end},
         "run_dir": str(result.run_dir),
         "report": str(report_path) if result.report is not None else None,
@@ -223,9 +235,9 @@ def _write_mcap(run_dir: Path, report) -> None:
 
 
 def print_outputs(result: RunResult, as_json: bool = False) -> None:
-    """The report table (the summary if no report was written), the files a person opens next, the
-    verdict (``outcome: …``) and the run directory last; with ``as_json`` one JSON document
-    (:func:`result_json`) instead."""
+    """The report table (the summary if no report was written), the files a person opens next and
+    the run directory, then the last two lines: the task tally (``tasks: 5 of 7 met; …``) and the
+    verdict (``outcome: …``); with ``as_json`` one JSON document (:func:`result_json`) instead."""
     if as_json:
         print(json.dumps(result_json(result), indent=2, default=str), flush=True)
         return
@@ -240,8 +252,10 @@ def print_outputs(result: RunResult, as_json: bool = False) -> None:
     if result.rrd is not None:
         print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`, or headless: "
               f"`tlfleet replay {result.run_dir} --viewer` prints a web viewer's URL)")
-    print(result.verdict.line)
-    print(f"run directory: {result.run_dir}", flush=True)
+    print(f"run directory: {result.run_dir}")
+    if result.tasks is not None:
+        print(result.tasks.line)
+    print(result.verdict.line, flush=True)
 
 
 def run_hosts(args: argparse.Namespace) -> int:
@@ -257,6 +271,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     extra += [] if args.report else ["--no-report"]
     extra += [] if args.figures else ["--no-figures"]
     extra += [] if args.rrd else ["--no-rrd"]
+    extra += ["--require-tasks"] if args.require_tasks else []
     sim = [] if args.seed is None else ["--seed", str(args.seed)]
     sim += [] if args.duration is None else ["--duration", repr(args.duration)]
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
@@ -338,4 +353,4 @@ def run(args: argparse.Namespace) -> int:
     elif verdict.label != "clean":
         print(f"tlfleet run: {verdict.label} (end: {result.outcome.reason}, exit codes: "
               f"{result.exit_codes})", file=sys.stderr)
-    return verdict.exit_code
+    return result.exit_code(args.require_tasks)

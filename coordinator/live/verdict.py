@@ -24,6 +24,9 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from tlfleet.agent.model.scenario import Scenario
+from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
+
 EXIT_CODES = {"clean": 0, "failed": 3, "degraded": 4, "interrupted": 130}
 MAX_MISSED_FRACTION = 0.05  # realtime: missed control deadlines / due above this → degraded
 FINISHED = ("sim_done", "duration")
@@ -166,14 +169,32 @@ def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, in
     return Verdict("degraded", tuple(degraded)) if degraded else Verdict("clean")
 
 
+def control_periods(scenario: Scenario) -> dict[str, float]:
+    """Each agent's control period [s] by event source (``agent/<id>``): d_r / mocap_rate
+    (:meth:`tlfleet.agent.model.scenario.Scenario.control_divider`)."""
+    return {f"agent/{r}": scenario.control_divider(r) / scenario.sim.mocap_rate
+            for r in scenario.robot_ids}
+
+
 def mission_event_kinds(events: Iterable[Mapping[str, Any]], t_end: float,
-                        end_slack: float = 0.05) -> Counter[str]:
-    """Events per kind, without the agents' ``stale_mocap`` at the very end of the mission (the
-    simulator has stopped publishing: expected, not a degradation)."""
+                        end_slack: float = 0.05,
+                        periods: Mapping[str, float] | None = None) -> Counter[str]:
+    """Events per kind *during the mission*: without the events marked :data:`AFTER_SIM_DONE`,
+    and without an agent's ``stale_mocap`` whose last frame was the last one it was due (its
+    ``t`` is that frame's time, so ``t + period > t_end - end_slack``): the simulator has
+    stopped publishing, which is expected at the end, not a degradation. ``periods``: each
+    event source's control period [s] (``agent/1`` → 0.2 for a 5 Hz LTL robot); a source not
+    in it counts as ``end_slack``."""
+    periods = periods or {}
     kinds: Counter[str] = Counter()
     for e in events:
         kind = e.get("kind")
-        if kind == "stale_mocap" and float(e.get("t", 0.0)) >= t_end - end_slack:
+        data = e.get("data")
+        if isinstance(data, Mapping) and data.get(AFTER_SIM_DONE) is True:
             continue
+        if kind == "stale_mocap":
+            period = periods.get(str(e.get("source")), 0.0)
+            if float(e.get("t", 0.0)) + period >= t_end - end_slack:
+                continue
         kinds[str(kind)] += 1
     return kinds

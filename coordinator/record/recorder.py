@@ -44,6 +44,7 @@ from tlfleet.bus.transport import Channel, Closeable, Transport
 from tlfleet.coordinator.record import rundir
 from tlfleet.coordinator.record.frame_merge import FrameMerger
 from tlfleet.coordinator.record.replay_dedup import EventDedup
+from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
 from tlfleet.coordinator.record.trust import RecordCheck
 
 logger = logging.getLogger(__name__)
@@ -251,6 +252,9 @@ class RecorderTap:
         self.record_check = record_check
         self.flagged = 0
         self.dedup = EventDedup()  # replayed agent events (tlfleet.agent.runtime.event_log)
+        #: the simulator's ``sim_done`` was recorded: every later event is marked
+        #: ``AFTER_SIM_DONE`` (said once the mission ended; it never changes the verdict)
+        self.sim_done = False
         self.malformed_by_source: Counter[tuple[str, str]] = Counter()
         self._logged: dict[str, float] = {}
         self.malformed: Counter[str] = Counter()
@@ -353,7 +357,12 @@ class RecorderTap:
                     raise ProtocolError(f"Event: {problem}")
                 if self._flag(message, key) or not self.dedup.admit(message):
                     return
+                if self.sim_done:
+                    message = Event(message.t, message.source, message.kind,
+                                    {**message.data, AFTER_SIM_DONE: True})
                 self.recorder.on_event(message)
+                if message.kind == "sim_done" and message.source == "sim":
+                    self.sim_done = self._sim_done_genuine()
         except ProtocolError as exc:
             self._count(what, key, payload, exc)
             return
@@ -382,6 +391,17 @@ class RecorderTap:
             problem = f"seq {frame.seq} jumps from {self.gate.last}: held until confirmed"
         if problem is not None:
             raise ProtocolError(f"MocapFrame: implausible: {problem}")
+
+    def _sim_done_genuine(self) -> bool:
+        """A ``sim_done`` ends the mission for the marks only when the frames have reached the
+        end of the run (:func:`tlfleet.coordinator.record.trust.sim_done_plausible`): a forged
+        one mid-run must not hide what follows from the verdict."""
+        if self.bounds is None:
+            return True
+        from tlfleet.coordinator.record.trust import sim_done_plausible
+
+        last_t = self.latest_frame.t if self.latest_frame is not None else 0.0
+        return sim_done_plausible(last_t, self.bounds.duration, sim_ended=False)
 
     def _flag(self, event: Event, key: str) -> bool:
         """Record an event whose claimed identity does not hold, or whose claim contradicts the

@@ -130,6 +130,12 @@ def read_json(path: Path, default: Any = None) -> Any:
 # --------------------------------------------------------------------------------- events
 
 
+#: ``Event.data`` mark of an event the recorder received after the simulator's ``sim_done``
+#: (:class:`tlfleet.coordinator.record.recorder.RecorderTap`): said once the mission had ended, so
+#: :func:`tlfleet.coordinator.live.verdict.mission_event_kinds` and the summary leave it out
+AFTER_SIM_DONE = "after_sim_done"
+
+
 def event_line(event: Event) -> str:
     """One ``events.jsonl`` line (with its newline)."""
     record = {"t": event.t, "source": event.source, "kind": event.kind, "data": event.data}

@@ -37,10 +37,12 @@ from tlfleet.coordinator.report.ltl_words import ltl_robot_report
 from tlfleet.coordinator.report.paper_comparison import repair_events, stl_robot_report
 from tlfleet.coordinator.report.render import render_markdown, render_table
 from tlfleet.coordinator.report.summary import summarise
+from tlfleet.coordinator.report.task_tally import TaskTally, task_tally
 
 __all__ = ["Report", "RunDirectoryError", "build_report", "write_report"]
 
-SCHEMA = 2  # 2: r_bar is the least r in force (was the last status r, now r_final)
+SCHEMA = 3  # 3: "tasks", the task tally; 2: r_bar is the least r in force (was the last
+#            status r, now r_final)
 
 
 @dataclass
@@ -146,10 +148,10 @@ def subtask_goals(scenario: Scenario
             for tree in robot_subtasks(robot) for goal in goals_of(tree.body)]
 
 
-def _collect(files: RunFiles, summary: dict[str, Any] | None = None
-             ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(report data, what the figures need) from the files read once and their summary
-    (computed here when not given)."""
+def _collect(files: RunFiles, summary: dict[str, Any] | None = None,
+             tally: TaskTally | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(report data, what the figures need) from the files read once, their summary and task
+    tally (each computed here when not given)."""
     run_dir = files.run_dir
     scenario, events, statuses, traj = (files.scenario, files.events, files.statuses,
                                         files.trajectory)
@@ -189,6 +191,7 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None
         for sub, row in zip(data["stl"][rid]["subtasks"], rows, strict=True):  # is not "met"
             if row["verdict"] == "not evaluated" and sub["paper"] is not None:
                 sub["paper"]["met"] = None
+    data["tasks"] = (tally or task_tally(files, summary)).to_json()
     context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
                "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context
@@ -211,22 +214,24 @@ def _timing(deadlines: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def build_report(run: RunFiles | str | Path, summary: dict[str, Any] | None = None) -> Report:
+def build_report(run: RunFiles | str | Path, summary: dict[str, Any] | None = None,
+                 tally: TaskTally | None = None) -> Report:
     """The report of a run directory (its files as read by :func:`rundir.read_run`, or its path;
     writes nothing); ``figures`` lists the report's PNG files already present in it."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
-    data, _context = _collect(files, summary)
+    data, _context = _collect(files, summary, tally)
     return _finish(files.run_dir, data, _present_figures(files.run_dir, data))
 
 
 def write_report(run: RunFiles | str | Path, *, figures: bool = True,
-                 summary: dict[str, Any] | None = None, figure_format: str = "png") -> Report:
+                 summary: dict[str, Any] | None = None, tally: TaskTally | None = None,
+                 figure_format: str = "png") -> Report:
     """Build the report of a run directory (files read once, or its path; ``summary`` when the
     caller computed it already) and write ``report.md``, ``report.json`` and (unless ``figures``
     is false) the figures into it, as ``figure_format`` (png, pdf or svg)."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
     run_dir = files.run_dir
-    data, context = _collect(files, summary)
+    data, context = _collect(files, summary, tally)
     written: list[Path] = []
     if figures:
         written = _write_figures(run_dir, data, context, figure_format)

@@ -6,8 +6,9 @@ query and declare what, as :class:`tlfleet.bus.zenoh.security.Grant` s over the 
 identity       grants (every key under ``tlfleet/<fleet>/``)
 =============  ==========================================================================
 ``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event/agent/i``;
-               token ``alive/agent/i``; serve ``robot/i/collab`` (STL robots);
-               query ``robot/j/collab`` for every robot j it is coupled with (below);
+               token ``alive/agent/i``; serve ``robot/i/collab/*`` (STL robots);
+               query ``robot/j/collab/i`` for every robot j it is coupled with (below: the
+               key names the sender, which robot j checks against the message);
                subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead; frame offset
                s ≥ 1: ``mocap_at/s``), ``clock``, ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
@@ -94,8 +95,8 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
             publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet, "agent", i)),
             discover=everything,
             subscribe=(frames, keys.clock(fleet), keys.control(fleet)),
-            serve=(keys.collab(fleet, i),) if robot.is_stl else (),
-            query=tuple(keys.collab(fleet, j) for j in coupled.get(i, ())),
+            serve=(keys.collab_all(fleet, i),) if robot.is_stl else (),
+            query=tuple(keys.collab_from(fleet, j, i) for j in coupled.get(i, ())),
             token=(keys.alive(fleet, "agent", i),), watch=everyone_alive))
     return tuple(grants)
 

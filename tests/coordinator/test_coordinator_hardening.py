@@ -65,6 +65,61 @@ def test_stale_mocap_at_the_very_end_is_not_a_degradation():
     assert mission_event_kinds(events, t_end=10.0) == {"stale_mocap": 1, "contact": 1}
 
 
+def test_stale_mocap_after_an_agents_last_due_frame_is_not_a_degradation():
+    """A 5 Hz LTL agent's last frame of a 90 s run is at 89.9 s (its phase): its stale episode
+    once the frames stop is stamped 89.9, which the 0.05 s slack alone counted (1 of 21 Scenario
+    1 runs ended degraded). One whose last frame came a whole period before the end was starved
+    during the mission."""
+    periods = {"agent/2": 0.2, "agent/3": 0.01}
+    at_end = [{"t": 89.9, "kind": "stale_mocap", "source": "agent/2"},
+              {"t": 90.0, "kind": "stale_mocap", "source": "agent/3"}]
+    assert mission_event_kinds(at_end, t_end=90.0, periods=periods) == {}
+    assert mission_event_kinds(at_end, t_end=90.0) == {"stale_mocap": 1}  # the old rule
+    starved = [{"t": 89.6, "kind": "stale_mocap", "source": "agent/2"},
+               {"t": 89.8, "kind": "stale_mocap", "source": "agent/3"}]
+    assert mission_event_kinds(starved, t_end=90.0, periods=periods) == {"stale_mocap": 2}
+
+
+def test_events_after_sim_done_never_change_the_verdict():
+    from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
+
+    events = [{"t": 3.0, "kind": "watchdog_stop", "source": "sim", "data": {AFTER_SIM_DONE: True}},
+              {"t": 1.0, "kind": "stale_mocap", "source": "agent/1",
+               "data": {AFTER_SIM_DONE: True}},
+              {"t": 2.0, "kind": "watchdog_stop", "source": "sim", "data": {}}]
+    assert mission_event_kinds(events, t_end=5.0) == {"watchdog_stop": 1}
+
+
+def test_the_tap_marks_events_after_a_genuine_sim_done(tmp_path):
+    from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE, read_events
+
+    peer, tap, recorder = make_tap(tmp_path, duration=1.0)
+    recorder.start()
+    for k in range(0, 30):
+        peer.publish(keys.mocap("f"), encode(MocapFrame(k / 100, k, POSES)))
+    def key(source: str) -> str:
+        role, ident = source.split("/") if "/" in source else (source, 0)
+        return keys.event("f", role, ident)
+
+    for source, kind in (("agent/1", "stale_mocap"), ("sim", "sim_done"),
+                         ("agent/1", "stale_mocap")):
+        peer.publish(key(source), encode(Event(0.29, source, kind, {})))
+    tap.drain()
+    assert not tap.sim_done  # frames at 0.29 s of a 1 s run: a forged sim_done marks nothing
+    for k in range(30, 101):
+        peer.publish(keys.mocap("f"), encode(MocapFrame(k / 100, k, POSES)))
+    for source, kind in (("agent/2", "stale_mocap"), ("sim", "sim_done"),
+                         ("agent/1", "stale_mocap"), ("agent/2", "agent_stats")):
+        peer.publish(key(source), encode(Event(1.0, source, kind, {})))
+    tap.drain()
+    recorder.close()
+    events = read_events(tmp_path / "run" / "events.jsonl")
+    marks = [(e.source, e.kind, e.data.get(AFTER_SIM_DONE, False)) for e in events]
+    assert marks[-4:] == [("agent/2", "stale_mocap", False), ("sim", "sim_done", False),
+                          ("agent/1", "stale_mocap", True), ("agent/2", "agent_stats", True)]
+    assert not any(mark for _, _, mark in marks[:-2])
+
+
 @pytest.mark.parametrize(("key", "source", "kind", "problem"), [
     (("sim", 0), "sim", "sim_done", None),
     (("agent", 1), "agent/1", "plan_ready", None),

@@ -91,7 +91,8 @@ def stl_loop(network: FakeNetwork, fleet: str, agent, clock=None, stale_after: f
     transport = network.transport(f"agent{agent.robot_id}")
     extra = {"clock": clock} if clock is not None else {}
     malformed = MalformedCounter(f"agent/{agent.robot_id}", **extra)
-    link = CollabLink(transport, fleet, agent.robot_id, agent.cfg.peers, malformed, **extra)
+    link = CollabLink(transport, fleet, agent.robot_id, agent.cfg.peers, malformed,
+                      check=agent.collab_problem, **extra)
     core = StlCore(agent)
     loop = AgentLoop(transport, LoopConfig(fleet, agent.robot_id, 1, stale_after), core,
                      core.initial_state(), link=link, malformed=malformed, **extra)

@@ -170,11 +170,11 @@ class Rogue(Hostile):
 
     def attack(self, session) -> None:
         self.wait_for_fleet(session)
-        collab4 = keys.collab(F, 4)
+        collab4 = keys.collab_all(F, 4)
 
         def answer(query) -> None:
             self.served += 1
-            query.reply(collab4, encode(CollabReply(True)))
+            query.reply(query.key_expr, encode(CollabReply(True)))
 
         session.declare_queryable(collab4, answer)
         session.liveliness().declare_token(keys.alive(F, "agent", 4))
@@ -225,7 +225,7 @@ def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
     log = (tmp_path / "run" / "logs" / "router.log").read_text()
     for denial in (f"robot3 Put (ingress) on {keys.cmd(F, 4)}",
                    f"robot3 Put (ingress) on {keys.control(F)}",
-                   f"robot3 Declare Queryable (ingress) on {keys.collab(F, 4)}",
+                   f"robot3 Declare Queryable (ingress) on {keys.collab_all(F, 4)}",
                    f"robot3 Liveliness Token (ingress) on {keys.alive(F, 'agent', 4)}"):
         assert f"ACL denied: {denial}" in log, log
     # the real fleet was never denied anything
@@ -440,7 +440,8 @@ def valid_examples() -> dict[str, tuple[bytes, tuple[type, ...]]]:
         keys.status(F, 3): (STATUS, (StlStatus, LtlStatus)),
         keys.event(F, "agent", 3): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})),
                                     (Event,)),
-        keys.collab(F, 4): (encode(CollabMessage("release", 3, 4, 1.0, 0)), (CollabMessage,)),
+        keys.collab_from(F, 4, 3): (encode(CollabMessage("release", 3, 4, 1.0, 0)),
+                                    (CollabMessage,)),
     }
 
 
@@ -464,14 +465,14 @@ class Fuzzer(Hostile):
         in_flight = threading.Semaphore(IN_FLIGHT)
         started = time.monotonic()
         for key, payloads in self.payloads.items():
-            if key.endswith("/collab"):
+            if "/collab/" in key:
                 continue
             pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
             for payload in payloads:
                 pub.put(payload)
                 self.sent[key] += 1
         self.seconds["puts"] = time.monotonic() - started
-        collab = keys.collab(F, 4)
+        collab = keys.collab_from(F, 4, 3)
 
         def on_reply(reply) -> None:
             if reply.ok is not None:
@@ -546,7 +547,7 @@ def test_the_coordinator_counts_every_malformed_status_and_event(fuzzed):
 
 def test_robot4_counts_and_rejects_every_malformed_collab_query(fuzzed):
     result, fuzzer, crashes = fuzzed
-    assert crashes[keys.collab(F, 4)] == []
+    assert crashes[keys.collab_from(F, 4, 3)] == []
     stats4 = [e["data"] for e in events(result.run_dir)
               if e["kind"] == "agent_stats" and e["source"] == "agent/4"]
     assert stats4 and stats4[0]["malformed"] == FUZZ_PER_KEY

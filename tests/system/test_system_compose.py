@@ -64,7 +64,7 @@ def test_compose_on_an_invalid_scenario_fails_before_writing_anything(tmp_path):
     bad.write_text('name = "x"\nduration = 10\n[[robots]]\nid = 1\nkind = "tank"\n')
     done = tlfleet("compose", str(bad), "--out", str(tmp_path / "out"))
     assert done.returncode == 1
-    assert f"tlfleet compose: {bad}: robots[0]" in done.stderr, done.stderr
+    assert f"tlfleet compose: {bad}: robots[id=1].kind" in done.stderr, done.stderr
     assert not (tmp_path / "out").exists()
 
 

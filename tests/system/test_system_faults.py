@@ -138,7 +138,7 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
                         continue  # a valid Event on the event key is not malformed
                     intruder.publish(key, payload)
             for payload in GARBAGE:
-                intruder.query(keys.collab(fleet, 2), payload, timeout=0.5)
+                intruder.query(keys.collab_from(fleet, 2, 1), payload, timeout=0.5)
             time.sleep(0.3)
     finally:
         intruder.close()
