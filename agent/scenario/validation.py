@@ -332,14 +332,15 @@ def check_ltl(text: str, source: str, where: str) -> None:
 def check_stl_windows(robot: Any, index: int, duration: float, robot_ids: Any,
                       source: str) -> None:
     """Ordered, non-overlapping windows inside the run; phases not starting after their
-    window opened."""
-    from tlfleet.agent.stl.parser import parse_task
+    window opened. On the trees the loader parsed (:func:`tlfleet.agent.stl.parser.parsed_task`:
+    one parse a text; the loader has checked the robots they name)."""
+    from tlfleet.agent.stl.parser import parsed_task
 
     where = robot_field(index, robot.id)
     windows = []
     for text in robot.stl:
         try:
-            task = parse_task(text, robot_ids)
+            task = parsed_task(text)
         except (FormulaSyntaxError, RecursionError):
             return  # reported by the loader's syntax check
         windows.append((task.op, task.a, task.b))

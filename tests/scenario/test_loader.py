@@ -263,3 +263,24 @@ def test_loading_and_building_the_agents_parse_and_translate_each_ltl_task_once(
     texts = sorted(r.ltl for r in scenario.robots if r.ltl is not None)
     assert sorted(parses) == texts
     assert len(translations) == len(texts)
+
+
+def test_loading_and_building_the_agents_parse_each_stl_sub_task_once(monkeypatch):
+    """The loader's checks and every agent share one tree a sub-task (two parses a sub-task a
+    load before: the syntax check and the window check)."""
+    from tlfleet.agent.policy.preflight import check_launch
+    from tlfleet.agent.stl import parser
+
+    parsed: list[str] = []
+    real = parser._Parser.task
+
+    def counting(self):
+        parsed.append(self.text)
+        return real(self)
+
+    monkeypatch.setattr(parser._Parser, "task", counting)
+    parser.parsed_task.cache_clear()
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" /
+                             "scenario1.toml")
+    check_launch(scenario)
+    assert sorted(parsed) == sorted(t for r in scenario.robots for t in r.stl)
