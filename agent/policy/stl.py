@@ -428,6 +428,9 @@ class StlAgent:
         (tlfleet.agent.stl.supremum.maximize from the current pose and the supremum's state)."""
         i = self.cfg.robot_id
         b0 = task.block(i)
+        if task.goal and task.participants == (i,):
+            # ψ of the own state alone: the supremum's state is its goal, wherever the robot is
+            return tuple(task.goal[b0:b0 + 3])
         current = task.stacked_state(poses)
         starts = [current]
         if task.goal:
