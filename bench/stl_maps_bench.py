@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -60,20 +62,33 @@ def _seeds(text: str) -> list[int]:
     return [int(s) for s in text.split(",")]
 
 
-def lockstep(path: Path, out: Path, seed: int, *, report_files: bool = False):
+def lockstep(path: Path, out: Path, seed: int, *, report_files: bool = False,
+             code: Path | None = None) -> bool:
+    """One lockstep ``tlfleet run``; True when it ended clean. ``code``: a directory holding
+    another tree of the package as ``tlfleet/`` (``--before``), run in a subprocess with it first
+    on the path."""
+    if code is not None:
+        argv = [sys.executable, "-m", "tlfleet.cli", "run", str(path), "--lockstep", "--out",
+                str(out), "--seed", str(seed), "--no-rrd", "--quiet", "--no-figures"]
+        if not report_files:
+            argv.append("--no-report")
+        env = {**os.environ, "PYTHONPATH": str(code)}
+        done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=1800,
+                              cwd=tempfile.gettempdir(), check=False)
+        return done.returncode == 0
     supervisor = SupervisorConfig(ready_timeout=60.0, wall_timeout=900.0)
     return run_fleet(RunConfig(path, mode="lockstep", out=out, seed=seed, supervisor=supervisor,
-                               report=report_files, figures=False, rrd=False))
+                               report=report_files, figures=False, rrd=False)).clean
 
 
-def bench_corpus(seeds: list[int], work: Path) -> dict:
+def bench_corpus(seeds: list[int], work: Path, code: Path | None = None) -> dict:
     feasible = met = infeasible = close = contacts = wall_beyond = runs = 0
     repairs = []
     rows = []
     for name in NAMES:
         for seed in seeds:
             out = work / f"{name}-{seed}"
-            result = lockstep(CORPUS_DIR / f"{name}.toml", out, seed)
+            clean = lockstep(CORPUS_DIR / f"{name}.toml", out, seed, code=code)
             runs += 1
             j = judge(name, out)
             for s in j.subtasks:
@@ -86,7 +101,7 @@ def bench_corpus(seeds: list[int], work: Path) -> dict:
             contacts += j.robot_contacts
             wall_beyond += j.wall_beyond_1s
             repairs.append(j.repairs)
-            rows.append({"scenario": name, "seed": seed, "clean": result.clean,
+            rows.append({"scenario": name, "seed": seed, "clean": clean,
                          "subtasks": [(s.robot, s.index, round(s.rho, 4), s.best, s.ok)
                                       for s in j.subtasks],
                          "robot_contacts": j.robot_contacts,
@@ -187,17 +202,18 @@ def with_defaults(text: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def bench_paper(work: Path, defaults: bool) -> dict:
+def bench_paper(work: Path, defaults: bool, code: Path | None = None) -> dict:
     out = {}
+    files = (code / "tlfleet" / "scenarios") if code is not None else ROOT / "scenarios"
     for number in (1, 2, 3):
-        path = ROOT / "scenarios" / f"scenario{number}.toml"
+        path = files / f"scenario{number}.toml"
         for variant in (("file", "defaults") if defaults else ("file",)):
             target = path
             if variant == "defaults":
                 target = work / f"scenario{number}-defaults.toml"
                 target.write_text(with_defaults(path.read_text()))
             run_dir = work / f"paper{number}-{variant}"
-            lockstep(target, run_dir, load_scenario(path).sim.seed, report_files=True)
+            lockstep(target, run_dir, load_scenario(path).sim.seed, report_files=True, code=code)
             ok, text = _paper_figures(run_dir, number)
             out[f"s{number}_{variant}"] = {"ok": ok, "figures": text}
             print(f"  scenario {number} ({variant}): {'met' if ok else 'NOT met'}: {text}",
@@ -213,6 +229,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tasks", type=int, default=1000, help="random tasks")
     parser.add_argument("--skip", default="", help="comma list of parts to skip: corpus, "
                                                    "random, paper, step")
+    parser.add_argument("--before", type=Path, default=None,
+                        help="a directory holding another tree of the package as tlfleet/: its "
+                             "fleets run the corpus and the paper's files (the judge is this "
+                             "tree's); e.g. main before this work, for the before/after table")
     parser.add_argument("--out", type=Path,
                         default=ROOT / "bench" / "results" / "stl_maps_bench.json")
     args = parser.parse_args(argv)
@@ -226,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
         work = Path(tmp)
         if "corpus" not in skip:
             print(f"corpus: {len(NAMES)} scenarios × seeds {seeds} (lockstep)", flush=True)
-            c = bench_corpus(seeds, work)
+            c = bench_corpus(seeds, work, args.before)
             extra["corpus"] = c
             figures += [
                 Figure("corpus_feasible_met", f"corpus: feasible sub-tasks met (of "
@@ -258,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
                                   "neighbours, obstacles in range", cpu, "µs", 35.0, wall=wall))
         if "paper" not in skip:
             print("paper scenarios (lockstep)", flush=True)
-            p = bench_paper(work, defaults=not args.quick)
+            p = bench_paper(work, defaults=not args.quick and args.before is None,
+                            code=args.before)
             extra["paper"] = p
             for key, value in p.items():
                 target = 1.0 if key.endswith("_file") else None

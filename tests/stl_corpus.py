@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 from tlfleet.agent.nav.grid import arena_clearance
 from tlfleet.agent.scenario import load_scenario
-from tlfleet.agent.scenario.stl_setup import stl_sequences
 from tlfleet.agent.stl.evaluate import evaluate_array
 from tlfleet.agent.stl.syntax import Not, literals, predicate_function
 
@@ -93,6 +92,8 @@ def _psi(task, states: dict[int, np.ndarray]) -> np.ndarray:
 
 def judge(name: str, run_dir: Path) -> RunJudgement:
     """Everything the corpus asks of one recorded run (module docstring)."""
+    from tlfleet.agent.scenario.stl_setup import stl_sequences
+
     scenario = load_scenario(CORPUS_DIR / f"{name}.toml")
     t, states = load_trajectory(run_dir)
     out = RunJudgement(name)
