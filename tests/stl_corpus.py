@@ -95,9 +95,17 @@ def judge(name: str, run_dir: Path) -> RunJudgement:
     from tlfleet.agent.scenario.stl_setup import stl_sequences
 
     scenario = load_scenario(CORPUS_DIR / f"{name}.toml")
-    t, states = load_trajectory(run_dir)
     out = RunJudgement(name)
     infeasible = INFEASIBLE.get(name, {})
+    path = run_dir / "trajectory.csv"
+    if not path.exists() or len(path.read_text().splitlines()) < 3:
+        # nothing recorded: the fleet did not start (e.g. an agent died at launch)
+        for robot_id, tasks in stl_sequences(scenario).items():
+            out.subtasks += [SubTaskResult(robot_id, task.index, task.text, math.nan,
+                                           infeasible.get((robot_id, task.index)))
+                             for task in tasks]
+        return out
+    t, states = load_trajectory(run_dir)
     for robot_id, tasks in stl_sequences(scenario).items():
         for task in tasks:
             psi = _psi(task, states)
