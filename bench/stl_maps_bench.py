@@ -81,11 +81,12 @@ def lockstep(path: Path, out: Path, seed: int, *, report_files: bool = False,
                                report=report_files, figures=False, rrd=False)).clean
 
 
-def bench_corpus(seeds: list[int], work: Path, code: Path | None = None) -> dict:
+def bench_corpus(seeds: list[int], work: Path, code: Path | None = None,
+                 names: tuple[str, ...] = NAMES) -> dict:
     feasible = met = infeasible = close = contacts = wall_beyond = runs = 0
     repairs = []
     rows = []
-    for name in NAMES:
+    for name in names:
         for seed in seeds:
             out = work / f"{name}-{seed}"
             clean = lockstep(CORPUS_DIR / f"{name}.toml", out, seed, code=code)
@@ -229,6 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tasks", type=int, default=1000, help="random tasks")
     parser.add_argument("--skip", default="", help="comma list of parts to skip: corpus, "
                                                    "random, paper, step")
+    parser.add_argument("--scenarios", default=",".join(NAMES),
+                        help="comma list of corpus scenarios (default: all)")
     parser.add_argument("--before", type=Path, default=None,
                         help="a directory holding another tree of the package as tlfleet/: its "
                              "fleets run the corpus and the paper's files (the judge is this "
@@ -245,8 +248,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="stl-maps-") as tmp:
         work = Path(tmp)
         if "corpus" not in skip:
-            print(f"corpus: {len(NAMES)} scenarios × seeds {seeds} (lockstep)", flush=True)
-            c = bench_corpus(seeds, work, args.before)
+            print(f"corpus: scenarios {args.scenarios} × seeds {seeds} (lockstep)", flush=True)
+            c = bench_corpus(seeds, work, args.before, tuple(args.scenarios.split(",")))
             extra["corpus"] = c
             figures += [
                 Figure("corpus_feasible_met", f"corpus: feasible sub-tasks met (of "

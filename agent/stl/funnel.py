@@ -298,13 +298,14 @@ def _top(rho_opt: float, rho0: float, p: FunnelParams) -> float:
 
 
 def _shift(rho_opt: float, p: FunnelParams) -> float:
-    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: a goal inside an
-    obstacle, two robots asked to be closer than they may; docs/stl-saturation.md §5) gets the
-    design of a ψ whose supremum is c = max(|ρ_opt|, 2δ), shifted down by c − ρ_opt, so that its
-    goal r and ρ_max sit just under the supremum: the least violation."""
+    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: contradictory
+    conjuncts, a goal inside an obstacle, two robots asked to be closer than they may;
+    docs/stl-saturation.md §5) gets the design of a ψ whose supremum is δ, shifted down by
+    ρ_opt − δ, so that its goal r and ρ_max sit within δ under the supremum: the least
+    violation."""
     if rho_opt > 0.0:
         return 0.0
-    return rho_opt - max(abs(rho_opt), 2.0 * p.delta)
+    return rho_opt - p.delta
 
 
 def epsilon(zeta: float, clip: float = 1e-9) -> float:
