@@ -253,8 +253,8 @@ def main(argv: list[str] | None = None) -> int:
             extra["corpus"] = c
             figures += [
                 Figure("corpus_feasible_met", f"corpus: feasible sub-tasks met (of "
-                       f"{c['feasible']}, {c['runs']} runs)", c["met"] / c["feasible"], "share",
-                       1.0, better="higher"),
+                       f"{c['feasible']}, {c['runs']} runs)", c["met"] / max(c["feasible"], 1),
+                       "share", 1.0, better="higher"),
                 Figure("corpus_infeasible_close", f"corpus: infeasible sub-tasks within 0.05 of "
                        f"their best (of {c['infeasible']})", c["close"] / max(c["infeasible"], 1),
                        "share", 1.0, better="higher"),
