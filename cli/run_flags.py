@@ -23,6 +23,14 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-report", dest="report", action="store_false",
                         help="do not write report.md/json and figures at the end")
     parser.add_argument("--no-figures", dest="figures", action="store_false",
-                        help="write report.md/json but no PNG figures")
+                        help="write report.md/json but no figures")
+    add_figure_format_argument(parser)
     parser.add_argument("--no-rrd", dest="rrd", action="store_false",
                         help="do not write run.rrd (rerun) at the end")
+
+
+def add_figure_format_argument(parser: argparse.ArgumentParser) -> None:
+    """``--figure-format png|pdf|svg`` → ``args.figure_format``."""
+    parser.add_argument("--figure-format", choices=("png", "pdf", "svg"), default="png",
+                        help="the figures' format: png (200 dpi, default: shown in report.md "
+                             "everywhere), or pdf / svg (vector, for a paper)")

@@ -86,8 +86,8 @@ from tlfleet.coordinator.supervise import (
     prepare_run,
 )
 
-__all__ = ["SCHED_CHOICES", "RunConfig", "RunResult", "child_sched", "default_child_argv",
-           "fleet_plan", "peer_links", "run_fleet"]
+__all__ = ["SCHED_CHOICES", "HardwareRunError", "RunConfig", "RunResult", "check_hardware",
+           "child_sched", "default_child_argv", "fleet_plan", "peer_links", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
@@ -112,7 +112,8 @@ class RunConfig:
     agent_args: tuple[str, ...] = ()  # extra flags for every `tlfleet agent`
     child_argv: ChildArgv | None = None  # replaces default_child_argv (tests: stand-ins)
     report: bool = True  # write report.md/json after the run
-    figures: bool = True  # ... and the PNG figures
+    figures: bool = True  # ... and the figures
+    figure_format: str = "png"  # png | pdf | svg (tlfleet.coordinator.report.figures.FORMATS)
     rrd: bool = True  # write run.rrd after the run
     rrd_every: int = 5  # log every n-th trajectory row to run.rrd
     viewer: bool = False  # serve the run live to a web viewer
@@ -128,6 +129,28 @@ class RunConfig:
     direct_links: bool = True  # unsecured: sim and agents linked as zenoh peers
     #                            (peer_links; False: every sample through the router)
     sched: str = "auto"  # OS scheduling of the router, sim and agents (child_sched)
+    hardware: Path | None = None  # a lab file: `tlfleet hw` drives real robots in the
+    #                               simulator's place (realtime only, docs/hardware.md)
+
+
+class HardwareRunError(LaunchError):
+    """A ``--hardware`` run asked for something the real world cannot do."""
+
+
+def check_hardware(config: RunConfig, scenario: Scenario) -> None:
+    """A ``--hardware`` run: realtime only, no injected faults, and a lab file that drives
+    exactly the scenario's robots (``ScenarioError`` naming the lab file otherwise)."""
+    if config.hardware is None:
+        return
+    if config.mode != "realtime":
+        raise HardwareRunError("--hardware runs in realtime only: real robots do not wait for "
+                               "a lockstep tick (drop --lockstep)")
+    if config.faults or scenario.faults:
+        raise HardwareRunError("--hardware: injected faults ([[faults]], --fault) act on the "
+                               "simulator's processes and links, not on real robots")
+    from tlfleet.agent.scenario.lab import check_lab, load_lab
+
+    check_lab(load_lab(config.hardware), scenario)
 
 
 #: what a sim or agent process listens on when it is a peer (peer_links): a free loopback port
@@ -190,6 +213,11 @@ def fleet_plan(config: RunConfig, scenario: Scenario,
         secure=None if config.secure is None else Path(config.secure).resolve(),
         lease_ms=config.lease_ms or None, zenoh_config=config.zenoh_config,
         sched=None if sched == "default" else sched))
+    if config.hardware is not None:  # `tlfleet hw` in the simulator's place
+        hw = ("hw", str(Path(config.scenario_path).resolve()), "--lab",
+              str(Path(config.hardware).resolve()), "--duration",
+              repr(float(config.duration or scenario.duration)))
+        plan = tuple(replace(spec, args=hw) if spec.role == "sim" else spec for spec in plan)
     peers = peer_links(config)
     placed = []
     for spec in plan:
@@ -254,6 +282,7 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     note = report or (lambda text: logger.info("%s", text))
     scenario = load_checked(config.scenario_path, config.secure)  # before anything else
     child_sched(config)  # ValueError for a bad RunConfig.sched, before anything is started
+    check_hardware(config, scenario)  # a lab file that does not fit: before anything, too
     faults = run_faults(scenario, config.faults, config.duration)  # FaultSpecError: the same
     # link cuts need namespace hosts (tlfleet.coordinator.launch.netns_hosts)
     ProcessActuator.check_all(faults)
@@ -275,6 +304,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     if faults:  # fault runs keep the topology their plans and measurements were made for
         config = replace(config, direct_links=False)
     info["links"] = "peer" if peer_links(config) else "router"
+    if config.hardware is not None:
+        info["hardware"] = str(Path(config.hardware).resolve())
     argv_of = config.child_argv or default_child_argv
     launcher = Launcher(prepared.run_dir / "logs")
     transport: Transport | None = None

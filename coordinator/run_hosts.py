@@ -22,6 +22,7 @@ temporary directory and deleted with the namespaces; ``run.json`` records the fi
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -33,7 +34,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
+from tlfleet.bus.lifeline import child_environment as tie_to_this_process
 from tlfleet.coordinator.launch.netns_hosts import (
     PEER_PORT,
     RECONNECT,
@@ -66,7 +69,8 @@ def supervise_until_done(argv: Sequence[str], capture: bool, stop: threading.Eve
     session of its own, so a terminal's Ctrl-C reaches it only through this (once)."""
     pipe = subprocess.PIPE if capture else None
     process = subprocess.Popen(list(argv), stdout=pipe, stderr=pipe, text=True,
-                               start_new_session=True)
+                               start_new_session=True,
+                               env=tie_to_this_process(dict(os.environ)))
     interrupted_at: float | None = None
     out = err = None
     try:
@@ -115,6 +119,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     (:func:`place_peers`; ``hosts`` is then the layout's own count)."""
     require_root()
     scenario = load_scenario(scenario_path)  # ScenarioError before anything starts
+    check_launch(scenario)  # ... and what would stop an agent at launch
     if secure is not None and insecure:
         raise HostsError("--secure DIR and --insecure exclude each other")
     if secure is not None:

@@ -35,6 +35,7 @@ from typing import Any
 
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.model.faults import Fault
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.protocol import keys
@@ -47,15 +48,26 @@ from tlfleet.bus.zenoh.transport import open_transport
 from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.supervisor import ChildLike, Outcome, Supervisor, SupervisorConfig
-from tlfleet.coordinator.live.verdict import Verdict, classify, mission_event_kinds
+from tlfleet.coordinator.live.verdict import (
+    RunEnd,
+    Verdict,
+    classify,
+    control_periods,
+    mission_event_kinds,
+)
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
 from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
+from tlfleet.coordinator.record.trust import RecordCheck
 from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
+from tlfleet.coordinator.report.task_tally import TASKS_NOT_MET, TaskTally
 
 logger = logging.getLogger(__name__)
 
 Say = Callable[[str], None]
 CLEAN_ENDS = ("sim_done", "duration")
+#: mocap periods a run's last recorded frame may fall short of its duration and still be at its
+#: end (the simulator's last tick is the last whole period)
+END_TOLERANCE = 1.5
 
 
 class SuperviseError(TlfleetError, RuntimeError):
@@ -81,6 +93,7 @@ class SuperviseConfig:
     close_timeout: float = 5.0  # [s] wall: closing the coordinator's session, at most
     report: bool = True
     figures: bool = True
+    figure_format: str = "png"  # png | pdf | svg
     rrd: bool = True
     rrd_every: int = 5
     viewer: bool = False
@@ -117,13 +130,27 @@ class RunResult:
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # tlfleet.coordinator.report.viewer.LiveView, still serving (close() it)
     verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
+    tasks: TaskTally | None = None  # what the run achieved (None: not computed)
+
+    def exit_code(self, require_tasks: bool = False) -> int:
+        """The verdict's exit code; with ``require_tasks``, :data:`TASKS_NOT_MET` (5) instead
+        of 0 or 4 when a task was not met (or the tally could not be computed)."""
+        code = self.verdict.exit_code
+        if require_tasks and self.verdict.label in ("clean", "degraded") and not (
+                self.tasks is not None and self.tasks.all_met):
+            return TASKS_NOT_MET
+        return code
 
 
 def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
-    """The scenario (``ScenarioError`` names file and field); with ``secure``, its key directory
-    checked against it (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): both before
-    anything starts."""
+    """The scenario (``ScenarioError`` names file and field; every agent built as its process
+    would, :func:`tlfleet.agent.policy.preflight.check_launch`, an LTL robot's plan included:
+    the reason names the region in the way when the keep-out rule leaves none,
+    docs/ltl-navigation.md §2); with ``secure``, its key directory checked against it
+    (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): all before anything
+    starts."""
     scenario = load_scenario(scenario_path)
+    check_launch(scenario)  # what would stop an agent at launch, refused before any starts
     if secure is not None:
         from tlfleet.coordinator.security.authority import (
             check_keys,  # cryptography: imported for secured runs only
@@ -164,10 +191,13 @@ def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
     """The recorder tap's plausibility checks for this run."""
     a = scenario.arena
     dividers = [scenario.control_divider(r) for r in scenario.robot_ids]
-    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration,
-                                  scenario.sim.mocap_rate, scenario.speed_limits()),
-            "max_jump": max_jump_ticks(scenario.sim.mocap_rate, dividers),
-            "robot_ids": scenario.robot_ids}
+    rate = scenario.sim.mocap_rate
+    return {"bounds": FleetBounds((a.xmin, a.xmax, a.ymin, a.ymax), duration, rate,
+                                  scenario.speed_limits()),
+            "max_jump": max_jump_ticks(rate, dividers),
+            "robot_ids": scenario.robot_ids,
+            "record_check": RecordCheck({r.id: r.radius for r in scenario.robots}, rate,
+                                        round(duration * rate))}
 
 
 class Supervision:
@@ -293,7 +323,7 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
     ``codes``: the launched children's exit codes after ``Control(stop)``; ``final``: after the
     clean-up; ``lingering``: processes not started here whose tokens outlived ``Control(stop)``.
     """
-    info, recorder = prepared.info, prepared.recorder
+    info, recorder, scenario = prepared.info, prepared.recorder, prepared.scenario
     clean = (outcome.reason in CLEAN_ENDS and not outcome.deaths and not lingering
              and all(code == 0 for code in codes.values()) and router_clean)
     info["clean"] = clean
@@ -302,19 +332,24 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
          f"{' and figures' if config.report and config.figures else ''} in {prepared.run_dir} …")
 
     def judge(files: RunFiles, data: dict[str, Any]) -> Verdict:
-        events = [{"t": e.t, "kind": e.kind} for e in files.events]  # read once (lenient)
+        events = [{"t": e.t, "kind": e.kind, "source": e.source, "data": e.data}
+                  for e in files.events]  # read once (lenient)
         extra = list(findings or []) + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])]
         return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
                         exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
                         deadlines=data.get("deadlines") or {},
-                        event_kinds=mission_event_kinds(events, outcome.t_end),
-                        findings=extra, lingering=lingering)
+                        event_kinds=mission_event_kinds(events, outcome.t_end,
+                                                        periods=control_periods(scenario)),
+                        findings=extra, lingering=lingering,
+                        end=RunEnd(outcome.t_end, prepared.duration, outcome.reason),
+                        tolerance=END_TOLERANCE / prepared.scenario.sim.mocap_rate,
+                        sim_reached=outcome.sim_reached)
 
-    text, data, report, rrd, verdict = write_outputs(
+    text, data, report, rrd, verdict, tally = write_outputs(
         prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note, say,
         judge=judge)
     return RunResult(prepared.run_dir, outcome, final, clean, text, data, info, report, rrd,
-                     viewer, verdict)
+                     viewer, verdict, tally)
 
 
 def client_config(connect: tuple[str, ...], *, secure: Path | None = None,

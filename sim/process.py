@@ -75,6 +75,7 @@ import numpy as np
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import ORPHAN_AFTER, CoordinatorWatch
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
@@ -176,6 +177,7 @@ class SimProcessConfig:
     max_command_age: float | None = None  # [s] sim time (None: 5 control periods)
     max_speed: float | None = None  # lockstep: at most this × wall-clock time (None: free)
     backfill_seconds: float = BACKFILL_SECONDS  # [s] sim time of frames kept for the backfill
+    orphan_after: float = ORPHAN_AFTER  # [s] wall: exit once the coordinator is gone this long
 
 
 @dataclass
@@ -199,16 +201,20 @@ class SimProcess:
 
     def __init__(self, transport: Transport, scenario: Scenario, config: SimConfig,
                  stop: threading.Event | None = None,
-                 now: Callable[[], float] = time.monotonic):
+                 now: Callable[[], float] = time.monotonic, world: Any = None):
         self.transport = transport
         self.scenario = scenario
         self.config = config
         self.stop_event = stop or threading.Event()
         self._now = now
         self.fleet = scenario.fleet
-        self.world = World.from_scenario(scenario, np.random.default_rng(config.seed),
-                                         config.world)
-        if self.world.config.native_tracking:
+        # ``world``: what stands in for the pymunk world (the hardware bridge's robots,
+        # tlfleet.sim.hardware): the same interface, the same frames, keys and events
+        self.world = world if world is not None else World.from_scenario(
+            scenario, np.random.default_rng(config.seed), config.world)
+        if world is not None:
+            logger.info("world: %s", type(world).__name__)
+        elif self.world.config.native_tracking:
             logger.info("tracking law: C (tlfleet.sim._tracking)")
         elif native_tracking_available():
             logger.info("tracking law: Python (tracking = %r)", self.world.config.tracking)
@@ -258,7 +264,8 @@ class SimProcess:
         self._inbox: queue.SimpleQueue[tuple[str, str, Any, float]] = queue.SimpleQueue()
         self._cmds: Channel | None = None  # lockstep: the commands' channel
         self._keys = {"mocap": keys.mocap(self.fleet), "clock": keys.clock(self.fleet),
-                      "event": keys.event(self.fleet), "backfill": keys.sim_backfill(self.fleet)}
+                      "event": keys.event(self.fleet, "sim", 0),
+                      "backfill": keys.sim_backfill(self.fleet)}
         # robot of each command key of the fleet, parsed once (any other key: keys.robot_of)
         self._cmd_robot = {keys.cmd(self.fleet, robot): robot for robot in self.world.ids}
         # the last step's tick, due robots and watchdog stops, reported after the next frame
@@ -277,11 +284,11 @@ class SimProcess:
         """Declare presence, subscribe, run until done or stopped; undeclare. Returns 0."""
         handles: list[Closeable] = []
         try:
-            inbox, now = self._inbox, self._now
+            inbox = self._inbox
             wake = self._open_command_channel(handles)
             if self._cmds is None:
-                handles.append(self.transport.subscribe(
-                    keys.all_cmds(self.fleet), lambda k, p: inbox.put(("cmd", k, p, now()))))
+                handles.append(self.transport.subscribe(keys.all_cmds(self.fleet),
+                                                        self._command_sample))
             handles.append(self.transport.subscribe(
                 keys.control(self.fleet), lambda k, p: (inbox.put(("control", k, p, 0.0)),
                                                         wake())))
@@ -330,6 +337,11 @@ class SimProcess:
                                        wake_key=keys.cmd(self.fleet, self.world.ids[0]))
         handles.append(self._cmds)
         return self._cmds.wake
+
+    def _command_sample(self, key: str, payload: bytes) -> None:
+        """A command's sample (on a transport thread, realtime): queued for the loop with its
+        arrival time."""
+        self._inbox.put(("cmd", key, payload, self._now()))
 
     @property
     def stopping(self) -> bool:
@@ -789,9 +801,14 @@ def main(config: SimProcessConfig) -> int:
     stop = threading.Event()
     install_signal_handlers(stop)
     transport = open_transport(config.transport)
+    watch = None
     try:
+        watch = CoordinatorWatch(transport, keys.alive(scenario.fleet, "coordinator", 0), stop,
+                                 config.orphan_after, "sim")
         code = run_sim(transport, scenario, sim_config, stop)
         time.sleep(LINGER)  # let zenoh deliver the last frame and sim_done before closing
         return code
     finally:
+        if watch is not None:
+            watch.close()
         transport.close()

@@ -39,7 +39,8 @@ def scenarios_dir() -> Path:
 # ----------------------------------------------------------------- system requirements
 # Tests marked ``needs_system`` need root, network namespaces or docker. Where those are missing
 # they skip with the reason; with TLFLEET_REQUIRE_SYSTEM=1 (set by .ci/run) such a skip is turned
-# into a failure, so CI can never pass by skipping them.
+# into a failure, so CI can never pass by skipping them. So are the ``ros`` tests (the tlfleet[ros2]
+# extra: rclpy, mcap), which `make test` installs.
 REQUIRE_SYSTEM = os.environ.get("TLFLEET_REQUIRE_SYSTEM") == "1"
 
 
@@ -47,7 +48,8 @@ REQUIRE_SYSTEM = os.environ.get("TLFLEET_REQUIRE_SYSTEM") == "1"
 def pytest_runtest_makereport(item, call):
     outcome = yield
     report = outcome.get_result()
-    if REQUIRE_SYSTEM and report.skipped and item.get_closest_marker("needs_system"):
+    if REQUIRE_SYSTEM and report.skipped and (item.get_closest_marker("needs_system")
+                                              or item.get_closest_marker("ros")):
         reason = report.longrepr[-1] if isinstance(report.longrepr, tuple) else report.longrepr
         report.outcome = "failed"
         report.longrepr = (f"TLFLEET_REQUIRE_SYSTEM=1, but this system test was skipped: "

@@ -121,6 +121,20 @@ def buchi_step(buchi: Buchi, states: frozenset[int], label: Iterable[str]) -> fr
                      if guard.holds(v))
 
 
+def buchi_stutter_step(buchi: Buchi, states: frozenset[int], label: Iterable[str]
+                       ) -> frozenset[int]:
+    """The Büchi states reachable from ``states`` by reading the letter ``label`` once or more
+    (``buchi_step`` to a fixpoint): the states consistent with a robot that stayed in a region
+    for a while, the way the run's word reads a region (docs/ltl-navigation.md §1). For
+    stutter-invariant (X-free) tasks, reading a letter once more changes no acceptance."""
+    reached = buchi_step(buchi, states, label)
+    frontier = reached
+    while frontier:
+        frontier = buchi_step(buchi, frontier, label) - reached
+        reached = reached | frontier
+    return reached
+
+
 def _atoms_in_order(f: Formula) -> tuple[str, ...]:
     """Atoms by first occurrence (as Spot numbers them)."""
     order: dict[str, None] = {}

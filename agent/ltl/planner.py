@@ -30,7 +30,12 @@ from tlfleet.agent.ltl.parser import parse
 from tlfleet.agent.ltl.product import ProductGraph, explore
 from tlfleet.agent.ltl.search import optimal_lasso
 from tlfleet.agent.ltl.task import is_hoa_task, robot_formula, task_automaton
-from tlfleet.agent.ltl.transition_system import Distance, TransitionSystem, from_scenario
+from tlfleet.agent.ltl.transition_system import (
+    Distance,
+    EdgeLength,
+    TransitionSystem,
+    from_scenario,
+)
 from tlfleet.agent.model.scenario import Scenario
 from tlfleet.bus.errors import UnsatisfiableTask
 
@@ -214,10 +219,11 @@ def replan(
 
 
 def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = None, *,
-               buchi: Buchi | None = None) -> Plan:
+               buchi: Buchi | None = None, edge_length: EdgeLength | None = None) -> Plan:
     """Optimal plan of LTL robot ``robot_id`` over the scenario's regions (paper Alg. 1).
 
-    ``distance(p, q)`` between region centres defaults to the Euclidean distance [m]. ``buchi``
+    ``distance(p, q)`` between region centres defaults to the Euclidean distance [m];
+    ``edge_length(source, target)`` over the states (``transition_system``) replaces it. ``buchi``
     is the robot's automaton when the caller has translated it already (an LTL agent keeps it
     to track its Büchi states: one translation, one numbering); otherwise the scenario's parsed
     formula is translated here.
@@ -225,7 +231,7 @@ def plan_robot(scenario: Scenario, robot_id: int, distance: Distance | None = No
     robot = scenario.robot(robot_id)
     if robot.ltl is None:
         raise ValueError(f"robot {robot_id} has no LTL task")
-    ts = from_scenario(scenario, robot_id, distance)
+    ts = from_scenario(scenario, robot_id, distance, edge_length=edge_length)
     buchi, t_parse, t_translate = _automaton(robot_formula(robot) if buchi is None else buchi)
     pairs = [(ts.initial, q) for q in buchi.initial]
     try:

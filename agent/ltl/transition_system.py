@@ -3,8 +3,10 @@
 ``T = (Π, →, Π0, L, W)``: the states are the regions of interest (plus, when the robot starts
 outside every region, a virtual ``start`` state with label ∅ and an edge to every region and no
 way back). Every region has a zero-cost self-loop. Weights are the Euclidean distance between
-region centres [m] unless the caller passes ``distance(p, q)`` over centre points ``(x, y)``,
-e.g. the navigation stack's obstacle-aware path length; a distance of ``math.inf`` (or ``None``)
+region centres [m] unless the caller passes ``distance(p, q)`` over centre points ``(x, y)``, or
+``edge_length(source, target)`` over the states themselves (``source`` a region or the start
+point, ``target`` a region): the navigation stack's keep-out path length, which depends on which
+regions the path may enter (docs/ltl-navigation.md §2). A weight of ``math.inf`` (or ``None``)
 means "no path" and drops the edge.
 """
 
@@ -18,6 +20,7 @@ from tlfleet.agent.model.scenario import Region, Scenario
 
 Point = tuple[float, float]
 Distance = Callable[[Point, Point], float | None]
+EdgeLength = Callable[[Region | Point, Region], float | None]
 
 START = "start"
 
@@ -81,11 +84,15 @@ def from_regions(
     regions: Sequence[Region],
     start: Point,
     distance: Distance | None = None,
+    *,
+    edge_length: EdgeLength | None = None,
 ) -> TransitionSystem:
-    """Complete transition system over ``regions`` for a robot starting at ``start`` [m].
+    """Transition system over ``regions`` for a robot starting at ``start`` [m]: every edge whose
+    weight is finite (all of them with the default Euclidean distance).
 
     The initial state is the region containing ``start`` (the one with the nearest centre if
-    several do), else a virtual ``start`` state.
+    several do), else a virtual ``start`` state. ``edge_length`` (module docstring) takes
+    precedence over ``distance``.
     """
     if not regions:
         raise ValueError("a transition system needs at least one region")
@@ -93,12 +100,19 @@ def from_regions(
     names = [r.name for r in regions]
     labels = [frozenset(r.labels) for r in regions]
     centres = [(float(r.center[0]), float(r.center[1])) for r in regions]
+
+    def weight(i: int | None, j: int) -> float | None:
+        source = regions[i] if i is not None else (float(start[0]), float(start[1]))
+        if edge_length is not None:
+            return edge_length(source, regions[j])
+        return dist(centres[i] if i is not None else source, centres[j])
+
     edges: list[tuple[tuple[int, float], ...]] = []
-    for i, p in enumerate(centres):
+    for i in range(len(regions)):
         out = [(i, 0.0)]
-        for j, q in enumerate(centres):
+        for j in range(len(regions)):
             if i != j:
-                w = dist(p, q)
+                w = weight(i, j)
                 if w is not None and math.isfinite(w):
                     out.append((j, float(w)))
         edges.append(tuple(out))
@@ -109,8 +123,8 @@ def from_regions(
         if START in names:
             raise ValueError(f"a region may not be called {START!r} (reserved for the start)")
         out = []
-        for j, q in enumerate(centres):
-            w = dist((float(start[0]), float(start[1])), q)
+        for j in range(len(regions)):
+            w = weight(None, j)
             if w is not None and math.isfinite(w):
                 out.append((j, float(w)))
         names.append(START)
@@ -121,8 +135,10 @@ def from_regions(
 
 
 def from_scenario(
-    scenario: Scenario, robot_id: int, distance: Distance | None = None
+    scenario: Scenario, robot_id: int, distance: Distance | None = None, *,
+    edge_length: EdgeLength | None = None,
 ) -> TransitionSystem:
     """The transition system of robot ``robot_id`` over the scenario's regions."""
     robot = scenario.robot(robot_id)
-    return from_regions(scenario.regions, (robot.pose[0], robot.pose[1]), distance)
+    return from_regions(scenario.regions, (robot.pose[0], robot.pose[1]), distance,
+                        edge_length=edge_length)

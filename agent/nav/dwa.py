@@ -20,12 +20,15 @@ Each control period ``Δt`` [s] (0.2 s at 5 Hz):
 4. **Score** (lower is better; ROS costs, distances in metres instead of cells):
    ``J = path_distance_bias · (d_path(end) + d_path(front))
        + goal_distance_bias · (‖end − g‖ + ‖front − g‖)
-       + occdist_scale · max_t c(d)
+       + occdist_scale · max_t c(d_static) + robot_occdist_scale · max_t c(d_robots)
        + speed_bias · (v_max − v_s) / v_max``
    where ``end`` is the rollout end point, ``front = end + forward_point_distance·(cos θ, sin θ)``
    (the alignment point), ``d_path`` the distance to the remaining global path, ``g`` the
    look-ahead point ``carrot_distance`` along the path, and ``c(d)`` the costmap_2d inflation
-   cost ``252·exp(−cost_scaling_factor·(d − r_robot))`` for ``d ≤ inflation_radius`` (0 beyond).
+   cost ``252·exp(−cost_scaling_factor·(d − r_robot))`` for ``d ≤ inflation_radius`` (0 beyond),
+   of the clearance to the map (walls, obstacles, keep-out zones) and to the other robots apart:
+   the map is known exactly and asks only to stay off it, the robots' motion is predicted and
+   asks for a wider berth (docs/ltl-navigation.md §4).
    The ``front`` terms use the path extended by ``forward_point_distance`` past the goal and the
    look-ahead point that much further on (ROS instead drops them near the goal), so alignment
    never holds the robot short of its goal.
@@ -87,7 +90,11 @@ class DwaConfig:
     vtheta_samples: int = 20
     path_distance_bias: float = 64.0  # [1/m]
     goal_distance_bias: float = 24.0  # [1/m]
-    occdist_scale: float = 0.5  # [1/cost]
+    # ROS's 0.5 with ROS's path and goal biases per 0.05 m cell: ours are per metre (20× less),
+    # so the occupancy term is scaled alike; at 0.5 it outweighed progress next to wall ends and
+    # door frames and the robot stood still (docs/ltl-navigation.md §4)
+    occdist_scale: float = 0.025  # [1/cost]
+    robot_occdist_scale: float = 0.5  # [1/cost] the other robots' inflation cost (ROS's scale)
     xy_goal_tolerance: float = 0.15  # [m]
     controller_period: float = 0.2  # [s] (5 Hz)
     forward_point_distance: float = 0.325  # [m] ROS default
@@ -96,6 +103,10 @@ class DwaConfig:
     collision_margin: float = 0.03  # [m] beyond the robot radius, rollouts closer are rejected
     carrot_distance: float = 0.8  # [m] look-ahead along the global path for the goal term
     speed_bias: float = 2.0  # weight of the speed term (ours; ROS has none)
+    # ROS dwa_local_planner's min_vel_trans / min_vel_theta: a sample slower than both does not
+    # move the robot and is left out while any moving one is admissible (step 6)
+    min_trans_vel: float = 0.1  # [m/s]
+    min_rot_vel: float = 0.4  # [rad/s]
     # where the cycle runs: "native" (C, tlfleet.agent.nav._dwa), "python" (numpy), or "auto" (C
     # when it was built); the same commands either way. Default: $TLFLEET_DWA, else "auto".
     kernel: str = field(default_factory=_default_kernel)
@@ -331,13 +342,17 @@ def dwa_control(
     horizon = float(times[-1])
     reach = float(np.abs(vs).max()) * horizon
     near = _near_discs(others, px, py, reach, horizon, config)
-    current = grid.clearance_point(px, py)
+    current_static = grid.clearance_point(px, py)
+    current, current_robots = current_static, math.inf
     for cx0, cy0, _, _, r in near:
         ex, ey = cx0 - px, cy0 - py
-        current = min(current, math.sqrt(ex * ex + ey * ey) - r)
+        gap = math.sqrt(ex * ex + ey * ey) - r
+        current = min(current, gap)
+        current_robots = min(current_robots, gap)
     required = min(robot_radius + config.collision_margin, current - 1e-6)
 
-    x, y, cos_t, sin_t, min_clearance = _clearances(pose, vs, ws, times, grid, near, reach)
+    x, y, cos_t, sin_t, min_clearance, least_static, least_robots = _clearances(
+        pose, vs, ws, times, grid, near, reach)
     valid = min_clearance >= required
     if limits and valid.any():
         excess = limits.excess(vs, ws)
@@ -346,13 +361,17 @@ def dwa_control(
             least = float(excess[valid].min())
             coupled = valid & (excess <= least + 1e-12)
         valid = coupled
+    moving = valid & ((np.abs(vs) >= config.min_trans_vel) | (np.abs(ws) >= config.min_rot_vel))
+    if moving.any():  # standing still only when nothing else is admissible (step 6)
+        valid = moving
     n_valid = int(np.count_nonzero(valid))
     if n_valid == 0:
         v, w = braking_command(v0, w0, config)
         return DwaResult(v, w, math.inf, 0, False, np.zeros((0, 2)))
 
     targets = _path_targets(px, py, vertices, config)
-    cost = _costs(x, y, cos_t, sin_t, vs, min_clearance, current, targets, robot_radius, config)
+    cost = _costs(x, y, cos_t, sin_t, vs, least_static, least_robots, current_static,
+                  current_robots, targets, robot_radius, config)
     cost[~valid] = np.inf
     best = int(np.argmin(cost))
     return DwaResult(
@@ -384,10 +403,13 @@ def _clearances(pose: Sequence[float], vs: np.ndarray, ws: np.ndarray, times: np
                 grid: OccupancyGrid, near: list[tuple[float, float, float, float, float]],
                 reach: float) -> tuple[np.ndarray, ...]:
     """Steps 2-3 in numpy: the rollouts x, y, cos θ, sin θ (S, T) and each rollout's least
-    clearance (S,) [m] to the grid's obstacles and the ``near`` discs."""
+    clearance (S,) [m] to the grid's obstacles and the ``near`` discs together, to the grid's
+    obstacles alone and to the discs alone (``inf`` without any)."""
     px, py = float(pose[0]), float(pose[1])
     x, y, _, cos_t, sin_t = _arcs_with_trig(pose, vs, ws, times)  # (S, T) each
-    clearance = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
+    static = grid.clearance_xy(x, y, within=(px, py, reach))  # (S, T)
+    clearance = static
+    robots = None
     for cx0, cy0, ux, uy, r in near:
         dx = x - (cx0 + times * ux)
         dy = y - (cy0 + times * uy)
@@ -396,13 +418,19 @@ def _clearances(pose: Sequence[float], vs: np.ndarray, ws: np.ndarray, times: np
         dx += dy
         gap = np.sqrt(dx, out=dx)
         gap -= r
-        np.minimum(clearance, gap, out=clearance)
-    return x, y, cos_t, sin_t, clearance.min(axis=1)
+        robots = gap if robots is None else np.minimum(robots, gap, out=robots)
+    if robots is not None:
+        clearance = np.minimum(static, robots)
+        least_robots = robots.min(axis=1)
+    else:
+        least_robots = np.full(len(vs), np.inf)
+    return x, y, cos_t, sin_t, clearance.min(axis=1), static.min(axis=1), least_robots
 
 
 def _costs(x: np.ndarray, y: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, vs: np.ndarray,
-           min_clearance: np.ndarray, current: float, targets: _PathTargets,
-           robot_radius: float, config: DwaConfig) -> np.ndarray:
+           least_static: np.ndarray, least_robots: np.ndarray, current_static: float,
+           current_robots: float, targets: _PathTargets, robot_radius: float,
+           config: DwaConfig) -> np.ndarray:
     """Step 4 in numpy: every sample's cost (S,), admissible or not."""
     ahead, (carrot_x, carrot_y), extended, (front_carrot_x, front_carrot_y) = targets
     end_x, end_y = x[:, -1], y[:, -1]
@@ -416,12 +444,15 @@ def _costs(x: np.ndarray, y: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray, v
     cost += config.path_distance_bias * distance_to_polyline_xy(front_x, front_y, extended)
     dx, dy = front_x - front_carrot_x, front_y - front_carrot_y
     cost += config.goal_distance_bias * np.sqrt(dx * dx + dy * dy)
-    # As ROS, the occupancy term is the worst cost along the rollout including the start pose;
+    # As ROS, each occupancy term is the worst cost along the rollout including the start pose;
     # the inflation cost does not increase with the clearance, so the worst cost along a rollout
     # is the cost of its least clearance (the same value, on S instead of S·T clearances).
-    worst = np.maximum(inflation_cost(min_clearance, robot_radius, config),
-                       float(inflation_cost(np.float64(current), robot_radius, config)))
+    worst = np.maximum(inflation_cost(least_static, robot_radius, config),
+                       float(inflation_cost(np.float64(current_static), robot_radius, config)))
     cost += config.occdist_scale * worst
+    worst = np.maximum(inflation_cost(least_robots, robot_radius, config),
+                       float(inflation_cost(np.float64(current_robots), robot_radius, config)))
+    cost += config.robot_occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
     return cost
 

@@ -238,7 +238,8 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
         if (i == 0 || fabs(sv[i]) > top)
             top = fabs(sv[i]);
     const double reach = top * horizon;
-    double current = clearance_at(g, px, py);
+    const double current_static = clearance_at(g, px, py);
+    double current = current_static, current_robots = INFINITY;
     int n_near = 0;
     for (int j = 0; j < n_others; j++) {
         const double cx = centers[2 * j], cy = centers[2 * j + 1];
@@ -257,7 +258,9 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
     }
     for (int j = 0; j < n_near; j++) {
         const double ex = near[5 * j] - px, ey = near[5 * j + 1] - py;
-        current = py_min(current, sqrt(ex * ex + ey * ey) - near[5 * j + 4]);
+        const double gap = sqrt(ex * ex + ey * ey) - near[5 * j + 4];
+        current = py_min(current, gap);
+        current_robots = py_min(current_robots, gap);
     }
     const double required = py_min(p->robot_radius + p->collision_margin, current - 1e-6);
 
@@ -317,13 +320,16 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
 
     /* 4. every sample's rollout, least clearance and cost */
     const struct arc arc = {px, py, th0, sin(th0), cos(th0)};
-    const double current_cost = inflation_cost(p, current);
+    const double static_cost = inflation_cost(p, current_static);
+    const double robots_cost = inflation_cost(p, current_robots);
     for (int i = 0; i < s_count; i++) {
-        double d_least = 0.0, x = px, y = py, cos_t = 1.0, sin_t = 0.0;
+        double d_least = 0.0, s_least = 0.0, r_least = INFINITY;
+        double x = px, y = py, cos_t = 1.0, sin_t = 0.0;
         for (int k = 0; k < n_times; k++) {
             const double t = times[k];
             rollout_point(&arc, sv[i], sw[i], t, &x, &y, &cos_t, &sin_t);
-            double d = clearance_at(g, x, y);
+            const double d_static = clearance_at(g, x, y);
+            double d = d_static, d_robots = INFINITY;
             for (int j = 0; j < n_near; j++) {
                 const double *disc = near + 5 * j;
                 double dx = x - (disc[0] + t * disc[2]);
@@ -331,17 +337,24 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
                 dx *= dx;
                 dy *= dy;
                 dx += dy;
-                /* Far enough that sqrt(dx) - r exceeds d with a margin far above rounding:
-                 * the minimum cannot change, so the square root is not taken. */
-                const double within = d + disc[4];
+                /* Far enough that sqrt(dx) - r exceeds both d and inflation_radius with a
+                 * margin far above rounding: neither the least clearance nor the robots'
+                 * inflation cost can change, so the square root is not taken. */
+                const double within = py_max(d, p->inflation_radius) + disc[4];
                 if (within > 1e-3 && dx > within * within * (1.0 + 1e-6))
                     continue;
                 const double gap = sqrt(dx) - disc[4];
                 if (gap < d)
                     d = gap;
+                if (gap < d_robots)
+                    d_robots = gap;
             }
             if (k == 0 || d < d_least)
                 d_least = d;
+            if (k == 0 || d_static < s_least)
+                s_least = d_static;
+            if (d_robots < r_least)
+                r_least = d_robots;
         }
         least[i] = d_least;
         double total = distance_to_polyline(x, y, n_ahead, ahead);
@@ -354,10 +367,14 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
         dx = front_x - front_carrot[0];
         dy = front_y - front_carrot[1];
         total += p->goal_distance_bias * sqrt(dx * dx + dy * dy);
-        double worst = inflation_cost(p, d_least);
-        if (current_cost > worst)
-            worst = current_cost;
+        double worst = inflation_cost(p, s_least);
+        if (static_cost > worst)
+            worst = static_cost;
         total += p->occdist_scale * worst;
+        double worst_robots = inflation_cost(p, r_least);
+        if (robots_cost > worst_robots)
+            worst_robots = robots_cost;
+        total += p->robot_occdist_scale * worst_robots;
         total += p->speed_bias * (p->max_vel_x - sv[i]) / p->max_vel_x;
         cost[i] = total;
     }
@@ -400,9 +417,16 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
             threshold = smallest + 1e-12;
         }
     }
+    /* 6. no standing still by choice: only the moving samples while one is admissible */
+    int any_moving = 0;
+    for (int i = 0; i < s_count; i++)
+        any_moving |= least[i] >= required && (!coupled || excess[i] <= threshold)
+                      && (fabs(sv[i]) >= p->min_trans_vel || fabs(sw[i]) >= p->min_rot_vel);
     int n_valid = 0, best = 0;
     for (int i = 0; i < s_count; i++) {
-        const int valid = least[i] >= required && (!coupled || excess[i] <= threshold);
+        const int valid = least[i] >= required && (!coupled || excess[i] <= threshold)
+                          && (!any_moving || fabs(sv[i]) >= p->min_trans_vel
+                              || fabs(sw[i]) >= p->min_rot_vel);
         n_valid += valid;
         if (!valid)
             cost[i] = INFINITY;

@@ -7,7 +7,7 @@ typedef struct {
     int vx_samples, vtheta_samples;
     double path_distance_bias, goal_distance_bias, occdist_scale, xy_goal_tolerance;
     double forward_point_distance, inflation_radius, cost_scaling_factor, collision_margin;
-    double carrot_distance, speed_bias;
+    double carrot_distance, speed_bias, robot_occdist_scale, min_trans_vel, min_rot_vel;
     double robot_radius;
 } tl_dwa_params;
 

@@ -48,7 +48,9 @@ def _params(config: DwaConfig, robot_radius: float):
         "inflation_radius": config.inflation_radius,
         "cost_scaling_factor": config.cost_scaling_factor,
         "collision_margin": config.collision_margin, "carrot_distance": config.carrot_distance,
-        "speed_bias": config.speed_bias, "robot_radius": float(robot_radius),
+        "speed_bias": config.speed_bias, "robot_occdist_scale": config.robot_occdist_scale,
+        "min_trans_vel": config.min_trans_vel, "min_rot_vel": config.min_rot_vel,
+        "robot_radius": float(robot_radius),
     })
 
 

@@ -12,12 +12,27 @@ from typing import ClassVar
 
 @dataclass(frozen=True)
 class RegionVisited:
-    """The robot entered ``region`` (or came within xy_goal_tolerance of its centre)."""
+    """The robot's centre entered ``region``, the target of its plan (a planned letter of the
+    run's word, docs/ltl-navigation.md §1)."""
 
     kind: ClassVar[str] = "region_visited"
     t: float  # [s]
     region: str
-    visits: int  # visits of this region so far, this one included
+    visits: int  # entries of this region so far, this one included
+
+
+@dataclass(frozen=True)
+class RegionEntered:
+    """The robot's centre entered ``region``, which its plan did not schedule: the run's word
+    has a letter the plan's word lacks (docs/ltl-navigation.md §1). ``target`` is the region
+    the plan was driving to, ``previous`` the word's letter before this one (None: start)."""
+
+    kind: ClassVar[str] = "region_entered"
+    t: float  # [s]
+    region: str
+    target: str | None
+    previous: str | None
+    visits: int
 
 
 @dataclass(frozen=True)
@@ -71,6 +86,30 @@ class Stuck:
 
 
 @dataclass(frozen=True)
+class Recovered:
+    """The recovery after ``Stuck`` (rotate, back off, wait) ended and the robot drives on to the
+    same ``target``, still reachable (docs/ltl-navigation.md §5); ``attempt`` counts the
+    recoveries on the way to it."""
+
+    kind: ClassVar[str] = "recovered"
+    t: float  # [s]
+    target: str
+    attempt: int
+
+
+@dataclass(frozen=True)
+class Yielding:
+    """Head-on or crossing traffic (docs/ltl-navigation.md §6): ``state`` "begin" when the robot
+    stops to give way to robot ``other``, "end" when it drives on."""
+
+    kind: ClassVar[str] = "yield"
+    t: float  # [s]
+    state: str
+    other: int
+    position: tuple[float, float]  # [m]
+
+
+@dataclass(frozen=True)
 class ReplanRequest:
     """Ask the LTL planner for a new plan with the edge ``from_region → to_region`` penalised.
 
@@ -89,6 +128,9 @@ class ReplanRequest:
 
 NavEvent = (
     RegionVisited
+    | RegionEntered
+    | Recovered
+    | Yielding
     | CycleCompleted
     | PlanFinished
     | PlanAccepted
@@ -108,6 +150,6 @@ class Progress:
     cycles: int  # completed suffix passes
     rounds: int  # GF progress: visits of the least visited suffix region
     control_cycles: int  # executor steps so far
-    mode: str  # "navigate", "rotate", "back_off" or "hold"
+    mode: str  # "navigate", "rotate", "back_off", "wait", "yield", "hold" or "lost"
     stuck_count: int
     distance_to_target: float  # [m] remaining global-path length (inf if unknown)

@@ -59,9 +59,12 @@ from tlfleet.agent.nav.events import (
     PlanAccepted,
     PlanFinished,
     Progress,
+    Recovered,
+    RegionEntered,
     RegionVisited,
     ReplanRequest,
     Stuck,
+    Yielding,
 )
 from tlfleet.agent.nav.grid import (
     DEFAULT_MARGIN,
@@ -70,11 +73,23 @@ from tlfleet.agent.nav.grid import (
     grid_from_arena,
 )
 from tlfleet.agent.nav.grid_planner import plan_path
-from tlfleet.agent.nav.polyline import remaining_vertices, vertices_length
+from tlfleet.agent.nav.keep_out import RegionPaths
+from tlfleet.agent.nav.polyline import point_along_vertices, remaining_vertices, vertices_length
+from tlfleet.agent.nav.traffic import (
+    Traffic,
+    TrafficConfig,
+    crossing_conflict,
+    narrow_conflict,
+    narrow_intervals,
+    passing_width,
+    refuge,
+)
 
 log = logging.getLogger(__name__)
 
-NAVIGATE, ROTATE, BACK_OFF, HOLD = "navigate", "rotate", "back_off", "hold"
+NAVIGATE, ROTATE, BACK_OFF, WAIT, HOLD = "navigate", "rotate", "back_off", "wait", "hold"
+YIELD, LOST = "yield", "lost"
+RECOVERING = (ROTATE, BACK_OFF, WAIT)
 START_STATE = "start"  # the LTL planner's virtual initial state (robot in no region)
 
 
@@ -100,8 +115,14 @@ class ExecutorConfig:
     rotate_time: float = 3.0  # [s] recovery: rotate in place at max_rot_vel
     back_off_time: float = 1.5  # [s] recovery: drive backwards
     back_off_speed: float = 0.1  # [m/s]
+    wait_time: float = 2.0  # [s] recovery: stand still (a robot in the way may move on)
+    max_recoveries: int = 3  # recoveries on the way to one target before the edge is given up
     blocked_edge_penalty: float = 10.0  # [m] added to a blocked edge's weight on replanning
     deferred_replan: bool = True  # periodic / blocked re-plans run after the command (step 2)
+    path_clearance: float = 0.3  # [m] clearance the global path prefers beyond the inflation
+    # (grid_planner's clearance preference; 0: the shortest path, grazing inflated obstacles)
+    region_hysteresis: float = 0.05  # [m] leave a region by this much before re-entering counts
+    traffic: TrafficConfig = field(default_factory=TrafficConfig)  # head-on / crossing rule
 
     def __post_init__(self) -> None:
         for name in ("robot_radius", "resolution", "replan_period", "stuck_timeout"):
@@ -138,17 +159,23 @@ class ExecutorOutputs:
 @dataclass(frozen=True, eq=False)
 class PathRequest:
     """A global re-plan decided at sim time ``t`` [s] and run later (:meth:`Executor.refresh`):
-    from ``start`` (2,) [m] to the centre ``goal`` (2,) [m] of region ``target``, with the other
-    robots stamped as discs ``centers`` (J, 2) [m], ``radii`` (J,) [m]; ``blocked``: stamped at
-    full size (step 4)."""
+    from the ``pose`` (3,) [m, rad] to the centre ``goal`` (2,) [m] of region ``target``, with
+    the other robots ``others`` stamped as discs (``Executor._stamps``, at full size when
+    ``blocked``: step 4), on the keep-out grid of the transition between the ``allowed``
+    regions. The stamps are computed when the request runs, from these inputs, so a deferred
+    request costs the step nothing."""
 
     t: float
     target: str
-    start: np.ndarray
+    allowed: tuple[str | None, str]
+    pose: np.ndarray
     goal: np.ndarray
-    centers: np.ndarray
-    radii: np.ndarray
+    others: MovingDiscs
     blocked: bool
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.pose[:2]
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,7 +188,15 @@ class ExecutorState:
     mode: str = NAVIGATE
     mode_since: float = 0.0  # [s]
     visits: tuple[tuple[str, int], ...] = ()
-    last_region: str | None = None
+    last_region: str | None = None  # the run's word's last letter (None: start)
+    inside: frozenset[str] = frozenset()  # regions the centre is in (with the hysteresis)
+    prev_position: tuple[float, float] | None = None  # [m] at the last step
+    recoveries: int = 0  # recoveries on the way to the current target
+    yield_to: int | None = None  # the robot we give way to (mode YIELD)
+    yielded: float = 0.0  # [s] spent yielding on the way to the current target
+    refuge: tuple[float, float] | None = None  # [m] where a yield in a passage waits
+    path_narrow: tuple[tuple[float, float], ...] = ()  # [m] arc lengths of the path's narrow
+    # stretches (``traffic.narrow_intervals``), found when the path is planned
     command: tuple[float, float] = (0.0, 0.0)  # last (v, ω) sent
     control_cycles: int = 0
     path: np.ndarray | None = None
@@ -197,7 +232,9 @@ class ExecutorState:
 
     @property
     def target(self) -> str | None:
-        return None if self.mode == HOLD else target_at(self.prefix, self.suffix, self.step)
+        if self.mode in (HOLD, LOST):
+            return None
+        return target_at(self.prefix, self.suffix, self.step)
 
 
 def target_at(prefix: Sequence[str], suffix: Sequence[str], step: int) -> str | None:
@@ -227,6 +264,23 @@ class Executor:
     config: ExecutorConfig = field(default_factory=ExecutorConfig)
     other_radii: tuple[tuple[int, float], ...] = ()
     robot_id: int | None = None
+    ruled: frozenset[int] = frozenset()  # other robots that apply the right-of-way rule
+    paths: RegionPaths | None = None  # keep-out grids (built from regions and grid if None)
+
+    def __post_init__(self) -> None:
+        if self.paths is None:
+            object.__setattr__(self, "paths", RegionPaths(
+                tuple(self.regions), self.grid, self.config.path_clearance))
+        # (name, x, y, radius, radius + hysteresis) [m] of every region, for the word's entries
+        object.__setattr__(self, "_discs", tuple(
+            (r.name, float(r.center[0]), float(r.center[1]), float(r.radius),
+             float(r.radius) + self.config.region_hysteresis) for r in self.regions))
+
+    @property
+    def _passing_width(self) -> float:
+        """The clearance below which the widest other robot cannot pass beside this one."""
+        widest = max((r for _, r in self.other_radii), default=self.config.default_other_radius)
+        return passing_width(self.config.robot_radius, widest, self.config.traffic)
 
     @staticmethod
     def from_scenario(
@@ -247,7 +301,11 @@ class Executor:
         cfg = replace(base, robot_radius=robot.radius, dwa=dwa)
         grid = grid_from_arena(scenario.arena, robot.radius + cfg.inflation_margin, cfg.resolution)
         radii = tuple((r.id, r.radius) for r in scenario.robots if r.id != robot_id)
-        return Executor(scenario.regions, grid, cfg, radii, robot_id)
+        # the unicycles run this executor and apply the right-of-way rule; the STL robots do not
+        ruled = frozenset(r.id for r in scenario.robots
+                          if r.id != robot_id and r.kind == "unicycle")
+        paths = RegionPaths(tuple(scenario.regions), grid, cfg.path_clearance)
+        return Executor(scenario.regions, grid, cfg, radii, robot_id, ruled, paths)
 
     def region(self, name: str) -> Region:
         for region in self.regions:
@@ -293,20 +351,21 @@ class Executor:
         events: list[NavEvent] = []
         s = self._take_note(self.refresh(state), events)  # a re-plan not run after the command
         frame = np.asarray(inputs.others, dtype=float).reshape(-1, 4)
-        others = self._local_obstacles(s, frame, pose, t)
+        others, traffic = self._local_obstacles(s, frame, pose, t)
         s = evolve(s, control_cycles=s.control_cycles + 1, prev_others=frame, prev_time=t)
         if inputs.new_plan is not None:
             s = self._accept_plan(s, inputs.new_plan, t, events)
-        if s.mode != HOLD:
-            s = self._visit(s, pose, t, events)
+        s = self._word(s, pose, t, events)
         limits = inputs.limits
-        if s.mode == HOLD:
+        if s.mode == LOST:
+            command = self._ramp(s.command, (0.0, 0.0))
+        elif s.mode == HOLD:
             s, command = self._settle(s, pose, others, limits)
-        elif s.mode in (ROTATE, BACK_OFF):
+        elif s.mode in RECOVERING:
             s, command = self._recover(s, pose, t, others, events, limits)
         else:
-            s, command = self._navigate(s, pose, t, others, events, limits)
-        s = evolve(s, command=command)
+            s, command = self._navigate(s, pose, t, others, events, limits, traffic)
+        s = evolve(s, command=command, prev_position=(float(pose[0]), float(pose[1])))
         for event in events:
             log.debug("t=%.2f %s", t, event)
         return s, ExecutorOutputs(
@@ -317,6 +376,10 @@ class Executor:
             path=s.path if s.path is not None else np.zeros((0, 2)),
         )
 
+    def lose(self, state: ExecutorState, t: float) -> ExecutorState:
+        """The task is lost (the run's word left the Büchi automaton): stop and hold still."""
+        return evolve(state, mode=LOST, mode_since=t, path=None, path_target=None, pending=None)
+
     def _accept_plan(self, s: ExecutorState, plan, t: float, events: list) -> ExecutorState:
         prefix, suffix = tuple(plan[0]), tuple(plan[1])
         self._check_plan(prefix, suffix)
@@ -325,9 +388,11 @@ class Executor:
             if name != START_STATE:
                 counts.setdefault(name, 0)
         events.append(PlanAccepted(t, prefix, suffix))
-        # prefix[0] is where the planner assumes the robot is: the last region it visited (when
-        # replanning from there) is taken as reached, without counting a new visit.
-        start_step = 1 if prefix and prefix[0] == s.last_region else 0
+        # The plan's first state (prefix[0], or suffix[0] when the prefix is empty: the
+        # planner's convention) is where the planner assumes the robot is: the word's last
+        # letter when replanning from there, taken as reached without a new visit.
+        first = prefix[0] if prefix else suffix[0]
+        start_step = 1 if first in (s.last_region, START_STATE) else 0
         s = evolve(
             s,
             prefix=prefix,
@@ -338,98 +403,124 @@ class Executor:
             visits=tuple(counts.items()),
             path=None,
             path_target=None,
+            pending=None,
             best_remaining=math.inf,
             progress_time=t,
-            cycle_start=t if start_step == len(prefix) else None,
+            recoveries=0,
+            yield_to=None,
+            yielded=0.0,
+            cycle_start=t if start_step >= len(prefix) else None,
         )
+        s = self._pass_stays(s, t, events)
         if self._finished(s):
-            events.append(PlanFinished(t, s.last_region or prefix[-1]))
+            events.append(PlanFinished(t, s.last_region or first))
             s = evolve(s, mode=HOLD, mode_since=t)
         return s
 
-    def _local_obstacles(
-        self, s: ExecutorState, frame: np.ndarray, pose: np.ndarray, t: float
-    ) -> MovingDiscs:
-        """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
-        cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
-
-        Plain floats over the few rows, with the array form's operations:
-        ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
+    def _entries(self, s: ExecutorState, pose: np.ndarray) -> tuple[list[str], frozenset[str]]:
+        """Regions the centre entered since the last step (docs/ltl-navigation.md §1: the disc
+        is entered when the segment from the last position to this one meets it; left when the
+        centre is ``region_hysteresis`` outside it), by name, and the regions it is in now."""
         px, py = float(pose[0]), float(pose[1])
-        local_range = self.config.local_range
-        near = []
-        for row in frame.tolist():
-            if row[0] == self.robot_id:
+        ax, ay = s.prev_position if s.prev_position is not None else (px, py)
+        dx, dy = px - ax, py - ay
+        seg2 = dx * dx + dy * dy
+        entered, inside = [], set(s.inside)
+        for name, cx, cy, radius, leave in self._discs:
+            if name in inside:
+                if math.hypot(px - cx, py - cy) > leave:
+                    inside.discard(name)
                 continue
-            dx, dy = row[1] - px, row[2] - py
-            if math.sqrt(dx * dx + dy * dy) <= local_range:
-                near.append(row)
-        if not near:
-            return MovingDiscs.empty()
-        velocities = [(0.0, 0.0)] * len(near)
-        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
-            dt = t - s.prev_time
-            cap = self.config.max_other_speed
-            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
-            for k, row in enumerate(near):
-                before = previous.get(int(row[0]))
-                if before is not None:
-                    ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
-                    speed = math.sqrt(ux * ux + uy * uy)
-                    if speed > cap:
-                        ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
-                    velocities[k] = (ux, uy)
-        radii_by_id = dict(self.other_radii)
-        radii = [radii_by_id.get(int(row[0]), self.config.default_other_radius) for row in near]
-        return MovingDiscs(np.array([(row[1], row[2]) for row in near]), np.array(velocities),
-                           np.array(radii))
+            u = 0.0 if seg2 <= 0.0 else min(max(((cx - ax) * dx + (cy - ay) * dy) / seg2, 0.0),
+                                            1.0)
+            if math.hypot(ax + u * dx - cx, ay + u * dy - cy) <= radius:
+                entered.append(name)
+                inside.add(name)
+        if not entered and len(inside) == len(s.inside):
+            return entered, s.inside  # nothing changed (the common step)
+        return sorted(entered), frozenset(inside)
 
-    def _visit(self, s: ExecutorState, pose: np.ndarray, t: float, events: list) -> ExecutorState:
-        """Advance over every target the robot is currently in (bounded by the plan length).
+    def _word(self, s: ExecutorState, pose: np.ndarray, t: float, events: list
+              ) -> ExecutorState:
+        """Track the run's word and advance the plan on its planned letters.
 
-        The planner's conventions (tlfleet.agent.ltl.planner): ``prefix[0]`` may be the virtual
-        ``"start"`` state, passed at once; a name equal to the previous one means "stay", passed
-        at once without counting a new visit.
+        An entry into the region the plan drives to (the target) is a visit: the plan advances
+        (stays pass at once, without a new visit). An entry into the word's last letter again is
+        a stutter (no letter). Any other entry is a letter the plan did not schedule:
+        ``RegionEntered`` (the agent decides: replan or task lost); the plan does not advance.
         """
-        tolerance = self.config.dwa.xy_goal_tolerance
-        for _ in range(len(s.prefix) + len(s.suffix) + 1):
-            target = target_at(s.prefix, s.suffix, s.step)
-            if target is None:
-                break
-            previous = target_at(s.prefix, s.suffix, s.step - 1) if s.step > 0 else None
-            if s.step == 0 and target == START_STATE:
-                s = evolve(s, step=1)
+        entered, inside = self._entries(s, pose)
+        if entered or inside != s.inside:
+            s = evolve(s, inside=inside)
+        if s.mode == LOST:  # the task is lost: no progress is counted any more
+            return s
+        if s.mode != HOLD and s.step == 0:  # the virtual start (later stays pass on arrival)
+            s = self._pass_stays(s, t, events)
+        for name in entered:
+            if name == s.last_region:
                 continue
-            stay = previous == target and s.last_region == target
-            if not stay:
-                region = self.region(target)
-                near = math.dist(region.center, pose[:2]) <= tolerance
-                if not (region.contains(pose[0], pose[1]) or near):
-                    break
-                counts = dict(s.visits)
-                counts[target] = counts.get(target, 0) + 1
-                events.append(RegionVisited(t, target, counts[target]))
+            counts = dict(s.visits)
+            counts[name] = counts.get(name, 0) + 1
+            target = s.target
+            if name == target:
+                events.append(RegionVisited(t, name, counts[name]))
                 s = evolve(
                     s,
-                    mode=NAVIGATE if s.mode in (ROTATE, BACK_OFF) else s.mode,  # ends recovery
+                    mode=NAVIGATE if s.mode in (*RECOVERING, YIELD) else s.mode,
                     visits=tuple(counts.items()),
-                    last_region=target,
+                    last_region=name,
                     best_remaining=math.inf,
                     progress_time=t,
                     path=None,
                     path_target=None,
+                    pending=None,
+                    recoveries=0,
+                    yield_to=None,
+                    yielded=0.0,
                 )
-            s = evolve(s, step=s.step + 1)
-            into_suffix = s.step - len(s.prefix)
-            if s.suffix and into_suffix == 0:
-                s = evolve(s, cycle_start=t)
-            elif s.suffix and into_suffix > 0 and into_suffix % len(s.suffix) == 0:
-                start = s.cycle_start if s.cycle_start is not None else t
-                events.append(CycleCompleted(t, s.cycles, t - start))
-                s = evolve(s, cycle_start=t)
-            if self._finished(s):
-                events.append(PlanFinished(t, target))
-                return evolve(s, mode=HOLD, mode_since=t)
+                s = self._advance(s, t, events)
+            else:
+                events.append(RegionEntered(t, name, target, s.last_region, counts[name]))
+                s = evolve(s, visits=tuple(counts.items()), last_region=name, path=None,
+                           path_target=None, pending=None)
+        return s
+
+    def _advance(self, s: ExecutorState, t: float, events: list) -> ExecutorState:
+        """One plan position on (the target was reached), then every stay after it."""
+        s = self._step_on(s, t, events)
+        if s.mode == HOLD:
+            return s
+        return self._pass_stays(s, t, events)
+
+    def _pass_stays(self, s: ExecutorState, t: float, events: list) -> ExecutorState:
+        """Pass the plan positions that need no motion: the virtual start at position 0, and
+        names equal to the word's last letter right after it (a stay)."""
+        for _ in range(len(s.prefix) + len(s.suffix) + 1):
+            target = target_at(s.prefix, s.suffix, s.step)
+            if target is None or s.mode == HOLD:
+                break
+            if s.step == 0 and target == START_STATE:
+                s = self._step_on(s, t, events)
+                continue
+            previous = target_at(s.prefix, s.suffix, s.step - 1) if s.step > 0 else None
+            if not (previous == target and s.last_region == target):
+                break
+            s = self._step_on(s, t, events)
+        return s
+
+    def _step_on(self, s: ExecutorState, t: float, events: list) -> ExecutorState:
+        reached = target_at(s.prefix, s.suffix, s.step)
+        s = evolve(s, step=s.step + 1)
+        into_suffix = s.step - len(s.prefix)
+        if s.suffix and into_suffix == 0:
+            s = evolve(s, cycle_start=t)
+        elif s.suffix and into_suffix > 0 and into_suffix % len(s.suffix) == 0:
+            start = s.cycle_start if s.cycle_start is not None else t
+            events.append(CycleCompleted(t, s.cycles, t - start))
+            s = evolve(s, cycle_start=t)
+        if self._finished(s):
+            events.append(PlanFinished(t, reached or ""))
+            return evolve(s, mode=HOLD, mode_since=t)
         return s
 
     def _finished(self, s: ExecutorState) -> bool:
@@ -440,6 +531,61 @@ class Executor:
             return True
         return len(set(s.suffix)) == 1 and s.last_region == s.suffix[0]
 
+    def _local_obstacles(
+        self, s: ExecutorState, frame: np.ndarray, pose: np.ndarray, t: float
+    ) -> tuple[MovingDiscs, Traffic | None]:
+        """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
+        cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
+        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``:
+        within its ``crossing_range``, or all of them when the path has a narrow stretch), or
+        None with the rule off.
+
+        Plain floats over the few rows, with the array form's operations:
+        ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
+        px, py = float(pose[0]), float(pose[1])
+        local_range = self.config.local_range
+        rule = self.config.traffic
+        reach = (math.inf if s.path_narrow else rule.crossing_range) if rule.enabled else -1.0
+        rows = []
+        for row in frame.tolist():
+            if row[0] == self.robot_id:
+                continue
+            dx, dy = row[1] - px, row[2] - py
+            distance = math.sqrt(dx * dx + dy * dy)
+            if distance <= local_range or distance <= reach:
+                rows.append((row, distance))
+        if not rows:
+            return MovingDiscs.empty(), (Traffic(()) if rule.enabled else None)
+        velocities = [(0.0, 0.0)] * len(rows)
+        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
+            dt = t - s.prev_time
+            cap = self.config.max_other_speed
+            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
+            for k, (row, _) in enumerate(rows):
+                before = previous.get(int(row[0]))
+                if before is not None:
+                    ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
+                    speed = math.sqrt(ux * ux + uy * uy)
+                    if speed > cap:
+                        ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
+                    velocities[k] = (ux, uy)
+        radii_by_id = dict(self.other_radii)
+        default = self.config.default_other_radius
+        near = [k for k, (_, d) in enumerate(rows) if d <= local_range]
+        traffic = None
+        if rule.enabled:
+            traffic = Traffic(tuple(
+                (int(row[0]), row[1], row[2], *velocities[k],
+                 radii_by_id.get(int(row[0]), default), int(row[0]) in self.ruled)
+                for k, (row, d) in enumerate(rows) if d <= reach))
+        if not near:
+            return MovingDiscs.empty(), traffic
+        return (MovingDiscs(np.array([(rows[k][0][1], rows[k][0][2]) for k in near]),
+                            np.array([velocities[k] for k in near]),
+                            np.array([radii_by_id.get(int(rows[k][0][0]), default)
+                                      for k in near])),
+                traffic)
+
     def _ramp(self, current: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
         """The command closest to ``goal`` reachable from ``current`` in one period, saturated."""
         d = self.config.dwa
@@ -449,26 +595,33 @@ class Executor:
         w = min(max(w, -d.max_rot_vel), d.max_rot_vel)
         return v, w
 
+    def _edge_grid(self, s: ExecutorState, target: str | None) -> OccupancyGrid:
+        """The static grid with the keep-out zones of the transition from the word's last
+        letter to ``target`` (docs/ltl-navigation.md §2)."""
+        return self.paths.grid_for((s.last_region, target))
+
     def _recover(
         self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
         limits: VelocityLimits | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
-        """Recovery: rotate in place, then back off (if the space behind is free of walls and
-        robots), then ask for a replan and resume."""
+        """Recovery (Nav2's behaviours, docs/ltl-navigation.md §5): rotate in place, back off
+        (if the space behind is free of walls, keep-out zones and robots), wait; then drive on
+        to the same target, or ask for a replan when it is out of reach."""
         cfg = self.config
+        grid = self._edge_grid(s, s.target)
         if s.mode == ROTATE and t - s.mode_since >= cfg.rotate_time:
             # The back-off travels at most back_off_speed · back_off_time; check 0.1 m beyond.
             reach = cfg.back_off_speed * cfg.back_off_time + 0.1
             behind = pose[:2] - reach * np.array([math.cos(pose[2]), math.sin(pose[2])])
             gaps = np.linalg.norm(others.centers - behind, axis=1) - others.radii
-            back_free = bool(self.grid.clearance_at(behind) > cfg.robot_radius) and bool(
+            back_free = bool(grid.clearance_at(behind) > cfg.robot_radius) and bool(
                 np.all(gaps > cfg.robot_radius)
             )
-            s = evolve(s, mode=BACK_OFF if back_free else NAVIGATE, mode_since=t)
-            if s.mode == NAVIGATE:
-                return self._end_recovery(s, pose, t, events), self._ramp(s.command, (0.0, 0.0))
+            s = evolve(s, mode=BACK_OFF if back_free else WAIT, mode_since=t)
         if s.mode == BACK_OFF and t - s.mode_since >= cfg.back_off_time:
-            s = self._end_recovery(s, pose, t, events)
+            s = evolve(s, mode=WAIT, mode_since=t)
+        if s.mode == WAIT and t - s.mode_since >= cfg.wait_time:
+            s = self._end_recovery(s, pose, t, others, events)
             return s, self._ramp(s.command, (0.0, 0.0))
         rot = cfg.dwa.max_rot_vel
         back = cfg.back_off_speed
@@ -476,49 +629,115 @@ class Executor:
             rot, back = min(rot, limits.omega_max), min(back, limits.v_max)
         if s.mode == ROTATE:
             return s, self._ramp(s.command, (0.0, rot))
-        return s, self._ramp(s.command, (-back, 0.0))
+        if s.mode == BACK_OFF:
+            return s, self._ramp(s.command, (-back, 0.0))
+        return s, self._ramp(s.command, (0.0, 0.0))
 
     def _end_recovery(
-        self, s: ExecutorState, pose: np.ndarray, t: float, events: list
+        self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list
     ) -> ExecutorState:
+        """After a recovery: the same target while a path to it exists with the robots nearby
+        stamped at full size and fewer than ``max_recoveries`` recoveries were spent on it;
+        else a ``ReplanRequest`` for the edge (last letter → target)."""
         target = s.target
-        if target is not None:
-            events.append(
-                ReplanRequest(
-                    t,
-                    s.last_region,
-                    target,
-                    self.config.blocked_edge_penalty,
-                    (float(pose[0]), float(pose[1])),
-                )
+        s = evolve(s, mode=NAVIGATE, mode_since=t, best_remaining=math.inf, progress_time=t,
+                   path=None, path_target=None, pending=None)
+        if target is None:
+            return s
+        attempt = s.recoveries + 1
+        reachable = False
+        if attempt < self.config.max_recoveries:
+            grid = self._edge_grid(s, target)
+            if len(others):
+                centers, radii = self._stamps(pose, others, full=True,
+                                              goal=self.region(target).center)
+                grid = grid.with_disc_blocks(centers, radii)
+            region = self.region(target)
+            try:
+                end = plan_path(grid, pose[:2], region.center).goal
+                reachable = region.contains(*end)  # not a free cell beside a robot on it
+            except NoPathError:
+                reachable = False
+        if reachable:
+            events.append(Recovered(t, target, attempt))
+            return evolve(s, recoveries=attempt)
+        events.append(
+            ReplanRequest(
+                t,
+                s.last_region,
+                target,
+                self.config.blocked_edge_penalty,
+                (float(pose[0]), float(pose[1])),
             )
-        return evolve(
-            s,
-            mode=NAVIGATE,
-            mode_since=t,
-            best_remaining=math.inf,
-            progress_time=t,
-            path=None,
-            path_target=None,
         )
+        return evolve(s, recoveries=0)
+
+    def _give_way(self, s: ExecutorState, pose: np.ndarray, t: float, traffic: Traffic | None,
+                  grid: OccupancyGrid, events: list, vertices: list[list[float]],
+                  ahead: list[list[float]]) -> tuple[int | None, bool]:
+        """The robot to yield to this step (``traffic``), None to drive, and whether it is a
+        passage's conflict (else a crossing's); emits ``Yielding`` when a yield begins or ends.
+        A yield lasts at most ``traffic.max_wait``. ``vertices``: the path's; ``ahead``: its
+        part ahead of the robot's projection (``remaining_vertices``)."""
+        narrow = False
+        rule = self.config.traffic
+        spent = s.yielded + (t - s.mode_since if s.mode == YIELD else 0.0)
+        if (not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait
+                or (not s.path_narrow and not any(row[3] or row[4] for row in traffic.rows))):
+            other = None  # nobody near, or only standing robots and no passage: no conflict
+        else:
+            px, py = float(pose[0]), float(pose[1])
+            rid = self.robot_id if self.robot_id is not None else 0
+            stretch = None
+            if s.path_narrow:  # where the robot is along the path, and the next narrow part
+                done = vertices_length(vertices) - vertices_length(ahead)
+                for a, b in s.path_narrow:
+                    if b > done:
+                        stretch = (max(0.0, a - done), b - done)
+                        break
+                if stretch is not None and stretch[0] > rule.lookahead:
+                    stretch = None
+            lead = math.hypot(ahead[0][0] - px, ahead[0][1] - py)
+            if lead > 1e-6:  # from the robot itself onto its path
+                ahead = [[px, py], *ahead]
+                if stretch is not None:
+                    stretch = (stretch[0] + lead if stretch[0] > 0.0 else 0.0,
+                               stretch[1] + lead)
+            other = narrow_conflict(rid, (px, py), self.config.robot_radius, ahead, grid,
+                                    traffic, rule, stretch)
+            narrow = other is not None
+            if other is None:
+                carrot = point_along_vertices(ahead, self.config.dwa.carrot_distance)
+                other = crossing_conflict(rid, (px, py), self.config.robot_radius, carrot,
+                                          traffic, rule)
+        if other is None and s.mode == YIELD and t - s.mode_since < rule.min_yield and (
+                spent < rule.max_wait):
+            other = s.yield_to  # hold the yield a moment: no begin/end flicker
+            narrow = s.refuge is not None
+        position = (float(pose[0]), float(pose[1]))
+        if other is not None and s.mode != YIELD:
+            events.append(Yielding(t, "begin", other, position))
+        elif other is None and s.mode == YIELD:
+            events.append(Yielding(t, "end", s.yield_to if s.yield_to is not None else -1,
+                                   position))
+        return other, narrow
 
     def _navigate(
         self, s: ExecutorState, pose: np.ndarray, t: float, others: MovingDiscs, events: list,
-        limits: VelocityLimits | None = None,
+        limits: VelocityLimits | None = None, traffic: Traffic | None = None,
     ) -> tuple[ExecutorState, tuple[float, float]]:
         cfg = self.config
         target = s.target
         if target is None:  # past the end of a finite plan: nothing to drive to
             return evolve(s, mode=HOLD, mode_since=t), self._ramp(s.command, (0.0, 0.0))
         goal = self.region(target).center
+        grid = self._edge_grid(s, target)
         blocked = t - s.progress_time >= cfg.blocked_after and len(others) > 0
         following = s.path is not None and s.path_target == target
         if (not following or t - s.path_time >= cfg.replan_period
                 or (blocked and not s.blocked_plan)):
-            centers, radii = (self._stamps(pose, others, full=blocked) if len(others)
-                              else (np.zeros((0, 2)), np.zeros(0)))
-            request = PathRequest(t, target, pose[:2].copy(), np.asarray(goal, dtype=float),
-                                  centers, radii, blocked)
+            request = PathRequest(t, target, (s.last_region, target), pose.copy(),
+                                  np.asarray(goal, dtype=float), others, blocked)
             if following and cfg.deferred_replan:  # run after the command (module docstring)
                 s = evolve(s, pending=request, path_time=t)
             else:
@@ -527,12 +746,19 @@ class Executor:
             command = self._ramp(s.command, (0.0, 0.0))
             remaining = math.inf
         else:
+            px, py = float(pose[0]), float(pose[1])
+            vertices = s.path.tolist()
+            ahead = remaining_vertices(px, py, vertices)
+            yield_to, narrow = self._give_way(s, pose, t, traffic, grid, events, vertices, ahead)
+            if yield_to is not None:
+                return self._yield(s, pose, t, yield_to, narrow, grid, others, limits)
+            if s.mode == YIELD:
+                s = evolve(s, mode=NAVIGATE, mode_since=t, yield_to=None, refuge=None,
+                           yielded=s.yielded + t - s.mode_since, path_time=-math.inf)
             result = dwa_control(
-                pose, s.command, s.path, self.grid, cfg.robot_radius, others, cfg.dwa, limits
+                pose, s.command, s.path, grid, cfg.robot_radius, others, cfg.dwa, limits
             )
             command = (result.v, result.omega)
-            px, py = float(pose[0]), float(pose[1])
-            ahead = remaining_vertices(px, py, s.path.tolist())
             dx, dy = ahead[0][0] - px, ahead[0][1] - py
             remaining = math.sqrt(dx * dx + dy * dy) + vertices_length(ahead)
         if remaining < s.best_remaining - cfg.progress_epsilon:
@@ -541,11 +767,38 @@ class Executor:
             events.append(Stuck(t, target, s.progress_time, (float(pose[0]), float(pose[1]))))
             log.info("stuck on the way to %s since t=%.1f s: recovering", target, s.progress_time)
             s = evolve(s, remaining=remaining, mode=ROTATE, mode_since=t,
-                        stuck_count=s.stuck_count + 1)
+                       stuck_count=s.stuck_count + 1)
             command = self._ramp(s.command, (0.0, 0.0))
         else:
             s = evolve(s, remaining=remaining)
         return s, command
+
+    def _yield(self, s: ExecutorState, pose: np.ndarray, t: float, other: int, narrow: bool,
+               grid: OccupancyGrid, others: MovingDiscs, limits: VelocityLimits | None
+               ) -> tuple[ExecutorState, tuple[float, float]]:
+        """Give way to robot ``other`` (``traffic``): at a crossing, stand; in a passage, step
+        aside to a refuge first (chosen when the yield begins) and stand there. Waiting for the
+        right of way is no stall: the progress clock stands still."""
+        cfg = self.config
+        if s.mode != YIELD:
+            spot = None
+            if narrow and s.path is not None:
+                px, py = float(pose[0]), float(pose[1])
+                ahead = remaining_vertices(px, py, s.path.tolist())
+                radii = dict(self.other_radii)
+                spot = refuge((px, py), [[px, py], *ahead], grid, cfg.robot_radius,
+                              radii.get(other, cfg.default_other_radius), cfg.traffic)
+            s = evolve(s, mode=YIELD, mode_since=t, yield_to=other, refuge=spot)
+        else:
+            s = evolve(s, yield_to=other)
+        s = evolve(s, progress_time=t, best_remaining=math.inf)
+        if s.refuge is not None:
+            aside = np.array([pose[:2], s.refuge])
+            if math.dist(pose[:2], s.refuge) > cfg.dwa.xy_goal_tolerance:
+                result = dwa_control(pose, s.command, aside, grid, cfg.robot_radius, others,
+                                     cfg.dwa, limits)
+                return s, (result.v, result.omega)
+        return s, self._ramp(s.command, (0.0, 0.0))
 
     def refresh(self, state: ExecutorState) -> ExecutorState:
         """Run the global re-plan the last step deferred (``state.pending``; the module
@@ -569,22 +822,28 @@ class Executor:
         """Plan ``request`` on the static grid with its robots stamped; on success the path
         replaces the current one, else the current one is kept and the failure is noted once
         per target (``no_path_note``) and retried every ``replan_period``."""
-        grid = self.grid
-        if len(request.centers):
-            grid = grid.with_disc_blocks(request.centers, request.radii)
+        grid = self.paths.grid_for(request.allowed)
+        if len(request.others):
+            centers, radii = self._stamps(request.pose, request.others, full=request.blocked,
+                                          goal=request.goal)
+            grid = grid.with_disc_blocks(centers, radii)
         try:
-            path = plan_path(grid, request.start, request.goal).waypoints
+            path = plan_path(grid, request.start, request.goal,
+                             prefer=self.config.path_clearance).waypoints
         except NoPathError as error:
             note = None
             if s.no_path_to != request.target:  # report once, keep trying every replan period
                 note = NoPathFound(request.t, request.target, error.reason)
                 log.info("no path to %s: %s", request.target, error.reason)
             return evolve(s, path_time=request.t, no_path_to=request.target, no_path_note=note)
+        rule = self.config.traffic
+        narrow = (narrow_intervals(path.tolist(), self.paths.grid_for(request.allowed),
+                                   self._passing_width, rule.sample) if rule.enabled else ())
         return evolve(s, path=path, path_target=request.target, path_time=request.t,
-                       no_path_to=None, blocked_plan=request.blocked)
+                      no_path_to=None, blocked_plan=request.blocked, path_narrow=narrow)
 
-    def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def _stamps(self, pose: np.ndarray, others: MovingDiscs, full: bool = False,
+                goal: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Discs (centres (J, 2), radii (J,)) [m] that put the other robots into the global grid.
 
         Each robot is stamped with radius ``r + other_robot_margin``, shrunk where needed so that
@@ -594,12 +853,18 @@ class Executor:
         two robots meeting head-on then pick opposite sides in the world instead of mirroring
         each other into a deadlock. ``full`` (after ``blocked_after`` without progress): every
         robot at its full radius ``r + other_robot_margin`` and no shift, so the path goes around
-        the robots that block it (the planner snaps our start out of their discs).
+        the robots that block it (the planner snaps our start out of their discs). With a
+        ``goal`` (the target's centre), every disc is also shrunk, down to the robot's own radius,
+        so that the goal stays free: a robot standing beside a region leaves its centre
+        reachable (else the path would end at the nearest free cell, maybe outside the region).
         """
         cfg = self.config
         centers = others.centers
         if full:
-            return centers, others.radii + cfg.other_robot_margin
+            radii = others.radii + cfg.other_robot_margin
+            if goal is not None:
+                radii = self._goal_room(centers, radii, others.radii, goal)
+            return centers, radii
         gap = (
             np.linalg.norm(centers - pose[:2], axis=1) - self.grid.inflation - self.grid.resolution
         )
@@ -616,8 +881,21 @@ class Executor:
             )
             centers = np.vstack([centers, shifted])
             radii = np.concatenate([radii, np.minimum(radii[ahead], shift_gap)])
+            own = np.concatenate([others.radii, others.radii[ahead]])
+        else:
+            own = others.radii
+        if goal is not None:
+            radii = self._goal_room(centers, radii, own, goal)
         keep = radii > 0.0
         return centers[keep], radii[keep]
+
+    def _goal_room(self, centers: np.ndarray, radii: np.ndarray, own: np.ndarray,
+                   goal: Sequence[float]) -> np.ndarray:
+        """``radii`` shrunk so that ``goal`` lies outside every inflated disc, but not below the
+        robots' own radii ``own`` (a robot standing on the goal keeps it blocked)."""
+        room = (np.linalg.norm(centers - np.asarray(goal[:2], dtype=float), axis=1)
+                - self.grid.inflation - self.grid.resolution)
+        return np.where(radii > room, np.maximum(room, np.minimum(own, radii)), radii)
 
     def _settle(
         self, s: ExecutorState, pose: np.ndarray, others: MovingDiscs,
@@ -628,14 +906,16 @@ class Executor:
         if s.last_region is None:
             return s, self._ramp(s.command, (0.0, 0.0))
         goal = self.region(s.last_region).center
+        grid = self._edge_grid(s, s.last_region)
         if s.path is None:
             try:
-                path = plan_path(self.grid, pose[:2], goal).waypoints
+                path = plan_path(grid, pose[:2], goal,
+                                 prefer=self.config.path_clearance).waypoints
             except NoPathError:
                 return s, self._ramp(s.command, (0.0, 0.0))
             s = evolve(s, path=path, path_target=s.last_region)
         result = dwa_control(
-            pose, s.command, s.path, self.grid, self.config.robot_radius, others, self.config.dwa,
+            pose, s.command, s.path, grid, self.config.robot_radius, others, self.config.dwa,
             limits,
         )
         return s, (result.v, result.omega)

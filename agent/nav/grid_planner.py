@@ -10,6 +10,17 @@ is exact on an empty 8-connected grid, so on the paper's obstacle-free arena the
 little more than the path itself. Moves cost 1 (straight) and √2 (diagonal) cells; a diagonal
 move may not cut the corner of a blocked cell. The loop runs on flat indices of a grid padded by
 one blocked cell, so neighbours need no bounds checks.
+
+**Clearance preference** (``prefer`` [m], docs/ltl-navigation.md §4; the inflation layer of Nav2's
+costmap, which its planners read): a move into a cell of clearance ``d`` [m] (to the nearest
+obstacle surface) costs its length times ``1 + w·((d_pref − d)/(d_pref − d_min))²`` for
+``d_min ≤ d < d_pref``, with ``d_min`` the grid's inflation, ``d_pref = d_min + prefer`` and
+``w = CLEARANCE_WEIGHT``; nothing beyond ``d_pref``. The path then runs down the middle of a
+corridor narrower than ``2·d_pref`` and keeps ``prefer`` off wall ends and pillars where there is
+room, instead of grazing the inflated obstacles (where a local planner's rollouts are cut off and
+it stalls). The heuristic stays admissible (every factor ≥ 1). Smoothing keeps what the search
+bought: a shortcut must keep, at every sample, the clearance ``min(d_pref, least clearance of the
+cells it replaces)``.
 """
 
 from __future__ import annotations
@@ -34,6 +45,7 @@ from tlfleet.agent.nav.polyline import polyline_length
 log = logging.getLogger(__name__)
 
 SQRT2 = math.sqrt(2.0)
+CLEARANCE_WEIGHT = 2.0  # w: a cell grazing the inflated obstacles costs (1 + w)× its length
 Point = tuple[float, float]
 
 
@@ -81,12 +93,15 @@ def nearest_free_cell(
 
 
 def astar_cells(
-    blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
+    blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
+    penalty: np.ndarray | None = None,
 ) -> tuple[list[tuple[int, int]], float] | None:
-    """Shortest 8-connected path between two free cells ``(ix, iy)`` of ``blocked`` (ny, nx).
+    """Cheapest 8-connected path between two free cells ``(ix, iy)`` of ``blocked`` (ny, nx).
 
-    Returns the cells from start to goal and the path length [cells] (moves of 1 and √2), or
-    None when the goal cannot be reached. No corner cutting past blocked cells.
+    A move costs its length (1 or √2 cells) times ``1 + penalty[cell entered]`` (``penalty``
+    (ny, nx) ≥ 0, the clearance preference of the module docstring; None: shortest path).
+    Returns the cells from start to goal and the path's cost [cells], or None when the goal
+    cannot be reached. No corner cutting past blocked cells.
     """
     blocked = np.asarray(blocked, dtype=bool)
     ny, nx = blocked.shape
@@ -96,6 +111,11 @@ def astar_cells(
     padded = np.zeros((ny + 2, width), dtype=bool)
     np.logical_not(blocked, out=padded[1:-1, 1:-1])
     free = padded.tobytes()
+    factor = None
+    if penalty is not None:
+        grown = np.ones((ny + 2, width))
+        grown[1:-1, 1:-1] += penalty
+        factor = grown.ravel().tolist()
     s = (start[1] + 1) * width + start[0] + 1
     g_idx = (goal[1] + 1) * width + goal[0] + 1
     if not (free[s] and free[g_idx]):
@@ -141,7 +161,7 @@ def astar_cells(
                 continue
             if o1 and not (free[u + o1] and free[u + o2]):
                 continue
-            ng = gu + cost
+            ng = gu + (cost if factor is None else cost * factor[v])
             if ng < g_of(v, inf):
                 g[v] = ng
                 parent[v] = u
@@ -162,11 +182,13 @@ def astar_cells(
     return cells, g[g_idx]
 
 
-def line_of_sight(grid: OccupancyGrid, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def line_of_sight(grid: OccupancyGrid, a: np.ndarray, b: np.ndarray,
+                  clearance: np.ndarray | float | None = None) -> np.ndarray:
     """Whether the segments from ``a`` (2,) to each ``b`` (K, 2) [m] stay in free c-space; (K,).
 
     Samples every segment at spacing ≤ res/2 (the same number of samples for all, set by the
     longest) and looks the samples up in ``grid.blocked``; vectorised over all K segments.
+    ``clearance`` [m] (scalar or (K,)): every sample must also have at least that clearance.
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float).reshape(-1, 2)
@@ -174,26 +196,38 @@ def line_of_sight(grid: OccupancyGrid, a: np.ndarray, b: np.ndarray) -> np.ndarr
     n = max(2, math.ceil(longest / (grid.resolution / 2.0)) + 1)
     s = np.linspace(0.0, 1.0, n)
     pts = a[None, None, :] + s[None, :, None] * (b - a)[:, None, :]  # (K, n, 2)
-    return np.all(grid.is_free(pts), axis=1)
+    free = np.all(grid.is_free(pts), axis=1)
+    if clearance is None:
+        return free
+    least = np.min(grid.clearance_at(pts), axis=1)
+    return free & (least >= np.asarray(clearance, dtype=float) - 1e-9)
 
 
-def smooth_path(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
+def smooth_path(grid: OccupancyGrid, points: np.ndarray, prefer: float = 0.0) -> np.ndarray:
     """Line-of-sight shortcutting of a polyline (M, 2) [m] → waypoints (W, 2), W ≤ M.
 
     Greedy: from the current waypoint, jump to the farthest later point visible in free c-space
-    (all candidates tested at once with ``line_of_sight``). Endpoints are kept.
+    (all candidates tested at once with ``line_of_sight``). Endpoints are kept. With ``prefer``
+    [m] > 0, a shortcut from point i to point j must keep the clearance ``min(d_pref, least
+    clearance of points i..j)`` (module docstring), so it never runs closer to an obstacle than
+    the points it replaces, where they kept less than ``d_pref``.
     """
     pts = np.asarray(points, dtype=float)
     if len(pts) <= 2:
         return pts.copy()
+    keep = None
+    if prefer > 0.0:
+        keep = np.minimum(grid.clearance_at(pts), grid.inflation + prefer)
     out = [0]
     i = 0
     last = len(pts) - 1
     while i < last:
-        if line_of_sight(grid, pts[i], pts[last:])[0]:  # common case: the rest is in sight
+        need = None if keep is None else np.minimum.accumulate(keep[i:])  # points i..j
+        if line_of_sight(grid, pts[i], pts[last:],
+                         None if need is None else need[-1])[0]:  # the rest is in sight
             out.append(last)
             break
-        visible = line_of_sight(grid, pts[i], pts[i + 1 :])
+        visible = line_of_sight(grid, pts[i], pts[i + 1:], None if need is None else need[1:])
         # The next point is always kept, even if sampling clips a blocked corner.
         visible[0] = True
         j = i + 1 + int(np.flatnonzero(visible)[-1])
@@ -202,8 +236,16 @@ def smooth_path(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
     return pts[out]
 
 
+def clearance_penalty(grid: OccupancyGrid, prefer: float) -> np.ndarray:
+    """Per-cell cost factor excess (ny, nx) of the clearance preference (module docstring)."""
+    d_min = grid.inflation
+    short = np.clip((d_min + prefer - grid.clearance) / prefer, 0.0, 1.0)
+    return CLEARANCE_WEIGHT * short * short
+
+
 def plan_path(
-    grid: OccupancyGrid, start: Sequence[float], goal: Sequence[float], smooth: bool = True
+    grid: OccupancyGrid, start: Sequence[float], goal: Sequence[float], smooth: bool = True,
+    prefer: float = 0.0,
 ) -> GridPath:
     """Shortest collision-free path from ``start`` to ``goal`` (world points [m]; extra pose
     components such as θ are ignored).
@@ -213,6 +255,8 @@ def plan_path(
     at the true start and ends at that cell's centre, and ``start_snapped``/``goal_snapped``
     say so. Raises ``NoPathError`` (naming start
     and goal) when no free cell exists or the goal's free component is not the start's.
+    ``prefer`` [m] > 0: the clearance preference of the module docstring (then ``grid_length``
+    is the length of the cell path found, not the search's cost).
     """
     p0 = (float(start[0]), float(start[1]))
     p1 = (float(goal[0]), float(goal[1]))
@@ -226,11 +270,15 @@ def plan_path(
         c1 = nearest_free_cell(grid, p1, toward=p0)
     if c0 is None or c1 is None:
         raise NoPathError(p0, p1, "the grid has no free cell")
-    result = astar_cells(grid.blocked, c0, c1)
+    penalty = clearance_penalty(grid, prefer) if prefer > 0.0 else None
+    result = astar_cells(grid.blocked, c0, c1, penalty)
     if result is None:
         raise NoPathError(p0, p1, "the goal is not reachable from the start in free space")
     cells, length_cells = result
     cell_arr = np.asarray(cells, dtype=np.int64)
+    if penalty is not None:
+        steps = np.abs(np.diff(cell_arr, axis=0)).sum(axis=1)
+        length_cells = float(np.count_nonzero(steps == 1) + SQRT2 * np.count_nonzero(steps == 2))
     centres = grid.center_of(cell_arr)
     end = np.array(p1) if goal_free else centres[-1]
     head = [np.array(p0)] if start_free else [np.array(p0), centres[0]]
@@ -239,7 +287,7 @@ def plan_path(
     keep[1:] = np.any(np.diff(raw, axis=0) != 0.0, axis=1)
     raw = raw[keep]
     # A blocked start sees nothing, so smoothing keeps the escape leg to the first free cell.
-    waypoints = smooth_path(grid, raw) if smooth else raw
+    waypoints = smooth_path(grid, raw, prefer) if smooth else raw
     return GridPath(
         start=p0,
         goal=(float(end[0]), float(end[1])),

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from tlfleet.agent.model.scenario import Scenario
-from tlfleet.agent.scenario.stl_setup import stl_sequences
+from tlfleet.agent.scenario.stl_setup import naming, stl_sequences
 from tlfleet.agent.stl.evaluate import compile_expr
 from tlfleet.agent.stl.syntax import (
     BinOp,
@@ -90,9 +90,11 @@ class CouplingModel:
         """Every literal of every STL sub-task that involves ``leader`` and its owner's state."""
         params = scenario.navigation
         terms: list[_Term] = []
-        sequences = stl_sequences(scenario)
+        # only the tasks that name the leader: another robot's task, however broken, is that
+        # robot's agent's to report, never a reason for this one to fail
+        sequences = stl_sequences(scenario, only=naming(scenario, frozenset({leader})))
         for robot in scenario.robots:
-            if not robot.is_stl:
+            if robot.id not in sequences:
                 continue
             for task in sequences[robot.id]:
                 if leader not in task.participants:

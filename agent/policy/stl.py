@@ -45,7 +45,7 @@ from tlfleet.agent.scenario import stl_setup
 from tlfleet.agent.scenario.stl_timing import PositionGrid, position_grid, reach_time, transfer_time
 from tlfleet.agent.stl import recovery as rec
 from tlfleet.agent.stl.control_law import ControlParams, nominal_velocity
-from tlfleet.agent.stl.funnel import Funnel, FunnelParams, epsilon
+from tlfleet.agent.stl.funnel import Funnel, FunnelParams, epsilon, received_funnel_problem
 from tlfleet.agent.stl.messages import (
     CollabRelease,
     CollabRequest,
@@ -262,6 +262,35 @@ class StlAgent:
             return None
         return np.random.default_rng([seed, self.cfg.robot_id, subtask, ce, round(t * 1000)])
 
+    def collab_problem(self, msg: Message) -> str | None:
+        """Why this agent does not act on ``msg`` (its ``sender`` already authenticated by the
+        runtime), or None (stl-funnel.md §7.5). A request, update or release must be for a
+        sub-task of the sender in whose V this robot is (the only sub-tasks it can follow), a
+        request or update with that sub-task's funnel (:func:`received_funnel_problem`); a
+        status must come from another STL robot, for a finite window (it is only stored: the
+        stage-2 rule reads those of V_i alone). Any
+        other message is dropped, never acted on: a request for a sub-task the receiver takes
+        no part in used to raise in ``Task.block`` and kill the agent."""
+        i = self.cfg.robot_id
+        if msg.receiver != i:
+            return f"addressed to robot {msg.receiver}, this is robot {i}"
+        if msg.sender == i:
+            return "sent by this robot to itself"
+        if isinstance(msg, StatusAnnounce):
+            if (msg.sender, 0) not in self.cfg.library:
+                return f"robot {msg.sender} is no STL robot of this fleet"
+            if msg.kind is not None and not (math.isfinite(msg.a) and math.isfinite(msg.b)):
+                return "status of a sub-task without a finite window"
+            return None
+        task = self.cfg.library.get((msg.sender, msg.subtask))
+        if task is None:
+            return f"robot {msg.sender} has no STL sub-task {msg.subtask}"
+        if i not in task.v_ctrl:
+            return f"robot {i} takes no part in robot {msg.sender}'s sub-task {msg.subtask}"
+        if isinstance(msg, CollabRequest | CollabUpdate):
+            return received_funnel_problem(msg.funnel, task.kind, task.a, task.b)
+        return None
+
     def _read_inbox(self, state: AgentState, inbox: Sequence[Message],
                     unreachable: frozenset[int] = frozenset()):
         """Apply peer status and collaboration messages (§7.5, paper Alg. 2 lines 20–25; the
@@ -277,6 +306,11 @@ class StlAgent:
         released = False
         orphaned = state.orphaned
         for msg in inbox:
+            problem = self.collab_problem(msg)
+            if problem is not None:  # the runtime refuses these; a direct caller may not
+                logger.warning("robot %d: %s from %d ignored: %s", i, type(msg).__name__,
+                               msg.sender, problem)
+                continue
             if isinstance(msg, StatusAnnounce):
                 if peers is state.peers:
                     peers = dict(peers)
@@ -288,10 +322,6 @@ class StlAgent:
                     continue
                 if (follow is None or follow == msg.sender
                         or not self.cfg.protocol.first_come_follow):
-                    if (msg.sender, msg.subtask) not in self.cfg.library:
-                        logger.warning("robot %d: request from %d for unknown sub-task %d ignored",
-                                       i, msg.sender, msg.subtask)
-                        continue
                     follow, follow_subtask, follow_funnel = msg.sender, msg.subtask, msg.funnel
             elif isinstance(msg, CollabUpdate):
                 if msg.sender == follow and msg.subtask == follow_subtask:
@@ -838,14 +868,18 @@ def build_agents(scenario, *, funnel: FunnelParams | None = None,
     """One :class:`StlAgent` per STL robot of a loaded ``tlfleet.agent.model.scenario.Scenario``.
 
     Parameters come from the scenario's ``[stl]`` table and each robot's limits unless given.
-    ``robots`` restricts which STL agents are built (the library still holds every STL task).
+    ``robots`` restricts which STL agents are built; the library holds their own sub-tasks and
+    every sub-task of a robot whose tasks name one of them (the stage-2 requests they may follow,
+    the announcements they owe), and nothing else.
     Each agent announces its status to :func:`status_readers` only.
     """
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
     library: dict[tuple[int, int], Task] = {}
-    # one place for the agents and `tlfleet check` (ρ_opt from the arena, coupled pairs)
-    sequences = stl_setup.stl_sequences(scenario, warn=warn)
+    # the agents' own tasks and those that name them (a requester's task, followed in stage 2):
+    # another robot's task, however broken, is that robot's agent's to report
+    needed = None if robots is None else stl_setup.naming(scenario, frozenset(robots))
+    sequences = stl_setup.stl_sequences(scenario, warn=warn, only=needed)
     for seq in sequences.values():
         for task in seq:
             library[(task.owner, task.index)] = task

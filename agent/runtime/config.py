@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import ORPHAN_AFTER
 from tlfleet.bus.transport import TransportConfig
 
 
@@ -23,10 +24,11 @@ class AgentConfig:
     stale_after: float = 0.5  # [s] wall: no mocap frame for this long → zero command
     collab_timeout: float = 0.25  # [s] wall: longest wait for a partner's stage-2 reply
     heartbeat: bool = False  # a decimated agent also watches the sim's clock key (LoopConfig)
+    orphan_after: float = ORPHAN_AFTER  # [s] wall: exit once the coordinator is gone this long
     transport: TransportConfig = field(default_factory=TransportConfig)
 
     def __post_init__(self) -> None:
-        for name in ("stale_after", "collab_timeout"):
+        for name in ("stale_after", "collab_timeout", "orphan_after"):
             value = getattr(self, name)
             if not value > 0.0:
                 flag = "--" + name.replace("_", "-")

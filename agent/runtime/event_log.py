@@ -32,6 +32,7 @@ from dataclasses import replace
 
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.events import role_of_source
 from tlfleet.bus.protocol.messages import EVENT_REPLAYED, Event
 from tlfleet.bus.transport import Closeable, Transport
 
@@ -42,7 +43,7 @@ WINDOW = 5.0  # [s] wall: events published this long before the loss are replaye
 
 
 class EventLog:
-    """Publishes an agent's events on ``event`` and replays the recent ones after the
+    """Publishes an agent's events on its ``event/agent/<id>`` and replays the recent ones after the
     coordinator's token returns (module docstring). Thread-safe: events are published from the
     loop's thread, the replay runs on the transport's liveliness callback thread."""
 
@@ -57,13 +58,17 @@ class EventLog:
         self.source = source
         self.window = window
         self._clock = clock
-        self._key = keys.event(fleet)
+        role = role_of_source(source)
+        if role is None:
+            raise ValueError(f"EventLog source {source!r} names no process (sim, agent/<id>)")
+        self._key = keys.event(fleet, *role)
         self._coordinator = keys.alive(fleet, "coordinator", 0)
         self._recent: deque[tuple[float, Event]] = deque(maxlen=capacity)
         self._lock = threading.Lock()
         self._lost_at: float | None = None  # [s] wall when the coordinator's token went
         self.replays = 0  # times the log was published again
         self.replayed = 0  # events published again, in all
+        self._startup: list[Event] = []  # published before the start, again at the start
 
     def watch(self) -> Closeable:
         """Watch the coordinator's token; the caller closes the handle."""
@@ -74,6 +79,28 @@ class EventLog:
         with self._lock:
             self._recent.append((self._clock(), event))
         self.transport.publish(self._key, encode(event))
+
+    def publish_startup(self, event: Event) -> None:
+        """Publish a start-up event (``plan_ready``, ``coupling_limits``: made before the start)
+        and keep it for :meth:`replay_startup`."""
+        self._startup.append(event)
+        self.publish(event)
+
+    def replay_startup(self) -> int:
+        """At the mission start: publish the start-up events again, marked replayed.
+
+        Why: they are published as soon as the liveliness token is up, when the agent's session
+        may not yet know the route to the coordinator's subscriber (a zenoh sample with no known
+        subscriber is dropped: 2 of 13 first ``plan_ready`` were recorded). ``Control(start)``
+        has come from the coordinator, whose subscriber was declared before it, so the route is
+        known now; the recorder drops the copy of one it already has
+        (:mod:`tlfleet.coordinator.record.replay_dedup`). Returns how many were published."""
+        again, self._startup = self._startup, []
+        for event in again:
+            self.transport.publish(self._key, encode(
+                replace(event, data={**event.data, EVENT_REPLAYED: True})))
+        self.replayed += len(again)
+        return len(again)
 
     def _on_coordinator(self, _key: str, alive: bool) -> None:
         if not alive:

@@ -308,10 +308,15 @@ class AgentLoop:
             "events_replayed": self.events.replayed}
         if self.link is not None:
             out.update(collab_sent=self.link.sent, collab_failed=self.link.failed,
-                       collab_received=self.link.received,
+                       collab_received=self.link.received, collab_refused=self.link.refused,
                        mean_collab_ms=1e3 * st.collab_time / max(self.link.sent, 1),
                        max_collab_ms=1e3 * st.max_collab_time)
         return out
+
+    def publish_startup_event(self, event: Event) -> None:
+        """Publish an event made before the start; it is published again at the start
+        (:meth:`tlfleet.agent.runtime.event_log.EventLog.replay_startup`)."""
+        self.events.publish_startup(event)
 
     def publish_event(self, event: Event) -> None:
         """Publish ``event``; it is published again if the coordinator's token goes and comes
@@ -406,6 +411,7 @@ class AgentLoop:
     def _start(self) -> None:
         self.started = True
         self._last_frame_wall = self.clock()  # staleness counts from the start
+        self.events.replay_startup()
 
     def _receive_frame(self, key: str, payload: bytes) -> None:
         """Transport callback: store the frame only when it is valid and plausible."""

@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 
 from tlfleet.agent.runtime.collab import from_wire
 from tlfleet.agent.runtime.inbox import CollabInbox, MalformedCounter
+from tlfleet.agent.stl.messages import Message
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.codec import ProtocolError, decode, encode
 from tlfleet.bus.protocol.messages import CollabMessage, CollabReply
@@ -39,6 +40,7 @@ from tlfleet.bus.transport import Closeable, Transport
 
 logger = logging.getLogger(__name__)
 _NOBODY: frozenset[int] = frozenset()
+REFUSAL_LOG_PERIOD = 1.0  # [s] wall: a sender's refused messages are logged at most this often
 
 
 class CollabLink:
@@ -46,7 +48,8 @@ class CollabLink:
 
     def __init__(self, transport: Transport, fleet: str, robot: int, peers: tuple[int, ...],
                  malformed: MalformedCounter, timeout: float = 0.25, retry_after: float = 2.0,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Callable[[], float] = time.monotonic,
+                 check: Callable[[Message], str | None] | None = None):
         self.transport = transport
         self.fleet = fleet
         self.robot = robot
@@ -60,14 +63,17 @@ class CollabLink:
         self._gone: set[int] = set()  # liveliness token disappeared
         self._failed: dict[int, float] = {}  # wall time [s] of the last failed query
         self._handles: list[Closeable] = []
+        self.check = check  # the core's judgement of a message (StlAgent.collab_problem)
         self.sent = 0
         self.failed = 0
         self.received = 0
+        self.refused = 0  # well-formed messages the core would not act on
+        self._refusal_logged: dict[int, float] = {}  # sender -> when a refusal was last logged
 
     def open(self) -> None:
         """Serve the own queryable and watch the peers' liveliness tokens."""
-        self._handles.append(self.transport.serve(keys.collab(self.fleet, self.robot),
-                                                  self._on_query))
+        self._handles.append(self.transport.serve(keys.collab_all(self.fleet, self.robot),
+                                                  self._on_query, keyed=True))
         self._handles.append(self.transport.watch_alive(keys.all_alive(self.fleet),
                                                         self._on_alive))
 
@@ -108,9 +114,12 @@ class CollabLink:
         self._mark(int(parsed[1]), alive=alive,
                    why="liveliness token " + ("declared" if alive else "gone"))
 
-    def _on_query(self, payload: bytes) -> bytes:
-        """Queryable handler: never raises, always replies."""
-        key = keys.collab(self.fleet, self.robot)
+    def _on_query(self, key: str, payload: bytes) -> bytes:
+        """Queryable handler: never raises, always replies. The key names the sender
+        (``keys.collab_from``: in a secured fleet only that robot may query it); a message
+        claiming another sender is malformed, one the core would not act on (a sub-task the
+        sender and this robot do not share, a funnel that is not that sub-task's) is refused
+        and counted."""
         try:
             msg = decode(CollabMessage, payload)
             if not math.isfinite(msg.t):
@@ -118,10 +127,26 @@ class CollabLink:
             if msg.receiver != self.robot:
                 raise ProtocolError(f"CollabMessage.receiver: {msg.receiver}, this is robot "
                                     f"{self.robot}")
+            sender = keys.collab_sender(key)
+            if msg.sender != sender:
+                raise ProtocolError(f"CollabMessage.sender: {msg.sender} on the key of "
+                                    f"robot {sender}")
             core = from_wire(msg)
         except ProtocolError as exc:
             self.malformed.record(key, exc)
             return encode(CollabReply(False, str(exc)[:200]))
+        problem = self.check(core) if self.check is not None else None
+        if problem is not None:
+            now = self._clock()
+            with self._lock:
+                self.refused += 1
+                say = now - self._refusal_logged.get(msg.sender, -math.inf) >= REFUSAL_LOG_PERIOD
+                if say:
+                    self._refusal_logged[msg.sender] = now
+            if say:
+                logger.warning("robot %d: %s from robot %d refused: %s (%d refused so far)",
+                               self.robot, msg.kind, msg.sender, problem, self.refused)
+            return encode(CollabReply(False, problem[:200]))
         self.inbox.put(msg.t, msg.sender, core)
         self.received += 1
         return encode(CollabReply(True))
@@ -162,7 +187,8 @@ class CollabLink:
                     self.sent += 1
                 batch.add()
                 self.transport.query_async(
-                    keys.collab(self.fleet, msg.receiver), encode(msg), self.timeout,
+                    keys.collab_from(self.fleet, msg.receiver, self.robot), encode(msg),
+                    self.timeout,
                     lambda replies, msg=msg: batch.done(self._finish(msg, replies)),
                     droppable=True)
             if wait and not batch.wait(self.timeout + _DONE_GRACE):
@@ -177,7 +203,8 @@ class CollabLink:
             try:
                 reply = decode(CollabReply, raw)
             except ProtocolError as exc:
-                self.malformed.record(keys.collab(self.fleet, msg.receiver), exc, msg.t)
+                self.malformed.record(keys.collab_from(self.fleet, msg.receiver, self.robot),
+                                      exc, msg.t)
                 continue
             if reply.accepted:
                 return True

@@ -23,6 +23,7 @@ from tlfleet.agent.runtime.inbox import MalformedCounter
 from tlfleet.agent.runtime.loop import AgentLoop, Core, LoopConfig
 from tlfleet.agent.runtime.peers import CollabLink
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import CoordinatorWatch
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import MAX_TIME, FleetBounds
 from tlfleet.bus.protocol.codec import encode
@@ -84,9 +85,11 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
     source = f"agent/{config.robot}"
     divider = scenario.control_divider(config.robot)
     loop: AgentLoop | None = None
+    watch = CoordinatorWatch(transport, keys.alive(scenario.fleet, "coordinator", 0), stop,
+                             config.orphan_after, source)
     try:
         malformed = MalformedCounter(source)
-        event_key = keys.event(scenario.fleet)
+        event_key = keys.event(scenario.fleet, "agent", config.robot)
 
         def publish(event: Event) -> None:
             transport.publish(event_key, encode(event))
@@ -109,7 +112,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         loop.open()
         loop.ready()
         for event in events:
-            loop.publish_event(event)
+            loop.publish_startup_event(event)
         logger.info("%s ready (fleet %s, divider %d, phase %d)", source, scenario.fleet, divider,
                     loop_config.phase)
         logger.info("agent %d: waiting for start from a coordinator on %s and mocap frames "
@@ -127,6 +130,7 @@ def run_agent(config: AgentConfig, scenario: Scenario, build: Builder, *,
         logger.info("%s stopped: %s", source, stats)
         return code
     finally:
+        watch.close()
         if loop is not None:
             loop.close()
         if own_transport:

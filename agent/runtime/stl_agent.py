@@ -164,7 +164,7 @@ def main(config: AgentConfig, scenario: Scenario, *, transport=None, stop=None) 
     def build(transport, malformed, _publish_fault):
         agent = build_agents(scenario, robots=[config.robot])[config.robot]
         link = CollabLink(transport, scenario.fleet, config.robot, agent.cfg.peers, malformed,
-                          timeout=config.collab_timeout)
+                          timeout=config.collab_timeout, check=agent.collab_problem)
         core = StlCore(agent)
         return core, core.initial_state(), (), link
 

@@ -2,7 +2,8 @@
 
 ``load_scenario(path)`` reads a file and returns a ``Scenario``; ``parse_scenario(data, source)``
 does the same for an already-decoded TOML table. Every problem is a ``ScenarioError`` that names
-the file, the field path (``robots[2].pose``) and what was expected. Unknown keys are errors, so a
+the file, the field path (``robots[id=3].pose``: a robot is named by its id,
+:mod:`tlfleet.agent.scenario.fields`) and what was expected. Unknown keys are errors, so a
 typo never silently falls back to a default.
 
 File layout (every section but ``robots`` is optional)::
@@ -63,12 +64,19 @@ from tlfleet.agent.model.scenario import (
     UnicycleLimits,
 )
 from tlfleet.agent.scenario import validation
+from tlfleet.agent.scenario.fields import ordinal_table, robot_field
 from tlfleet.bus.errors import FormulaSyntaxError, ScenarioError
 
 if TYPE_CHECKING:
     from tlfleet.agent.ltl.formula import Formula
     from tlfleet.agent.stl.syntax import Temporal
 
+#: keys a ``[[robots]]`` table holds and the top level holds: a TOML table runs until the next
+#: header, so a robot key written after ``[robots.limits]`` (or a top-level key after ``[sim]``)
+#: lands in that table; :meth:`_Table.finish` names the trap instead of an unknown key
+ROBOT_KEYS = frozenset({"id", "kind", "pose", "radius", "ltl", "stl", "phase_start_times",
+                        "rho_opt", "limits"})
+TOP_KEYS = frozenset({"name", "fleet", "duration", "description"})
 ATOM_RE = re.compile(r"[a-z_][a-z0-9_]*\Z")
 FLEET_RE = re.compile(r"[A-Za-z0-9_-]+\Z")
 RESERVED_ATOMS = frozenset({"true", "false", "xor"})
@@ -95,11 +103,11 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
                              "use letters, digits, _ and -")
     duration = top.number("duration", positive=True)
     description = top.string("description", default="")
-    arena = _arena(top.table("arena", required=False))
-    ltl = _params(top.table("ltl", required=False), LtlParams)
-    stl = _params(top.table("stl", required=False), StlParams)
-    sim = _params(top.table("sim", required=False), SimParams)
-    navigation = _navigation(top.table("navigation", required=False), source)
+    arena = _arena(top.table("arena", required=False, outer_keys=TOP_KEYS))
+    ltl = _params(top.table("ltl", required=False, outer_keys=TOP_KEYS), LtlParams)
+    stl = _params(top.table("stl", required=False, outer_keys=TOP_KEYS), StlParams)
+    sim = _params(top.table("sim", required=False, outer_keys=TOP_KEYS), SimParams)
+    navigation = _navigation(top.table("navigation", required=False, outer_keys=TOP_KEYS), source)
     if stl.r1 >= stl.r_sense:
         raise ScenarioError(source, "stl.r1",
                             f"must be below stl.r_sense = {stl.r_sense}, got {stl.r1}")
@@ -115,7 +123,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
                                 f"{getattr(stl, inner)}")
     regions = tuple(_region(t, arena) for t in top.array_of_tables("regions", required=False))
     _unique(source, "regions", [(r.name, i) for i, r in enumerate(regions)], "region name")
-    robots = tuple(_robot(t, arena) for t in top.array_of_tables("robots"))
+    robots = tuple(_robot(t, arena, i) for i, t in enumerate(top.array_of_tables("robots")))
     if not robots:
         raise ScenarioError(source, "robots", "expected at least one [[robots]] table")
     _unique(source, "robots", [(r.id, i) for i, r in enumerate(robots)], "robot id")
@@ -141,7 +149,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<scenario>") -> Scenario
     validation.check_scenario(scenario, source)  # sizes, rates, geometry
     _check_start_poses(scenario, source)
     for index, robot in enumerate(robots):
-        where = f"robots[{index}]"
+        where = robot_field(index, robot.id)
         if robot.ltl is not None:
             _check_ltl_task(robot.ltl, scenario, source, f"{where}.ltl")
         for k, text in enumerate(robot.stl):
@@ -207,10 +215,17 @@ def _region(table: _Table, arena: Arena) -> Region:
                   labels=frozenset(labels_raw))
 
 
-def _robot(table: _Table, arena: Arena) -> Robot:
-    robot_id = table.integer("id")
-    if robot_id < 1:
-        table.fail("id", f"expected a positive integer, got {robot_id}")
+def _robot(table: _Table, arena: Arena, index: int) -> Robot:
+    try:
+        robot_id = table.integer("id")
+        if robot_id < 1:
+            table.fail("id", f"expected a positive integer, got {robot_id}")
+        if robot_id > validation.MAX_ROBOT_ID:
+            table.fail("id", f"{robot_id} is too large: at most {validation.MAX_ROBOT_ID}")
+    except ScenarioError as exc:  # no id to name it by: say which table it is
+        raise ScenarioError(exc.file, exc.field, f"{exc.reason} (in {ordinal_table(index)})"
+                            ) from None
+    table.path = robot_field(index, robot_id)  # from now on named by its id
     kind = table.choice("kind", ("unicycle", "omni"))
     pose = table.vector("pose", 3)
     if not arena.contains(pose[0], pose[1]):
@@ -227,6 +242,10 @@ def _robot(table: _Table, arena: Arena) -> Robot:
     if ltl is not None and stl:
         table.fail("stl", "a robot has either an `ltl` or an `stl` task, not both")
     if ltl is None and not stl:
+        limits_raw = table.data.get("limits")
+        for key in ("ltl", "stl"):
+            if isinstance(limits_raw, dict) and key in limits_raw:
+                table.fail(f"limits.{key}", trap_reason(key, "[robots.limits]"))
         table.fail("", "expected a task: `ltl = \"...\"` (unicycle) or `stl = [\"...\"]` (omni)")
     if ltl is not None and kind != "unicycle":
         table.fail("ltl", f"LTL tasks run on unicycle robots (navigation stack), got kind {kind!r}")
@@ -256,7 +275,7 @@ def _robot(table: _Table, arena: Arena) -> Robot:
                                   f"got {len(values)}")
         rho_opt = tuple(float(v) for v in values)
 
-    limits_table = table.table("limits", required=False)
+    limits_table = table.table("limits", required=False, outer_keys=ROBOT_KEYS)
     unicycle, omni = UnicycleLimits(), OmniLimits()
     if limits_table is not None:
         if kind == "unicycle":
@@ -315,7 +334,7 @@ def _check_start_poses(scenario: Scenario, source: str) -> None:
             gap = math.hypot(a.pose[0] - b.pose[0], a.pose[1] - b.pose[1])
             if gap < a.radius + b.radius:
                 raise ScenarioError(
-                    source, f"robots[{index[b.id]}].pose",
+                    source, f"{robot_field(index[b.id], b.id)}.pose",
                     f"robot {b.id} starts {gap:.3f} m from robot {a.id}, closer than their radii "
                     f"allow ({a.radius + b.radius:.3f} m)")
 
@@ -358,6 +377,7 @@ def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> F
         except FormulaSyntaxError as exc:
             raise ScenarioError(source, where, f"LTL syntax error at column {exc.column}: "
                                                f"{exc.reason} in {text!r}") from None
+        _refuse_bounded_operators(text, source, where)
     carried = scenario.propositions
     for atom in sorted(used):
         if atom not in carried:
@@ -365,6 +385,25 @@ def _check_ltl_task(text: str, scenario: Scenario, source: str, where: str) -> F
             raise ScenarioError(source, where, f"proposition {atom!r} is carried by no region "
                                                f"(region labels: {known})")
     return formula
+
+
+def _refuse_bounded_operators(text: str, source: str, where: str) -> None:
+    """A scenario's LTL task may not use Spot's bounded operators (``F[0,60] a``, ``G[2:5] a``,
+    ``X[3] a``): they count *steps* of the robot's word — one letter per region it enters — where
+    an STL task written alike counts *seconds*, so ``F[0,60] a12`` would silently mean "within 60
+    region visits". A deadline in seconds is an STL task; a bound in steps is written with the X
+    operators it stands for (``tlfleet translate`` still reads the sugar)."""
+    from tlfleet.agent.ltl.lexer import REPEAT, tokenize
+
+    for token in tokenize(text):
+        if token.kind == REPEAT:
+            raise ScenarioError(
+                source, where,
+                f"{token.text!r} at column {token.column} of {text!r}: a bounded LTL operator "
+                f"counts steps of the robot's region word (one per region entered), not "
+                f"seconds. For a deadline in seconds write an STL task on an omni robot, e.g. "
+                f"`stl = [\"F[0,60] (dist(p1, [x, y]) <= 0.2)\"]` (docs/stl.md); for a bound in "
+                f"steps write the X operators out (`X X a` for 'a at the 3rd letter')")
 
 
 def _check_stl_task(text: str, robot_ids: Iterable[int], source: str, where: str) -> Temporal:
@@ -431,7 +470,9 @@ def _unique(source: str, field: str, items: list[tuple[Any, int]], what: str) ->
     for value, index in items:
         if value in seen:
             raise ScenarioError(source, f"{field}[{index}]",
-                                f"duplicate {what} {value!r} (first at {field}[{seen[value]}])")
+                                f"duplicate {what} {value!r} (first at {field}[{seen[value]}]: "
+                                f"{ordinal_table(index, field)} repeats "
+                                f"{ordinal_table(seen[value], field)}'s)")
         seen[value] = index
 
 
@@ -444,11 +485,14 @@ _MISSING = object()
 class _Table:
     """Typed, path-aware access to one TOML table; ``finish()`` rejects unread keys."""
 
-    def __init__(self, data: dict[str, Any], path: str, source: str):
+    def __init__(self, data: dict[str, Any], path: str, source: str,
+                 header: str | None = None, outer_keys: frozenset[str] = frozenset()):
         self.data = data
         self.path = path
         self.source = source
         self.read: set[str] = set()
+        self.header = header  # the TOML header that opens this table ("[robots.limits]")
+        self.outer_keys = outer_keys  # keys of the table around it (the trap of finish())
 
     def where(self, key: str) -> str:
         if not key:
@@ -537,26 +581,45 @@ class _Table:
                 self.fail(f"{key}[{k}]", f"expected a {name}, got {_show(item)}")
         return value
 
-    def table(self, key: str, required: bool = True) -> _Table | None:
+    def table(self, key: str, required: bool = True, outer_keys: frozenset[str] = frozenset()
+              ) -> _Table | None:
         value = self._get(key, _MISSING if required else None, "a table")
         if value is None:
             return None
         if not isinstance(value, dict):
             self.fail(key, f"expected a table ([{self.where(key)}]), got {_show(value)}")
-        return _Table(value, self.where(key), self.source)
+        return _Table(value, self.where(key), self.source, self._header(key, "[", "]"),
+                      outer_keys)
+
+    def _header(self, key: str, left: str, right: str) -> str:
+        """The TOML header of the sub-table ``key`` as a file writes it (``[robots.limits]``:
+        an array's element is named by the array)."""
+        base = re.sub(r"\[[^]]*\]", "", self.path)
+        return f"{left}{base + '.' if base else ''}{key}{right}"
 
     def array_of_tables(self, key: str, required: bool = True) -> list[_Table]:
         value = self._get(key, _MISSING if required else [], "an array of tables")
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
             self.fail(key, f"expected an array of tables ([[{self.where(key)}]]), "
                            f"got {_show(value)}")
-        return [_Table(v, f"{self.where(key)}[{i}]", self.source) for i, v in enumerate(value)]
+        outer = TOP_KEYS if not self.path else frozenset()
+        return [_Table(v, f"{self.where(key)}[{i}]", self.source,
+                       self._header(key, "[[", "]]"), outer) for i, v in enumerate(value)]
 
     def finish(self) -> None:
         unknown = sorted(set(self.data) - self.read)
         if unknown:
-            key = unknown[0]
+            key = min(unknown, key=lambda k: (k not in self.outer_keys, k))
+            if key in self.outer_keys and self.header:
+                self.fail(key, trap_reason(key, self.header))
             self.fail(key, validation.unknown_key_reason(key, self.read))
+
+
+def trap_reason(key: str, header: str) -> str:
+    """Why ``key`` is in the table ``header`` opens although it belongs to the one around it."""
+    return (f"`{key}` belongs to the table around {header}, but it is written after the "
+            f"{header} line, and a TOML table runs until the next header: move `{key} = …` above "
+            f"{header}")
 
 
 def _show(value: Any) -> str:

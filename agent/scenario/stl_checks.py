@@ -15,12 +15,11 @@ loader (``tlfleet.agent.scenario.loader.parse_scenario``):
   centre its radius from the walls) is ≤ 0 (docs/stl-saturation.md §7);
 * sub-task windows that overlap (§9: sub-tasks run in sequence, b^(k) ≤ a^(k+1));
 * ``phase_start_times`` entries that come before the previous window ends, or the wrong number
-  of them (§9 item 4, §13 item 6).
+  of them (§9 item 4, §13 item 6);
+* a window that ends after the scenario's ``duration`` (:func:`check_windows_in_run`).
 
 Warnings (:func:`stl_warnings`, printed by ``tlfleet check``):
 
-* a window that ends (or starts) after the scenario's duration: its verdict will be "not
-  evaluated" (``tlfleet.coordinator.report.task_verdicts``);
 * a predicate whose robustness is unbounded above, with no ``rho_opt`` override (only with
   ``rho_opt_from_arena = false``);
 * a predicate that two coupled robots can meet with their bodies apart but not outside each
@@ -38,11 +37,18 @@ from itertools import combinations
 
 from tlfleet.agent.model.scenario import Scenario
 from tlfleet.agent.scenario import stl_setup
+from tlfleet.agent.scenario.fields import robot_field
 from tlfleet.agent.stl.analysis import literal_sup, non_concave_literals
 from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.agent.stl.robustness import participants
 from tlfleet.agent.stl.supremum import Workspace, psi_supremum
-from tlfleet.agent.stl.syntax import Not, Temporal, literals, robots_of, to_text
+from tlfleet.agent.stl.syntax import (
+    Not,
+    Temporal,
+    literals,
+    robots_of,
+    to_text,
+)
 from tlfleet.bus.errors import ScenarioError
 
 # The loader runs these checks in every process that loads a scenario: they use the syntax tree
@@ -74,7 +80,7 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
     for index, robot in enumerate(scenario.robots):
         if not robot.is_stl:
             continue
-        where = f"robots[{index}]"
+        where = robot_field(index, robot.id)
         formulas = _formulas(scenario, index)
         for k, phi in enumerate(formulas):
             field = f"{where}.stl[{k}]"
@@ -124,6 +130,21 @@ def check_stl_tasks(scenario: Scenario, source: str) -> None:
                         source, f"{where}.phase_start_times[{k}]",
                         f"{t:g} precedes the end b = {windows[k][1]:g} of sub-task {k + 1} "
                         f"(stl-funnel.md §9: a forced start needs the previous window closed)")
+    check_windows_in_run(scenario, source)
+
+
+def check_windows_in_run(scenario: Scenario, source: str) -> None:
+    """Every sub-task's window closes by the scenario's ``duration``: a window the run never
+    closes has no verdict, so its task cannot be met (``tlfleet run --duration`` may still cut a
+    run shorter: its tally then says ``not evaluated``)."""
+    for index, robot in enumerate(scenario.robots):
+        for k, phi in enumerate(_formulas(scenario, index)):
+            if phi.b > scenario.duration:
+                raise ScenarioError(
+                    source, f"{robot_field(index, robot.id)}.stl[{k}]",
+                    f"window [{phi.a:g}, {phi.b:g}] ends after the run (duration = "
+                    f"{scenario.duration:g} s): the run could never tell whether it was met; "
+                    f"raise duration or end the window by {scenario.duration:g} s")
 
 
 def stl_warnings(scenario: Scenario) -> list[str]:
@@ -135,20 +156,13 @@ def stl_warnings(scenario: Scenario) -> list[str]:
         if not robot.is_stl:
             continue
         for k, phi in enumerate(_formulas(scenario, index)):
-            field = f"robots[{index}].stl[{k}]"
+            field = f"{robot_field(index, robot.id)}.stl[{k}]"
             text = to_text(phi)
-            if phi.a > scenario.duration:
-                out.append(f"{field}: window [{phi.a:g}, {phi.b:g}] starts after the run ends "
-                           f"(duration {scenario.duration:g} s): never evaluated")
-            elif phi.b > scenario.duration:
-                out.append(f"{field}: window [{phi.a:g}, {phi.b:g}] ends after the run ends "
-                           f"(duration {scenario.duration:g} s): the report cannot give it a "
-                           f"verdict")
             override = robot.rho_opt[k] if k < len(robot.rho_opt) else None
             unbounded = [lit for lit in literals(phi.body) if literal_sup(lit) == float("inf")]
             if unbounded and override is None and not scenario.stl.rho_opt_from_arena:
                 out.append(f"{field}: the robustness of {to_text(unbounded[0])!r} is unbounded "
-                           f"above: the agent needs robots[{index}].rho_opt[{k}]")
+                           f"above: the agent needs {robot_field(index, robot.id)}.rho_opt[{k}]")
             for literal in non_concave_literals(phi.body, ltl_ids):
                 out.append(f"{field}: predicate {to_text(literal)!r} is not concave in the "
                            f"controlled states (paper Assumption 1): the funnel guarantees do "
@@ -162,11 +176,9 @@ def stl_warnings(scenario: Scenario) -> list[str]:
                                    f"R = {big_r:g} m (bodies + [stl] coupled_r_margin): its "
                                    f"robustness is at most {sup:+.3f} outside it")
             if k == 0 and phi.op == "G" and phi.a <= 0.0:
-                from tlfleet.agent.stl.sequencer import build_sequence  # numpy: only for warnings
-
-                task = build_sequence(robot.id, [phi], robot_ids=scenario.robot_ids,
-                                      warn=False, eta=scenario.stl.eta,
-                                      rho_opt=robot.rho_opt[:1])[0]
+                # the agent's own first sub-task (ρ_opt resolved as the agent resolves it: a
+                # half-plane's from the arena), so a warning never fails where the run would not
+                task = stl_setup.stl_sequences(scenario, only=frozenset({robot.id}))[robot.id][0]
                 rho0 = task.compiled.value_min(task.stacked_state(poses))
                 if rho0 < 0.0:
                     out.append(f"{field}: {text!r} is violated at the start poses "
@@ -215,14 +227,15 @@ def speed_limit_warnings(scenario: Scenario) -> list[str]:
         grid = position_grid(scenario.arena, robot.radius)
         for bad in sequence_infeasibilities(tasks, robot.id, poses, grid, robot.omni.max_lin,
                                             robot.omni.max_ang, robot.phase_start_times):
-            where = f"robots[{index}].stl[{bad.to}]"
+            where = f"{robot_field(index, robot.id)}.stl[{bad.to}]"
             target = f"{tasks[bad.to].text!r} by t = {bad.due:g} s"
             if bad.source < 0:
                 out.append(f"{where}: at its speed limit ({robot.omni.max_lin:g} m/s) robot "
                            f"{robot.id} needs at least {bad.needed:.1f} s from its start pose "
                            f"to meet {target}: infeasible (minimal-time bound)")
             else:
-                out.append(f"robots[{index}].stl[{bad.source}] -> stl[{bad.to}]: at its speed "
+                out.append(f"{robot_field(index, robot.id)}.stl[{bad.source}] -> stl[{bad.to}]: at "
+                           f"its speed "
                            f"limit ({robot.omni.max_lin:g} m/s) robot {robot.id} needs at least "
                            f"{bad.needed:.1f} s from where stl[{bad.source}] "
                            f"({tasks[bad.source].text!r}) can end (t >= {bad.t_from:g} s) to "

@@ -24,7 +24,7 @@ from tlfleet.agent.model.scenario import Robot, Scenario
 from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.agent.stl.sequencer import build_sequence
 from tlfleet.agent.stl.supremum import Workspace
-from tlfleet.agent.stl.syntax import Position, StateVar, literals
+from tlfleet.agent.stl.syntax import Position, StateVar, literals, robots_of
 from tlfleet.agent.stl.task import Task
 
 
@@ -47,6 +47,14 @@ def positions_of(node) -> frozenset[int]:
 
     walk(node)
     return frozenset(found)
+
+
+def naming(scenario: Scenario, robots: frozenset[int]) -> frozenset[int]:
+    """The STL robots whose sub-tasks an agent of ``robots`` needs: those robots themselves and
+    every STL robot with a sub-task that names one of them (a requester it may follow in stage 2,
+    a leader's coupling limits)."""
+    return frozenset(r.id for r in scenario.robots if r.is_stl and (r.id in robots or any(
+        robots & robots_of(phi.body) for phi in robot_subtasks(r))))
 
 
 def coupled_pairs(scenario: Scenario) -> frozenset[tuple[int, int]]:
@@ -93,10 +101,12 @@ def start_poses(scenario: Scenario) -> tuple[tuple[int, tuple[float, float, floa
 
 
 @functools.lru_cache(maxsize=32)
-def stl_sequences(scenario: Scenario, warn: bool = False) -> dict[int, tuple[Task, ...]]:
+def stl_sequences(scenario: Scenario, warn: bool = False,
+                  only: frozenset[int] | None = None) -> dict[int, tuple[Task, ...]]:
     """Every STL robot's sub-tasks (stl-funnel.md §9), ρ_opt resolved as the module docstring
     says; the agents (``build_agents``), the LTL robots' coupling model and ``tlfleet check`` all
-    build them here."""
+    build them here. ``only``: just these robots' (an agent builds its own and those coupled to
+    it, so that another robot's broken task is that robot's agent's to report)."""
     p = scenario.stl
     stl_ids = tuple(r.id for r in scenario.robots if r.is_stl)
     workspace = scenario_workspace(scenario) if p.rho_opt_from_arena else None
@@ -105,5 +115,5 @@ def stl_sequences(scenario: Scenario, warn: bool = False) -> dict[int, tuple[Tas
                                      robot_ids=scenario.robot_ids, stl_ids=stl_ids,
                                      rho_opt=robot.rho_opt, eta=p.eta, warn=warn,
                                      workspace=workspace, poses=poses)
-            for robot in scenario.robots if robot.is_stl}
+            for robot in scenario.robots if robot.is_stl and (only is None or robot.id in only)}
 

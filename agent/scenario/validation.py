@@ -17,7 +17,8 @@ the reason; no input — however large, deep, strange or hostile — gives a tra
   text lengths, arena size, robot and region radii, ids, rates (mocap, physics, control),
   duration, watchdog, noise, disturbance and velocity limits within sane bounds
   (:data:`RANGES`);
-* **geometry** (:func:`check_geometry`): no obstacle over a robot's start pose, no region centre
+* **geometry** (:func:`check_geometry`): no robot's disc over the arena's wall or an obstacle at
+  its start pose, no region centre
   inside an obstacle, no two regions overlapping (a robot inside both could not tell which
   proposition holds);
 * **tasks** (:func:`check_ltl`, :func:`check_stl_windows`): an LTL task with more than
@@ -40,6 +41,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from tlfleet.agent.scenario.fields import robot_field
 from tlfleet.bus.errors import FormulaSyntaxError, ScenarioError
 
 MAX_FILE_BYTES = 1 << 20  # 1 MiB: the paper's scenarios are ~3 kB
@@ -223,7 +225,7 @@ def check_sizes(scenario: Any, source: str) -> None:
             hi = mocap
         _bound(source, f"{section}.{name}", value, lo, hi)
     for i, robot in enumerate(s.robots):
-        where = f"robots[{i}]"
+        where = robot_field(i, robot.id)
         _bound(source, f"{where}.id", robot.id, None, MAX_ROBOT_ID)
         _bound(source, f"{where}.radius", robot.radius, None, side / 4, " m")
         limits = robot.omni if robot.kind == "omni" else robot.unicycle
@@ -257,11 +259,18 @@ def check_geometry(scenario: Any, source: str) -> None:
     """No obstacle over a start pose, no region centre inside an obstacle, no overlapping
     regions."""
     obstacles = scenario.arena.obstacles
+    arena = scenario.arena
     for i, robot in enumerate(scenario.robots):
         x, y, _ = robot.pose
+        gap = min(x - arena.xmin, arena.xmax - x, y - arena.ymin, arena.ymax - y)
+        if gap < robot.radius:
+            raise ScenarioError(source, f"{robot_field(i, robot.id)}.pose",
+                                f"robot {robot.id} (radius {robot.radius:g} m) at ({x:g}, {y:g}) "
+                                f"overlaps the arena's wall at its start: its centre is "
+                                f"{gap:g} m from the wall, at least {robot.radius:g} m needed")
         for k, obstacle in enumerate(obstacles):
             if _disc_hits_obstacle(x, y, robot.radius, obstacle):
-                raise ScenarioError(source, f"robots[{i}].pose",
+                raise ScenarioError(source, f"{robot_field(i, robot.id)}.pose",
                                     f"robot {robot.id} (radius {robot.radius:g} m) at "
                                     f"({x:g}, {y:g}) overlaps arena.obstacles[{k}] at its start")
     for i, region in enumerate(scenario.regions):
@@ -320,7 +329,7 @@ def check_stl_windows(robot: Any, index: int, duration: float, robot_ids: Any,
     window opened."""
     from tlfleet.agent.stl.parser import parse_task
 
-    where = f"robots[{index}]"
+    where = robot_field(index, robot.id)
     windows = []
     for text in robot.stl:
         try:
@@ -363,6 +372,6 @@ def check_tasks(scenario: Any, source: str) -> None:
     """The task checks, after the loader's syntax checks."""
     for index, robot in enumerate(scenario.robots):
         if robot.ltl is not None:
-            check_ltl(robot.ltl, source, f"robots[{index}].ltl")
+            check_ltl(robot.ltl, source, f"{robot_field(index, robot.id)}.ltl")
         if robot.stl:
             check_stl_windows(robot, index, scenario.duration, scenario.robot_ids, source)

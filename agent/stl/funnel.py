@@ -288,6 +288,29 @@ class Funnel:
                                        + "; ".join(problems) + f" ({self})")
 
 
+def received_funnel_problem(funnel: Funnel, kind: str, a: float, b: float) -> str | None:
+    """Why a funnel received from a requester cannot be followed for its sub-task φ = kind_[a,b]
+    ψ, or None: it must be that sub-task's (kind and window), with finite parameters and the
+    invariants of §5/§7.3 that keep γ(t) ≥ γ_∞ > 0 and ζ finite (:meth:`Funnel.check` but the
+    ζ at t_r, which only the sender can evaluate)."""
+    if (funnel.kind, funnel.a, funnel.b) != (kind, a, b):
+        return (f"funnel of {funnel.kind}[{funnel.a:g},{funnel.b:g}], the sub-task is "
+                f"{kind}[{a:g},{b:g}]")
+    values = (funnel.rho_opt, funnel.rho_max, funnel.r, funnel.gamma0, funnel.gamma_inf,
+              funnel.l, funnel.t_star, funnel.t_r, funnel.zeta_u, funnel.ramp, funnel.t_knee)
+    if not all(math.isfinite(v) for v in values):
+        return "funnel with a value that is not finite"
+    if not 0.0 < funnel.gamma_inf <= funnel.gamma0:
+        return f"funnel needs 0 < gamma_inf = {funnel.gamma_inf:.6g} <= gamma0"
+    if not funnel.gamma_inf < funnel.rho_max - funnel.r:
+        return "funnel needs gamma_inf < rho_max - r"
+    if funnel.l < 0.0:
+        return f"funnel needs l = {funnel.l:.6g} >= 0"
+    if funnel.ramp < 0.0 or (funnel.ramp > 0.0 and funnel.t_knee < funnel.t_r):
+        return "funnel needs ramp >= 0, and t_knee >= t_r with a ramp"
+    return None
+
+
 def _top(rho_opt: float, rho0: float, p: FunnelParams) -> float:
     """ρ_max = max(0, ρ_0) + rho_max_frac·(ρ_opt − max(0, ρ_0)) (§5), lifted just above ρ_0 when
     ρ_0 is at (or numerically above) the supremum: no admissible ρ_max in (ρ_0, ρ_opt) exists

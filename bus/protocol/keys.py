@@ -112,13 +112,46 @@ def all_statuses(fleet: str) -> str:
 
 
 def collab(fleet: str, robot: int) -> str:
-    """Queryable of STL agent ``robot``: stage-2 ``CollabMessage`` → ``CollabReply``."""
+    """The stage-2 collaboration keys of STL agent ``robot``: its queryable serves
+    ``collab/*`` (:func:`collab_all`), and robot j queries ``collab/j`` (:func:`collab_from`)."""
     return f"{prefix(fleet)}/robot/{int(robot)}/collab"
 
 
-def event(fleet: str) -> str:
-    """Any → coordinator: ``Event``."""
-    return f"{prefix(fleet)}/event"
+def collab_from(fleet: str, receiver: int, sender: int) -> str:
+    """Where STL agent ``sender`` sends its ``CollabMessage`` s to ``receiver``: a key of its
+    own, so in a secured fleet (the access policy lets robot i query only ``…/collab/i``) the
+    key names the sender, and the receiver can check the message's claimed ``sender``."""
+    return f"{collab(fleet, receiver)}/{int(sender)}"
+
+
+def collab_all(fleet: str, receiver: int) -> str:
+    """The queryable of STL agent ``receiver``: every sender's collaboration key."""
+    return f"{collab(fleet, receiver)}/*"
+
+
+def collab_sender(key: str) -> int | None:
+    """The sender named by a :func:`collab_from` key, or ``None``."""
+    match = re.search(r"/robot/\d+/collab/(\d+)$", key)
+    return int(match.group(1)) if match else None
+
+
+def event(fleet: str, role: str, ident: str | int) -> str:
+    """Process → coordinator: its ``Event`` s, on a key of its own (``event/sim/0``,
+    ``event/agent/3``, ``event/coordinator/0``): the access policy lets each identity write only
+    its own, so the key names the publisher (``tlfleet.bus.protocol.events``)."""
+    if role not in ROLES or role == "router":
+        raise ValueError(f"role {role!r} publishes no events; expected sim, agent or coordinator")
+    return f"{prefix(fleet)}/event/{role}/{_check_segment(str(ident), 'process id')}"
+
+
+def all_events(fleet: str) -> str:
+    return f"{prefix(fleet)}/event/*/*"
+
+
+def parse_event(key: str) -> tuple[str, str] | None:
+    """``(role, id)`` of an event key, or ``None`` when it is not one."""
+    match = re.search(r"/event/([A-Za-z]+)/([A-Za-z0-9_-]+)$", key)
+    return (match.group(1), match.group(2)) if match else None
 
 
 def control(fleet: str) -> str:
@@ -152,7 +185,8 @@ def parse_alive(key: str) -> tuple[str, str] | None:
 def publisher_of(key: str) -> str:
     """Who publishes on ``key``, read from the key layout above (architecture.md §2): ``sim``
     (clock, frames, backfill), ``robot<N>`` (its commands, statuses, collaboration),
-    ``coordinator`` (control), ``any`` (events: the ``source`` field names the sender),
+    ``coordinator`` (control), the owner of an event key (``event/sim/0``: ``sim``,
+    ``event/agent/N``: ``robotN``, ``event/coordinator/0``: ``coordinator``),
     ``<role> <id>`` for a liveliness token, else ``?``."""
     alive = parse_alive(key)
     if alive is not None:
@@ -167,6 +201,10 @@ def publisher_of(key: str) -> str:
         return f"robot{rest[1]}"
     if rest[0] == "control":
         return "coordinator"
-    if rest[0] == "event":
-        return "any"
+    event = parse_event(key)
+    if event is not None and rest[0] == "event":
+        role, ident = event
+        if role == "agent" and ident.isdigit():
+            return f"robot{ident}"
+        return role if role in ("sim", "coordinator") else "?"
     return "?"

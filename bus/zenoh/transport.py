@@ -140,22 +140,27 @@ class ZenohTransport:
         self._entities.append(channel)
         return channel
 
-    def serve(self, key: str, handler: QueryHandler) -> Closeable:
-        """Answer queries on ``key`` with ``handler(payload)`` (None: no reply); a reply has
-        its query's congestion control (zenoh 1.10 ignores one given to ``reply``)."""
+    def serve(self, key: str, handler: QueryHandler, *, keyed: bool = False) -> Closeable:
+        """Answer queries on ``key`` with ``handler(payload)`` (``keyed``: ``handler(query key,
+        payload)``; None: no reply); a reply has its query's congestion control (zenoh 1.10
+        ignores one given to ``reply``)."""
         closing = self._closing
 
         def on_query(query: Any) -> None:
             if closing.is_set():
                 return
             payload = query.payload.to_bytes() if query.payload is not None else b""
+            asked = str(query.key_expr)
+            if keyed and ("*" in asked or "$" in asked):
+                return  # a wildcard query names no one key: nothing to answer for
             try:
-                reply = handler(payload)
+                reply = handler(asked, payload) if keyed else handler(payload)
             except Exception:
                 logger.exception("queryable %s failed", key)
                 return
             if reply is not None:
-                query.reply(key, reply)  # own concrete key: no consolidation surprises
+                # a concrete key: the declared one, or for a wildcard queryable the key asked
+                query.reply(asked if keyed else key, reply)
 
         queryable = self._session.declare_queryable(key, on_query)
         self._entities.append(queryable)

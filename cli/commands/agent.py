@@ -14,7 +14,11 @@ from pathlib import Path
 
 from tlfleet.agent.runtime.config import AgentConfig, AgentConfigError
 from tlfleet.cli.arg_types import scenario_file
-from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.process_flags import (
+    add_orphan_argument,
+    add_process_arguments,
+    apply_process_flags,
+)
 from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "agent"
@@ -48,13 +52,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "with link faults)")
     add_transport_arguments(parser)
     add_process_arguments(parser)
+    add_orphan_argument(parser)
 
 
 def config_from_args(args: argparse.Namespace) -> AgentConfig:
     try:
         return AgentConfig(robot=args.robot, scenario=Path(args.scenario),
                            stale_after=args.stale_after, collab_timeout=args.collab_timeout,
-                           heartbeat=args.heartbeat,
+                           heartbeat=args.heartbeat, orphan_after=args.orphan_after,
                            transport=transport_config(args, f"robot{args.robot}"))
     except AgentConfigError as exc:
         raise SystemExit(f"tlfleet agent: {exc}") from None

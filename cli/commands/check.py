@@ -1,7 +1,9 @@
 """``tlfleet check SCENARIO``: validate a scenario file and print a one-screen summary.
 
 Rejections exit 1 with file, field path and reason (``tlfleet.agent.scenario.loader``,
-``tlfleet.agent.scenario.stl_checks``); warnings (a window beyond the duration, a non-concave
+``tlfleet.agent.scenario.stl_checks``, and :func:`tlfleet.agent.policy.preflight.check_launch`:
+every agent built as its process would build it, so ``check`` exits 0 exactly when ``tlfleet
+run`` launches the fleet); warnings (a window beyond the duration, a non-concave
 predicate, a G task violated at the start poses from t = 0) are printed after the summary, exit 0.
 """
 
@@ -11,8 +13,8 @@ import argparse
 import json
 import math
 
-from tlfleet.agent.ltl.task import task_automaton
 from tlfleet.agent.model import Scenario
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.scenario.stl_checks import stl_warnings
 from tlfleet.cli.arg_types import scenario_file
@@ -39,18 +41,14 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         for path in args.scenario:
             scenario = load_scenario(path)
-            for robot in scenario.robots:
-                if robot.ltl is not None:
-                    task_automaton(robot.ltl)
+            check_launch(scenario)
             print(json.dumps(summary_json(scenario, stl_warnings(scenario))), flush=True)
         return 0
     for index, path in enumerate(args.scenario):
         if index:
             print()
         scenario = load_scenario(path)
-        for robot in scenario.robots:
-            if robot.ltl is not None:
-                task_automaton(robot.ltl)  # an LTL task fails here as `tlfleet plan` would
+        check_launch(scenario)  # every agent built as its process would: check <=> run
         print(summarise(scenario))
         for warning in stl_warnings(scenario):
             print(f"warning: {scenario.source or path}: {warning}")

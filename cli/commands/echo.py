@@ -1,11 +1,11 @@
 """``tlfleet echo KEY… [--run RUN_DIR | --fleet F] [--count N] [--duration S]``: print a running
 fleet's messages, one JSON object a line, as ``ros2 topic echo`` or zenoh's ``z_sub`` do.
 
-KEY is a name under the fleet (``mocap``, ``robot/3/status``, ``robot/*/cmd``, ``event``, ``**``)
+KEY is a name under the fleet (``mocap``, ``robot/3/status``, ``robot/*/cmd``, ``event/**``, ``**``)
 or a full key expression (``tlfleet/scenario1/mocap``); the layout is architecture.md §2. Each
-line: ``{"key", "received" (Unix time [s]), "from" (the publisher, from the key layout or the
-event's source), "kind", "msg"}``; a payload that is no valid tlfleet message is printed with its
-size and why (it is not dropped silently).
+line: ``{"key", "received" (Unix time [s]), "from" (the publisher, from the key layout: events
+too, each process has its own event key), "kind", "msg"}``; a payload that is no valid tlfleet
+message is printed with its size and why (it is not dropped silently).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ HELP = "print a running fleet's messages as JSON lines (by key name or pattern)"
 EXAMPLES = (
     ("tlfleet echo mocap --run runs/scenario1-20250101-120000 --count 3",
      "three mocap frames of a running `tlfleet run` (its endpoint from run.json)"),
-    ("tlfleet echo 'robot/*/status' event --fleet scenario1",
+    ("tlfleet echo 'robot/*/status' 'event/**' --fleet scenario1",
      "every robot's status and every event of fleet scenario1 on the usual router port"),
     ("tlfleet echo '**' --fleet lab --secure keys/ --duration 5",
      "everything of a secured fleet for 5 s, as the coordinator's certificate may read it"),

@@ -4,9 +4,12 @@ For every LTL robot (or only ``--robot ID``) prints the Büchi and product sizes
 once, then the suffix forever, as region names), its cost ``prefix + β·suffix`` and the time each
 step of paper Algorithm 1 took (ltl-planning.md §5). Unsatisfiable tasks are reported as errors.
 
-Edge weights (ltl-planning.md §3) are the global planner's path lengths on the arena's map by
-default (``--weights map``: obstacles count, equal to the straight line where it is free), or the
-straight-line distances between region centres (``--weights euclidean``).
+Edge weights (ltl-planning.md §3) are by default what the robot's agent plans with (``--weights
+map``): the length of a path around the obstacles that enters no region but the transition's two
+(docs/ltl-navigation.md §2), equal to the straight line where that is free, and no edge where
+there is none; ``--weights euclidean`` takes the straight-line distances between region centres.
+A task with no plan under the keep-out rule is reported in one line naming the region in the
+way.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import json
 import sys
 
 from tlfleet.agent.ltl.planner import Plan, plan_robot
-from tlfleet.agent.nav.grid_planner import path_length_function
+from tlfleet.agent.policy.ltl import plan_on_map
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.cli.arg_types import scenario_file
 
@@ -36,8 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", type=int, default=None, help="only this robot id")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.add_argument("--weights", choices=("map", "euclidean"), default="map",
-                        help="transition weights: path lengths around obstacles (default) or "
-                             "straight-line distances")
+                        help="transition weights: the agent's keep-out path lengths around "
+                             "obstacles (default) or straight-line distances")
 
 
 def _ms(seconds: float) -> str:
@@ -76,9 +79,8 @@ def run(args: argparse.Namespace) -> int:
         robots = [r for r in sorted(scenario.robots, key=lambda r: r.id) if r.ltl is not None]
     plans = []
     for robot in robots:
-        distance = (path_length_function(scenario, robot.radius) if args.weights == "map"
-                    else None)
-        plans.append(plan_robot(scenario, robot.id, distance=distance))
+        plans.append(plan_on_map(scenario, robot.id) if args.weights == "map"
+                     else plan_robot(scenario, robot.id))
     if args.json:
         print(json.dumps({"scenario": scenario.name, "plans": [p.to_dict() for p in plans]},
                          indent=2))

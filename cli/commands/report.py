@@ -12,11 +12,15 @@ from __future__ import annotations
 import argparse
 import json
 
+from tlfleet.cli.run_flags import add_figure_format_argument
+
 NAME = "report"
 HELP = "regenerate report.md/json and figures of a run"
 EXAMPLES = (
     ("tlfleet report runs/scenario1-20250101-120000",
      "write report.md, report.json and the figures of a run again"),
+    ("tlfleet report runs/scenario1-20250101-120000 --figure-format pdf",
+     "the figures again as PDF (vector, for a paper)"),
     ("tlfleet report runs/scenario1-20250101-120000 --json --no-figures",
      "print the report's data as JSON, draw no figure"),
 )
@@ -25,7 +29,8 @@ EXIT_CODES = {0: "the report was written", 1: "not a run directory, or an unread
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", help="run directory written by `tlfleet run`")
-    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--no-figures", action="store_true", help="skip the figures")
+    add_figure_format_argument(parser)
     parser.add_argument("--json", action="store_true",
                         help="print report.json's data instead of the table")
 
@@ -34,7 +39,8 @@ def run(args: argparse.Namespace) -> int:
     from tlfleet.coordinator.record.rundir import json_ready
     from tlfleet.coordinator.report.run_report import write_report
 
-    report = write_report(args.run_dir, figures=not args.no_figures)
+    report = write_report(args.run_dir, figures=not args.no_figures,
+                          figure_format=args.figure_format)
     if args.json:
         print(json.dumps(json_ready(report.data), indent=2, ensure_ascii=False))
         return 0

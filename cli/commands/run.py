@@ -13,7 +13,9 @@ Exit codes (the run's verdict, :mod:`tlfleet.coordinator.live.verdict`, printed 
 …``): 0 clean; 1 invalid scenario or launch failure; 3 failed (a process died, the router was lost,
 a process did not stop cleanly, or the run ended early); 4 degraded (it ran to the end, but with
 missed deadlines, watchdog stops, stale commands, malformed input, flagged events, silent or
-recovered agents: listed); 130 interrupted (a message says so).
+recovered agents: listed); 130 interrupted (a message says so). The line before it is the task
+tally (:mod:`tlfleet.coordinator.report.task_tally`); with ``--require-tasks``, 5 instead of 0 or 4
+when a task was not met.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.signals import stop_on_signals, wait_for_signal
 from tlfleet.cli.arg_types import fault_spec, positive_float, scenario_file
 from tlfleet.cli.conventions import add_json_argument, add_out_argument
@@ -52,6 +55,8 @@ EXAMPLES = (
     ("tlfleet run my.toml --realtime -o runs/try1 --duration 30",
      "30 s of my.toml on wall-clock time, recorded in runs/try1"),
     ("tlfleet run scenario2 --json -q", "no progress bar; the result as JSON on stdout"),
+    ("tlfleet run my.toml --hardware lab.toml",
+     "real robots on ROS 2 (docs/hardware.md): `tlfleet hw` in the simulator's place, realtime"),
 )
 EXIT_CODES = {
     0: "clean: the run reached its end and every check passed",
@@ -60,6 +65,8 @@ EXIT_CODES = {
        "ended early",
     4: "degraded: it ran to the end, with missed deadlines, watchdog stops, stale commands, "
        "malformed input or flagged events (listed)",
+    5: "with --require-tasks: the fleet ran (clean or degraded) but a task was not met (the "
+       "'tasks:' line names each)",
 }
 
 
@@ -117,6 +124,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "default); or one of them for both; --hosts runs keep their own")
     parser.add_argument("--insecure", action="store_true",
                         help="with --hosts: plain TCP links, no authentication, no access control")
+    parser.add_argument("--mcap", action="store_true",
+                        help="also write run.mcap at the end: the run in ROS 2 messages for "
+                             "Foxglove and ros2 bag (tlfleet export-mcap; the tlfleet[ros2] extra)")
+    parser.add_argument("--hardware", type=Path, default=None, metavar="LAB.toml",
+                        help="real robots on ROS 2: start `tlfleet hw --lab LAB.toml` in the "
+                             "simulator's place (realtime only; docs/hardware.md)")
+    parser.set_defaults(mode=None)  # lockstep, or realtime with --hardware
+    add_require_tasks_argument(parser)
+
+
+def add_require_tasks_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--require-tasks", action="store_true",
+                        help="exit 5 when the fleet ran (clean or degraded) but a task was not "
+                             "met: the tally's line 'tasks: N of M met; …' names them")
 
 
 class ProgressBar:
@@ -191,6 +212,7 @@ def result_json(result: RunResult) -> dict:
     report_path = result.run_dir / "report.json"
     return {
         "verdict": result.verdict.to_json(),
+        "tasks": None if result.tasks is None else result.tasks.to_json(),
         "end": {"reason": result.outcome.reason, "t_end": result.outcome.t_end},
         "run_dir": str(result.run_dir),
         "report": str(report_path) if result.report is not None else None,
@@ -202,10 +224,20 @@ def result_json(result: RunResult) -> dict:
     }
 
 
+def _write_mcap(run_dir: Path, report) -> None:
+    """``--mcap``: run.mcap beside the report; a failure is reported, never fails the run."""
+    try:
+        from tlfleet.coordinator.report.mcap_export import export_mcap
+
+        report(f"wrote {export_mcap(run_dir)}")
+    except (ImportError, TlfleetError, OSError) as exc:
+        report(f"run.mcap not written: {exc}")
+
+
 def print_outputs(result: RunResult, as_json: bool = False) -> None:
-    """The report table (the summary if no report was written), the files a person opens next, the
-    verdict (``outcome: …``) and the run directory last; with ``as_json`` one JSON document
-    (:func:`result_json`) instead."""
+    """The report table (the summary if no report was written), the files a person opens next and
+    the run directory, then the last two lines: the task tally (``tasks: 5 of 7 met; …``) and the
+    verdict (``outcome: …``); with ``as_json`` one JSON document (:func:`result_json`) instead."""
     if as_json:
         print(json.dumps(result_json(result), indent=2, default=str), flush=True)
         return
@@ -220,8 +252,10 @@ def print_outputs(result: RunResult, as_json: bool = False) -> None:
     if result.rrd is not None:
         print(f"rerun:   {result.rrd}  (open with `rerun {result.rrd}`, or headless: "
               f"`tlfleet replay {result.run_dir} --viewer` prints a web viewer's URL)")
-    print(result.verdict.line)
-    print(f"run directory: {result.run_dir}", flush=True)
+    print(f"run directory: {result.run_dir}")
+    if result.tasks is not None:
+        print(result.tasks.line)
+    print(result.verdict.line, flush=True)
 
 
 def run_hosts(args: argparse.Namespace) -> int:
@@ -237,6 +271,7 @@ def run_hosts(args: argparse.Namespace) -> int:
     extra += [] if args.report else ["--no-report"]
     extra += [] if args.figures else ["--no-figures"]
     extra += [] if args.rrd else ["--no-rrd"]
+    extra += ["--require-tasks"] if args.require_tasks else []
     sim = [] if args.seed is None else ["--seed", str(args.seed)]
     sim += [] if args.duration is None else ["--duration", repr(args.duration)]
     sim += [] if args.tick_timeout is None else ["--tick-timeout", repr(args.tick_timeout)]
@@ -250,6 +285,16 @@ def run_hosts(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.hardware is not None:
+        if args.mode == "lockstep":
+            print("tlfleet run: --hardware runs in realtime only: real robots do not wait for a "
+                  "lockstep tick (drop --lockstep)", file=sys.stderr)
+            return 2
+        if args.hosts or args.faults:
+            print("tlfleet run: --hardware cannot be combined with --hosts or --fault (they act "
+                  "on the simulator's processes and links)", file=sys.stderr)
+            return 2
+    args.mode = args.mode or ("realtime" if args.hardware is not None else "lockstep")
     if not args.hosts:
         from tlfleet.coordinator.faults.plan import hosts_for
 
@@ -273,10 +318,11 @@ def run(args: argparse.Namespace) -> int:
         scenario_path=Path(args.scenario), mode=args.mode, out=args.out, duration=duration,
         seed=args.seed, tick_timeout=args.tick_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.ready_timeout, wall_timeout=wall_timeout),
-        report=args.report, figures=args.figures, rrd=args.rrd, viewer=args.viewer,
+        report=args.report, figures=args.figures, figure_format=args.figure_format,
+        rrd=args.rrd, viewer=args.viewer,
         grpc_port=args.grpc_port, web_port=args.web_port, secure=args.secure,
         lease_ms=args.lease_ms, zenoh_config=args.zenoh_config, faults=tuple(args.faults),
-        direct_links=args.direct_links, sched=args.sched,
+        direct_links=args.direct_links, sched=args.sched, hardware=args.hardware,
         sim_args=() if args.max_speed is None else ("--max-speed", repr(args.max_speed)))
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
@@ -295,6 +341,8 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if bar is not None:
                 bar.end()
+    if args.mcap:
+        _write_mcap(result.run_dir, report)
     print_outputs(result, as_json=args.json)
     verdict = result.verdict
     if result.viewer is not None:
@@ -305,4 +353,4 @@ def run(args: argparse.Namespace) -> int:
     elif verdict.label != "clean":
         print(f"tlfleet run: {verdict.label} (end: {result.outcome.reason}, exit codes: "
               f"{result.exit_codes})", file=sys.stderr)
-    return verdict.exit_code
+    return result.exit_code(args.require_tasks)

@@ -12,7 +12,11 @@ import logging
 from pathlib import Path
 
 from tlfleet.cli.arg_types import non_negative_float, positive_float, scenario_file
-from tlfleet.cli.process_flags import add_process_arguments, apply_process_flags
+from tlfleet.cli.process_flags import (
+    add_orphan_argument,
+    add_process_arguments,
+    apply_process_flags,
+)
 from tlfleet.cli.transport_flags import add_transport_arguments, transport_config
 
 NAME = "sim"
@@ -59,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "them during a link cut [s] (default 10; also bounded to 8 MiB)")
     add_transport_arguments(parser)
     add_process_arguments(parser)
+    add_orphan_argument(parser)
 
 
 def process_config(args: argparse.Namespace):  # -> tlfleet.sim.process.SimProcessConfig
@@ -70,7 +75,7 @@ def process_config(args: argparse.Namespace):  # -> tlfleet.sim.process.SimProce
                             tick_timeout=args.tick_timeout,
                             transport=transport_config(args, "sim"),
                             max_command_age=args.max_command_age,
-                            max_speed=args.max_speed,
+                            max_speed=args.max_speed, orphan_after=args.orphan_after,
                             **_backfill(args))
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from tlfleet.bus.signals import stop_on_signals
 from tlfleet.cli.arg_types import fault_spec, scenario_file
-from tlfleet.cli.commands.run import ProgressBar, print_outputs
+from tlfleet.cli.commands.run import ProgressBar, add_require_tasks_argument, print_outputs
 from tlfleet.cli.conventions import add_json_argument
 from tlfleet.cli.run_flags import add_mode_arguments, add_output_arguments
 from tlfleet.cli.transport_flags import add_transport_arguments
@@ -37,6 +37,8 @@ EXIT_CODES = {
        "ended early",
     4: "degraded: it ran to the end, with missed deadlines, watchdog stops, stale commands, "
        "malformed input or flagged events (listed)",
+    5: "with --require-tasks: the fleet ran (clean or degraded) but a task was not met (the "
+       "'tasks:' line names each)",
 }
 
 
@@ -72,6 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fault-handoff", type=Path, default=None, metavar="DIR",
                         help="a compose fleet: hand each fault to the host's executor through "
                              "DIR (`tlfleet compose-faults`, started by docker/compose-run.sh)")
+    add_require_tasks_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         duration=args.duration, seed=args.seed, connect_timeout=args.connect_timeout,
         supervisor=SupervisorConfig(ready_timeout=args.wait, wall_timeout=wall_timeout),
         zenoh_config=args.zenoh_config, secure=args.secure, lease_ms=args.lease_ms,
-        report=args.report, figures=args.figures, rrd=args.rrd, faults=tuple(args.faults),
+        report=args.report, figures=args.figures, figure_format=args.figure_format,
+        rrd=args.rrd, faults=tuple(args.faults),
         fault_plan=args.fault_plan, fault_handoff=args.fault_handoff)
     bar = ProgressBar(sys.stderr) if not args.quiet and sys.stderr.isatty() else None
 
@@ -115,4 +119,4 @@ def run(args: argparse.Namespace) -> int:
             f"holds what was recorded until then")
     elif verdict.label != "clean":
         say(f"{verdict.label} (end: {result.outcome.reason})")
-    return verdict.exit_code
+    return result.exit_code(args.require_tasks)

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import IO
 
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.lifeline import child_environment as tie_to_this_process
 from tlfleet.bus.transport import child_environment
 
 logger = logging.getLogger(__name__)
@@ -235,6 +236,7 @@ class Launcher:
         log_path = self.log_dir / f"{name}.log"
         log = open(log_path, "ab", buffering=0)  # noqa: SIM115 - closed in Child.close_log
         env = child_environment(os.environ if self._env is None else self._env)
+        tie_to_this_process(env)  # it dies with us, even when we are SIGKILLed
         env.setdefault("PYTHONUNBUFFERED", "1")
         try:
             process = subprocess.Popen(list(argv), stdin=subprocess.DEVNULL, stdout=log,

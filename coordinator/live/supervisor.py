@@ -69,6 +69,7 @@ class SupervisorConfig:
     poll_period: float = 0.05  # [s] wall, death detection and tap draining
     stop_grace: float = 5.0  # [s] wall, for children to exit after Control(stop)
     end_grace: float = 0.5  # [s] wall, for sim_done to arrive after the simulator exits
+    sim_exit_grace: float = 10.0  # [s] wall, for the simulator to exit after its sim_done
     waiting_period: float = 1.0  # [s] wall, between "still waiting for …" reports
 
 
@@ -88,6 +89,7 @@ class Outcome:
     reason: str  # sim_done | duration | wall_timeout | interrupted | sim_died | router_lost
     t_end: float  # [s] sim time
     deaths: list[Death] = field(default_factory=list)
+    sim_reached: float | None = None  # [s] where the simulator says it ended, once it ended
 
 
 FINISHERS = frozenset({"sim"})  # processes that end by themselves at the end of the mission
@@ -128,6 +130,7 @@ class Supervisor:
         self.recovered: list[Death] = []  # deaths that came back (token declared again)
         self._sim_done_count = 0  # sim_done events judged so far
         self._sim_done_pending: tuple[float, float] | None = None  # (wall, sim time) of the last
+        self.sim_reached: float | None = None  # [s] the sim time of a sim_done from an ended sim
         self.stopping = False
         # processes whose link a fault cuts → until when [s monotonic] (inf: still
         # cut) a lost token of theirs is a link loss, not a death; and the losses now open
@@ -149,10 +152,12 @@ class Supervisor:
         """True once a plausible ``Event(kind="sim_done")`` has been recorded.
 
         A ``sim_done`` counts at once when the simulator has ended or the frames reached the end
-        of the run (:func:`tlfleet.coordinator.record.trust.sim_done_plausible`); otherwise when no
-        newer frame follows it for ``end_grace`` (the simulator publishes none after its
-        ``sim_done``). One followed by newer frames is flagged and ignored: the fleet is still
-        running.
+        of the run (:func:`tlfleet.coordinator.record.trust.sim_done_plausible`): the simulator
+        exits right after its own. One followed by newer frames is flagged and ignored: the
+        fleet is still running. One while the simulator still runs and publishes nothing (a
+        pause: a forged ``sim_done`` during a withheld lockstep command) waits for the simulator
+        to end; after ``sim_exit_grace`` without a frame it counts, and the verdict, which
+        compares the end with the duration, says the run ended early.
         """
         seen = self.tap.recorder.event_kinds["sim_done"]
         if seen > self._sim_done_count:  # a new one: judge it from now
@@ -164,6 +169,8 @@ class Supervisor:
         sim = self.children.get("sim")
         ended = (sim is not None and sim.returncode is not None) or "sim" not in self.alive
         if sim_done_plausible(self.sim_time, self.duration, ended):
+            if ended:  # the simulator's own end: how far it says it got can be believed
+                self.sim_reached = self.tap.recorder.sim_done_t
             return True
         if self.sim_time > t_then + 1e-9:
             self._sim_done_pending = None
@@ -174,7 +181,7 @@ class Supervisor:
                                              data={"claimed_kind": "sim_done",
                                                    "reason": reason}))
             return False
-        return self._clock() - since >= self.config.end_grace
+        return self._clock() - since >= self.config.sim_exit_grace
 
     def _process_alive_queue(self) -> None:
         while True:
@@ -297,7 +304,7 @@ class Supervisor:
                             "wall": death.wall})
         self.tap.recorder.on_event(event)
         try:
-            self.transport.publish(keys.event(self.fleet), encode(event))
+            self.transport.publish(keys.event(self.fleet, "coordinator", 0), encode(event))
         except Exception:  # the router may be gone: recording matters, publishing does not
             logger.exception("cannot publish the process_died event")
 
@@ -375,7 +382,7 @@ class Supervisor:
                              f"t = {self.sim_time:.2f} s: stopping the run")
             else:
                 time.sleep(self.config.poll_period)
-        return Outcome(reason, self.sim_time, list(self.deaths.values()))
+        return Outcome(reason, self.sim_time, list(self.deaths.values()), self.sim_reached)
 
     def finish(self, wait_for: Mapping[str, ChildLike] | None = None) -> dict[str, int | None]:
         """Publish ``Control(stop)`` and wait up to ``stop_grace`` for ``wait_for`` (default:

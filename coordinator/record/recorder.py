@@ -30,6 +30,7 @@ from typing import IO, Any
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.codec import ProtocolError, decode, encode, peek_kind
+from tlfleet.bus.protocol.events import data_problem
 from tlfleet.bus.protocol.messages import (
     BackfillReply,
     BackfillRequest,
@@ -43,6 +44,8 @@ from tlfleet.bus.transport import Channel, Closeable, Transport
 from tlfleet.coordinator.record import rundir
 from tlfleet.coordinator.record.frame_merge import FrameMerger
 from tlfleet.coordinator.record.replay_dedup import EventDedup
+from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
+from tlfleet.coordinator.record.trust import RecordCheck
 
 logger = logging.getLogger(__name__)
 
@@ -77,6 +80,7 @@ class Recorder:
         self.statuses = 0
         self.events = 0
         self.event_kinds: Counter[str] = Counter()
+        self.sim_done_t: float | None = None  # [s] the sim time the newest sim_done claims
         self._traj_writer = rundir.TrajectoryWriter(self.run_dir / rundir.TRAJECTORY,
                                                     self.robot_ids)
         self._status_writer = rundir.StatusWriter(self.run_dir / rundir.STATUS)
@@ -173,6 +177,8 @@ class Recorder:
         self._events.write(rundir.event_line(event))
         self.events += 1
         self.event_kinds[event.kind] += 1
+        if event.kind == "sim_done":
+            self.sim_done_t = event.t
         if event.kind in ("process_died", "sim_done"):
             self._events.flush()  # rare and important: on disk at once
         self._maybe_flush()
@@ -209,9 +215,11 @@ class RecorderTap:
     never raised. With ``bounds``/``max_jump``, implausible frames (outside the run,
     the arena, or a sequence jump not confirmed by the next frame: ``FrameGate``) count as
     malformed and are not recorded, so a spoofed frame neither ends the run (t = 10⁹) nor makes the
-    recorder drop real rows (a high seq). With ``robot_ids``, events and statuses whose claimed
-    identity does not hold (:mod:`tlfleet.coordinator.record.trust`) are recorded as
-    ``flagged_event`` instead.
+    recorder drop real rows (a high seq). An event whose data has the wrong types for its kind
+    (:func:`tlfleet.bus.protocol.events.data_problem`) is malformed. With ``robot_ids``, events
+    on a key that is not their claimed source's, and statuses whose claimed identity does not
+    hold, are recorded as ``flagged_event`` instead (:mod:`tlfleet.coordinator.record.trust`);
+    with ``record_check`` also the simulator's claims that contradict the frames recorded.
 
     Backfill: each :meth:`drain` sends the recorder's due ``BackfillRequest`` s to the
     simulator's ``sim/backfill`` queryable (``query_async``: the replies are queued by the
@@ -231,7 +239,8 @@ class RecorderTap:
     def __init__(self, transport: Transport, fleet: str, recorder: Recorder,
                  on_message: Callable[[str, Any], None] | None = None, *,
                  bounds: FleetBounds | None = None, max_jump: int | None = None,
-                 robot_ids: Sequence[int] | None = None):
+                 robot_ids: Sequence[int] | None = None,
+                 record_check: RecordCheck | None = None):
         self.recorder = recorder
         self.fleet = fleet
         self.transport = transport
@@ -240,8 +249,12 @@ class RecorderTap:
         self.bounds = bounds
         self.gate = FrameGate(max_jump) if max_jump else None
         self.robot_ids = frozenset(robot_ids) if robot_ids is not None else None
+        self.record_check = record_check
         self.flagged = 0
         self.dedup = EventDedup()  # replayed agent events (tlfleet.agent.runtime.event_log)
+        #: the simulator's ``sim_done`` was recorded: every later event is marked
+        #: ``AFTER_SIM_DONE`` (said once the mission ended; it never changes the verdict)
+        self.sim_done = False
         self.malformed_by_source: Counter[tuple[str, str]] = Counter()
         self._logged: dict[str, float] = {}
         self.malformed: Counter[str] = Counter()
@@ -252,7 +265,7 @@ class RecorderTap:
         self._channels: list[tuple[str, Channel]] = []
         subscribe_channel = getattr(transport, "subscribe_channel", None)
         for what, key in (("mocap", keys.mocap(fleet)), ("status", keys.all_statuses(fleet)),
-                          ("event", keys.event(fleet))):
+                          ("event", keys.all_events(fleet))):
             if subscribe_channel is not None:
                 channel = subscribe_channel(key, capacity=self.CHANNEL_CAPACITY)
                 self._channels.append((what, channel))
@@ -317,6 +330,8 @@ class RecorderTap:
             if what == "mocap":
                 frame = decode(MocapFrame, payload)
                 self._check_frame(frame)
+                if self.record_check is not None:
+                    self.record_check.on_frame(frame)
                 self.latest_frame = frame
                 self.recorder.on_mocap(frame)
                 message: Any = frame
@@ -334,11 +349,20 @@ class RecorderTap:
                 self.recorder.on_status(message)
             else:
                 message = decode(Event, payload)
-                if message.source == COORDINATOR_SOURCE:  # ours are recorded when made
+                parsed = keys.parse_event(key)
+                if parsed is not None and parsed[0] == COORDINATOR_SOURCE:
+                    return  # ours are recorded when made
+                problem = data_problem(message.kind, message.data)
+                if problem is not None:
+                    raise ProtocolError(f"Event: {problem}")
+                if self._flag(message, key) or not self.dedup.admit(message):
                     return
-                if self._flag(message) or not self.dedup.admit(message):
-                    return
+                if self.sim_done:
+                    message = Event(message.t, message.source, message.kind,
+                                    {**message.data, AFTER_SIM_DONE: True})
                 self.recorder.on_event(message)
+                if message.kind == "sim_done" and message.source == "sim":
+                    self.sim_done = self._sim_done_genuine()
         except ProtocolError as exc:
             self._count(what, key, payload, exc)
             return
@@ -368,13 +392,27 @@ class RecorderTap:
         if problem is not None:
             raise ProtocolError(f"MocapFrame: implausible: {problem}")
 
-    def _flag(self, event: Event) -> bool:
-        """Record an event whose claimed identity does not hold as ``flagged_event``."""
+    def _sim_done_genuine(self) -> bool:
+        """A ``sim_done`` ends the mission for the marks only when the frames have reached the
+        end of the run (:func:`tlfleet.coordinator.record.trust.sim_done_plausible`): a forged
+        one mid-run must not hide what follows from the verdict."""
+        if self.bounds is None:
+            return True
+        from tlfleet.coordinator.record.trust import sim_done_plausible
+
+        last_t = self.latest_frame.t if self.latest_frame is not None else 0.0
+        return sim_done_plausible(last_t, self.bounds.duration, sim_ended=False)
+
+    def _flag(self, event: Event, key: str) -> bool:
+        """Record an event whose claimed identity does not hold, or whose claim contradicts the
+        record, as ``flagged_event`` (:mod:`tlfleet.coordinator.record.trust`)."""
         if self.robot_ids is None:
             return False
         from tlfleet.coordinator.record.trust import FLAGGED, event_problem
 
-        problem = event_problem(event, self.robot_ids)
+        problem = event_problem(event, key, self.robot_ids)
+        if problem is None and event.source == "sim" and self.record_check is not None:
+            problem = self.record_check.contradiction(event)
         if problem is None:
             return False
         self.flagged += 1
@@ -383,15 +421,16 @@ class RecorderTap:
                            event.source[:40], problem, self.flagged)
         self.recorder.on_event(Event(
             t=event.t, source=COORDINATOR_SOURCE, kind=FLAGGED,
-            data={"claimed_source": event.source[:80], "claimed_kind": event.kind[:80],
-                  "reason": problem}))
+            data={"key": key[-80:], "claimed_source": event.source[:80],
+                  "claimed_kind": event.kind[:80], "reason": problem}))
         return True
 
     def _count(self, what: str, key: str, payload: bytes, exc: Exception) -> None:
         if what == "status":
             source = f"agent/{keys.robot_of(key)}"
         elif what == "event":
-            source = "?"
+            parsed = keys.parse_event(key)
+            source = "/".join(parsed)[:40] if parsed is not None else "?"
         else:
             source = "sim"
         self.malformed[what] += 1

@@ -36,6 +36,7 @@ from tlfleet.agent.model import Scenario
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.stl.monitor import Trajectory, read_trajectory_csv
 from tlfleet.bus.errors import TlfleetError
+from tlfleet.bus.protocol.events import data_problem
 from tlfleet.bus.protocol.messages import Event, LtlStatus, StlStatus
 
 logger = logging.getLogger(__name__)
@@ -118,14 +119,21 @@ def write_json(path: Path, data: Any) -> None:
 
 
 def read_json(path: Path, default: Any = None) -> Any:
-    """A JSON file written by :func:`write_json`; ``default`` when missing or not JSON."""
+    """A JSON file written by :func:`write_json`; ``default`` when missing or not JSON (or
+    nested beyond Python's recursion limit)."""
     try:
         return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
         return default
 
 
 # --------------------------------------------------------------------------------- events
+
+
+#: ``Event.data`` mark of an event the recorder received after the simulator's ``sim_done``
+#: (:class:`tlfleet.coordinator.record.recorder.RecorderTap`): said once the mission had ended, so
+#: :func:`tlfleet.coordinator.live.verdict.mission_event_kinds` and the summary leave it out
+AFTER_SIM_DONE = "after_sim_done"
 
 
 def event_line(event: Event) -> str:
@@ -144,7 +152,10 @@ def json_default(value: Any) -> Any:
 
 
 def _event_from_line(line: str) -> Event:
-    record = json.loads(line)
+    try:
+        record = json.loads(line)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
     if not isinstance(record, dict):
         raise ValueError("not a JSON object")
     t, source, kind = record.get("t"), record.get("source"), record.get("kind")
@@ -155,6 +166,9 @@ def _event_from_line(line: str) -> Event:
         raise ValueError(f"'source' and 'kind' must be strings, found {source!r}, {kind!r}")
     if not isinstance(data, dict):
         raise ValueError(f"'data' must be an object, found {type(data).__name__}")
+    problem = data_problem(kind, data)  # the types its readers rely on
+    if problem is not None:
+        raise ValueError(problem)
     return Event(t=float(t), source=source, kind=kind, data=data)
 
 

@@ -1,12 +1,15 @@
-"""PNG figures of a run, like the paper's Fig. 5–7 (the only matplotlib user; architecture.md §4).
+"""Figures of a run, like the paper's Fig. 5–7 (the only matplotlib user; architecture.md §4), as
+PNG (200 dpi), PDF or SVG (:data:`FORMATS`: vector for print, ``tlfleet report --figure-format``).
 
 Figures are drawn on ``matplotlib.figure.Figure`` objects with the Agg canvas: no pyplot, no global
 state, no window. Inputs are plain numbers (a scenario, a trajectory, status arrays, repair lists)
 prepared by ``tlfleet.coordinator.report.run_report``.
 
-* :func:`trajectory_figure` – the arena (walls, obstacles), the LTL regions (discs, named), and
-  every robot's path during a time window, coloured by time, with start (○) and end markers
-  (robot disc + id), as Fig. 5(a)/(b), 6(a), 7(a).
+* :func:`trajectory_figure` – the arena (walls, obstacles), the LTL regions (discs, named), the
+  STL goal points (the constant points of the sub-tasks in the window, × with their tolerance
+  circle), and every robot's path during a time window in its own colour whose intensity grows
+  with time (the paper: "increasing color intensity"), with start (○) and end markers (robot disc
+  + id), as Fig. 5(a)/(b), 6(a), 7(a).
 * :func:`robustness_figure` – one STL robot's ρ^ψ(t) with the funnel bounds ρ_max and
   lower = ρ_max − γ(t), the threshold r, its sub-task windows shaded and the repairs marked by
   stage, as Fig. 5(c)–(f), 6(b), 7(b). Rows where the agent is idle (NaN) are gaps.
@@ -28,7 +31,11 @@ from tlfleet.agent.model import Scenario
 from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle
 from tlfleet.agent.stl.monitor import Trajectory
 
-DPI = 110
+DPI = 200  # PNG resolution; PDF and SVG are vector
+FORMATS = ("png", "pdf", "svg")
+#: one sequential colour map per robot (by id order): its intensity is the time
+ROBOT_MAPS = ("Blues", "Oranges", "Greens", "Reds", "Purples", "Greys", "YlOrBr", "PuRd",
+              "BuGn", "RdPu")
 STAGE_STYLE = {1: ("o", "tab:orange"), 2: ("D", "tab:green"), 3: ("v", "tab:red")}
 
 
@@ -38,9 +45,22 @@ def _new_figure(size: tuple[float, float]) -> Figure:
     return fig
 
 
+def robot_colormap(index: int) -> Any:
+    """Robot number ``index`` (0-based, by id)'s colour map, cut to its darker 75 % so that the
+    start of a path stays visible on white."""
+    from matplotlib import colormaps
+    from matplotlib.colors import LinearSegmentedColormap
+
+    base = colormaps[ROBOT_MAPS[index % len(ROBOT_MAPS)]]
+    return LinearSegmentedColormap.from_list(f"robot{index}", base(np.linspace(0.25, 1.0, 64)))
+
+
 def trajectory_figure(scenario: Scenario, traj: Trajectory, window: tuple[float, float],
-                      path: Path, *, dpi: int = DPI) -> Path:
-    """Paths of all robots for samples with ``window[0] ≤ t ≤ window[1]`` [s]; writes ``path``."""
+                      path: Path, *, dpi: int = DPI,
+                      goals: Sequence[tuple[int, float, float, float]] = ()) -> Path:
+    """Paths of all robots for samples with ``window[0] ≤ t ≤ window[1]`` [s]; ``goals`` are STL
+    goal points ``(robot id, x [m], y [m], tolerance [m])`` to mark; writes ``path`` (its suffix
+    picks the format)."""
     a, b = window
     fig = _new_figure((6.4, 5.6))
     ax = fig.add_subplot()
@@ -59,19 +79,26 @@ def trajectory_figure(scenario: Scenario, traj: Trajectory, window: tuple[float,
         ax.annotate(region.name, region.center, xytext=(0, -region.radius * 72 / 1.3 - 6),
                     textcoords="offset points", ha="center", va="top", fontsize=8,
                     color="tab:blue")
+    for rid, gx, gy, tolerance in goals:
+        ax.add_patch(Circle((gx, gy), tolerance, fill=False, edgecolor="black", linewidth=0.8,
+                            linestyle="--"))
+        ax.plot(gx, gy, marker="x", color="black", markersize=6, zorder=3)
+        ax.annotate(f"goal {rid}", (gx, gy), xytext=(5, -9), textcoords="offset points",
+                    fontsize=7)
     norm = Normalize(a, b if b > a else a + 1.0)
     mask = (traj.t >= a) & (traj.t <= b)
     t = traj.t[mask]
     radii = {r.id: r.radius for r in scenario.robots}
     kinds = {r.id: ("LTL" if r.is_ltl else "STL" if r.is_stl else "") for r in scenario.robots}
     lines = None
-    for rid in traj.robot_ids:
+    for index, rid in enumerate(traj.robot_ids):
         xy = traj.states[rid][mask, :2]
         if len(xy) == 0:
             continue
         if len(xy) > 1:
             segments = np.stack([xy[:-1], xy[1:]], axis=1)
-            lines = LineCollection(segments, cmap="viridis", norm=norm, linewidths=1.8)
+            lines = LineCollection(segments, cmap=robot_colormap(index), norm=norm,
+                                   linewidths=1.8)
             lines.set_array(t[:-1])
             ax.add_collection(lines)
         ax.plot(*xy[0], marker="o", markersize=6, markerfacecolor="white",
@@ -82,15 +109,19 @@ def trajectory_figure(scenario: Scenario, traj: Trajectory, window: tuple[float,
                     fontweight="bold", zorder=6)
         ax.annotate(f"{rid} {kinds.get(rid, '')}".strip(), tuple(xy[0]), xytext=(5, 5),
                     textcoords="offset points", fontsize=7, color="black")
-    if lines is not None:
-        fig.colorbar(lines, ax=ax, label="t [s]", shrink=0.85)
+    if lines is not None:  # the time scale, in grey: every robot's map has its intensity
+        from matplotlib.cm import ScalarMappable
+
+        fig.colorbar(ScalarMappable(norm, "Greys"), ax=ax, label=r"$t$ [s] (colour intensity)",
+                     shrink=0.85)
     margin = 0.2
     ax.set_xlim(arena.xmin - margin, arena.xmax + margin)
     ax.set_ylim(arena.ymin - margin, arena.ymax + margin)
     ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(f"{scenario.name}: t ∈ [{a:g}, {b:g}] s  (○ start, disc = end)", fontsize=10)
+    ax.set_xlabel(r"$x$ [m]")
+    ax.set_ylabel(r"$y$ [m]")
+    ax.set_title(rf"{scenario.name}: $t \in [{a:g}, {b:g}]$ s  (○ start, disc = end)",
+                 fontsize=10)
     fig.savefig(path, dpi=dpi)
     return path
 
@@ -131,10 +162,13 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
         funnel = np.isfinite(s["rho_max"]) & np.isfinite(s["lower"])
         ax.fill_between(t, s["lower"], s["rho_max"], where=funnel, color="tab:blue", alpha=0.12,
                         linewidth=0, label="funnel")
-        ax.plot(t, s["rho_max"], "--", color="tab:blue", linewidth=1.0, label="ρ_max")
-        ax.plot(t, s["lower"], "--", color="tab:cyan", linewidth=1.0, label="ρ_max − γ(t)")
-        ax.plot(t, s["r"], ":", color="black", linewidth=1.2, label="r")
-        ax.plot(t, s["rho"], "-", color="tab:purple", linewidth=1.6, label="ρ^ψ(t)")
+        ax.plot(t, s["rho_max"], "--", color="tab:blue", linewidth=1.0,
+                label=r"$\rho^{\max}$")
+        ax.plot(t, s["lower"], "--", color="tab:cyan", linewidth=1.0,
+                label=r"$\rho^{\max} - \gamma(t)$")
+        ax.plot(t, s["r"], ":", color="black", linewidth=1.2, label=r"$r$")
+        ax.plot(t, s["rho"], "-", color="tab:purple", linewidth=1.6,
+                label=r"$\rho^{\psi}(t)$")
     else:
         ax.text(0.5, 0.5, "no STL status rows", transform=ax.transAxes, ha="center",
                 va="center", color="gray")
@@ -160,9 +194,9 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
         ax.scatter(ts, ys, marker="^", s=26, color="tab:green", zorder=5,
                    label=f"recovery ({len(recoveries)})")
     ax.set_xlim(0.0, t_end)
-    ax.set_xlabel("t [s]")
+    ax.set_xlabel(r"$t$ [s]")
     ax.set_ylabel("robustness")
-    ax.set_title(f"robot {robot_id}: ρ^ψ(t), funnel and repairs", fontsize=10)
+    ax.set_title(rf"robot {robot_id}: $\rho^{{\psi}}(t)$, funnel and repairs", fontsize=10)
     if ax.get_legend_handles_labels()[0]:
         fig.legend(loc="outside right center", fontsize=7)
     fig.savefig(path, dpi=dpi)

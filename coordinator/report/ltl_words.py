@@ -11,8 +11,8 @@ the planner's transition system):
   with the letter ∅ (the planner's ``start`` state). Collapsing stutters is exact for X-free
   formulas (stutter-invariant), the only ones the scenarios use.
 * *plan cycle*: the suffix of the plan in the last LTL status row (``prefix``/``suffix``; the
-  plan is recomputed with ``tlfleet.agent.ltl.planner.plan_robot`` only when there is no status
-  row), collapsed cyclically: ``[a12, a11, a12]`` → ``c = (a12, a11)``.
+  plan is recomputed with ``tlfleet.agent.policy.ltl.plan_on_map``, as the agent plans, only
+  when there is no status row), collapsed cyclically: ``[a12, a11, a12]`` → ``c = (a12, a11)``.
 * *completed cycle*: when ``|c| ≥ 2``, every index ``j`` of the word with
   ``word[j−|c| … j] = c₀ c₁ … c_{|c|−1} c₀``; its *cycle time* is the time between the entries at
   ``j − |c|`` and ``j`` [s] (for back-to-back cycles, the time between successive completions).
@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 from tlfleet.agent.ltl.emptiness import accepts_lasso
 from tlfleet.agent.ltl.lasso import holds
-from tlfleet.agent.ltl.planner import plan_robot
 from tlfleet.agent.ltl.task import robot_formula, task_automaton
 from tlfleet.agent.model import Scenario
+from tlfleet.agent.policy.ltl import plan_on_map
 from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.bus.errors import UnsatisfiableTask
 from tlfleet.bus.protocol.messages import LtlStatus
@@ -99,7 +99,7 @@ def ltl_robot_report(scenario: Scenario, robot_id: int, traj: Trajectory | None,
                 "source": "status.csv (last LTL status row)"}
     else:
         try:
-            p = plan_robot(scenario, robot_id)
+            p = plan_on_map(scenario, robot_id)
             plan = {"prefix": list(p.prefix), "suffix": list(p.suffix),
                     "source": "recomputed (no LTL status row)"}
         except UnsatisfiableTask as exc:

@@ -16,6 +16,7 @@ from tlfleet.coordinator.live.verdict import Verdict
 from tlfleet.coordinator.record import rundir
 from tlfleet.coordinator.record.rundir import RunFiles
 from tlfleet.coordinator.report.summary import write_summary
+from tlfleet.coordinator.report.task_tally import TaskTally, task_tally
 
 Say = Callable[[str], None]
 Judge = Callable[[RunFiles, dict[str, Any]], Verdict]
@@ -52,12 +53,14 @@ def start_viewer(scenario: Scenario, config: OutputSettings, say: Say) -> Any:
 
 
 def write_report(files: RunFiles, summary: dict[str, Any], figures: bool,
-                 say: Say) -> tuple[Any, str]:
+                 say: Say, tally: TaskTally | None = None,
+                 figure_format: str = "png") -> tuple[Any, str]:
     """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
     try:
         from tlfleet.coordinator.report.run_report import write_report as write
 
-        return write(files, figures=figures, summary=summary), ""
+        return write(files, figures=figures, summary=summary, tally=tally,
+                     figure_format=figure_format), ""
     except Exception as exc:
         say(f"report not written ({type(exc).__name__}: {exc})")
         return None, f"{type(exc).__name__}: {exc}"
@@ -79,25 +82,35 @@ def write_rrd(run: RunFiles | Path, every: int, say: Say) -> dict[str, Any]:
 def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
                   info: dict[str, Any], write_info: Callable[[dict[str, Any]], None],
                   note: Say, say: Say, judge: Judge | None = None,
-                  ) -> tuple[str, dict[str, Any], Any, Path | None, Verdict | None]:
+                  ) -> tuple[str, dict[str, Any], Any, Path | None, Verdict | None,
+                             TaskTally | None]:
     """Steps 6–8 after the fleet stopped: the run directory is read once
-    (:func:`rundir.read_run`) and the summary (computed once), the run's verdict (``judge``),
-    the report with its figures and ``run.rrd`` are all made from those files → (summary text,
-    summary data, report, rrd path, verdict). ``info`` (run.json) gains the verdict and the
-    report's and the recording's paths or errors."""
+    (:func:`rundir.read_run`) and the summary (computed once), the task tally
+    (:mod:`tlfleet.coordinator.report.task_tally`), the run's verdict (``judge``), the report
+    with its figures and ``run.rrd`` are all made from those files → (summary text, summary
+    data, report, rrd path, verdict, tally). ``info`` (run.json) gains the tally, the verdict and
+    the report's and the recording's paths or errors; ``summary.txt`` ends with the tally's line
+    and the verdict's."""
     files = rundir.read_run(run_dir, scenario=scenario)
     text, data = write_summary(files)
+    tally = tally_or_none(files, data, say)
+    closing = [tally.line] if tally is not None else []
+    if tally is not None:
+        info["tasks"] = tally.to_json()
     verdict = None
     if judge is not None:
         verdict = judge(files, data)
         info["outcome"] = verdict.to_json()
-        write_info(info)
-        text = f"{text}\n{verdict.line}"
+        closing.append(verdict.line)
+    write_info(info)
+    if closing:
+        text = "\n".join([text, *closing])
         with open(run_dir / rundir.SUMMARY_TEXT, "a", encoding="utf-8") as summary_file:
-            summary_file.write(verdict.line + "\n")
+            summary_file.write("".join(line + "\n" for line in closing))
     report_result = None
     if config.report:
-        report_result, error = write_report(files, data, config.figures, say)
+        report_result, error = write_report(files, data, config.figures, say, tally,
+                                            getattr(config, "figure_format", "png"))
         info["report"] = {"error": error} if error else {
             "path": str(run_dir / rundir.REPORT_MD),
             "figures": [str(path) for path in report_result.figures]}
@@ -108,4 +121,14 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
         info["rrd"] = write_rrd(files, config.rrd_every, say)
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         write_info(info)
-    return text, data, report_result, rrd_path, verdict
+    return text, data, report_result, rrd_path, verdict, tally
+
+
+def tally_or_none(files: RunFiles, summary: dict[str, Any], say: Say) -> TaskTally | None:
+    """The task tally; a failure is reported and never fails the run (the process verdict
+    still stands)."""
+    try:
+        return task_tally(files, summary)
+    except Exception as exc:
+        say(f"task tally not computed ({type(exc).__name__}: {exc})")
+        return None

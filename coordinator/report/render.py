@@ -99,6 +99,9 @@ def render_markdown(data: dict[str, Any]) -> str:
     out += [f"* run directory: `{data['run_dir']}`",
             f"* mode: {data['mode'] or '–'}; {data['frames']} frames; "
             f"t_end = {data['t_end']:.2f} s (scenario duration {data['duration']:g} s)"]
+    if data.get("tasks"):
+        out.append(f"* **{data['tasks']['line']}** (LTL: the executed word satisfies the task; "
+                   f"STL: ρ > 0 over a window the run covered)")
     if data["trajectory_error"]:
         out.append(f"* **trajectory unusable**: {data['trajectory_error']} — robustness, visits "
                    f"and figures from the trajectory are missing")

@@ -37,10 +37,12 @@ from tlfleet.coordinator.report.ltl_words import ltl_robot_report
 from tlfleet.coordinator.report.paper_comparison import repair_events, stl_robot_report
 from tlfleet.coordinator.report.render import render_markdown, render_table
 from tlfleet.coordinator.report.summary import summarise
+from tlfleet.coordinator.report.task_tally import TaskTally, task_tally
 
 __all__ = ["Report", "RunDirectoryError", "build_report", "write_report"]
 
-SCHEMA = 2  # 2: r_bar is the least r in force (was the last status r, now r_final)
+SCHEMA = 3  # 3: "tasks", the task tally; 2: r_bar is the least r in force (was the last
+#            status r, now r_final)
 
 
 @dataclass
@@ -82,17 +84,74 @@ def trajectory_windows(scenario: Scenario, t_end: float) -> list[tuple[float, fl
     return [(a, b) for a, b in itertools.pairwise(edges) if b > a]
 
 
-def figure_names(data: dict[str, Any]) -> list[str]:
-    """The PNG files a report with ``data`` has (trajectory windows, then robustness per robot)."""
-    names = [f"trajectories_{a:g}-{b:g}s.png" for a, b in data["figure_windows"]]
-    names += [f"robustness_r{rid}.png" for rid in data["stl"]]
+def figure_names(data: dict[str, Any], fmt: str = "png") -> list[str]:
+    """The figure files a report with ``data`` has in format ``fmt`` (trajectory windows, then
+    robustness per robot)."""
+    names = [f"trajectories_{a:g}-{b:g}s.{fmt}" for a, b in data["figure_windows"]]
+    names += [f"robustness_r{rid}.{fmt}" for rid in data["stl"]]
     return names
 
 
-def _collect(files: RunFiles, summary: dict[str, Any] | None = None
-             ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(report data, what the figures need) from the files read once and their summary
-    (computed here when not given)."""
+def _present_figures(run_dir: Path, data: dict[str, Any]) -> list[Path]:
+    """The report's figures already in ``run_dir``, whatever their format."""
+    from tlfleet.coordinator.report.figures import FORMATS
+
+    return [run_dir / name for fmt in FORMATS for name in figure_names(data, fmt)
+            if (run_dir / name).is_file()]
+
+
+def stl_goals(scenario: Scenario, window: tuple[float, float]
+              ) -> list[tuple[int, float, float, float]]:
+    """The STL goal points of the sub-tasks active in ``window`` [s] (sharing more than an
+    instant with it), as ``(i, x, y, c)``: what the trajectory figures mark (× and the tolerance
+    circle)."""
+    a, b = window
+    out: list[tuple[int, float, float, float]] = []
+    for _robot, start, end, goal in subtask_goals(scenario):
+        if start < b and end > a and goal not in out:
+            out.append(goal)
+    return out
+
+
+def subtask_goals(scenario: Scenario
+                  ) -> list[tuple[int, float, float, tuple[int, float, float, float]]]:
+    """Every STL sub-task's goal points: each predicate ``dist(p_i, [x, y]) <= c`` (or ``<``)
+    with constants x, y, c [m], as ``(robot, a, b, (i, x, y, c))`` with the sub-task's window
+    [a, b] [s]."""
+    from tlfleet.agent.stl import syntax as stl
+
+    def constant(expr: Any) -> float | None:
+        if isinstance(expr, stl.Const):
+            return float(expr.value)
+        if isinstance(expr, stl.Neg):
+            inner = constant(expr.arg)
+            return None if inner is None else -inner
+        return None
+
+    def goals_of(node: Any) -> list[tuple[int, float, float, float]]:
+        if isinstance(node, stl.And):
+            return [g for child in node.children for g in goals_of(child)]
+        if not isinstance(node, stl.Predicate) or node.cmp not in ("<=", "<"):
+            return []
+        lhs, tolerance = node.lhs, constant(node.rhs)
+        if not (isinstance(lhs, stl.Call) and lhs.func == "dist" and tolerance is not None):
+            return []
+        found = []
+        for own, other in (lhs.args, lhs.args[::-1]):
+            if isinstance(own, stl.Position) and isinstance(other, stl.VecLit):
+                x, y = constant(other.x), constant(other.y)
+                if x is not None and y is not None:
+                    found.append((own.robot, x, y, tolerance))
+        return found
+
+    return [(robot.id, tree.a, tree.b, goal) for robot in scenario.robots
+            for tree in robot_subtasks(robot) for goal in goals_of(tree.body)]
+
+
+def _collect(files: RunFiles, summary: dict[str, Any] | None = None,
+             tally: TaskTally | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(report data, what the figures need) from the files read once, their summary and task
+    tally (each computed here when not given)."""
     run_dir = files.run_dir
     scenario, events, statuses, traj = (files.scenario, files.events, files.statuses,
                                         files.trajectory)
@@ -132,6 +191,7 @@ def _collect(files: RunFiles, summary: dict[str, Any] | None = None
         for sub, row in zip(data["stl"][rid]["subtasks"], rows, strict=True):  # is not "met"
             if row["verdict"] == "not evaluated" and sub["paper"] is not None:
                 sub["paper"]["met"] = None
+    data["tasks"] = (tally or task_tally(files, summary)).to_json()
     context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
                "t_end": t_end if t_end > 0 else scenario.duration}
     return data, context
@@ -154,49 +214,53 @@ def _timing(deadlines: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def build_report(run: RunFiles | str | Path, summary: dict[str, Any] | None = None) -> Report:
+def build_report(run: RunFiles | str | Path, summary: dict[str, Any] | None = None,
+                 tally: TaskTally | None = None) -> Report:
     """The report of a run directory (its files as read by :func:`rundir.read_run`, or its path;
     writes nothing); ``figures`` lists the report's PNG files already present in it."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
-    data, _context = _collect(files, summary)
-    present = [files.run_dir / name for name in figure_names(data)
-               if (files.run_dir / name).is_file()]
-    return _finish(files.run_dir, data, present)
+    data, _context = _collect(files, summary, tally)
+    return _finish(files.run_dir, data, _present_figures(files.run_dir, data))
 
 
 def write_report(run: RunFiles | str | Path, *, figures: bool = True,
-                 summary: dict[str, Any] | None = None) -> Report:
+                 summary: dict[str, Any] | None = None, tally: TaskTally | None = None,
+                 figure_format: str = "png") -> Report:
     """Build the report of a run directory (files read once, or its path; ``summary`` when the
     caller computed it already) and write ``report.md``, ``report.json`` and (unless ``figures``
-    is false) the PNG figures into it."""
+    is false) the figures into it, as ``figure_format`` (png, pdf or svg)."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
     run_dir = files.run_dir
-    data, context = _collect(files, summary)
+    data, context = _collect(files, summary, tally)
     written: list[Path] = []
     if figures:
-        written = _write_figures(run_dir, data, context)
+        written = _write_figures(run_dir, data, context, figure_format)
     else:
-        written = [run_dir / name for name in figure_names(data) if (run_dir / name).is_file()]
+        written = _present_figures(run_dir, data)
     report = _finish(run_dir, data, written)
     rundir.write_json(run_dir / rundir.REPORT_JSON, report.data)
     (run_dir / rundir.REPORT_MD).write_text(report.markdown, encoding="utf-8")
     return report
 
 
-def _write_figures(run_dir: Path, data: dict[str, Any], context: dict[str, Any]) -> list[Path]:
+def _write_figures(run_dir: Path, data: dict[str, Any], context: dict[str, Any],
+                   fmt: str = "png") -> list[Path]:
     from tlfleet.coordinator.report import figures  # matplotlib only when figures are drawn
 
+    if fmt not in figures.FORMATS:
+        raise ValueError(f"figure format {fmt!r}: expected one of {', '.join(figures.FORMATS)}")
     scenario: Scenario = context["scenario"]
     written: list[Path] = []
     traj = context["traj"]
     if traj is not None:
         for a, b in data["figure_windows"]:
-            path = run_dir / f"trajectories_{a:g}-{b:g}s.png"
-            written.append(figures.trajectory_figure(scenario, traj, (a, b), path))
+            path = run_dir / f"trajectories_{a:g}-{b:g}s.{fmt}"
+            written.append(figures.trajectory_figure(scenario, traj, (a, b), path,
+                                                     goals=stl_goals(scenario, (a, b))))
     for rid, entry in data["stl"].items():
         subtasks = [(s["label"], s["window"][0], s["window"][1]) for s in entry["subtasks"]
                     if s["window"] is not None]
-        path = run_dir / f"robustness_r{rid}.png"
+        path = run_dir / f"robustness_r{rid}.{fmt}"
         written.append(figures.robustness_figure(
             int(rid), stl_series(context["statuses"], int(rid)), subtasks,
             context["repairs"].get(int(rid), []), path, t_end=context["t_end"]))

@@ -122,7 +122,8 @@ def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
     data["contacts"] = _contacts(events)
     radii = {r.id: r.radius for r in scenario.robots}
     data["closest_approach"] = None if traj is None else closest_approach(traj, radii)
-    data["deadlines"] = _deadlines(events, info)
+    data["deadlines"] = _deadlines(events, info, scenario, float(info.get("t_end") or
+                                                                 data["t_end"]))
     data["process_deaths"] = [{"t": e.t, **e.data} for e in events if e.kind == "process_died"]
     return format_summary(data), data
 
@@ -253,7 +254,14 @@ def _contacts(events: tuple[Event, ...]) -> dict[str, Any]:
     return {"robot_robot": robot_robot, "robot_wall": robot_wall, "pairs": dict(pairs)}
 
 
-def _deadlines(events: tuple[Event, ...], info: dict[str, Any]) -> dict[str, Any]:
+def _deadlines(events: tuple[Event, ...], info: dict[str, Any], scenario: Scenario,
+               t_end: float) -> dict[str, Any]:
+    """Deadline, watchdog, stale-mocap and malformed counts; ``stale_mocap`` counts the episodes
+    during the mission only, as the verdict does
+    (:func:`tlfleet.coordinator.live.verdict.mission_event_kinds`), and ``stale_mocap_at_end``
+    the others (the frames stopped at the end of the run: expected)."""
+    from tlfleet.coordinator.live.verdict import control_periods, mission_event_kinds
+
     misses: Counter[str] = Counter()
     malformed: Counter[str] = Counter()
     counts: Counter[str] = Counter()
@@ -277,9 +285,13 @@ def _deadlines(events: tuple[Event, ...], info: dict[str, Any]) -> dict[str, Any
     for what, n in (info.get("malformed_received") or {}).items():
         malformed[f"coordinator ({what})"] += int(n)
     stats = next((e.data for e in reversed(events) if e.kind == "sim_stats"), None)
+    mission = mission_event_kinds(
+        ({"t": e.t, "kind": e.kind, "source": e.source, "data": e.data} for e in events
+         if e.kind == "stale_mocap"), t_end, periods=control_periods(scenario))["stale_mocap"]
     return {"deadline_miss": sum(misses.values()), "deadline_miss_by_robot": dict(misses),
             "sim_stats": stats,
-            "watchdog_stop": counts["watchdog_stop"], "stale_mocap": counts["stale_mocap"],
+            "watchdog_stop": counts["watchdog_stop"], "stale_mocap": mission,
+            "stale_mocap_at_end": counts["stale_mocap"] - mission,
             "malformed": sum(malformed.values()), "malformed_by_source": dict(malformed)}
 
 
@@ -338,7 +350,9 @@ def format_summary(data: dict[str, Any]) -> str:
     by_robot = ", ".join(f"{k}: {v}" for k, v in sorted(d["deadline_miss_by_robot"].items()))
     by_source = ", ".join(f"{k}: {v}" for k, v in sorted(d["malformed_by_source"].items()))
     lines.append(f"deadlines: {d['deadline_miss']} missed" + (f" ({by_robot})" if by_robot else "")
-                 + f", watchdog stops {d['watchdog_stop']}, stale-mocap {d['stale_mocap']}")
+                 + f", watchdog stops {d['watchdog_stop']}, stale-mocap {d['stale_mocap']}"
+                 + (f" (and {d['stale_mocap_at_end']} once the frames stopped at the end)"
+                    if d.get("stale_mocap_at_end") else ""))
     stats = d.get("sim_stats")
     if stats and stats.get("due"):
         timing = (f"control deadlines (sim): {stats.get('missed', 0)} of {stats['due']} missed "

@@ -17,7 +17,9 @@ Importing rerun costs ≈ 0.9 s, so callers import this module lazily, when they
     /world/trails          one segment per robot every ``trail_period`` of sim time (LineStrips2D),
                            accumulated by the blueprint's visible time range (−∞, cursor]
     /world/plans/r<id>     LTL plan: prefix and suffix paths through region centres (LineStrips2D)
-    /world/plans/r<id>/target   the current target region (Points2D + label "1 → a2")
+    /world/plans/r<id>/target   the current target region: a ring on its disc, and the label
+                           "1 → a2" beside it (not on the region's own name)
+    /world/goals           static STL goal points of the sub-tasks (× + "goal 3 [57, 58] s")
     /rho/r<id>/{rho,rho_max,lower,r}   STL funnel and robustness (Scalars; NaN = idle, not logged)
     /rho/r<id>/critical    ρ at each critical event (SeriesPoints)
     /rho/r<id>/repairs     r̄ after each repair (SeriesPoints)
@@ -64,6 +66,9 @@ OBSTACLE_COLOR = (120, 120, 120)
 ARENA_COLOR = (60, 60, 60)
 STL_SERIES = (("rho", "ρ", (31, 119, 180)), ("rho_max", "ρ_max", (44, 160, 44)),
               ("lower", "lower bound", (214, 39, 40)), ("r", "r̄", (255, 127, 14)))
+COLOR_NAMES = {(31, 119, 180): "blue", (44, 160, 44): "green", (214, 39, 40): "red",
+               (255, 127, 14): "orange"}
+GOAL_COLOR = (20, 20, 20)
 EVENT_LEVELS = {"process_died": "ERROR", "critical_event": "WARN", "stuck": "WARN",
                 "contact": "WARN", "deadline_miss": "WARN", "fault": "ERROR",
                 "repair": "INFO", "agent_stats": "DEBUG", "sim_stats": "DEBUG"}
@@ -102,7 +107,13 @@ def blueprint(scenario: Scenario) -> rrb.Blueprint:
         visual_bounds=rrb.VisualBounds2D(x_range=[arena.xmin - margin, arena.xmax + margin],
                                          y_range=[-arena.ymax - margin, -arena.ymin + margin]),
         overrides={"world/trails": history})
-    series = [rrb.TimeSeriesView(name=f"robot {robot.id}: ρ, funnel, r̄", origin=f"/rho/r{robot.id}")
+    # one time range [0, duration] for every ρ panel, so that their time axes line up; the
+    # legends would cover a third of a small panel: the colours are named in the title instead
+    shared = rrb.VisibleTimeRange(TIMELINE, start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
+                                  end=rrb.TimeRangeBoundary.absolute(seconds=scenario.duration))
+    key = " · ".join(f"{title} {COLOR_NAMES[color]}" for _name, title, color in STL_SERIES)
+    series = [rrb.TimeSeriesView(name=f"robot {robot.id}: {key}", origin=f"/rho/r{robot.id}",
+                                 plot_legend=rrb.PlotLegend(visible=False), time_ranges=shared)
               for robot in sorted(scenario.robots, key=lambda r: r.id) if robot.is_stl]
     log = rrb.TextLogView(name="events", origin="/events")
     if len(series) > 4:
@@ -222,6 +233,12 @@ class FleetLog:
             rec.log("world/regions/names", rr.Points2D(
                 [r.center for r in scenario.regions], labels=[r.name for r in scenario.regions],
                 radii=0.0, colors=REGION_COLOR, show_labels=True), static=True)
+        goals = stl_goals(scenario)
+        if goals:
+            rec.log("world/goals", rr.Points2D(
+                [(x, y) for _rid, x, y, _tol, _label in goals],
+                radii=[tol for _rid, _x, _y, tol, _label in goals], colors=GOAL_COLOR,
+                labels=[label for *_rest, label in goals], show_labels=True), static=True)
         # styling is static, positions temporal (static data of a component hides temporal data)
         rec.log("world/robots", rr.Points2D.from_fields(
             radii=self._radii, colors=self._colors, labels=self._labels, show_labels=True),
@@ -317,10 +334,17 @@ class FleetLog:
             self._at(status.t)
             centre = self._point(status.robot, status.target) if status.target else None
             if centre is None:
-                self.rec.log(f"world/plans/r{status.robot}/target", rr.Clear(recursive=False))
+                self.rec.log(f"world/plans/r{status.robot}/target", rr.Clear(recursive=True))
             else:
-                self.rec.log(f"world/plans/r{status.robot}/target", rr.Points2D(
-                    [centre], radii=0.08, colors=color,
+                # a ring on the region, and the label beside it, below the region's own name
+                # (at its centre): "1 → a11" and "a11" overlapped as "1 a1a11"
+                ring = [(centre[0] + 0.18 * math.cos(a), centre[1] + 0.18 * math.sin(a))
+                        for a in np.linspace(0.0, 2 * math.pi, 25)]
+                self.rec.log(f"world/plans/r{status.robot}/target",
+                             rr.LineStrips2D([ring], colors=color, radii=0.015))
+                offset = 0.45 + 0.2 * (status.robot % 3)  # [m] robots apart
+                self.rec.log(f"world/plans/r{status.robot}/target/label", rr.Points2D(
+                    [(centre[0], centre[1] - offset)], radii=0.0, colors=color,
                     labels=[f"{status.robot} → {status.target}"], show_labels=True))
 
     def stl_status(self, status: StlStatus) -> None:
@@ -523,3 +547,12 @@ class LiveView:
             self.log.rec.disconnect()
         except Exception as exc:
             logger.warning("live viewer: closing failed: %s", exc)
+
+
+def stl_goals(scenario: Scenario) -> list[tuple[int, float, float, float, str]]:
+    """The STL goal points of every sub-task (``run_report.subtask_goals``) with a label naming
+    the robot and the window: ``(robot, x [m], y [m], tolerance [m], "goal 3 [57, 58] s")``."""
+    from tlfleet.coordinator.report.run_report import subtask_goals
+
+    return [(rid, x, y, tol, f"goal {rid} [{a:g}, {b:g}] s")
+            for _robot, a, b, (rid, x, y, tol) in subtask_goals(scenario)]

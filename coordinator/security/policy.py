@@ -5,16 +5,19 @@ query and declare what, as :class:`tlfleet.bus.zenoh.security.Grant` s over the 
 =============  ==========================================================================
 identity       grants (every key under ``tlfleet/<fleet>/``)
 =============  ==========================================================================
-``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event``;
-               token ``alive/agent/i``; serve ``robot/i/collab`` (STL robots);
-               query ``robot/j/collab`` for every robot j it is coupled with (below);
+``robot<i>``   publish ``robot/i/cmd``, ``robot/i/status``, ``event/agent/i``;
+               token ``alive/agent/i``; serve ``robot/i/collab/*`` (STL robots);
+               query ``robot/j/collab/i`` for every robot j it is coupled with (below: the
+               key names the sender, which robot j checks against the message);
                subscribe ``mocap`` (divider d ≥ 2: ``mocap_every/d/φ`` instead; frame offset
                s ≥ 1: ``mocap_at/s``), ``clock``, ``control``; watch ``alive/**``
 ``sim``        publish ``mocap``, ``mocap_every/d/φ`` (each schedule, d ≥ 2, of the fleet),
-               ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``, ``event``;
+               ``mocap_at/s`` (each every-tick robot's offset s ≥ 1), ``clock``,
+               ``event/sim/0``;
                subscribe ``robot/*/cmd``, ``control``; serve ``sim/backfill``;
                token ``alive/sim/0``; watch ``alive/**``
-``coordinator`` publish ``control``, ``event``; subscribe ``**``; query ``sim/backfill``;
+``coordinator`` publish ``control``, ``event/coordinator/0``; subscribe ``**``; query
+               ``sim/backfill``;
                token ``alive/coordinator/0``; watch ``alive/**``
 ``router``     nothing through its links (its own session is local to it); in a router mesh
                (``mesh=True``: ``tlfleet run --hosts N``, ``tlfleet keys --mesh``) everything
@@ -73,12 +76,13 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
                     serve=everything, query=everything, token=everything, watch=everything)
               ] if mesh else []
     grants += [
-        Grant("sim", publish=(keys.mocap(fleet), *every, keys.clock(fleet), keys.event(fleet)),
+        Grant("sim", publish=(keys.mocap(fleet), *every, keys.clock(fleet),
+                              keys.event(fleet, "sim", 0)),
               discover=everything,
               subscribe=(keys.all_cmds(fleet), keys.control(fleet)),
               serve=(keys.sim_backfill(fleet),),
               token=(keys.alive(fleet, "sim", 0),), watch=everyone_alive),
-        Grant("coordinator", publish=(keys.control(fleet), keys.event(fleet)),
+        Grant("coordinator", publish=(keys.control(fleet), keys.event(fleet, "coordinator", 0)),
               discover=everything, subscribe=everything, query=(keys.sim_backfill(fleet),),
               token=(keys.alive(fleet, "coordinator", 0),), watch=everyone_alive),
     ]
@@ -88,11 +92,11 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
         frames = keys.robot_frames(fleet, d, p, scenario.frame_offset(i))
         grants.append(Grant(
             identity("agent", i),
-            publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet)),
+            publish=(keys.cmd(fleet, i), keys.status(fleet, i), keys.event(fleet, "agent", i)),
             discover=everything,
             subscribe=(frames, keys.clock(fleet), keys.control(fleet)),
-            serve=(keys.collab(fleet, i),) if robot.is_stl else (),
-            query=tuple(keys.collab(fleet, j) for j in coupled.get(i, ())),
+            serve=(keys.collab_all(fleet, i),) if robot.is_stl else (),
+            query=tuple(keys.collab_from(fleet, j, i) for j in coupled.get(i, ())),
             token=(keys.alive(fleet, "agent", i),), watch=everyone_alive))
     return tuple(grants)
 

@@ -107,8 +107,9 @@ def main() -> int:
             k += 1
             time.sleep(1.0 / args.rate)
         transport.publish(keys.mocap(fleet), encode(frame(k)))
-        transport.publish(keys.event(fleet), encode(Event(k / 100.0, "sim", "sim_done", {})))
-        transport.publish(keys.event(fleet), encode(Event(0.5, "sim", "contact",
+        transport.publish(keys.event(fleet, "sim", 0),
+                          encode(Event(k / 100.0, "sim", "sim_done", {})))
+        transport.publish(keys.event(fleet, "sim", 0), encode(Event(0.5, "sim", "contact",
                                                           {"a": ids[0], "b": "wall"})))
         stop.wait(30.0)
         return 0

@@ -13,12 +13,13 @@ from tlfleet.bus.fake import FakeNetwork
 from tlfleet.bus.protocol import keys
 from tlfleet.bus.protocol.bounds import FleetBounds
 from tlfleet.bus.protocol.codec import encode
+from tlfleet.bus.protocol.events import SIM_KINDS
 from tlfleet.bus.protocol.messages import Event, MocapFrame, StlStatus
 from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.verdict import EXIT_CODES, classify, mission_event_kinds
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
-from tlfleet.coordinator.record.trust import event_problem, sim_done_plausible
+from tlfleet.coordinator.record.trust import Malformed, event_problem, sim_done_plausible
 
 POSES = ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0))
 OK = dict(reason="sim_done", deaths=[], exit_codes={"sim": 0, "agent-1": 0},
@@ -64,17 +65,91 @@ def test_stale_mocap_at_the_very_end_is_not_a_degradation():
     assert mission_event_kinds(events, t_end=10.0) == {"stale_mocap": 1, "contact": 1}
 
 
-@pytest.mark.parametrize(("source", "kind", "problem"), [
-    ("sim", "sim_done", None),
-    ("agent/1", "plan_ready", None),
-    ("agent/1", "sim_done", "is the simulator's"),
-    ("agent/9", "repair", "no process of this fleet"),
-    ("intruder", "hello", "no process of this fleet"),
-    ("sim", "agent_stats", "is an agent's"),
+def test_stale_mocap_after_an_agents_last_due_frame_is_not_a_degradation():
+    """A 5 Hz LTL agent's last frame of a 90 s run is at 89.9 s (its phase): its stale episode
+    once the frames stop is stamped 89.9, which the 0.05 s slack alone counted (1 of 21 Scenario
+    1 runs ended degraded). One whose last frame came a whole period before the end was starved
+    during the mission."""
+    periods = {"agent/2": 0.2, "agent/3": 0.01}
+    at_end = [{"t": 89.9, "kind": "stale_mocap", "source": "agent/2"},
+              {"t": 90.0, "kind": "stale_mocap", "source": "agent/3"}]
+    assert mission_event_kinds(at_end, t_end=90.0, periods=periods) == {}
+    assert mission_event_kinds(at_end, t_end=90.0) == {"stale_mocap": 1}  # the old rule
+    starved = [{"t": 89.6, "kind": "stale_mocap", "source": "agent/2"},
+               {"t": 89.8, "kind": "stale_mocap", "source": "agent/3"}]
+    assert mission_event_kinds(starved, t_end=90.0, periods=periods) == {"stale_mocap": 2}
+
+
+def test_events_after_sim_done_never_change_the_verdict():
+    from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
+
+    events = [{"t": 3.0, "kind": "watchdog_stop", "source": "sim", "data": {AFTER_SIM_DONE: True}},
+              {"t": 1.0, "kind": "stale_mocap", "source": "agent/1",
+               "data": {AFTER_SIM_DONE: True}},
+              {"t": 2.0, "kind": "watchdog_stop", "source": "sim", "data": {}}]
+    assert mission_event_kinds(events, t_end=5.0) == {"watchdog_stop": 1}
+
+
+def test_the_tap_marks_events_after_a_genuine_sim_done(tmp_path):
+    from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE, read_events
+
+    peer, tap, recorder = make_tap(tmp_path, duration=1.0)
+    recorder.start()
+    for k in range(0, 30):
+        peer.publish(keys.mocap("f"), encode(MocapFrame(k / 100, k, POSES)))
+    def key(source: str) -> str:
+        role, ident = source.split("/") if "/" in source else (source, 0)
+        return keys.event("f", role, ident)
+
+    for source, kind in (("agent/1", "stale_mocap"), ("sim", "sim_done"),
+                         ("agent/1", "stale_mocap")):
+        peer.publish(key(source), encode(Event(0.29, source, kind, {})))
+    tap.drain()
+    assert not tap.sim_done  # frames at 0.29 s of a 1 s run: a forged sim_done marks nothing
+    for k in range(30, 101):
+        peer.publish(keys.mocap("f"), encode(MocapFrame(k / 100, k, POSES)))
+    for source, kind in (("agent/2", "stale_mocap"), ("sim", "sim_done"),
+                         ("agent/1", "stale_mocap"), ("agent/2", "agent_stats")):
+        peer.publish(key(source), encode(Event(1.0, source, kind, {})))
+    tap.drain()
+    recorder.close()
+    events = read_events(tmp_path / "run" / "events.jsonl")
+    marks = [(e.source, e.kind, e.data.get(AFTER_SIM_DONE, False)) for e in events]
+    assert marks[-4:] == [("agent/2", "stale_mocap", False), ("sim", "sim_done", False),
+                          ("agent/1", "stale_mocap", True), ("agent/2", "agent_stats", True)]
+    assert not any(mark for _, _, mark in marks[:-2])
+
+
+@pytest.mark.parametrize(("key", "source", "kind", "problem"), [
+    (("sim", 0), "sim", "sim_done", None),
+    (("agent", 1), "agent/1", "plan_ready", None),
+    (("agent", 1), "agent/1", "sim_done", "is the simulator's"),
+    (("agent", 9), "agent/9", "repair", "no event key of this fleet"),
+    (("agent", 1), "intruder", "hello", "claimed on agent/1's key"),
+    (("agent", 1), "sim", "sim_done", "claimed on agent/1's key"),
+    (("agent", 2), "agent/1", "repair", "claimed on agent/2's key"),
+    (("sim", 0), "sim", "agent_stats", "is an agent's"),
+    (("sim", 1), "sim", "sim_done", "no event key"),
 ])
-def test_event_identity(source, kind, problem):
-    found = event_problem(Event(1.0, source, kind, {}), (1, 2))
+def test_event_identity_is_its_key(key, source, kind, problem):
+    found = event_problem(Event(1.0, source, kind, {}), keys.event("f", *key), (1, 2))
     assert (found is None) if problem is None else (problem in found)
+
+
+@pytest.mark.parametrize(("kind", "data"), [
+    ("sim_stats", {"due": "many", "missed": 1}),
+    ("sim_stats", {"missed": 5, "due": 3}),
+    ("sim_stats", {"latency_p50_ms": [1]}),
+    ("contact", {"a": 1.5, "b": 2}),
+    ("deadline_miss", {"robot": True}),
+    ("subtask_done", {"satisfied": 1}),
+    ("repair", {"stage": None}),
+])
+def test_event_data_of_the_wrong_type_is_malformed(kind, data):
+    with pytest.raises(Malformed, match=kind):
+        event_problem(Event(1.0, "sim" if kind in SIM_KINDS else "agent/1", kind, data),
+                      keys.event("f", "sim", 0) if kind in SIM_KINDS
+                      else keys.event("f", "agent", 1), (1, 2))
 
 
 def make_tap(tmp_path, duration=5.0):
@@ -105,14 +180,16 @@ def test_spoofed_frames_neither_end_the_run_nor_drop_real_rows(tmp_path):
 
 def test_events_from_a_foreign_identity_are_flagged_not_recorded_as_genuine(tmp_path):
     peer, tap, recorder = make_tap(tmp_path)
-    peer.publish(keys.event("f"), encode(Event(1.0, "agent/1", "sim_done", {})))
-    peer.publish(keys.event("f"), encode(Event(1.0, "agent/7", "repair", {})))
-    peer.publish(keys.event("f"), encode(Event(1.0, "agent/2", "repair", {"stage": 3})))
+    peer.publish(keys.event("f", "agent", 1), encode(Event(1.0, "agent/1", "sim_done", {})))
+    peer.publish(keys.event("f", "agent", 7), encode(Event(1.0, "agent/7", "repair", {})))
+    peer.publish(keys.event("f", "agent", 2), encode(Event(1.0, "agent/2", "repair", {"stage": 3})))
+    peer.publish(keys.event("f", "agent", 1), encode(Event(1.0, "sim", "contact", {})))
+    peer.publish(keys.event("f", "agent", 1), encode(Event(1.0, "agent/2", "repair", {})))
     peer.publish(keys.status("f", 1), encode(StlStatus(2, 1.0, 0, 0.1, 0.2, 0.0, 0.0, 0, 0, 0,
                                                        -1)))
     tap.drain()
-    assert recorder.event_kinds == {"flagged_event": 2, "repair": 1}
-    assert tap.flagged == 2
+    assert recorder.event_kinds == {"flagged_event": 4, "repair": 1}
+    assert tap.flagged == 4
     assert tap.malformed["status"] == 1 and tap.malformed_by_source[("status", "agent/1")] == 1
 
 
@@ -127,10 +204,12 @@ def test_a_spoofed_sim_done_does_not_end_the_run(fleet):  # noqa: F811
         for k in range(50):
             sim.publish(keys.mocap(scenario.fleet), encode(MocapFrame(k / 10, k * 10, POSES)))
             if k == 10:  # at t = 1 s of 5 s, while the simulator runs
-                peers["agent-1"].publish(keys.event(scenario.fleet),
+                # unsecured, any process can publish on the simulator's key
+                peers["agent-1"].publish(keys.event(scenario.fleet, "sim", 0),
                                          encode(Event(1.0, "sim", "sim_done", {})))
             time.sleep(0.005)
-        sim.publish(keys.event(scenario.fleet), encode(Event(4.9, "sim", "sim_done", {})))
+        sim.publish(keys.event(scenario.fleet, "sim", 0),
+                    encode(Event(4.9, "sim", "sim_done", {})))
 
     thread = threading.Thread(target=script)
     thread.start()
@@ -241,3 +320,35 @@ def test_cleanup_runs_every_step_whatever_fails_and_bounds_blocking_ones():
     assert cleanup.step("second", lambda: done.append(1) or 7) == 7
     assert done == [1]
     assert [e.split(":")[0] for e in cleanup.errors] == ["first", "interrupted", "hangs"]
+
+
+def _judge(t_end, duration=45.0, reason="sim_done", sim_reached=None, **extra):
+    from tlfleet.coordinator.live.verdict import RunEnd
+
+    return classify(reason=reason, deaths=[], exit_codes={"sim": 0}, router_clean=True,
+                    mode="lockstep", deadlines={}, event_kinds={}, end=RunEnd(
+                        t_end, duration, reason), tolerance=0.015, sim_reached=sim_reached,
+                    **extra)
+
+
+def test_the_verdict_compares_the_end_with_the_duration():
+    """A run that ends before its duration is never clean; where and why it ended is in the
+    outcome line and in run.json's outcome."""
+    full = _judge(45.0)
+    assert full.label == "clean" and full.line == \
+        "outcome: clean (ended at t = 45.00 s of 45 s: sim_done)"
+    assert full.to_json()["end"] == {"t": 45.0, "duration": 45.0, "reason": "sim_done"}
+    assert _judge(45.0 - 0.01).label == "clean"  # the last tick, within the tolerance
+    early = _judge(20.1)  # a forged sim_done accepted during a pause
+    assert early.label == "failed" and early.exit_code == 3
+    assert early.line.startswith("outcome: failed (ended at t = 20.10 s of 45 s: sim_done; "
+                                 "the run ended 24.90 s before its duration")
+    # the simulator itself says it reached the end: only the recording of the end is missing
+    lost = _judge(13.0, sim_reached=45.0)
+    assert lost.label == "degraded" and "not recorded" in lost.reasons[0]
+    assert _judge(13.0, sim_reached=13.0).label == "failed"
+    worse = _judge(20.0, findings=["agent-2 silent from t = 3.00 s (never came back)"])
+    assert worse.label == "failed" and "agent-2 silent" in worse.line
+    stopped = _judge(17.33, reason="interrupted")
+    assert stopped.label == "interrupted" and "ended at t = 17.33 s of 45 s" in stopped.line
+    assert _judge(3.0, reason="sim_died").label == "failed"

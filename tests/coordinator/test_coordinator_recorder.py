@@ -127,7 +127,7 @@ def test_tap_decodes_in_the_loop_and_counts_malformed_payloads(tmp_path, channel
     sim.publish(keys.mocap("f"), b"\xc1garbage")
     sim.publish(keys.mocap("f"), encode(Event(0.0, "x", "y", {})))  # wrong message kind
     sim.publish(keys.status("f", 3), b"")
-    sim.publish(keys.event("f"), encode(Event(0.5, "sim", "sim_done", {})))
+    sim.publish(keys.event("f", "sim", 0), encode(Event(0.5, "sim", "sim_done", {})))
     sim.publish(keys.mocap("f"), encode(frame(1)))
     assert rec.frames_written == 0  # channels and callbacks only queue
     assert tap.drain(limit=2) == 2  # at most limit samples, the rest stays queued

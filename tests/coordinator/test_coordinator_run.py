@@ -39,7 +39,7 @@ ltl = "G F a1 & G F a2"
 id = 2
 kind = "omni"
 pose = [0.0, 1.0, 0.0]
-stl = ["G[0,20] (dist(p2, p1) <= 0.8)"]
+stl = ["G[0,2] (dist(p2, p1) <= 0.8)"]
 """
 
 pytestmark = pytest.mark.system

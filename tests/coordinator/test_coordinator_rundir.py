@@ -47,9 +47,10 @@ def test_the_end_of_a_run_reads_each_file_once(tmp_path, monkeypatch):
     opened = _count_opens(monkeypatch)
     config = RunConfig(scenario_path=run / rundir.SCENARIO, report=True, figures=True, rrd=True)
     info: dict = {}
-    _text, _data, report, rrd, _verdict = write_outputs(
+    _text, _data, report, rrd, _verdict, tally = write_outputs(
         run, scenario, config, info, lambda _info: None, lambda _t: None, lambda t: pytest.fail(t))
     assert report is not None and report.figures and rrd == run / rundir.RRD
+    assert tally is not None and info["tasks"] == tally.to_json()
     assert {name: opened[name] for name in RUN_FILES} == {
         rundir.SCENARIO: 0,  # the runner's loaded scenario is reused
         rundir.RUN_INFO: 1, rundir.TRAJECTORY: 1, rundir.STATUS: 1, rundir.EVENTS: 1}

@@ -120,7 +120,7 @@ def test_start_death_and_sim_done(fleet):
                 killed_at["wall"] = time.time()
                 peers["agent-2"].kill()  # its token disappears, as for a dead process
             time.sleep(0.005)
-        sim.publish(keys.event(scenario.fleet), encode(Event(4.9, "sim", "sim_done", {})))
+        sim.publish(keys.event(scenario.fleet, "sim", 0), encode(Event(4.9, "sim", "sim_done", {})))
 
     thread = threading.Thread(target=script)
     thread.start()
@@ -200,7 +200,8 @@ def test_the_sim_ending_by_itself_after_sim_done_is_not_a_death(fleet):
     children["sim"].returncode = 0
     peers["sim"].kill()
     sup.check()
-    peers["agent-1"].publish(keys.event(scenario.fleet), encode(Event(5.0, "sim", "sim_done", {})))
+    peers["agent-1"].publish(keys.event(scenario.fleet, "sim", 0),
+                             encode(Event(5.0, "sim", "sim_done", {})))
     outcome = sup.supervise()
     assert outcome.reason == "sim_done" and outcome.deaths == [] and reports == []
 
@@ -230,7 +231,7 @@ def test_the_last_frame_counts_when_it_arrives_while_sim_done_is_read(fleet):
 
     events.recv = recv_then_last_frame
     children["sim"].returncode = 0  # the simulator has ended: its sim_done is plausible
-    sim.publish(keys.event(scenario.fleet), encode(Event(4.9, "sim", "sim_done", {})))
+    sim.publish(keys.event(scenario.fleet, "sim", 0), encode(Event(4.9, "sim", "sim_done", {})))
     outcome = sup.supervise()
     assert outcome.reason == "sim_done"
     assert outcome.t_end == pytest.approx(4.9)
@@ -258,8 +259,13 @@ def _blip(net, scenario, sup, peers, *, exit_code=None):
         sup.children["sim"].returncode = exit_code
     back = declare(net, scenario, ["sim"])["sim"]
     stop = threading.Event()
-    done = threading.Timer(sup.config.end_grace + 0.3, lambda: back.publish(
-        keys.event(scenario.fleet), encode(Event(5.0, "sim", "sim_done", {}))))
+
+    def finish() -> None:  # as the simulator does: sim_done, then it exits
+        back.publish(keys.event(scenario.fleet, "sim", 0), encode(Event(5.0, "sim", "sim_done",
+                                                                         {})))
+        back.kill()
+
+    done = threading.Timer(sup.config.end_grace + 0.3, finish)
     done.start()
     threading.Timer(3.0, stop.set).start()  # bound: the run ends by itself well before
     try:

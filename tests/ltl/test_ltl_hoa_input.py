@@ -118,10 +118,11 @@ def test_scenario_robot_plans_with_a_hoa_automaton(tmp_path):
 
 def test_scenario_hoa_task_errors(tmp_path):
     path = _scenario_with_hoa(tmp_path, SPOT_STYLE.replace('"a"', '"nowhere"'))
-    with pytest.raises(ScenarioError, match=r"robots\[0\]\.ltl: proposition 'nowhere' is carried"):
+    with pytest.raises(ScenarioError,
+                       match=r"robots\[id=1\]\.ltl: proposition 'nowhere' is carried"):
         load_scenario(path)
     (tmp_path / "task.hoa").unlink()
-    with pytest.raises(ScenarioError, match=r"robots\[0\]\.ltl\.hoa: no such HOA file"):
+    with pytest.raises(ScenarioError, match=r"robots\[id=1\]\.ltl\.hoa: no such HOA file"):
         load_scenario(path)
 
 

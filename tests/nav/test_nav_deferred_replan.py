@@ -61,8 +61,12 @@ def test_the_step_follows_the_current_path_and_refresh_installs_the_planned_one(
     assert request is not None and request.t == t and due.path_time == t
     assert np.array_equal(request.start, np.asarray(later[:2]))
     refreshed = executor.refresh(due)
-    grid = executor.grid.with_discs(request.centers, request.radii)
-    expected = plan_path(grid, request.start, request.goal).waypoints
+    # the request's robots are stamped when it runs, the way the step would have stamped them
+    centers, radii = executor._stamps(request.pose, request.others, full=request.blocked,
+                                      goal=request.goal)
+    grid = executor.paths.grid_for(request.allowed).with_discs(centers, radii)
+    expected = plan_path(grid, request.start, request.goal,
+                         prefer=executor.config.path_clearance).waypoints
     assert refreshed.pending is None and np.array_equal(refreshed.path, expected)
     assert not np.array_equal(refreshed.path, first.path)
     # refresh is pure and a state with nothing pending is returned as it is

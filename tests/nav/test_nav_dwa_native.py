@@ -94,8 +94,9 @@ def test_c_kernel_equals_numpy_kernel_with_robots_at_the_clearance():
 @pytest.mark.needs_system
 @c_kernel_built
 def test_skipped_square_roots_never_change_the_least_clearance():
-    """The C kernel skips a robot's square root where its gap must exceed the least clearance
-    found so far. A standing robot is placed so that its gap to one rollout point is that
+    """The C kernel skips a robot's square root where its gap must exceed both the least
+    clearance found so far and the inflation radius (near a wall, the least clearance). A
+    standing robot is placed so that its gap to one rollout point is that
     point's grid clearance d times 1 + δ, for δ from −1e-4 to 1e-4 down to 1e-15: every
     sample's least clearance must stay equal to the numpy kernel's, and the robot must set the
     minimum for δ < 0."""
@@ -104,7 +105,7 @@ def test_skipped_square_roots_never_change_the_least_clearance():
     vs, ws = dwa_module._samples(*velocity, PYTHON)
     times = dwa_module._times(PYTHON.sim_time, PYTHON.sim_dt)
     reach = float(np.abs(vs).max()) * float(times[-1])
-    x, y, _, _, base = dwa_module._clearances(pose, vs, ws, times, GRID, [], reach)
+    x, y, _, _, base, _, _ = dwa_module._clearances(pose, vs, ws, times, GRID, [], reach)
     radius = 0.2
     lowered = 0
     clearance = GRID.clearance_xy(x, y)

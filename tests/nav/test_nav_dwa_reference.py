@@ -110,14 +110,19 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
     y = np.where(turning, y0 - radius * (np.cos(theta) - math.cos(th0)),
                  y0 + vv * t * math.sin(th0))
     points = np.stack([x, y], axis=-1)  # (S, T, 2)
-    clearance = GRID.clearance_at(points)
-    current = float(GRID.clearance_at(position))
+    static = GRID.clearance_at(points)
+    clearance = static
+    current_static = float(GRID.clearance_at(position))
+    current, current_robots = current_static, math.inf
+    robots = np.full(static.shape, np.inf)
     if len(others):
         moving = others.centers[None] + times[:, None, None] * others.velocities[None]  # (T, K, 2)
         gaps = np.linalg.norm(points[:, :, None, :] - moving[None], axis=-1) - others.radii
-        clearance = np.minimum(clearance, gaps.min(axis=2))
-        current = min(current, float(
-            (np.linalg.norm(others.centers - position, axis=1) - others.radii).min()))
+        robots = gaps.min(axis=2)
+        clearance = np.minimum(clearance, robots)
+        current_robots = float(
+            (np.linalg.norm(others.centers - position, axis=1) - others.radii).min())
+        current = min(current, current_robots)
     required = min(ROBOT_RADIUS + config.collision_margin, current - 1e-6)
     valid = clearance.min(axis=1) >= required
     if limits and valid.any():
@@ -126,6 +131,9 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
         if not coupled.any():
             coupled = valid & (excess <= float(excess[valid].min()) + 1e-12)
         valid = coupled
+    moving = valid & ((np.abs(vs) >= config.min_trans_vel) | (np.abs(ws) >= config.min_rot_vel))
+    if moving.any():
+        valid = moving
     if not valid.any():
         return (*braking_command(v0, w0, config), math.inf, 0, False, np.zeros((0, 2)))
     ahead = ref_remaining(position, path)
@@ -142,9 +150,12 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
     front = end + fpd * np.stack([np.cos(heading), np.sin(heading)], axis=1)
     cost += config.path_distance_bias * ref_distance_to_polyline(front, extended)
     cost += config.goal_distance_bias * np.linalg.norm(front - front_carrot, axis=1)
-    worst = np.maximum(inflation_cost(clearance, ROBOT_RADIUS, config).max(axis=1),
-                       float(inflation_cost(np.array(current), ROBOT_RADIUS, config)))
+    worst = np.maximum(inflation_cost(static, ROBOT_RADIUS, config).max(axis=1),
+                       float(inflation_cost(np.array(current_static), ROBOT_RADIUS, config)))
     cost += config.occdist_scale * worst
+    worst = np.maximum(inflation_cost(robots, ROBOT_RADIUS, config).max(axis=1),
+                       float(inflation_cost(np.array(current_robots), ROBOT_RADIUS, config)))
+    cost += config.robot_occdist_scale * worst
     cost += config.speed_bias * (config.max_vel_x - vs) / config.max_vel_x
     cost = np.where(valid, cost, np.inf)
     best = int(np.argmin(cost))

@@ -24,7 +24,7 @@ class FakeSim:
         self.events: list[Event] = []
         self.statuses: list[LtlStatus | StlStatus] = []
         self.transport.subscribe(keys.all_cmds(fleet), self._on_cmd)
-        self.transport.subscribe(keys.event(fleet), self._on_event)
+        self.transport.subscribe(keys.all_events(fleet), self._on_event)
         self.transport.subscribe(keys.all_statuses(fleet), self._on_status)
 
     def _on_cmd(self, _key: str, payload: bytes) -> None:
@@ -91,7 +91,8 @@ def stl_loop(network: FakeNetwork, fleet: str, agent, clock=None, stale_after: f
     transport = network.transport(f"agent{agent.robot_id}")
     extra = {"clock": clock} if clock is not None else {}
     malformed = MalformedCounter(f"agent/{agent.robot_id}", **extra)
-    link = CollabLink(transport, fleet, agent.robot_id, agent.cfg.peers, malformed, **extra)
+    link = CollabLink(transport, fleet, agent.robot_id, agent.cfg.peers, malformed,
+                      check=agent.collab_problem, **extra)
     core = StlCore(agent)
     loop = AgentLoop(transport, LoopConfig(fleet, agent.robot_id, 1, stale_after), core,
                      core.initial_state(), link=link, malformed=malformed, **extra)

@@ -30,7 +30,7 @@ class Wall:
 
 
 def published_events(net: FakeNetwork) -> list[Event]:
-    return [decode(Event, p) for k, p in net.published if k == keys.event(FLEET)]
+    return [decode(Event, p) for k, p in net.published if keys.parse_event(k) is not None]
 
 
 def test_replays_the_window_before_the_loss_and_after_it_when_the_coordinator_returns():
@@ -144,3 +144,37 @@ def test_the_recorder_keeps_each_event_once_after_a_replay(tmp_path):
     loop.close()
     assert CAPACITY >= 16  # an agent's burst around a resumption fits
     assert REMEMBERED >= 4 * CAPACITY  # the recorder remembers every original a replay repeats
+
+
+def test_start_up_events_are_published_again_at_the_start_and_recorded_once(tmp_path):
+    """An agent's ``plan_ready`` is made before the start, when its session may not yet know
+    the coordinator's subscriber (the original is then dropped): the loop publishes it again,
+    marked replayed, when ``Control(start)`` arrives; the recorder keeps one copy either way."""
+    from tlfleet.bus.protocol.codec import encode
+    from tlfleet.bus.protocol.messages import Control
+
+    for original_lost in (False, True):
+        net = FakeNetwork()
+        agent, coord = net.transport("agent"), net.transport("coordinator")
+        recorder = Recorder(tmp_path / f"run{original_lost}", [1])
+        tap = None if original_lost else RecorderTap(coord, FLEET, recorder)
+        loop = AgentLoop(agent, LoopConfig(FLEET, 1, 1, 0.5), core=None, state=None)
+        loop.open()
+        ready = Event(0.0, "agent/1", "plan_ready", {"prefix": ["a"], "suffix": ["b"]})
+        loop.publish_startup_event(ready)
+        if tap is None:  # the coordinator subscribes only now: the original is gone
+            tap = RecorderTap(coord, FLEET, recorder)
+        coord.publish(keys.control(FLEET), encode(Control("start")))
+        loop.run_once(0.0)
+        loop.run_once(0.0)
+        assert loop.started
+        sent = published_events(net)
+        assert [(e.kind, e.data.get(EVENT_REPLAYED, False)) for e in sent] == [
+            ("plan_ready", False), ("plan_ready", True)]
+        tap.drain()
+        recorder.close()
+        lines = [json.loads(x) for x in
+                 (tmp_path / f"run{original_lost}" / "events.jsonl").read_text().splitlines()]
+        assert [(x["kind"], x["data"].get(EVENT_REPLAYED, False)) for x in lines] == [
+            ("plan_ready", original_lost)]
+        loop.close()

@@ -182,7 +182,7 @@ def test_a_decimated_loop_with_heartbeat_notices_a_silent_simulator_within_stale
     loop.run_once(0.0)
     assert loop.stats.stale_episodes == 1 and loop.malformed.total == 1
     assert commands(network)[-1].u == (0.0, 0.0)
-    stale = [decode(Event, p) for k, p in network.published if k == keys.event(FLEET)
+    stale = [decode(Event, p) for k, p in network.published if keys.parse_event(k)
              if decode(Event, p).kind == "stale_mocap"]
     assert len(stale) == 1 and abs(stale[0].data["sim_silence"] - 0.16) < 1e-9
     assert abs(stale[0].data["silence"] - 0.25) < 1e-9

@@ -225,18 +225,23 @@ def test_malformed_collab_queries_are_rejected_and_counted():
     sim = FakeSim(network, scenario.fleet)
     loop, _ = stl_loop(network, scenario.fleet, build_agents(scenario, robots=[4])[4])
     asker = network.transport("asker")
-    key = keys.collab(scenario.fleet, 4)
+    key = keys.collab_from(scenario.fleet, 4, 3)  # robot 3's key to robot 4
     wrong = CollabMessage("status", 3, 5, 0.0, 0)  # addressed to robot 5
     no_funnel = CollabMessage("request", 3, 4, 0.0, 0)
     no_time = CollabMessage("status", 3, 4, float("nan"), 0)
-    for payload in (b"\x00\x01", encode(wrong), encode(no_funnel), encode(no_time)):
+    impostor = CollabMessage("status", 5, 4, 0.0, 0)  # robot 5's message on robot 3's key
+    for payload in (b"\x00\x01", encode(wrong), encode(no_funnel), encode(no_time),
+                    encode(impostor)):
         (reply,) = asker.query(key, payload, 0.1)
         answer = decode(CollabReply, reply)
         assert not answer.accepted and answer.reason
+    # well-formed, but for a sub-task robot 4 takes no part in: refused, counted, not malformed
+    (reply,) = asker.query(key, encode(CollabMessage("release", 3, 4, 0.0, 7)), 0.1)
+    assert not decode(CollabReply, reply).accepted and loop.link.refused == 1
     good = CollabMessage("status", 3, 4, 0.0, 0, c=0, task_kind="G", a=21.0, b=30.0)
     (reply,) = asker.query(key, encode(good), 0.1)
     assert decode(CollabReply, reply).accepted
-    assert loop.malformed.counts == {key: 4}
+    assert loop.malformed.counts == {key: 5}
     assert len(loop.link.inbox) == 1
     sim.control("start")
     poses = {r.id: r.pose for r in scenario.robots}

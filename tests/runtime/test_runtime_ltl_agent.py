@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from runtime_helpers import FakeSim
-from tlfleet.agent.ltl.buchi import buchi_step
+from tlfleet.agent.ltl.buchi import buchi_step, buchi_stutter_step
 from tlfleet.agent.nav.events import ReplanRequest
 from tlfleet.agent.runtime import ltl_agent
 from tlfleet.agent.runtime.config import AgentConfig
@@ -103,8 +103,9 @@ def test_ltl_agents_plan_drive_visit_and_report(scenario1):
 
 def test_buchi_tracking_reads_the_label_of_each_region_left(scenario1):
     """Unit check of the convention on Scenario 1's robot 1 (starts in a11; plan a11 a12 ·
-    (a12 a11 a12)^ω): arriving in a12 passes the plan's stay a12 → a12 at once, so the states are
-    those after reading a11's label, then a12's; they contain the plan's own Büchi state."""
+    (a12 a11 a12)^ω; docs/ltl-navigation.md §1): entering a region reads the label of the word's
+    previous letter, once or more (a robot may stay), so arriving in a12 the states are those
+    after a11's label, back in a11 after a12's; each time they contain the plan's own state."""
     core = LtlCore(scenario1, 1)
     plan = core.plan()
     assert plan.prefix == ("a11", "a12") and plan.suffix == ("a12", "a11", "a12")
@@ -120,12 +121,21 @@ def test_buchi_tracking_reads_the_label_of_each_region_left(scenario1):
     assert out.events[0].kind == "region_visited" and out.events[0].data["region"] == "a11"
     assert state.buchi_states == frozenset(core.buchi.initial)
     state, out = core.step(state, frame(0.2, *a12))
-    expected = buchi_step(core.buchi, buchi_step(core.buchi, frozenset(core.buchi.initial),
-                                                 {"a11"}), {"a12"})
-    assert plan.suffix_run[0][1] in expected
+    expected = buchi_stutter_step(core.buchi, frozenset(core.buchi.initial), {"a11"})
+    assert plan.prefix_run[1] == ("a12", next(iter(expected & {plan.prefix_run[1][1]})))
     assert [e.data["region"] for e in out.events if e.kind == "region_visited"] == ["a12"]
     assert state.buchi_states == expected
     assert out.status.buchi_states == tuple(sorted(expected))
+    # an independent check of the closure: reading a11 once, twice, three times
+    once = buchi_step(core.buchi, frozenset(core.buchi.initial), {"a11"})
+    thrice = buchi_step(core.buchi, buchi_step(core.buchi, once, {"a11"}), {"a11"})
+    assert once <= expected and thrice <= expected
+    state, out = core.step(state, frame(0.4, *a11))
+    back = buchi_stutter_step(core.buchi, expected, {"a12"})
+    assert [e.data["region"] for e in out.events if e.kind == "region_visited"] == ["a11"]
+    assert state.buchi_states == back
+    assert plan.suffix_run[1] == ("a11", next(iter(back & {plan.suffix_run[1][1]})))
+    assert back & core.buchi.accepting  # the cycle's accepting state was passed
 
 
 def test_a_replan_request_yields_a_new_plan_for_the_executor(scenario1):

@@ -1,5 +1,7 @@
-"""Every file of the broken-scenario corpus is rejected with a specific error: the
-file, the field path and the reason — never a traceback, never accepted."""
+"""Every file of the broken-scenario corpus is rejected by what ``tlfleet check`` and
+``tlfleet run`` both run — the loader, then every agent built as its process would
+(:func:`tlfleet.agent.policy.preflight.check_launch`) — with a specific error: the file, the
+field path and the reason; never a traceback, never accepted."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import re
 
 import pytest
 from broken_corpus import CASES
+from tlfleet.agent.policy.preflight import check_launch
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import ScenarioError
 
@@ -15,7 +18,7 @@ from tlfleet.bus.errors import ScenarioError
 def test_broken_file_gets_a_specific_error(case, tmp_path):
     path = case.make(tmp_path)
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
+        check_launch(load_scenario(path))
     error = info.value
     assert error.file == str(path)
     assert error.field == case.field, str(error)
@@ -28,6 +31,7 @@ def test_the_corpus_base_file_is_valid(tmp_path):
     path = tmp_path / "base.toml"
     path.write_text(BASE, encoding="utf-8")
     scenario = load_scenario(path)
+    check_launch(scenario)
     assert scenario.robot_ids == (1, 2, 3)
 
 

@@ -72,7 +72,7 @@ BAD = [
     ("regions.0.name", "A1", "regions[0].name", "'A1' is not a valid proposition name"),
     ("regions.0.name", "true", "regions[0].name", "'true' is not a valid proposition name"),
     ("regions.1.name", "a1", "regions[1]",
-     "duplicate region name 'a1' \\(first at regions\\[0\\]\\)"),
+     "duplicate region name 'a1' \\(first at regions\\[0\\]"),
     ("regions.0.center", [9.0, 0.0], "regions[0].center", "lies outside the arena"),
     ("regions.0.center", [1.0, "x"], "regions[0].center", "expected a list of 2 numbers"),
     ("regions.0.radius", -0.1, "regions[0].radius", "expected a positive number, got -0.1"),
@@ -82,24 +82,28 @@ BAD = [
     ("robots", [], "robots", "expected at least one \\[\\[robots\\]\\] table"),
     ("robots", DELETE, "robots", "missing, expected an array of tables"),
     ("robots.0.id", 0, "robots[0].id", "expected a positive integer, got 0"),
-    ("robots.1.id", 1, "robots[1]", "duplicate robot id 1 \\(first at robots\\[0\\]\\)"),
-    ("robots.1.kind", "tank", "robots[1].kind", "expected one of 'unicycle', 'omni', got 'tank'"),
-    ("robots.0.pose", [0.0, 0.0], "robots[0].pose", "expected a list of 3 numbers, got list"),
-    ("robots.0.pose", [0.0, math.nan, 0.0], "robots[0].pose", "expected finite numbers"),
-    ("robots.0.pose", [5.0, 0.0, 0.0], "robots[0].pose", r"position \(5.0, 0.0\) lies outside"),
-    ("robots.1.pose", [0.3, 0.0, 0.0], "robots[1].pose",
+    ("robots.1.id", 1, "robots[1]",
+     "duplicate robot id 1 \\(first at robots\\[0\\]: the 2nd \\[\\[robots\\]\\] table repeats "
+     "the 1st"),
+    ("robots.1.kind", "tank", "robots[id=2].kind",
+     "expected one of 'unicycle', 'omni', got 'tank'"),
+    ("robots.0.pose", [0.0, 0.0], "robots[id=1].pose", "expected a list of 3 numbers, got list"),
+    ("robots.0.pose", [0.0, math.nan, 0.0], "robots[id=1].pose", "expected finite numbers"),
+    ("robots.0.pose", [5.0, 0.0, 0.0], "robots[id=1].pose", r"position \(5.0, 0.0\) lies outside"),
+    ("robots.1.pose", [0.3, 0.0, 0.0], "robots[id=2].pose",
      "robot 2 starts 0.300 m from robot 1, closer than their radii allow"),
-    ("robots.0.stl", DELETE, "robots[0]", "expected a task"),
-    ("robots.0.stl", ["  "], "robots[0].stl[0]", "expected a non-empty STL formula"),
-    ("robots.0.stl", [1], "robots[0].stl[0]", "expected a string, got integer 1"),
-    ("robots.0.ltl", "F a1", "robots[0].stl", "either an `ltl` or an `stl` task, not both"),
-    ("robots.0.kind", "unicycle", "robots[0].stl", "STL tasks run on omni robots"),
-    ("robots.1.phase_start_times", [6.0, 7.0], "robots[1].phase_start_times",
+    ("robots.0.stl", DELETE, "robots[id=1]", "expected a task"),
+    ("robots.0.stl", ["  "], "robots[id=1].stl[0]", "expected a non-empty STL formula"),
+    ("robots.0.stl", [1], "robots[id=1].stl[0]", "expected a string, got integer 1"),
+    ("robots.0.ltl", "F a1", "robots[id=1].stl", "either an `ltl` or an `stl` task, not both"),
+    ("robots.0.kind", "unicycle", "robots[id=1].stl", "STL tasks run on omni robots"),
+    ("robots.1.phase_start_times", [6.0, 7.0], "robots[id=2].phase_start_times",
      "expected 1 times \\(one per sub-task after the first\\), got 2"),
-    ("robots.1.rho_opt", [0.1], "robots[1].rho_opt", "expected one value per STL sub-task \\(2\\)"),
-    ("robots.0.limits", {"max_v": 1.0}, "robots[0].limits.max_v", "unknown key 'max_v'"),
-    ("robots.0.limits", {"max_lin": -1.0}, "robots[0].limits.max_lin", "expected a positive"),
-    ("robots.0.colour", "red", "robots[0].colour", "unknown key 'colour'"),
+    ("robots.1.rho_opt", [0.1], "robots[id=2].rho_opt",
+     "expected one value per STL sub-task \\(2\\)"),
+    ("robots.0.limits", {"max_v": 1.0}, "robots[id=1].limits.max_v", "unknown key 'max_v'"),
+    ("robots.0.limits", {"max_lin": -1.0}, "robots[id=1].limits.max_lin", "expected a positive"),
+    ("robots.0.colour", "red", "robots[id=1].colour", "unknown key 'colour'"),
 ]
 
 
@@ -169,11 +173,11 @@ def test_toml_syntax_error_names_file_and_line(tmp_path: Path):
 def test_ltl_task_errors_name_the_robot_field(tmp_path: Path):
     data = mutated("robots.0", {"id": 1, "kind": "unicycle", "pose": [0.0, 0.0, 0.0],
                                 "ltl": "G F (a1 &"})
-    with pytest.raises(ScenarioError, match=r"robots\[0\].ltl: LTL syntax error at column"):
+    with pytest.raises(ScenarioError, match=r"robots\[id=1\].ltl: LTL syntax error at column"):
         parse_scenario(data, source="s.toml")
     data["robots"][0]["ltl"] = "G F a1 & G F a13"
     with pytest.raises(ScenarioError,
-                       match=r"robots\[0\].ltl: proposition 'a13' is carried by no region "
+                       match=r"robots\[id=1\].ltl: proposition 'a13' is carried by no region "
                              r"\(region labels: a1, a2\)"):
         parse_scenario(data, source="s.toml")
     data["robots"][0]["ltl"] = "G F a1 & G F a2"
@@ -182,7 +186,8 @@ def test_ltl_task_errors_name_the_robot_field(tmp_path: Path):
 
 def test_ltl_on_omni_robot_is_rejected():
     data = mutated("robots.0", {"id": 1, "kind": "omni", "pose": [0.0, 0.0, 0.0], "ltl": "F a1"})
-    with pytest.raises(ScenarioError, match=r"robots\[0\].ltl: LTL tasks run on unicycle robots"):
+    with pytest.raises(ScenarioError,
+                       match=r"robots\[id=1\].ltl: LTL tasks run on unicycle robots"):
         parse_scenario(data, source="s.toml")
 
 

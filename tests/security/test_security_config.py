@@ -188,23 +188,30 @@ def test_scenario1_coupling(scenario):
 
 
 @pytest.mark.parametrize("key, ok", [
-    (keys.cmd(F, 3), True), (keys.status(F, 3), True), (keys.event(F), True),
+    (keys.cmd(F, 3), True), (keys.status(F, 3), True), (keys.event(F, "agent", 3), True),
     (keys.cmd(F, 4), False), (keys.status(F, 4), False), (keys.control(F), False),
-    (keys.mocap(F), False), (keys.clock(F), False), (keys.collab(F, 4), False),
+    (keys.event(F, "agent", 4), False), (keys.event(F, "sim", 0), False),
+    (keys.event(F, "coordinator", 0), False),
+    (keys.mocap(F), False), (keys.clock(F), False), (keys.collab_from(F, 4, 3), False),
 ])
 def test_robot3_puts_only_its_own_keys(policy, key, ok):
     assert allowed(policy, "robot3", "ingress", "put", key) is ok
 
 
 def test_robot3_serves_only_its_collab_and_queries_only_coupled_robots(policy):
-    assert allowed(policy, "robot3", "ingress", "declare_queryable", keys.collab(F, 3))
-    assert not allowed(policy, "robot3", "ingress", "declare_queryable", keys.collab(F, 4))
-    assert not allowed(policy, "robot3", "ingress", "reply", keys.collab(F, 4))
-    assert allowed(policy, "robot3", "ingress", "query", keys.collab(F, 4))
-    assert not allowed(policy, "robot3", "ingress", "query", keys.collab(F, 5))  # not coupled
-    assert allowed(policy, "robot3", "egress", "query", keys.collab(F, 3))
-    assert not allowed(policy, "robot3", "egress", "query", keys.collab(F, 4))
-    assert not allowed(policy, "robot1", "ingress", "declare_queryable", keys.collab(F, 1))
+    """Robot 3 serves its ``collab/*`` and queries robot 4 on ``robot/4/collab/3`` only: the key
+    names the sender, so it cannot speak as robot 5 (robot 4 checks the message's sender)."""
+    served = keys.collab_all(F, 3)
+    assert allowed(policy, "robot3", "ingress", "declare_queryable", served)
+    assert allowed(policy, "robot3", "ingress", "reply", keys.collab_from(F, 3, 4))
+    assert not allowed(policy, "robot3", "ingress", "declare_queryable", keys.collab_all(F, 4))
+    assert not allowed(policy, "robot3", "ingress", "reply", keys.collab_from(F, 4, 3))
+    assert allowed(policy, "robot3", "ingress", "query", keys.collab_from(F, 4, 3))
+    assert not allowed(policy, "robot3", "ingress", "query", keys.collab_from(F, 4, 5))
+    assert not allowed(policy, "robot3", "ingress", "query", keys.collab_from(F, 5, 3))  # uncoupled
+    assert allowed(policy, "robot3", "egress", "query", keys.collab_from(F, 3, 4))
+    assert not allowed(policy, "robot3", "egress", "query", keys.collab_from(F, 4, 5))
+    assert not allowed(policy, "robot1", "ingress", "declare_queryable", keys.collab_all(F, 1))
 
 
 def test_robot3_token_and_subscriptions(policy):
@@ -215,24 +222,29 @@ def test_robot3_token_and_subscriptions(policy):
     for key in (keys.mocap(F), keys.clock(F), keys.control(F)):
         assert allowed(policy, "robot3", "ingress", "declare_subscriber", key)
         assert allowed(policy, "robot3", "egress", "put", key)
-    for key in (keys.cmd(F, 4), keys.status(F, 4), keys.event(F)):
+    for key in (keys.cmd(F, 4), keys.status(F, 4), keys.event(F, "agent", 4)):
         assert not allowed(policy, "robot3", "ingress", "declare_subscriber", key)
         assert not allowed(policy, "robot3", "egress", "put", key)
 
 
 def test_sim_and_coordinator(policy):
-    for key in (keys.mocap(F), keys.clock(F), keys.event(F)):
+    for key in (keys.mocap(F), keys.clock(F), keys.event(F, "sim", 0)):
         assert allowed(policy, "sim", "ingress", "put", key)
+    for key in (keys.event(F, "agent", 3), keys.event(F, "coordinator", 0)):
+        assert not allowed(policy, "sim", "ingress", "put", key)
+    assert allowed(policy, "coordinator", "ingress", "put", keys.event(F, "coordinator", 0))
+    assert not allowed(policy, "coordinator", "ingress", "put", keys.event(F, "sim", 0))
     assert not allowed(policy, "sim", "ingress", "put", keys.cmd(F, 3))
     assert not allowed(policy, "sim", "ingress", "put", keys.control(F))
     assert allowed(policy, "sim", "egress", "put", keys.cmd(F, 4))
     assert allowed(policy, "coordinator", "ingress", "put", keys.control(F))
     assert not allowed(policy, "coordinator", "ingress", "put", keys.cmd(F, 3))
     assert not allowed(policy, "coordinator", "ingress", "put", keys.mocap(F))
-    for key in (keys.cmd(F, 3), keys.status(F, 5), keys.mocap(F), keys.event(F)):
+    for key in (keys.cmd(F, 3), keys.status(F, 5), keys.mocap(F), keys.event(F, "sim", 0),
+                keys.event(F, "agent", 3)):
         assert allowed(policy, "coordinator", "egress", "put", key)
     assert not allowed(policy, "router", "ingress", "put", keys.control(F))
-    assert not allowed(policy, "mallory", "ingress", "put", keys.event(F))
+    assert not allowed(policy, "mallory", "ingress", "put", keys.event(F, "sim", 0))
 
 
 def test_only_the_sim_serves_the_backfill_and_only_the_coordinator_asks_for_it(policy):
@@ -255,7 +267,7 @@ def test_a_router_mesh_lets_the_routers_forward_everything_of_the_fleet_only():
     mesh = access_control(fleet_grants(scenario, mesh=True))
     for flow, message, key in (("ingress", "put", keys.control(F)),
                                ("egress", "put", keys.cmd(F, 3)),
-                               ("ingress", "query", keys.collab(F, 4)),
+                               ("ingress", "query", keys.collab_from(F, 4, 3)),
                                ("ingress", "liveliness_token", keys.alive(F, "agent", 3))):
         assert allowed(mesh, "router", flow, message, key)
     assert not allowed(mesh, "router", "ingress", "put", "tlfleet/otherfleet/control")

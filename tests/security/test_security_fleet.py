@@ -170,11 +170,11 @@ class Rogue(Hostile):
 
     def attack(self, session) -> None:
         self.wait_for_fleet(session)
-        collab4 = keys.collab(F, 4)
+        collab4 = keys.collab_all(F, 4)
 
         def answer(query) -> None:
             self.served += 1
-            query.reply(collab4, encode(CollabReply(True)))
+            query.reply(query.key_expr, encode(CollabReply(True)))
 
         session.declare_queryable(collab4, answer)
         session.liveliness().declare_token(keys.alive(F, "agent", 4))
@@ -225,7 +225,7 @@ def test_rogue_robot3_cannot_drive_robot4_stop_the_fleet_or_serve_robot4(
     log = (tmp_path / "run" / "logs" / "router.log").read_text()
     for denial in (f"robot3 Put (ingress) on {keys.cmd(F, 4)}",
                    f"robot3 Put (ingress) on {keys.control(F)}",
-                   f"robot3 Declare Queryable (ingress) on {keys.collab(F, 4)}",
+                   f"robot3 Declare Queryable (ingress) on {keys.collab_all(F, 4)}",
                    f"robot3 Liveliness Token (ingress) on {keys.alive(F, 'agent', 4)}"):
         assert f"ACL denied: {denial}" in log, log
     # the real fleet was never denied anything
@@ -279,6 +279,82 @@ def test_plain_ignores_nothing(plain):
     of the wrong seq."""
     ignored = sim_ignored(plain.run_dir)
     assert ignored.get("duplicate", 0) == 0 and ignored.get("wrong_seq", 0) == 0, ignored
+
+
+#: what robot 3's certificate forges: every kind the simulator makes, and agent events of
+#: another robot (kind, claimed source, data)
+FORGED = (
+    ("sim_done", "sim", {"ticks": 1}),
+    ("sim_stats", "sim", {"ticks": 3000, "due": 100_000, "missed": 0, "ignored": {}}),
+    ("contact", "sim", {"a": 4, "b": 5}),
+    ("contact", "sim", {"a": 4, "b": "wall", "what": "wall"}),
+    ("watchdog_stop", "sim", {"robot": 4, "last_command_t": 0.0}),
+    ("deadline_miss", "sim", {"robot": 4, "seq": 10, "count": 1000}),
+    ("stale_command", "sim", {"robot": 4, "command_t": 0.0}),
+    ("repair", "agent/4", {"stage": 3, "r": 0.0, "subtask": 0}),
+    ("subtask_done", "agent/4", {"subtask": 0, "satisfied": False, "r": 0.0}),
+)
+
+
+class Forger(Hostile):
+    """Publishes every forged event of :data:`FORGED` twice a second of wall time: on robot 3's
+    own event key (claiming another source), and on the simulator's and robot 4's keys (which the
+    router must refuse)."""
+
+    def __init__(self, keydir: Path):
+        super().__init__(keydir)
+        self.sent: dict[str, int] = {}
+
+    def attack(self, session) -> None:
+        self.wait_for_fleet(session)
+        own, theirs = keys.event(F, "agent", 3), (keys.event(F, "sim", 0),
+                                                  keys.event(F, "agent", 4))
+        publishers = {key: session.declare_publisher(key) for key in (own, *theirs)}
+        t = 1.0
+        while not self.stop.wait(0.5):
+            for kind, source, data in FORGED:
+                for key, publisher in publishers.items():
+                    publisher.put(encode(Event(t, source, kind, data)))
+                    self.sent[key] = self.sent.get(key, 0) + 1
+            t += 1.0
+
+
+def test_robot3_forges_no_event_of_any_kind(fleet_keys, tmp_path):
+    """Issue: every identity wrote the one ``event`` key and the source was whatever the payload
+    claimed; robot 3's certificate got 6 of 8 forged events recorded as genuine and replaced the
+    simulator's end-of-run statistics. Now each identity writes only its own key."""
+    forger = Forger(fleet_keys.path)
+    try:
+        result = fleet_run(tmp_path / "run", fleet_keys.path, forger.on_endpoint, max_speed=4.0)
+    finally:
+        forger.stop.set()
+        forger.join(30)
+    assert forger.error is None, repr(forger.error)
+    own = keys.event(F, "agent", 3)
+    assert forger.sent.get(own, 0) >= 5 * len(FORGED), forger.sent  # ≥ 5 rounds in the run
+    recorded = events(tmp_path / "run")
+    # nothing forged recorded as genuine: the simulator's events are its own (one sim_stats, its
+    # real counts), robot 4's events have none of the forged values
+    stats = [e for e in recorded if e["kind"] == "sim_stats"]
+    assert len(stats) == 1 and stats[0]["source"] == "sim"
+    assert stats[0]["data"]["due"] != 100_000 and stats[0]["data"]["ticks"] > 2000
+    done = [e for e in recorded if e["kind"] == "sim_done"]
+    assert len(done) <= 1 and all(e["data"]["ticks"] > 2000 for e in done)
+    for kind in ("contact", "watchdog_stop", "deadline_miss", "stale_command"):
+        assert not [e for e in recorded if e["kind"] == kind], kind
+    assert not [e for e in recorded if e["source"] == "agent/4"
+                and e["kind"] in ("repair", "subtask_done") and e["data"].get("r") == 0.0]
+    flagged = [e for e in recorded if e["kind"] == "flagged_event"]
+    assert flagged and all(e["data"]["key"].endswith("event/agent/3") for e in flagged)
+    assert len(flagged) >= 5 * len(FORGED)  # forgeries on its own key, each named as such
+    log = (tmp_path / "run" / "logs" / "router.log").read_text()
+    for key in (keys.event(F, "sim", 0), keys.event(F, "agent", 4)):
+        assert f"ACL denied: robot3 Put (ingress) on {key}" in log, log
+    # the mission ran to its end; the only degradation is the flagged forgeries
+    assert result.outcome.reason in ("duration", "sim_done")
+    assert result.outcome.t_end >= result.info["duration"] - 0.02
+    assert result.verdict.label == "degraded", result.verdict.line
+    assert all("flagged event" in r for r in result.verdict.reasons), result.verdict.reasons
 
 
 def _rubbish(rng: random.Random, depth: int = 0):
@@ -362,8 +438,10 @@ def valid_examples() -> dict[str, tuple[bytes, tuple[type, ...]]]:
     return {
         keys.cmd(F, 3): (encode(Command(3, 1.0, 100, (0.1, 0.0, 0.0))), (Command,)),
         keys.status(F, 3): (STATUS, (StlStatus, LtlStatus)),
-        keys.event(F): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})), (Event,)),
-        keys.collab(F, 4): (encode(CollabMessage("release", 3, 4, 1.0, 0)), (CollabMessage,)),
+        keys.event(F, "agent", 3): (encode(Event(1.0, "agent/3", "repair", {"stage": 1})),
+                                    (Event,)),
+        keys.collab_from(F, 4, 3): (encode(CollabMessage("release", 3, 4, 1.0, 0)),
+                                    (CollabMessage,)),
     }
 
 
@@ -387,14 +465,14 @@ class Fuzzer(Hostile):
         in_flight = threading.Semaphore(IN_FLIGHT)
         started = time.monotonic()
         for key, payloads in self.payloads.items():
-            if key.endswith("/collab"):
+            if "/collab/" in key:
                 continue
             pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
             for payload in payloads:
                 pub.put(payload)
                 self.sent[key] += 1
         self.seconds["puts"] = time.monotonic() - started
-        collab = keys.collab(F, 4)
+        collab = keys.collab_from(F, 4, 3)
 
         def on_reply(reply) -> None:
             if reply.ok is not None:
@@ -469,7 +547,7 @@ def test_the_coordinator_counts_every_malformed_status_and_event(fuzzed):
 
 def test_robot4_counts_and_rejects_every_malformed_collab_query(fuzzed):
     result, fuzzer, crashes = fuzzed
-    assert crashes[keys.collab(F, 4)] == []
+    assert crashes[keys.collab_from(F, 4, 3)] == []
     stats4 = [e["data"] for e in events(result.run_dir)
               if e["kind"] == "agent_stats" and e["source"] == "agent/4"]
     assert stats4 and stats4[0]["malformed"] == FUZZ_PER_KEY

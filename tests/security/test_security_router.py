@@ -121,9 +121,9 @@ def test_robot3s_certificate_cannot_command_robot4_send_control_or_serve_robot4(
         # interest is still on its way was missed about 1 run in 10 (a zenoh race, not the ACL)
         assert wait_until(lambda: keys.alive(FLEET, "router", 0) in alive.seen(), 15.0)
         time.sleep(0.2)
-        collab4 = keys.collab(FLEET, 4)
-        real4 = robot4.declare_queryable(collab4, lambda q: q.reply(collab4, b"robot4"))
-        rogue.declare_queryable(collab4, lambda q: q.reply(collab4, b"rogue"))
+        collab4 = keys.collab_all(FLEET, 4)  # robot 4's queryable: every sender's key
+        real4 = robot4.declare_queryable(collab4, lambda q: q.reply(q.key_expr, b"robot4"))
+        rogue.declare_queryable(collab4, lambda q: q.reply(q.key_expr, b"rogue"))
         rogue.liveliness().declare_token(keys.alive(FLEET, "agent", 4))
         rogue.liveliness().declare_token(keys.alive(FLEET, "agent", 3))
         time.sleep(0.5)  # declarations reach the router
@@ -145,11 +145,14 @@ def test_robot3s_certificate_cannot_command_robot4_send_control_or_serve_robot4(
         assert wait_until(lambda: keys.alive(FLEET, "agent", 3) in alive.seen(), 15.0)
         assert keys.alive(FLEET, "agent", 4) not in alive.seen()
 
-        # robot 5 (coupled with 4) reaches robot 4's queryable, never the rogue's
-        assert replies(robot5, collab4) == [b"robot4"]
+        # robot 5 (coupled with 4) reaches robot 4's queryable on its own key, never the
+        # rogue's; on robot 3's key it reaches nothing (it may query only its own)
+        from5 = keys.collab_from(FLEET, 4, 5)
+        assert replies(robot5, from5) == [b"robot4"]
+        assert replies(robot5, keys.collab_from(FLEET, 4, 3)) == []
         real4.undeclare()
         time.sleep(0.3)
-        assert replies(robot5, collab4) == []
+        assert replies(robot5, from5) == []
     finally:
         for session in sessions:
             session.close()

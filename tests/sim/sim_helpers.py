@@ -108,7 +108,7 @@ class Observer:
         self.frame_bytes: list[bytes] = []
         self.events: list[Event] = []
         self.transport.subscribe(keys.mocap(FLEET), self._on_frame)
-        self.transport.subscribe(keys.event(FLEET), self._on_event)
+        self.transport.subscribe(keys.all_events(FLEET), self._on_event)
 
     def _on_frame(self, _key: str, payload: bytes) -> None:
         with self._cond:

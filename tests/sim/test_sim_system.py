@@ -87,7 +87,7 @@ def test_sim_process_publishes_frames_and_stops_cleanly(how):
                 if events[-1].kind == "sim_done":
                     done.set()
 
-            transport.subscribe(keys.event(fleet), on_event)
+            transport.subscribe(keys.all_events(fleet), on_event)
             deadline = time.monotonic() + 10
             while not done.is_set() and time.monotonic() < deadline:
                 transport.publish(keys.control(fleet), encode(Control("start")))

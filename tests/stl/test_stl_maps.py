@@ -161,13 +161,13 @@ def test_a_05_m_rendezvous_between_02_m_robots(coupled_radii):
 def test_check_rejects_bodies_asked_to_overlap_and_warns_inside_the_radius():
     robots = [omni(2, (-2.0, 0.0, 0.0), "F[5,25] (dist(p2, p3) <= 0.3)"),
               omni(3, (1.0, 0.0, 0.0), "F[0,2] (dist(p3, [1, 0]) <= 0.3)")]
-    with pytest.raises(ScenarioError, match=r"robots\[0\]\.stl\[0\].*'dist\(p2, p3\) <= 0.3' "
+    with pytest.raises(ScenarioError, match=r"robots\[id=2\]\.stl\[0\].*'dist\(p2, p3\) <= 0.3' "
                                             r"asks robots 2 and 3 to be closer than their "
                                             r"bodies allow"):
         parse_scenario(scenario(robots), source="maps.toml")
     robots[0]["stl"] = ["F[5,25] (dist(p2, p3) <= 0.45)"]
     warnings = stl_warnings(parse_scenario(scenario(robots)))
-    assert any("robots[0].stl[0]" in w and "mutual avoidance radius R = 0.48 m" in w
+    assert any("robots[id=2].stl[0]" in w and "mutual avoidance radius R = 0.48 m" in w
                for w in warnings), warnings
 
 
@@ -190,7 +190,7 @@ def test_check_names_the_sub_tasks_of_an_infeasible_sequence():
     # the first disc is met at t ≥ 4 s (0.8 m); from it to the second: 3.5 − 0.4 m at 0.2 m/s,
     # 15.5 s: 19.5 s > 18 s
     (bad,) = [w for w in warnings if "infeasible" in w]
-    assert bad.startswith("robots[0].stl[0] -> stl[1]") and "by t = 18 s" in bad
+    assert bad.startswith("robots[id=1].stl[0] -> stl[1]") and "by t = 18 s" in bad
     assert "t >= 4 s" in bad and "needs at least 15." in bad
     tasks[1] = "G[18,30] (dist(p1, [1, 0]) <= 0.2)"  # 1.6 m: 8 s, feasible
     assert not [w for w in stl_warnings(parse_scenario(
@@ -198,7 +198,7 @@ def test_check_names_the_sub_tasks_of_an_infeasible_sequence():
     far = ["F[0,5] (dist(p1, [2, 0]) <= 0.2)"]  # 3.8 m in 5 s from the start
     (bad,) = [w for w in stl_warnings(parse_scenario(
         scenario([omni(1, (-2.0, 0.0, 0.0), *far)]))) if "infeasible" in w]
-    assert bad.startswith("robots[0].stl[0]: ") and "from its start pose" in bad
+    assert bad.startswith("robots[id=1].stl[0]: ") and "from its start pose" in bad
 
 
 # --------------------------------------------------------------------------- least violation

@@ -23,7 +23,8 @@ Prefix = Callable[[str], Sequence[str]]  # process name -> argv prefix
 
 def start_by_hand(launcher: Launcher, scenario: Path, listen: str, connect: str | None = None,
                   *, prefix: Prefix = lambda name: (), sim_args: Sequence[str] = (),
-                  wait_host: str | None = "127.0.0.1", common: Sequence[str] = ()) -> None:
+                  agent_args: Sequence[str] = (), wait_host: str | None = "127.0.0.1",
+                  common: Sequence[str] = ()) -> None:
     """Router listening on ``listen``; sim and agents connecting to ``connect`` (default the
     same endpoint); ``common``: flags every process gets (``--secure DIR``)."""
     fleet = load_scenario(scenario).fleet
@@ -37,7 +38,8 @@ def start_by_hand(launcher: Launcher, scenario: Path, listen: str, connect: str 
     for robot in sorted(load_scenario(scenario).robot_ids):
         name = f"agent-{robot}"
         launcher.start(name, [*prefix(name), *tlfleet_command(
-            "agent", str(scenario), "--robot", str(robot), "--connect", connect, *common)])
+            "agent", str(scenario), "--robot", str(robot), "--connect", connect, *agent_args,
+            *common)])
 
 
 def supervise(scenario: Path, connect: str, out: Path, *args: str, prefix: Sequence[str] = (),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -36,7 +37,12 @@ def test_run_prints_the_summary_and_the_run_directory(tmp_path):
     figures = sorted(run_dir.glob("*.png"))
     assert figures and all(f"figure:  {path}" in out for path in figures)
     assert f"rerun:   {run_dir / 'run.rrd'}" in out
-    assert out.rstrip().endswith(f"run directory: {run_dir}")
+    last = out.rstrip().splitlines()
+    assert last[-3] == f"run directory: {run_dir}"
+    tasks = json.loads((run_dir / "run.json").read_text())["tasks"]
+    assert last[-2] == tasks["line"] and last[-2].startswith("tasks: ")
+    assert last[-1].startswith("outcome: clean")
+    assert (run_dir / "summary.txt").read_text().rstrip().splitlines()[-2:] == last[-2:]
     assert "\r[" not in err  # stderr is not a terminal: no progress bar
     assert (run_dir / "summary.txt").read_text().startswith("run two_robots")
     assert leftover_in_groups(tmp_path / "run") == []

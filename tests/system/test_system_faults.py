@@ -126,18 +126,19 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
     wait_until_started(run_dir, 1.0)
     endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
     intruder = open_transport(TransportConfig(mode="client", connect=(endpoint,)))
-    targets = [keys.mocap(fleet), keys.clock(fleet), keys.control(fleet), keys.event(fleet)]
+    targets = [keys.mocap(fleet), keys.clock(fleet), keys.control(fleet),
+               keys.event(fleet, "sim", 0)]
     for robot in (1, 2):
         targets += [keys.cmd(fleet, robot), keys.status(fleet, robot)]
     try:
         for _ in range(3):
             for key in targets:
                 for payload in GARBAGE:
-                    if payload == GARBAGE[-1] and key == keys.event(fleet):
+                    if payload == GARBAGE[-1] and key == keys.event(fleet, "sim", 0):
                         continue  # a valid Event on the event key is not malformed
                     intruder.publish(key, payload)
             for payload in GARBAGE:
-                intruder.query(keys.collab(fleet, 2), payload, timeout=0.5)
+                intruder.query(keys.collab_from(fleet, 2, 1), payload, timeout=0.5)
             time.sleep(0.3)
     finally:
         intruder.close()
@@ -150,3 +151,46 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
     assert result.summary["deadlines"]["malformed"] == sum(malformed.values())
     assert "malformed messages:" in result.summary_text
     assert leftover_in_groups(run_dir) == []
+
+
+@pytest.mark.parametrize("paused", [1.5, 12.0], ids=["short-pause", "past-the-exit-grace"])
+def test_a_forged_sim_done_during_a_pause_never_reads_clean(tmp_path, paused):
+    """The issue's attack on an unsecured lockstep fleet: an agent withholds its command (here:
+    SIGSTOP), the frames pause, and any local process publishes a ``sim_done`` claiming to be
+    the simulator's. It used to end the run at once, ``clean``. Now the run waits for the
+    simulator to end: after a short pause the frames go on and the forgery is flagged; after a
+    pause longer than the supervisor's ``sim_exit_grace`` the run does end, and the verdict,
+    which compares the end with the duration, says it failed."""
+    run_dir = tmp_path / "run"
+    bg = Background(scenario=TWO, out=run_dir, mode="lockstep", duration=20.0,
+                    tick_timeout=paused + 10.0, sim_args=("--max-speed", "2"), rrd=False,
+                    report=False, lease_ms=30_000)  # the paused agent's link outlives the pause
+    wait_until_started(run_dir, 3.0)
+    agent = agent_process(1)
+    endpoint = json.loads((run_dir / "run.json").read_text())["endpoint"]
+    forger = open_transport(TransportConfig(mode="client", connect=(endpoint,)))
+    try:
+        agent.send_signal(signal.SIGSTOP)
+        time.sleep(0.7)  # the fleet waits for robot 1's command: no frame for 0.5 s and more
+        fleet = load_scenario(TWO).fleet
+        # no tick count: one that the frames recorded contradict is flagged at once
+        forger.publish(keys.event(fleet, "sim", 0), encode(Event(20.0, "sim", "sim_done", {})))
+        time.sleep(paused - 0.7)
+    finally:
+        agent.send_signal(signal.SIGCONT)
+        forger.close()
+    result = bg.join(180.0)
+    assert result.verdict.label != "clean", result.verdict.line
+    end = result.verdict.end
+    assert end is not None and f"of {end.duration:g} s" in result.verdict.line
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["outcome"]["end"] == {"t": result.outcome.t_end, "duration": 20.0,
+                                      "reason": result.outcome.reason}
+    if paused < 10.0:  # the frames went on: the forgery is flagged, the run reaches its end
+        assert result.outcome.t_end == pytest.approx(20.0)
+        assert any(e["kind"] == "flagged_event" and e["data"].get("claimed_kind") == "sim_done"
+                   for e in events(run_dir))
+        assert result.verdict.label == "degraded"
+    else:
+        assert result.outcome.t_end < 10.0 and result.verdict.label == "failed"
+        assert any("before its duration" in r for r in result.verdict.reasons)

@@ -100,7 +100,7 @@ def fleet_keys(fleet: str) -> list[tuple[str, str]]:
     # robot 1 (LTL, 5 Hz) reads only the frames it can be due for
     targets = [("mocap", keys.mocap(fleet)), ("mocap_every", keys.mocap_every(fleet, 20)),
                ("clock", keys.clock(fleet)),
-               ("control", keys.control(fleet)), ("event", keys.event(fleet))]
+               ("control", keys.control(fleet)), ("event", keys.event(fleet, "sim", 0))]
     for robot in (1, 2):
         targets += [("cmd", keys.cmd(fleet, robot)), ("status", keys.status(fleet, robot))]
     return targets
@@ -130,7 +130,8 @@ def test_fuzzing_every_key_of_a_lockstep_fleet_crashes_nothing_and_changes_nothi
     try:
         queries = 0
         for _ in range(20):  # every hostile query is answered (a rejection), none crashes
-            replies = intruder.query(keys.collab(fleet, 2), hostile(rng, "collab"), timeout=2.0)
+            replies = intruder.query(keys.collab_from(fleet, 2, 1), hostile(rng, "collab"),
+                                     timeout=2.0)
             queries += 1
             assert replies, "the collaboration queryable stopped answering"
         for i in range(PAYLOADS):

@@ -34,7 +34,9 @@ def test_publisher_of_follows_the_key_functions() -> None:
              keys.mocap_every(fleet, 20, 3): "sim", keys.mocap_at(fleet, 2): "sim",
              keys.sim_backfill(fleet): "sim", keys.cmd(fleet, 4): "robot4",
              keys.status(fleet, 12): "robot12", keys.collab(fleet, 3): "robot3",
-             keys.control(fleet): "coordinator", keys.event(fleet): "any",
+             keys.control(fleet): "coordinator", keys.event(fleet, "sim", 0): "sim",
+             keys.event(fleet, "agent", 3): "robot3",
+             keys.event(fleet, "coordinator", 0): "coordinator",
              keys.alive(fleet, "agent", 3): "agent 3", keys.alive(fleet, "sim", 0): "sim 0",
              "other/thing": "?", "tlfleet/f1/unknown": "?"}
     for key, who in table.items():
@@ -52,9 +54,9 @@ def test_sample_line_decodes_every_kind() -> None:
     line = sample_line(keys.cmd("f", 2), encode(command), 1.0)
     assert line["kind"] == "Command" and line["from"] == "robot2"
     assert line["msg"]["u"] == [0.1, -0.2, 0.0]
-    event = Event(t=2.0, source="robot3", kind="repair", data={"stage": 2, "x": math.inf})
-    line = sample_line(keys.event("f"), encode(event), 1.0)
-    assert line["from"] == "robot3"  # events name their sender
+    event = Event(t=2.0, source="agent/3", kind="repair", data={"stage": 2, "x": math.inf})
+    line = sample_line(keys.event("f", "agent", 3), encode(event), 1.0)
+    assert line["from"] == "robot3"  # an event key names its publisher
     assert line["msg"]["data"] == {"stage": 2, "x": "inf"}
     json.dumps(line)
 
