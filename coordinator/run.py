@@ -344,6 +344,8 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     except BaseException:
         if viewer is not None:
             Cleanup().step("viewer", viewer.close)
+        if prepared.lock is not None:
+            prepared.lock.release()
         raise
     finally:
         if schedule is not None:  # restore every fault before anything is stopped
