@@ -82,5 +82,13 @@ bench: $(VENV)/.installed-test
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
 
+# Everything a build, a test or a compose run leaves, but the source tree and runs/ (results, not
+# caches: yours to keep or remove): the venv, build/ (dist/ and the API page), the extensions built
+# in place, the tools' caches, and docker/clean.sh's part (docker/wheels, the images, the private
+# dockerd's work directory with its build cache).
 clean:
-	rm -rf $(VENV) build *.egg-info bench/results
+	rm -rf $(VENV) build *.egg-info bench/results .pytest_cache .hypothesis .ruff_cache
+	find . -name __pycache__ -prune -exec rm -rf {} +
+	rm -f sim/_tracking*.so sim/_tracking.c sim/_tracking.o agent/nav/_dwa*.so agent/nav/_dwa.c \
+	      agent/nav/_dwa.o bus/protocol/_wire*.so
+	bash docker/clean.sh

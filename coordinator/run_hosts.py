@@ -52,7 +52,7 @@ from tlfleet.coordinator.launch.netns_hosts import (
 )
 from tlfleet.coordinator.launch.plan import PlanConfig, ProcessSpec, by_name, plan_fleet
 from tlfleet.coordinator.launch.processes import Launcher, tlfleet_command
-from tlfleet.coordinator.record.rundir import default_run_dir
+from tlfleet.coordinator.record.rundir import CLAIMED_ENV, claim_run_dir, default_run_dir
 
 #: [s] wall an interrupted ``tlfleet supervise`` gets to stop the fleet and write the run
 #: directory (its clean-up steps are bounded: tlfleet.coordinator.launch.cleanup) before it is
@@ -61,16 +61,18 @@ SUPERVISE_GRACE = 30.0
 
 
 def supervise_until_done(argv: Sequence[str], capture: bool, stop: threading.Event | None,
-                         grace: float = SUPERVISE_GRACE, poll: float = 0.2
-                         ) -> subprocess.CompletedProcess:
+                         grace: float = SUPERVISE_GRACE, poll: float = 0.2,
+                         run_dir: Path | None = None) -> subprocess.CompletedProcess:
     """Run ``tlfleet supervise`` (``argv``) to its end. When ``stop`` is set, interrupt it once
     with SIGINT, as Ctrl-C would (it ends the mission, records the verdict *interrupted* and
     writes its files), and kill it if it is still running ``grace`` [s] later. It runs in a
     session of its own, so a terminal's Ctrl-C reaches it only through this (once)."""
     pipe = subprocess.PIPE if capture else None
+    env = tie_to_this_process(dict(os.environ))
+    if run_dir is not None:  # claimed by this launcher, which wrote logs/ into it first
+        env[CLAIMED_ENV] = str(Path(run_dir).resolve())
     process = subprocess.Popen(list(argv), stdout=pipe, stderr=pipe, text=True,
-                               start_new_session=True,
-                               env=tie_to_this_process(dict(os.environ)))
+                               start_new_session=True, env=env)
     interrupted_at: float | None = None
     out = err = None
     try:
@@ -149,7 +151,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     launcher = Launcher(run_dir / "logs")
     done: subprocess.CompletedProcess | None = None
     codes: dict[str, int | None] = {}
-    run_dir.mkdir(parents=True, exist_ok=True)
+    lock = claim_run_dir(run_dir)  # never overwrite a run; its supervise inherits the claim
     router_conf = run_dir / "logs" / "router.json5"
     router_conf.parent.mkdir(parents=True, exist_ok=True)
     # explicit router mesh only: no gossip, so no router links another over a process's port
@@ -230,7 +232,8 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
             coordinator = replace(coordinator.placed(connect=(endpoint_of("coordinator"),)),
                                   tail=(*plan, *supervise_args))
             done = supervise_until_done([*net.exec_prefix(0),
-                                         *tlfleet_command(*coordinator.argv())], capture, stop)
+                                         *tlfleet_command(*coordinator.argv())], capture, stop,
+                                        run_dir=run_dir)
             launcher.wait_all(5.0)  # sim and agents exit by themselves after Control(stop)
         finally:
             if injecting:  # what `restart:` started again, as a child of supervise
@@ -240,14 +243,17 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
             codes = launcher.stop_all(kill_grace)
             if own_keys is not None:
                 shutil.rmtree(own_keys, ignore_errors=True)
-    info_path = run_dir / "run.json"
-    if info_path.is_file():
-        info = json.loads(info_path.read_text())
-        if own_keys is not None:
-            info["keys"] = "generated for this run in a private temporary directory, deleted"
-        info.update(hosts=placement.as_dict(), host_exit_codes=codes,
-                    addresses={net.name(h): net.address(h) for h in range(hosts)})
-        info_path.write_text(json.dumps(info, indent=2, default=str) + "\n")
+    try:
+        info_path = run_dir / "run.json"
+        if info_path.is_file():
+            info = json.loads(info_path.read_text())
+            if own_keys is not None:
+                info["keys"] = "generated for this run in a private temporary directory, deleted"
+            info.update(hosts=placement.as_dict(), host_exit_codes=codes,
+                        addresses={net.name(h): net.address(h) for h in range(hosts)})
+            info_path.write_text(json.dumps(info, indent=2, default=str) + "\n")
+    finally:
+        lock.release()
     assert done is not None
     return HostsRun(run_dir, done.returncode, placement, codes,
                     done.stdout or "", done.stderr or "", own_keys)

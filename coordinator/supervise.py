@@ -56,7 +56,12 @@ from tlfleet.coordinator.live.verdict import (
     mission_event_kinds,
 )
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
-from tlfleet.coordinator.record.rundir import RunFiles, default_run_dir
+from tlfleet.coordinator.record.rundir import (
+    RunDirLock,
+    RunFiles,
+    claim_run_dir,
+    default_run_dir,
+)
 from tlfleet.coordinator.record.trust import RecordCheck
 from tlfleet.coordinator.report.outputs import OutputSettings, write_outputs
 from tlfleet.coordinator.report.task_tally import TASKS_NOT_MET, TaskTally
@@ -113,6 +118,7 @@ class PreparedRun:
     recorder: Recorder
     info: dict[str, Any]  # run.json, rewritten as the run goes on
     duration: float  # [s] sim time
+    lock: RunDirLock | None = None  # the claim on run_dir, released when the run is written
 
 
 @dataclass
@@ -167,8 +173,13 @@ def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mo
     run directory with ``scenario.toml`` and the first ``run.json``."""
     total = float(duration or scenario.duration)
     run_dir = Path(out) if out else default_run_dir(scenario.name)
-    recorder = Recorder(run_dir, [r.id for r in scenario.robots])
-    recorder.copy_scenario(Path(scenario_path))
+    lock = claim_run_dir(run_dir)  # RunDirectoryError: never overwrite a run, one run at once
+    try:
+        recorder = Recorder(run_dir, [r.id for r in scenario.robots])
+        recorder.copy_scenario(Path(scenario_path))
+    except BaseException:
+        lock.release()
+        raise
     info: dict[str, Any] = {
         "scenario": scenario.name, "scenario_path": str(scenario_path),
         "mode": mode, "duration": total,
@@ -184,7 +195,7 @@ def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mo
     if lease_ms:
         info["lease_ms"] = lease_ms
     recorder.write_run_info(info)
-    return PreparedRun(scenario, run_dir, recorder, info, total)
+    return PreparedRun(scenario, run_dir, recorder, info, total, lock)
 
 
 def tap_checks(scenario: Scenario, duration: float) -> dict[str, Any]:
@@ -345,9 +356,13 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
                         tolerance=END_TOLERANCE / prepared.scenario.sim.mocap_rate,
                         sim_reached=outcome.sim_reached)
 
-    text, data, report, rrd, verdict, tally = write_outputs(
-        prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note, say,
-        judge=judge)
+    try:
+        text, data, report, rrd, verdict, tally = write_outputs(
+            prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note,
+            say, judge=judge)
+    finally:
+        if prepared.lock is not None:
+            prepared.lock.release()
     return RunResult(prepared.run_dir, outcome, final, clean, text, data, info, report, rrd,
                      viewer, verdict, tally)
 
@@ -385,13 +400,16 @@ def open_client(config: TransportConfig, timeout: float,
 def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None,
                     progress: Callable[[float, float], None] | None = None,
                     report: Say | None = None,
-                    waiting: Callable[[list[str]], None] | None = None) -> RunResult:
+                    waiting: Callable[[list[str]], None] | None = None,
+                    scenario: Scenario | None = None) -> RunResult:
     """``tlfleet supervise``: join the fleet at ``config.connect``, record one run to its end.
+    ``scenario``: the file as the caller loaded and checked it (:func:`load_checked`).
 
     Nothing is written when the scenario is invalid or no router answers."""
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
-    scenario = load_checked(config.scenario_path, config.secure)  # before connecting/writing
+    if scenario is None:
+        scenario = load_checked(config.scenario_path, config.secure)  # before connecting
     faults = fault_plan_checked(scenario, config)  # bad faults fail here too
     transport = open_client(client_config(config.connect, secure=config.secure,
                                           lease_ms=config.lease_ms,
@@ -431,6 +449,8 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     except BaseException:
         if viewer is not None:
             Cleanup().step("viewer", viewer.close)
+        if prepared.lock is not None:
+            prepared.lock.release()
         raise
     finally:
         if schedule is not None:  # every cut restored, every frozen process thawed

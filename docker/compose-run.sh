@@ -33,6 +33,13 @@ if ! docker version >/dev/null 2>&1; then
 fi
 OWN_KEYS=
 EXECUTOR=
+OUT_ABS=
+# The containers run as the invoking user (the compose file's `user:`), so the run directory and
+# the keys are theirs; root on the host runs them as the images' own user 10001 instead, and gets
+# the run directory back at the end.
+HOST_IDS="$(id -u):$(id -g)"
+if [[ $(id -u) == 0 ]]; then export TLFLEET_UID=10001 TLFLEET_GID=10001
+else export TLFLEET_UID=$(id -u) TLFLEET_GID=$(id -g); fi
 cleanup() {
   set +e
   if [[ -n $EXECUTOR ]]; then   # by its pid; it reconnects / unpauses what is still cut or paused
@@ -41,23 +48,37 @@ cleanup() {
     kill -KILL "$EXECUTOR" 2>/dev/null
   fi
   "${COMPOSE[@]}" -p "$PROJECT" -f "$FILE" down --timeout 5 >/dev/null 2>&1
+  # what stays on disk for the next run, and how to remove it (`make clean` does)
+  local images
+  images=$(docker image ls --format '{{.Repository}}:{{.Tag}} ({{.Size}})' 2>/dev/null \
+           | grep -E '^(tlfleet|local/tlfleet)' | paste -sd' ' -)
+  echo "compose-run: kept for the next run: images ${images:-none}; docker/wheels" \
+       "($(du -sh docker/wheels 2>/dev/null | cut -f1)); $TLFLEET_DOCKER_WORK" \
+       "($(du -sh "$TLFLEET_DOCKER_WORK" 2>/dev/null | cut -f1)). \`make clean\` removes them." >&2
   if [[ $STARTED == 1 ]]; then docker/dockerd-stop.sh "$TLFLEET_DOCKER_WORK"; fi
   if [[ -n $OWN_KEYS ]]; then rm -rf "$OWN_KEYS"; fi
+  if [[ -n $OUT_ABS && $(id -u) == 0 ]]; then chown -R "$HOST_IDS" "$OUT_ABS"; fi
 }
 trap cleanup EXIT
 
-if grep -q '"--secure", "/fleet/keys"' "$FILE" && [[ -z ${TLFLEET_KEYS:-} ]]; then
+if grep -q '"--secure", "/fleet/keys"' "$FILE" && { [[ -z ${TLFLEET_KEYS:-} ]] || [[ $(id -u) == 0 ]]; }; then
   # the scenario the file mounts, relative to the file's directory
   SCEN=$(grep -o '"[^"]*:/fleet/scenario.toml:ro"' "$FILE" | head -1 | sed 's/^"//; s#:/fleet/scenario.toml:ro"$##')
   OWN_KEYS=$(mktemp -d "${TMPDIR:-/tmp}/tlfleet-compose-keys-XXXXXX")   # mode 0700
-  "${PYTHON:-python3}" -m tlfleet.cli keys "$(dirname "$FILE")/$SCEN" --out "$OWN_KEYS" --force \
-    --host router >/dev/null
+  if [[ -n ${TLFLEET_KEYS:-} ]]; then   # root's keys, copied for the containers' user
+    cp -a "$TLFLEET_KEYS"/. "$OWN_KEYS"/
+  else
+    "${PYTHON:-python3}" -m tlfleet.cli keys "$(dirname "$FILE")/$SCEN" --out "$OWN_KEYS" --force \
+      --host router >/dev/null
+  fi
+  chown -R "$TLFLEET_UID:$TLFLEET_GID" "$OWN_KEYS" 2>/dev/null || true
   export TLFLEET_KEYS=$OWN_KEYS
 fi
 
 docker/build-image.sh
 mkdir -p "$OUT/logs"
 OUT_ABS=$(cd "$OUT" && pwd)
+chown -R "$TLFLEET_UID:$TLFLEET_GID" "$OUT_ABS" 2>/dev/null || true
 export TLFLEET_OUT=$OUT_ABS   # the coordinator's /out: the run directory
 if grep -q '"--fault-handoff", "/out/logs/faults"' "$FILE"; then
   "${PYTHON:-python3}" -m tlfleet.cli compose-faults --dir "$OUT_ABS/logs/faults" --project "$PROJECT" \

@@ -58,7 +58,7 @@ import numpy as np
 from tlfleet.agent.evolve import evolve
 from tlfleet.agent.ltl.buchi import Buchi, buchi_stutter_step
 from tlfleet.agent.ltl.planner import Plan, plan_robot, replan
-from tlfleet.agent.ltl.task import robot_formula, task_automaton
+from tlfleet.agent.ltl.task import robot_automaton
 from tlfleet.agent.ltl.transition_system import START, EdgeLength, from_regions, from_scenario
 from tlfleet.agent.model.scenario import Region, Scenario
 from tlfleet.agent.nav.coupling_limits import VelocityLimits
@@ -230,7 +230,7 @@ class LtlAgent:
         self.edge_length: EdgeLength = (self.paths.edge_length if distance is None
                                         else lambda p, q: distance(_centre(p), _centre(q)))
         t0 = time.perf_counter()
-        self.buchi: Buchi = task_automaton(robot_formula(spec))  # the one translation of this task
+        self.buchi: Buchi = robot_automaton(spec)  # the one translation of this task
         self.translate_time = time.perf_counter() - t0  # [s]
         ts = from_scenario(scenario, robot)
         self.labels = dict(zip(ts.names, ts.labels, strict=True))

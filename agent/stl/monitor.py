@@ -134,6 +134,8 @@ def read_trajectory_csv(path: str | Path) -> Trajectory:
         raise TrajectoryFileError(name, 0, 0, f"cannot open: {exc.strerror}") from None
     except UnicodeDecodeError as exc:
         raise TrajectoryFileError(name, 0, 0, f"not UTF-8 text: {exc.reason}") from None
+    except csv.Error as exc:  # a field past the csv module's limit, a NUL byte
+        raise TrajectoryFileError(name, 0, 0, f"not CSV: {exc}") from None
     if not rows:
         raise TrajectoryFileError(name, 1, 1, "empty file: expected a header t,x1,y1,th1,...")
     header = [h.strip() for h in rows[0]]

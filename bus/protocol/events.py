@@ -83,6 +83,19 @@ FIELDS: dict[str, dict[str, tuple[str, ...]]] = {
     "peers_unreachable": {"peers": (LIST,), "lost": (LIST,), "back": (LIST,)},
     "fault": {"error": (STR,)},
     "agent_stats": {},
+    # the coordinator's own (recorded, never received; read back from events.jsonl)
+    "process_died": {"process": (STR,), "how": (STR,), "returncode": (INT, NONE),
+                     "wall": (NUM,)},
+    "process_recovered": {"process": (STR,), "lost_at": (NUM,), "how": (STR,)},
+    "link_lost": {"process": (STR,), "wall": (NUM,)},
+    "link_restored": {"process": (STR,), "wall": (NUM,), "lost_for": (NUM,)},
+    "token_blip": {"process": (STR,), "lost_at": (NUM,), "lost_for": (NUM,)},
+    "agent_silent": {"robot": (INT,), "last_status_t": (NUM,), "silence": (NUM,)},
+    "agent_back": {"robot": (INT,), "silence": (NUM,)},
+    "fault_start": {"spec": (STR,), "kind": (STR,), "targets": (LIST,), "wall": (NUM,),
+                    "error": (STR, NONE)},
+    "fault_end": {"spec": (STR,), "kind": (STR,), "targets": (LIST,), "wall": (NUM,),
+                  "lasted": (NUM, NONE), "error": (STR, NONE)},
 }
 
 

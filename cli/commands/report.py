@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from tlfleet.cli.run_flags import add_figure_format_argument
 
@@ -24,7 +25,9 @@ EXAMPLES = (
     ("tlfleet report runs/scenario1-20250101-120000 --json --no-figures",
      "print the report's data as JSON, draw no figure"),
 )
-EXIT_CODES = {0: "the report was written", 1: "not a run directory, or an unreadable file in it"}
+EXIT_CODES = {0: "the report was written",
+              1: "not a run directory, or a damaged one (one line names what the report leaves "
+                 "out; it is written from the rest)"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,19 +39,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tlfleet.coordinator.record.rundir import json_ready
+    from tlfleet.coordinator.record.rundir import damage, json_ready, read_run
     from tlfleet.coordinator.report.run_report import write_report
 
-    report = write_report(args.run_dir, figures=not args.no_figures,
-                          figure_format=args.figure_format)
+    files = read_run(args.run_dir)
+    report = write_report(files, figures=not args.no_figures, figure_format=args.figure_format)
     if args.json:
         print(json.dumps(json_ready(report.data), indent=2, ensure_ascii=False))
-        return 0
-    print(report.table)
-    print(f"wrote {report.run_dir / 'report.md'}")
-    print(f"wrote {report.run_dir / 'report.json'}")
-    for path in report.figures:
-        print(f"wrote {path}" if not args.no_figures else f"kept {path}")
+    else:
+        print(report.table)
+        print(f"wrote {report.run_dir / 'report.md'}")
+        print(f"wrote {report.run_dir / 'report.json'}")
+        for path in report.figures:
+            print(f"wrote {path}" if not args.no_figures else f"kept {path}")
+    damaged = damage(files)
+    if damaged:  # written from what could be read, but the directory is not whole
+        print(f"tlfleet report: {args.run_dir}: damaged, the report leaves out {damaged}",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -22,11 +22,14 @@ value not evaluated is None; on disk ±inf becomes ``"inf"``/``"-inf"``.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import fcntl
 import json
 import logging
 import math
-from collections.abc import Iterable, Sequence
+import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -90,6 +93,82 @@ def default_run_dir(scenario_name: str, root: Path = Path("runs"),
         n += 1
         path = base.with_name(f"{base.name}-{n}")
     return path
+
+
+# --------------------------------------------------------------------------------- claiming
+
+LOCK = "run.lock"  # held by the run writing the directory, removed when it is done
+#: environment variable naming a run directory the parent process claimed for this one (the
+#: namespace-host launcher claims it and writes logs/ before its ``tlfleet supervise`` starts)
+CLAIMED_ENV = "TLFLEET_RUN_DIR_CLAIMED"
+
+
+class RunDirLock:
+    """A run directory claimed by this run (:func:`claim_run_dir`): its ``run.lock`` is held
+    (``flock``) until :meth:`release`, or until this process ends."""
+
+    def __init__(self, path: Path, fd: int | None):
+        self.path = path
+        self._fd = fd
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        fd, self._fd = self._fd, None
+        with contextlib.suppress(OSError):
+            (self.path / LOCK).unlink()
+        os.close(fd)
+
+
+def _refuse_a_run(path: Path) -> None:
+    entries = sorted(e.name for e in path.iterdir() if e.name != LOCK)
+    if entries:
+        shown = ", ".join(entries[:3]) + (" …" if len(entries) > 3 else "")
+        raise RunDirectoryError(path, f"holds {len(entries)} file(s) already ({shown}): a run "
+                                      "directory is never overwritten; give a new --out or "
+                                      "remove it")
+
+
+def claim_run_dir(path: Path, environ: Mapping[str, str] | None = None) -> RunDirLock:
+    """Create run directory ``path`` (with its parents) for one run and lock it, or raise
+    :class:`RunDirectoryError` in one line: a file in its place, a directory that cannot be
+    created or written, one that holds anything already (a run directory is never overwritten:
+    a stale report would sit beside the new files), one another run is writing into."""
+    path = Path(path)
+    environ = os.environ if environ is None else environ
+    claimed = environ.get(CLAIMED_ENV)
+    if claimed and Path(claimed).resolve() == path.resolve() and (path / LOCK).exists():
+        return RunDirLock(path, None)  # the parent holds it for us
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise RunDirectoryError(path, "exists and is not a directory: give --out a directory "
+                                      "for the run") from None
+    except OSError as exc:
+        raise RunDirectoryError(path, f"cannot create the run directory: {exc.strerror}") from None
+    if not path.is_dir():
+        raise RunDirectoryError(path, "exists and is not a directory: give --out a directory "
+                                      "for the run")
+    _refuse_a_run(path)  # before anything is written into it
+    try:
+        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise RunDirectoryError(path, f"cannot write into it: {exc.strerror}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        holder = os.read(fd, 32).decode(errors="replace").strip()
+        os.close(fd)
+        raise RunDirectoryError(path, "another run is writing into it"
+                                      + (f" (pid {holder})" if holder else "")) from None
+    try:
+        _refuse_a_run(path)  # again: a run may have started between the look and the lock
+    except RunDirectoryError:
+        os.close(fd)
+        raise
+    os.ftruncate(fd, 0)
+    os.write(fd, str(os.getpid()).encode())
+    return RunDirLock(path, fd)
 
 
 # --------------------------------------------------------------------------------- JSON edge
@@ -299,7 +378,10 @@ def read_statuses(path: str | Path, *, strict: bool = True,
     lines = _lines(path)
     if not lines:
         raise RunFileError(path, 1, f"empty: expected the header {','.join(STATUS_COLUMNS)}")
-    header = next(csv.reader([lines[0]]))
+    try:
+        header = next(csv.reader([lines[0]]))
+    except csv.Error as exc:
+        raise RunFileError(path, 1, f"not CSV: {exc}") from None
     missing = [col for col in STATUS_COLUMNS if col not in header]
     if missing and strict:
         raise RunFileError(path, 1, f"header lacks the column(s) {', '.join(missing)}")
@@ -313,7 +395,7 @@ def read_statuses(path: str | Path, *, strict: bool = True,
             if len(cells) != len(header):
                 raise ValueError(f"expected {len(header)} values, found {len(cells)}")
             statuses.append(status_from_row({**blank, **dict(zip(header, cells, strict=True))}))
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, csv.Error) as exc:
             _skip_or_raise(path, index, str(exc), strict, _torn(lines, index), problems)
     return statuses
 
@@ -322,8 +404,10 @@ def _skip_or_raise(path: Path, index: int, reason: str, strict: bool, torn: bool
                    problems: list[Problem] | None) -> None:
     if strict and not torn:
         raise RunFileError(path, index + 1, reason)
-    logger.warning("%s:%d: %s%s: skipped", path, index + 1, "torn last line: " if torn else "",
-                   reason)
+    # said at INFO: the caller reports ``problems`` (the report lists them, ``tlfleet report``
+    # sums them up in one line)
+    logger.info("%s:%d: %s%s: skipped", path, index + 1, "torn last line: " if torn else "",
+                reason)
     if problems is not None:
         problems.append(Problem(path.name, index + 1, reason, torn))
 
@@ -360,8 +444,11 @@ def read_run(run_dir: str | Path, *, strict: bool = False,
                                                         "scenario.toml copy written by "
                                                         "`tlfleet run`")
         scenario = load_scenario(run_dir / SCENARIO)
-    info = read_json(run_dir / RUN_INFO, {})
     problems: list[Problem] = []
+    info = read_json(run_dir / RUN_INFO, None)
+    if info is None and (run_dir / RUN_INFO).exists():
+        problems.append(Problem(RUN_INFO, 0, "not JSON (or nested too deeply): ignored"))
+    info = checked_info(info if info is not None else {}, problems)
     events = _optional(run_dir / EVENTS, strict, problems, read_events)
     statuses = _optional(run_dir / STATUS, strict, problems, read_statuses)
     trajectory: Trajectory | None = None
@@ -372,8 +459,51 @@ def read_run(run_dir: str | Path, *, strict: bool = False,
         if strict:
             raise
         trajectory_error = str(exc)
-    return RunFiles(run_dir, scenario, info if isinstance(info, dict) else {}, tuple(events),
+    return RunFiles(run_dir, scenario, info, tuple(events),
                     tuple(statuses), trajectory, trajectory_error, tuple(problems))
+
+
+#: the fields of ``run.json`` the summary and the report read, and the types they need
+INFO_FIELDS: dict[str, tuple[type, ...]] = {
+    "mode": (str,), "wall_time": (int, float), "duration": (int, float), "t_end": (int, float),
+    "reason": (str,), "malformed_received": (dict,), "faults": (list,), "scenario": (str,),
+}
+
+
+def checked_info(info: Any, problems: list[Problem]) -> dict[str, Any]:
+    """``run.json`` as read, without the fields whose type its readers cannot use (each one
+    named in ``problems``): a damaged or hand-edited file reports what it can, never raises."""
+    if not isinstance(info, dict):
+        if info:
+            problems.append(Problem(RUN_INFO, 0, "not a JSON object: ignored"))
+        return {}
+    out = dict(info)
+    for name, types in INFO_FIELDS.items():
+        value = out.get(name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, types)):
+            problems.append(Problem(RUN_INFO, 0, f"{name} has the wrong type "
+                                                 f"({type(value).__name__}): ignored"))
+            del out[name]
+    counts = out.get("malformed_received")
+    if counts is not None and not all(isinstance(n, int) and not isinstance(n, bool)
+                                      for n in counts.values()):
+        problems.append(Problem(RUN_INFO, 0, "malformed_received holds a count that is not an "
+                                             "integer: ignored"))
+        del out["malformed_received"]
+    return out
+
+
+def damage(files: RunFiles) -> str:
+    """What of a run directory could not be read, in one line ("" when whole): every problem but
+    a torn last line (what a crash leaves), and an unreadable trajectory."""
+    found = [f"{p.file}{f':{p.line}' if p.line else ''} ({p.reason})" for p in files.problems
+             if not p.torn]
+    if files.trajectory_error:
+        found.append(files.trajectory_error)
+    if not found:
+        return ""
+    more = f" and {len(found) - 2} more" if len(found) > 2 else ""
+    return f"{len(found)} damaged part(s): " + "; ".join(f[:160] for f in found[:2]) + more
 
 
 def _optional(path: Path, strict: bool, problems: list[Problem], reader) -> list[Any]:

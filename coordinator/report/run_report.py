@@ -234,12 +234,21 @@ def write_report(run: RunFiles | str | Path, *, figures: bool = True,
     data, context = _collect(files, summary, tally)
     written: list[Path] = []
     if figures:
-        written = _write_figures(run_dir, data, context, figure_format)
+        try:
+            written = _write_figures(run_dir, data, context, figure_format)
+        except OSError as exc:
+            raise RunDirectoryError(Path(exc.filename or run_dir),
+                                    f"cannot write a figure: {exc.strerror}") from None
     else:
         written = _present_figures(run_dir, data)
     report = _finish(run_dir, data, written)
-    rundir.write_json(run_dir / rundir.REPORT_JSON, report.data)
-    (run_dir / rundir.REPORT_MD).write_text(report.markdown, encoding="utf-8")
+    for name, write in ((rundir.REPORT_JSON, lambda p: rundir.write_json(p, report.data)),
+                        (rundir.REPORT_MD, lambda p: p.write_text(report.markdown,
+                                                                  encoding="utf-8"))):
+        try:
+            write(run_dir / name)
+        except OSError as exc:  # a directory in its place, a read-only run directory
+            raise RunDirectoryError(run_dir / name, f"cannot write: {exc.strerror}") from None
     return report
 
 

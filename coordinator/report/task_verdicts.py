@@ -196,7 +196,36 @@ def collect(scenario: Scenario, traj: Trajectory | None, events: Iterable[Event]
         "recoveries": recoveries,
         "subtasks": subtasks,
         "stationary": stationary_episodes(scenario, traj, events) if traj is not None else [],
+        "stl_design": stl_design(scenario),
     }
+
+
+def f_semantics(stl) -> str:
+    """Which F-task semantics a scenario's ``[stl]`` switches select (docs/stl-saturation.md
+    §6.1)."""
+    if not stl.complete_f_on_satisfaction:
+        return "the paper's Algorithm 2 (an F sub-task runs to its window's end)"
+    if stl.hold_f_above_r and not stl.complete_f_at_goal:
+        return "the authors' code (hold once ρ > r, done at the first r < ρ < ρ_max)"
+    return ("tlfleet's (done once ρ reaches its first funnel's goal level"
+            + (", or met and needed by the next sub-task" if stl.lookahead else "")
+            + (", hold above r" if stl.hold_f_above_r else "") + ")")
+
+
+def stl_design(scenario) -> dict[str, Any]:
+    """The STL switches in force (docs/stl-saturation.md §9): funnels, F semantics, ρ_opt, the
+    avoidance radii (per coupled pair) and the static term."""
+    from tlfleet.agent.scenario import stl_setup
+
+    p = scenario.stl
+    pairs = {}
+    if p.coupled_radii and any(r.is_stl for r in scenario.robots):
+        for i, j in sorted(stl_setup.coupled_pairs(scenario)):
+            pairs[f"{i}-{j}"] = stl_setup.pair_radii(scenario, i, j)
+    return {"saturation_aware": p.saturation_aware, "saturation_share": p.saturation_share,
+            "f_semantics": f_semantics(p), "rho_opt_from_arena": p.rho_opt_from_arena,
+            "r1": p.r1, "r_sense": p.r_sense, "coupled_radii": pairs,
+            "wall_avoidance": p.wall_avoidance, "route_around": p.route_around}
 
 
 def render_lines(v: dict[str, Any]) -> list[str]:
@@ -206,6 +235,18 @@ def render_lines(v: dict[str, Any]) -> list[str]:
              + (f" (share {v['coupling_share']:g})" if v["coupling_aware"] else "")
              + f"; robustness recovery {'on' if v['recovery'] else 'off'}, "
              f"{total} recover{'y' if total == 1 else 'ies'}"]
+    d = v.get("stl_design")
+    if d:
+        radii = "; ".join(f"{pair} {r1:g}/{r:g} m" for pair, (r1, r) in d["coupled_radii"].items())
+        lines.append(
+            f"STL design: saturation-aware funnels {'on' if d['saturation_aware'] else 'off'}"
+            + (f" (share {d['saturation_share']:g})" if d["saturation_aware"] else "")
+            + f"; F sub-tasks: {d['f_semantics']}; ρ_opt "
+            + ("from the arena" if d["rho_opt_from_arena"] else "from the literals")
+            + f"; avoidance R1/R {d['r1']:g}/{d['r_sense']:g} m"
+            + (f", coupled pairs {radii}" if radii else "")
+            + f"; walls and obstacles in eq. (6) {'on' if d['wall_avoidance'] else 'off'}, "
+            f"routes {'on' if d['route_around'] else 'off'}")
     parts = []
     for rows in v["subtasks"].values():
         for row in rows:

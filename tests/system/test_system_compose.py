@@ -10,6 +10,8 @@ for the rest of the run; the image is rebuilt only when the project's sources ch
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import subprocess
 import sys
 
@@ -68,15 +70,34 @@ def test_compose_on_an_invalid_scenario_fails_before_writing_anything(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def compose_implementations() -> list[list[str]]:
+    """Every docker compose on this machine: v2 (the docker plugin) and v1 (docker-compose)."""
+    found = []
+    if subprocess.run(["docker", "compose", "version"], capture_output=True).returncode == 0:
+        found.append(["docker", "compose"])
+    if shutil.which("docker-compose"):
+        found.append(["docker-compose"])
+    return found
+
+
 @pytest.mark.needs_system
 def test_the_compose_file_is_valid_for_docker_compose():
+    """Each compose implementation present (v2 and v1 where both are; Debian bookworm ships v1)
+    reads the file, with the keys this project relies on: init, a non-root user, the router's
+    health check that does not connect, the coordinator's own image."""
     need_docker()
-    compose = ["docker", "compose"] if subprocess.run(
-        ["docker", "compose", "version"], capture_output=True).returncode == 0 \
-        else ["docker-compose"]
-    done = subprocess.run([*compose, "-f", str(COMMITTED), "config", "-q"], capture_output=True,
-                          text=True, timeout=60)
-    assert done.returncode == 0, done.stderr
+    implementations = compose_implementations()
+    assert implementations, "no docker compose (make system-deps)"
+    for compose in implementations:
+        done = subprocess.run([*compose, "-f", str(COMMITTED), "config"], capture_output=True,
+                              text=True, timeout=60, env=dict(os.environ, TLFLEET_UID="4321",
+                                                              TLFLEET_GID="4322"))
+        assert done.returncode == 0, (compose, done.stderr)
+        config = done.stdout
+        # every service: the router, the sim, 5 robots and the coordinator
+        assert config.count("init: true") == 8, compose
+        assert "4321:4322" in config and "create_connection" not in config
+        assert "tlfleet-coordinator:local" in config
 
 
 def daemon_answers() -> bool:
@@ -102,6 +123,17 @@ def test_scenario1_as_a_compose_fleet_is_byte_identical_to_tlfleet_run(tmp_path,
     assert "report scenario1: t_end 90.00 s, 9001 frames, lockstep" in done.stdout
     assert (out / "trajectory.csv").read_bytes() == \
         (scenario1_run.run_dir / "trajectory.csv").read_bytes()
+    # the router's health check reads the socket table: no TLS handshake cut short in its log
+    router_log = (out / "logs" / "router.log").read_text()
+    assert "handshake" not in router_log.lower(), router_log[-2000:]
+    # the run directory is the invoking user's
+    assert {p.stat().st_uid for p in out.rglob("*")} == {os.getuid()}
+    assert "make clean` removes them" in done.stderr
+    # the slim runtime image of the router, sim and agents (the coordinator's has rerun too)
+    kept = re.search(r"tlfleet:local \(([\d.]+)([MG]B)\)", done.stderr)
+    assert kept is not None, done.stderr[-2000:]
+    size_mb = float(kept.group(1)) * (1000 if kept.group(2) == "GB" else 1)
+    assert size_mb <= 400, f"runtime image {size_mb} MB"
     assert daemon_answers() == had_daemon  # a dockerd the script started is gone again
     if had_daemon:  # nothing of the project left in the daemon that was already there
         project = "tlfleet-scenario1-"
