@@ -18,8 +18,8 @@ Measures, as medians over several runs, CPU time (``time.thread_time``) beside w
 4. per formula family — GF-conjunctions n = 1..12, F-conjunctions, sequential
    visits, response patterns, GF of sequential visits, random 6-proposition formulas of size
    20, one formula over 16…64 propositions — states, edges, CPU and wall time; and the state
-   counts against Spot 2.9's ``ltl2tgba -B`` on ``--spot-sizes`` (default
-   ``../shared/ltl/spot_sizes.tsv`` when present): total ratio, formulas larger than Spot, worst.
+   counts against Spot 2.9's ``ltl2tgba -B`` from a table of Spot's sizes (``--spot-sizes FILE``,
+   when there is one): total ratio, formulas larger than Spot, worst.
 
 Prints a table and writes JSON to ``bench/results/ltl_bench.json``. ``--root DIR`` benchmarks
 another checkout (e.g. the code before a change) with this same script.

@@ -8,6 +8,8 @@ Prints a table (CPU time beside wall time, the load average) and writes JSON
 * ``step_us``: CPU µs per control step of an agent whose task couples 3 robots (Scenario 1's
   φ′4, G[5,30] (dist(p4, p3) <= 1 & dist(p4, p5) <= 1)) with 10 neighbours within R = 0.7 m
   (target ≤ 50 µs);
+* ``step_obstacles_us``: the same step with tlfleet's defaults (docs/stl-saturation.md) and a
+  wall and a pillar within the static avoidance's range (target ≤ 35 µs);
 * ``tick3_us``: CPU µs of one 100 Hz tick of Scenario 1's three STL agents (3, 4, 5), each
   stepping on the same frame at t = 31.02 s, in their second sub-tasks (robot 3's φ″3 couples
   3 and 4), plain control steps (no repair, no message);
@@ -24,6 +26,7 @@ import math
 import statistics
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))  # the closed-loop test harnesses
 
 from stl_harness import run_closed_loop  # noqa: E402
+from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle  # noqa: E402
 from tlfleet.agent.policy.stl import StepInput, build_agents  # noqa: E402
 from tlfleet.agent.scenario.loader import load_scenario  # noqa: E402
 from tlfleet.agent.stl.monitor import Trajectory, task_robustness  # noqa: E402
@@ -40,7 +44,7 @@ from tlfleet.agent.stl.syntax import Temporal  # noqa: E402
 
 from bench.common import Figure, load_average, report, time_calls  # noqa: E402
 
-TARGETS = {"step_us": 50.0, "monitor_ms": 3.0}
+TARGETS = {"step_us": 50.0, "step_obstacles_us": 35.0, "monitor_ms": 3.0}
 MONITOR_SAMPLES = 9001
 
 
@@ -63,6 +67,36 @@ def bench_step(runs: int, steps: int) -> tuple[float, float]:
     _, out = agent.step(state, StepInput(t, poses))
     if out.log.repair or out.messages:
         raise RuntimeError(f"benchmark step is not a plain control step: {out}")
+    timing = time_calls(lambda: agent.step(state, StepInput(t, poses)), runs, steps)
+    return timing.cpu * 1e6, timing.wall * 1e6
+
+
+def bench_step_with_obstacles(runs: int, steps: int) -> tuple[float, float]:
+    """CPU and wall µs per step as :func:`bench_step`, with tlfleet's defaults (saturation-aware
+    funnel, coupled radii for robots 3 and 5, walls and obstacles in eq. (6), routes) and a wall
+    and a pillar within the static term's range of robot 4 (docs/stl-saturation.md §8)."""
+    base = load_scenario(ROOT / "scenarios" / "scenario1.toml")
+    stl = replace(base.stl, saturation_aware=True, rho_opt_from_arena=True, coupled_radii=True,
+                  wall_avoidance=True, route_around=True, lookahead=True)
+    wall = RectObstacle(-0.5, -0.9, 0.5, -0.75, "wall")  # its face 0.25 m below robot 4's centre
+    pillar = DiscObstacle((0.55, 0.3), 0.05, "pillar")  # its surface 0.27 m from robot 4's
+    scenario = replace(base, stl=stl, arena=replace(base.arena, obstacles=(wall, pillar)))
+    agent = build_agents(scenario, robots=[4], warn=False)[4]
+    rng = np.random.default_rng(0)
+    poses = {4: (0.0, 0.0, 0.0)}
+    ids = [3, 5, *range(10, 18)]
+    for k, j in enumerate(ids):
+        angle = 2 * math.pi * k / len(ids) + 0.3
+        d = rng.uniform(0.62, 0.69)
+        poses[j] = (d * math.cos(angle), d * math.sin(angle), 0.0)
+    state = agent.initial_state()
+    state, _ = agent.step(state, StepInput(0.0, poses))  # activation (funnel, route check)
+    t = 0.05  # between two route checks (every 0.5 s), the funnel barely narrowed
+    _, out = agent.step(state, StepInput(t, poses))
+    if out.log.repair or out.messages:
+        raise RuntimeError(f"benchmark step is not a plain control step: {out}")
+    if agent.cfg.static is None or not any(agent.cfg.static.rects):
+        raise RuntimeError("the benchmark agent has no static term")
     timing = time_calls(lambda: agent.step(state, StepInput(t, poses)), runs, steps)
     return timing.cpu * 1e6, timing.wall * 1e6
 
@@ -134,12 +168,15 @@ def main(argv: list[str] | None = None) -> int:
     duration = 10.0 if args.quick else 90.0
     load_before = load_average()
     step_cpu, step_wall = bench_step(runs, steps)
+    obstacles_cpu, obstacles_wall = bench_step_with_obstacles(runs, steps)
     tick_cpu, tick_wall = bench_tick3(runs, steps // 3)
     monitor_cpu, monitor_wall, samples = bench_monitor(runs)
     harness_cpu, harness_wall = bench_harness(runs if not args.quick else 5, duration)
     figures = [
         Figure("step_us", "STL control step, 3-robot task, 10 neighbours", step_cpu, "µs",
                TARGETS["step_us"], wall=step_wall),
+        Figure("step_obstacles_us", "STL control step, defaults, obstacles in range",
+               obstacles_cpu, "µs", TARGETS["step_obstacles_us"], wall=obstacles_wall),
         Figure("tick3_us", "one 100 Hz tick of Scenario 1's 3 STL agents", tick_cpu, "µs",
                wall=tick_wall),
         Figure("monitor_ms", f"offline monitor, 1 task, {samples} samples", monitor_cpu, "ms",

@@ -30,6 +30,7 @@ from tlfleet.cli.conventions import (
 COMMANDS: dict[str, tuple[str, str]] = {
     "init": ("init", "write a commented starter scenario that passes `tlfleet check`"),
     "check": ("check", "validate a scenario file and summarise it"),
+    "schema": ("schema", "print the JSON Schema of scenario files (for editors)"),
     "translate": ("translate", "LTL formula to Büchi automaton"),
     "plan": ("plan", "optimal prefix–suffix plans of the LTL robots"),
     "monitor": ("monitor", "STL robustness of a recorded trajectory"),

@@ -276,11 +276,16 @@ def supervisor_config(config: RunConfig) -> SupervisorConfig:
 
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               progress: Callable[[float, float], None] | None = None,
-              report: Callable[[str], None] | None = None) -> RunResult:
-    """Run the fleet of ``config`` to the end; see the module docstring."""
+              report: Callable[[str], None] | None = None,
+              scenario: Scenario | None = None) -> RunResult:
+    """Run the fleet of ``config`` to the end; see the module docstring. ``scenario``: the file
+    of ``config.scenario_path`` as the caller already loaded and checked it
+    (:func:`~tlfleet.coordinator.supervise.load_checked`): ``tlfleet run`` reads and checks it
+    once, and the report reuses it."""
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
-    scenario = load_checked(config.scenario_path, config.secure)  # before anything else
+    if scenario is None:
+        scenario = load_checked(config.scenario_path, config.secure)  # before anything else
     child_sched(config)  # ValueError for a bad RunConfig.sched, before anything is started
     check_hardware(config, scenario)  # a lab file that does not fit: before anything, too
     faults = run_faults(scenario, config.faults, config.duration)  # FaultSpecError: the same

@@ -403,13 +403,16 @@ def open_client(config: TransportConfig, timeout: float,
 def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None,
                     progress: Callable[[float, float], None] | None = None,
                     report: Say | None = None,
-                    waiting: Callable[[list[str]], None] | None = None) -> RunResult:
+                    waiting: Callable[[list[str]], None] | None = None,
+                    scenario: Scenario | None = None) -> RunResult:
     """``tlfleet supervise``: join the fleet at ``config.connect``, record one run to its end.
+    ``scenario``: the file as the caller loaded and checked it (:func:`load_checked`).
 
     Nothing is written when the scenario is invalid or no router answers."""
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
-    scenario = load_checked(config.scenario_path, config.secure)  # before connecting/writing
+    if scenario is None:
+        scenario = load_checked(config.scenario_path, config.secure)  # before connecting
     faults = fault_plan_checked(scenario, config)  # bad faults fail here too
     transport = open_client(client_config(config.connect, secure=config.secure,
                                           lease_ms=config.lease_ms,

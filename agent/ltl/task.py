@@ -44,3 +44,18 @@ def robot_formula(robot: Robot) -> Formula | str:
     if robot.ltl is None:
         raise ValueError(f"robot {robot.id} has no LTL task")
     return task_formula(robot.ltl)
+
+
+@functools.lru_cache(maxsize=512)
+def text_automaton(text: str) -> Buchi:
+    """The automaton of a scenario task's text, built once per process and text: the loader's
+    emptiness check translates it, and the agent plans, replans and tracks its Büchi states on
+    that same automaton (automata are never modified after construction)."""
+    return task_automaton(task_formula(text))
+
+
+def robot_automaton(robot: Robot) -> Buchi:
+    """The automaton of ``robot``'s LTL task (:func:`text_automaton` of its text)."""
+    if robot.ltl is None:
+        raise ValueError(f"robot {robot.id} has no LTL task")
+    return text_automaton(robot.ltl)

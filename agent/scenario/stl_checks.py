@@ -176,11 +176,9 @@ def stl_warnings(scenario: Scenario) -> list[str]:
                                    f"R = {big_r:g} m (bodies + [stl] coupled_r_margin): its "
                                    f"robustness is at most {sup:+.3f} outside it")
             if k == 0 and phi.op == "G" and phi.a <= 0.0:
-                from tlfleet.agent.stl.sequencer import build_sequence  # numpy: only for warnings
-
-                task = build_sequence(robot.id, [phi], robot_ids=scenario.robot_ids,
-                                      warn=False, eta=scenario.stl.eta,
-                                      rho_opt=robot.rho_opt[:1])[0]
+                # the agent's own first sub-task (ρ_opt resolved as the agent resolves it: a
+                # half-plane's from the arena), so a warning never fails where the run would not
+                task = stl_setup.stl_sequences(scenario, only=frozenset({robot.id}))[robot.id][0]
                 rho0 = task.compiled.value_min(task.stacked_state(poses))
                 if rho0 < 0.0:
                     out.append(f"{field}: {text!r} is violated at the start poses "

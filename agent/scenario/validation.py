@@ -298,19 +298,25 @@ def check_geometry(scenario: Any, source: str) -> None:
 @functools.lru_cache(maxsize=256)
 def _ltl_empty(text: str) -> bool:
     from tlfleet.agent.ltl.emptiness import is_empty
-    from tlfleet.agent.ltl.task import task_automaton
+    from tlfleet.agent.ltl.task import text_automaton
 
-    return is_empty(task_automaton(text))
+    return is_empty(text_automaton(text))  # the automaton the agent then plans with
 
 
 def check_ltl(text: str, source: str, where: str) -> None:
-    """At most :data:`MAX_LTL_ATOMS` propositions, and a non-empty language (translated now)."""
-    from tlfleet.agent.ltl.parser import atoms, parse
+    """At most :data:`MAX_LTL_ATOMS` propositions, and a non-empty language (translated now),
+    on the tree the loader parsed (:func:`tlfleet.agent.ltl.task.task_formula`: one parse a
+    text)."""
+    from tlfleet.agent.ltl.parser import atoms
+    from tlfleet.agent.ltl.task import task_formula
 
     try:
-        names = atoms(parse(text))
+        tree = task_formula(text)
     except FormulaSyntaxError:
         return  # reported by the loader's syntax check
+    if isinstance(tree, str):
+        return  # an automaton from a HOA file: no formula to count
+    names = atoms(tree)
     if len(names) > MAX_LTL_ATOMS:
         raise ScenarioError(source, where, f"{len(names)} propositions: at most "
                                            f"{MAX_LTL_ATOMS} (the automaton grows exponentially)")
@@ -326,14 +332,15 @@ def check_ltl(text: str, source: str, where: str) -> None:
 def check_stl_windows(robot: Any, index: int, duration: float, robot_ids: Any,
                       source: str) -> None:
     """Ordered, non-overlapping windows inside the run; phases not starting after their
-    window opened."""
-    from tlfleet.agent.stl.parser import parse_task
+    window opened. On the trees the loader parsed (:func:`tlfleet.agent.stl.parser.parsed_task`:
+    one parse a text; the loader has checked the robots they name)."""
+    from tlfleet.agent.stl.parser import parsed_task
 
     where = robot_field(index, robot.id)
     windows = []
     for text in robot.stl:
         try:
-            task = parse_task(text, robot_ids)
+            task = parsed_task(text)
         except (FormulaSyntaxError, RecursionError):
             return  # reported by the loader's syntax check
         windows.append((task.op, task.a, task.b))

@@ -57,6 +57,7 @@ class FunnelParams:
     # design whatever the limit (§5, §7.3)
     saturation_aware: bool = True
     saturation_share: float = 0.9  # κ: share of the achievable dρ/dt the lower boundary may ask
+    saturation_cap: float = 0.98  # ... and the most of it, when the deadline needs more than κ
     ramp_margin: float = 0.05  # cap on the initial gap ρ_0 − lower(t_r) of a ramped funnel
 
 
@@ -216,8 +217,9 @@ class Funnel:
 
         ρ_max and ζ_u as in §5; the goal r_g = r_frac·ρ_max; γ_0 = (ρ_max − ρ_0) + m with
         m = min(gamma0_margin·(ρ_max − ρ_0), ramp_margin); the lower boundary ramps up at
-        v = ``rate`` from ρ_0 − m and reaches r_g at the knee t_k = t_r + (r_g − ρ_0 + m)/v, as
-        early as v allows. The deadline D is a for G, min(b, ``deadline``) for F: if t_k ≤ D,
+        v = ``rate`` (κ·c) from ρ_0 − m and reaches r_g at the knee t_k = t_r + (r_g − ρ_0 + m)/v,
+        as early as v allows; a deadline D that v cannot meet raises v to what D needs, at most
+        ``saturation_cap``·c. The deadline D is a for G, min(b, ``deadline``) for F: if t_k ≤ D,
         r = r_g; otherwise r is the level the ramp reaches at D (less r_snap), the least
         violation v can promise. A late start (D − t_r ≤ τ_min) gets r = min(r_g, ρ_0 − m −
         r_snap). t* = a for G, the time the lower boundary reaches r for F (≤ D). After the knee
@@ -232,6 +234,10 @@ class Funnel:
         gamma0 = gap + margin
         lower0 = rho0 - margin
         due = a if kind == "G" else (b if deadline is None else min(b, deadline))
+        if due - t_r > p.tau_min and lower0 < r_goal:
+            # a deadline that κ·c cannot meet may ask more of the limit, up to saturation_cap·c
+            needed = (r_goal - lower0) / (due - t_r)
+            rate = min(max(rate, needed), p.saturation_cap * rate / p.saturation_share)
         if due - t_r <= p.tau_min:  # late: the window is open (G) or closing (F) already
             r = min(r_goal, lower0 - p.r_snap)
             t_star = due
@@ -315,13 +321,14 @@ def _top(rho_opt: float, rho0: float, p: FunnelParams) -> float:
 
 
 def _shift(rho_opt: float, p: FunnelParams) -> float:
-    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: a goal inside an
-    obstacle, two robots asked to be closer than they may; docs/stl-saturation.md §5) gets the
-    design of a ψ whose supremum is c = max(|ρ_opt|, 2δ), shifted down by c − ρ_opt, so that its
-    goal r and ρ_max sit just under the supremum: the least violation."""
+    """0 for a satisfiable ψ (ρ_opt > 0). A ψ that holds nowhere (ρ_opt ≤ 0: contradictory
+    conjuncts, a goal inside an obstacle, two robots asked to be closer than they may;
+    docs/stl-saturation.md §5) gets the design of a ψ whose supremum is δ, shifted down by
+    ρ_opt − δ, so that its goal r and ρ_max sit within δ under the supremum: the least
+    violation."""
     if rho_opt > 0.0:
         return 0.0
-    return rho_opt - max(abs(rho_opt), 2.0 * p.delta)
+    return rho_opt - p.delta
 
 
 def epsilon(zeta: float, clip: float = 1e-9) -> float:

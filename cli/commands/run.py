@@ -295,10 +295,15 @@ def run(args: argparse.Namespace) -> int:
                   "on the simulator's processes and links)", file=sys.stderr)
             return 2
     args.mode = args.mode or ("realtime" if args.hardware is not None else "lockstep")
+    scenario = None
     if not args.hosts:
         from tlfleet.coordinator.faults.plan import hosts_for
+        from tlfleet.coordinator.supervise import load_checked
 
-        args.hosts = hosts_for(Path(args.scenario), args.faults, args.duration)
+        # the one load of the file in this process: checked here (exit 1 before anything
+        # starts), then passed down to the fault plan, the launcher and the report
+        scenario = load_checked(Path(args.scenario), args.secure)
+        args.hosts = hosts_for(scenario, args.faults, args.duration)
         if args.hosts:
             print(f"tlfleet run: link faults: running on {args.hosts} namespace host(s) "
                   "(tlfleet.coordinator.launch.netns_hosts)", file=sys.stderr, flush=True)
@@ -307,11 +312,7 @@ def run(args: argparse.Namespace) -> int:
     duration = args.duration
     wall_timeout = args.wall_timeout
     if wall_timeout is None:
-        from tlfleet.agent.scenario import (
-            load_scenario,  # validated here first: exit 1 before launching
-        )
-
-        sim_time = duration or load_scenario(args.scenario).duration
+        sim_time = duration or scenario.duration
         paced = sim_time / args.max_speed if args.max_speed else 0.0  # [s] wall, at least
         wall_timeout = 3.0 * sim_time + paced + 60.0
     config = RunConfig(
@@ -337,7 +338,8 @@ def run(args: argparse.Namespace) -> int:
                "`tlfleet keys` for mutual TLS and access control)")
     with stop_on_signals() as stop:
         try:
-            result = run_fleet(config, stop=stop, progress=bar, report=report)
+            result = run_fleet(config, stop=stop, progress=bar, report=report,
+                               scenario=scenario)
         finally:
             if bar is not None:
                 bar.end()

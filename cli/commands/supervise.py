@@ -78,9 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tlfleet.agent.scenario import load_scenario  # validated first: exit 1 before connecting
+    from tlfleet.coordinator.supervise import load_checked  # exit 1 before connecting
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_checked(Path(args.scenario), args.secure)  # the one load of the file
     duration = args.duration or scenario.duration
     wall_timeout = args.wall_timeout if args.wall_timeout is not None else 3.0 * duration + 60.0
     connect = tuple(args.connect) or ("tcp/127.0.0.1:7447",)
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
 
     with stop_on_signals() as stop:
         try:
-            result = supervise_fleet(config, stop=stop, progress=bar, report=say,
+            result = supervise_fleet(config, stop=stop, progress=bar, report=say, scenario=scenario,
                                      waiting=waiting)
         finally:
             if bar is not None:

@@ -58,14 +58,15 @@ def need_hosts(faults: Iterable[Fault]) -> bool:
     return True
 
 
-def hosts_for(scenario_path: Path, extra: Iterable[Fault] = (),
+def hosts_for(scenario_path: Path | Scenario, extra: Iterable[Fault] = (),
               duration: float | None = None) -> int:
     """How many namespace hosts a run with these faults needs: 0 when none drops a link, else
     one more than the highest ``host<i>`` named (at least 1: on one host every process still
     has a router port of its own); with a partition, the peer layout's count (a host per
     process, :func:`tlfleet.coordinator.launch.netns_hosts.place_peers`). Scenario and fault errors,
     and :class:`FaultError` when this machine has no namespaces, come first."""
-    scenario = load_scenario(scenario_path)
+    scenario = (scenario_path if isinstance(scenario_path, Scenario)
+                else load_scenario(scenario_path))  # the caller's, loaded once
     faults = run_faults(scenario, extra, duration)
     if not need_hosts(faults):
         return 0

@@ -200,9 +200,10 @@ CUBE, SPHERE, CYLINDER, LINE_STRIP, TEXT = 1, 2, 3, 4, 9
 
 
 def scene_markers(scenario: Scenario) -> dict[str, Any]:
-    """The scenario's arena (outline), obstacles and regions (discs with their names) as a
-    ``MarkerArray`` in ``world``; STL targets are regions of the STL tasks when the scenario
-    names them so (its ``[[regions]]``)."""
+    """The scenario's arena (outline), obstacles, regions (discs with their names) and STL
+    goals (each predicate ``dist(p_i, [x, y]) <= c`` of a sub-task: a disc of radius c labelled
+    with the robot and the window, as the report's figures mark them) as a ``MarkerArray`` in
+    ``world``."""
     a = scenario.arena
     markers = []
     corners = [(a.xmin, a.ymin), (a.xmax, a.ymin), (a.xmax, a.ymax), (a.xmin, a.ymax),
@@ -227,4 +228,11 @@ def scene_markers(scenario: Scenario) -> dict[str, Any]:
                               (0.2, 0.6, 1.0, 0.35)))
         markers.append(marker(k, "region_names", TEXT, pose(x, y, 0.2), (0.0, 0.0, 0.15),
                               (1.0, 1.0, 1.0, 1.0), text=region.name))
+    from tlfleet.coordinator.report.run_report import subtask_goals
+
+    for k, (_robot, a, b, (rid, x, y, tolerance)) in enumerate(subtask_goals(scenario)):
+        markers.append(marker(k, "stl_goals", CYLINDER, pose(x, y, 0.0),
+                              (2 * tolerance, 2 * tolerance, 0.02), (1.0, 0.55, 0.0, 0.5)))
+        markers.append(marker(k, "stl_goal_names", TEXT, pose(x, y, 0.25), (0.0, 0.0, 0.12),
+                              (1.0, 0.8, 0.5, 1.0), text=f"goal {rid} [{a:g}, {b:g}] s"))
     return {"markers": markers}

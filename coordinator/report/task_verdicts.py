@@ -11,9 +11,12 @@ Beside it: ``held`` — the fraction of the samples of [a, min(b, t_end)] at whi
 ψ held (ρ^ψ ≥ 0, standard semantics), the figure that tells a formation kept 95 % of the time
 from one never formed; ``stationary`` — episodes in which a robot stood still (moved < 5 cm and
 turned < 0.1 rad over ``window`` seconds) while its task wanted it to move (LTL: before its plan
-finished; STL: ρ^ψ < −0.1 throughout, inside the window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving
-would help), the symptom of a navigation deadlock; and the run's switches: coupling-aware
-leaders (``[navigation] coupling_aware``, docs/coupling.md) and robustness recovery
+finished or its task was lost; time inside a ``yield`` is waiting for the right of way, so the
+episode counts when it lasted ``window`` or more outside yields or waited longer than
+``YIELD_LIMIT`` in them, docs/ltl-navigation.md §6; STL: ρ^ψ < −0.1 throughout, inside the
+window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving would help), the symptom of a navigation
+deadlock; and the run's switches: coupling-aware leaders (``[navigation] coupling_aware``,
+docs/coupling.md) and robustness recovery
 (``[stl] recovery``) with the number of recoveries.
 """
 
@@ -34,6 +37,7 @@ STILL_DISTANCE = 0.05  # [m]
 STILL_TURN = 0.1  # [rad]
 STL_WANTS_MOTION = -0.1  # ρ^ψ below this: the STL robot's task wants it to move
 DEADLOCK_WINDOW = 5.0  # [s]
+YIELD_LIMIT = 15.0  # [s] a head-on yield may wait this long: waiting, not a deadlock
 STL_MIN_SLOPE = 0.5  # ‖∂ρ^ψ/∂z_i‖ (smooth ρ, per metre) at or above which moving helps
 
 
@@ -91,13 +95,24 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
     """Episodes ``{robot, t_start, t_end}`` of a robot standing still for more than ``window``
     seconds while its task wants it to move (module docstring)."""
     finished: dict[int, float] = {}
+    yields: dict[int, list[tuple[float, float]]] = {}
+    begun: dict[int, float] = {}
     for e in events:
-        if e.kind == "plan_finished" and e.source.startswith("agent/"):
-            try:
-                robot = int(e.source.split("/", 1)[1])
-            except ValueError:
-                continue
+        if not e.source.startswith("agent/"):
+            continue
+        try:
+            robot = int(e.source.split("/", 1)[1])
+        except ValueError:
+            continue
+        if e.kind in ("plan_finished", "task_lost"):
             finished.setdefault(robot, e.t)
+        elif e.kind == "yield" and isinstance(e.data, dict):
+            if e.data.get("state") == "begin":
+                begun[robot] = e.t
+            elif e.data.get("state") == "end" and robot in begun:
+                yields.setdefault(robot, []).append((begun.pop(robot), e.t))
+    for robot, start in begun.items():  # still yielding when the run ended
+        yields.setdefault(robot, []).append((start, math.inf))
     t = traj.t
     if len(t) < 2:
         return []
@@ -140,7 +155,11 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
             j = k
             while j + 1 < len(flagged) and flagged[j + 1]:
                 j += 1
-            out.append({"robot": robot.id, "t_start": float(t[k]), "t_end": float(t[j + n])})
+            start, end = float(t[k]), float(t[j + n])
+            waited = sum(max(0.0, min(end, b) - max(start, a))
+                         for a, b in yields.get(robot.id, ()))
+            if end - start - waited >= window or waited > YIELD_LIMIT:
+                out.append({"robot": robot.id, "t_start": start, "t_end": end})
             k = j + 1
     return out
 
@@ -177,7 +196,36 @@ def collect(scenario: Scenario, traj: Trajectory | None, events: Iterable[Event]
         "recoveries": recoveries,
         "subtasks": subtasks,
         "stationary": stationary_episodes(scenario, traj, events) if traj is not None else [],
+        "stl_design": stl_design(scenario),
     }
+
+
+def f_semantics(stl) -> str:
+    """Which F-task semantics a scenario's ``[stl]`` switches select (docs/stl-saturation.md
+    §6.1)."""
+    if not stl.complete_f_on_satisfaction:
+        return "the paper's Algorithm 2 (an F sub-task runs to its window's end)"
+    if stl.hold_f_above_r and not stl.complete_f_at_goal:
+        return "the authors' code (hold once ρ > r, done at the first r < ρ < ρ_max)"
+    return ("tlfleet's (done once ρ reaches its first funnel's goal level"
+            + (", or met and needed by the next sub-task" if stl.lookahead else "")
+            + (", hold above r" if stl.hold_f_above_r else "") + ")")
+
+
+def stl_design(scenario) -> dict[str, Any]:
+    """The STL switches in force (docs/stl-saturation.md §9): funnels, F semantics, ρ_opt, the
+    avoidance radii (per coupled pair) and the static term."""
+    from tlfleet.agent.scenario import stl_setup
+
+    p = scenario.stl
+    pairs = {}
+    if p.coupled_radii and any(r.is_stl for r in scenario.robots):
+        for i, j in sorted(stl_setup.coupled_pairs(scenario)):
+            pairs[f"{i}-{j}"] = stl_setup.pair_radii(scenario, i, j)
+    return {"saturation_aware": p.saturation_aware, "saturation_share": p.saturation_share,
+            "f_semantics": f_semantics(p), "rho_opt_from_arena": p.rho_opt_from_arena,
+            "r1": p.r1, "r_sense": p.r_sense, "coupled_radii": pairs,
+            "wall_avoidance": p.wall_avoidance, "route_around": p.route_around}
 
 
 def render_lines(v: dict[str, Any]) -> list[str]:
@@ -187,6 +235,18 @@ def render_lines(v: dict[str, Any]) -> list[str]:
              + (f" (share {v['coupling_share']:g})" if v["coupling_aware"] else "")
              + f"; robustness recovery {'on' if v['recovery'] else 'off'}, "
              f"{total} recover{'y' if total == 1 else 'ies'}"]
+    d = v.get("stl_design")
+    if d:
+        radii = "; ".join(f"{pair} {r1:g}/{r:g} m" for pair, (r1, r) in d["coupled_radii"].items())
+        lines.append(
+            f"STL design: saturation-aware funnels {'on' if d['saturation_aware'] else 'off'}"
+            + (f" (share {d['saturation_share']:g})" if d["saturation_aware"] else "")
+            + f"; F sub-tasks: {d['f_semantics']}; ρ_opt "
+            + ("from the arena" if d["rho_opt_from_arena"] else "from the literals")
+            + f"; avoidance R1/R {d['r1']:g}/{d['r_sense']:g} m"
+            + (f", coupled pairs {radii}" if radii else "")
+            + f"; walls and obstacles in eq. (6) {'on' if d['wall_avoidance'] else 'off'}, "
+            f"routes {'on' if d['route_around'] else 'off'}")
     parts = []
     for rows in v["subtasks"].values():
         for row in rows:

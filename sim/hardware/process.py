@@ -92,10 +92,6 @@ class BridgeProcess(SimProcess):
     def _forward(self, key: str, payload: bytes, arrival: float) -> None:
         """The simulator's checks on one command, then the safety rules and the robot's topic.
         A command that fails a check is counted by the loop, from the same sample."""
-        t0 = self.world.t0
-        if t0 is None:
-            self.world.safety.dropped["before_start"] += 1
-            return
         try:
             command = decode(Command, payload)
         except ProtocolError:
@@ -106,6 +102,10 @@ class BridgeProcess(SimProcess):
         try:
             self.world.check_command(robot, command.u)
         except ValueError:
+            return
+        t0 = self.world.t0
+        if t0 is None:  # before the start: the safety rules count it and send nothing
+            self.world.command(robot, command.u)
             return
         # [s] sim time now on the frames' clock: the newest tick's time plus the wall time
         # since it went out (after an overrun the loop's schedule restarts, and sim time lags
@@ -224,6 +224,7 @@ def main(config: BridgeProcessConfig) -> int:
         transport = open_transport(config.transport)
         process = BridgeProcess(transport, scenario, sim_config, world, stop)
         code = process.run()
+        process.stop_robots("stopping")  # first: the linger below is for zenoh, not the robots
         time.sleep(LINGER)
         return code
     finally:

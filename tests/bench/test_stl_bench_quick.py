@@ -17,7 +17,8 @@ def test_bench_quick_writes_json(repo_root, tmp_path):
     assert "control step" in done.stdout
     data = json.loads(out.read_text())
     assert data["quick"] is True and data["runs"] >= 5
-    assert set(data["results"]) == {"step_us", "tick3_us", "monitor_ms", "harness_speed"}
+    assert set(data["results"]) == {"step_us", "step_obstacles_us", "tick3_us", "monitor_ms",
+                                    "harness_speed"}
     assert data["monitor_samples"] == 9001 and data["load_average_before"]
     assert all(f["met"] in (True, False, None) for f in data["figures"])
     assert all(value > 0 for value in data["results"].values())

@@ -112,6 +112,8 @@ def test_export_read_back_by_rosbags(tmp_path):
     assert names == ["a1", "a2"]
     discs = [m for m in scene[2].markers if m.ns == "regions"]
     assert discs[1].pose.position.x == 2.0 and discs[1].scale.x == pytest.approx(0.5)
+    goals = [m.text for m in scene[2].markers if m.ns == "stl_goal_names"]
+    assert goals == []  # four_robots.toml's STL tasks name no goal point
     statuses = [m.status[0] for _, _, m in got["/fleet/status"]]
     assert [s.name for s in statuses] == ["robot3", "robot1"]
     assert {kv.key: kv.value for kv in statuses[0].values} == {"kind": "stl", "rho": "-0.25"}
@@ -171,3 +173,16 @@ def test_the_definitions_match_the_ros_wheels_msg_files():
             assert _msg_fields(body) == _msg_fields(msg.read_text()), name
             checked += 1
     assert checked > 20
+
+
+def test_the_scene_marks_scenario_1s_stl_goals():
+    from tlfleet.agent.scenario import load_scenario
+    from tlfleet.coordinator.report.ros_messages import scene_markers
+
+    markers = scene_markers(load_scenario(ROOT / "scenarios" / "scenario1.toml"))["markers"]
+    goals = {(m["pose"]["position"]["x"], m["pose"]["position"]["y"], m["scale"]["x"])
+             for m in markers if m["ns"] == "stl_goals"}
+    # the goal points of Scenario 1's sub-tasks (scenarios/scenario1.toml), radius 0.1 each
+    assert {(0.0, -2.0, 0.2), (0.0, 2.0, 0.2), (1.5, -1.5, 0.2), (2.0, 2.0, 0.2),
+            (-1.0, 0.5, 0.2)} <= goals
+    assert "goal 3 [57, 58] s" in {m["text"] for m in markers if m["ns"] == "stl_goal_names"}

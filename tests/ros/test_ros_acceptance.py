@@ -6,7 +6,6 @@ robots visiting each of their regions again and again, no robot–robot contact.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from pathlib import Path
@@ -14,6 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from ros_harness import need_ros, run_case, unique_domain
+from system.system_helpers import dist_to as dist
+from system.system_helpers import entries
+from system.system_helpers import f_rob as f
+from system.system_helpers import g_rob as g
+from system.system_helpers import load_trajectory as load
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.system, pytest.mark.needs_system, pytest.mark.ros, pytest.mark.slow]
@@ -22,38 +26,6 @@ pytestmark = [pytest.mark.system, pytest.mark.needs_system, pytest.mark.ros, pyt
 # the simulator to)
 BOUNDS = {"phi'3": -0.18, "phi'4": -1.11, "phi'5": -0.12, "phi''3": 0.02, "phi''4": -0.4,
           "phi''5": 0.05}
-
-
-def load(run_dir: Path):
-    with open(run_dir / "trajectory.csv", newline="") as handle:
-        rows = list(csv.reader(handle))
-    ids = [int(h[1:]) for h in rows[0][1::3]]
-    data = np.array(rows[1:], dtype=float)
-    return data[:, 0], {r: data[:, 1 + 3 * k:4 + 3 * k] for k, r in enumerate(ids)}
-
-
-def dist(s, robot, target):
-    q = s[target][:, :2] if isinstance(target, int) else np.asarray(target, dtype=float)
-    return np.hypot(*(s[robot][:, :2] - q).T)
-
-
-def g(t, v, a, b):
-    return float(v[(t >= a) & (t <= b)].min())
-
-
-def f(t, v, a, b):
-    return float(v[(t >= a) & (t <= b)].max())
-
-
-def entries(xy, center, radius, hysteresis=0.05):
-    d = np.hypot(xy[:, 0] - center[0], xy[:, 1] - center[1])
-    count, inside = 0, False
-    for value in d:
-        if not inside and value <= radius:
-            count, inside = count + 1, True
-        elif inside and value > radius + hysteresis:
-            inside = False
-    return count
 
 
 def test_scenario1_over_the_bridge_has_the_simulators_verdicts(tmp_path):

@@ -230,3 +230,57 @@ def test_each_task_text_is_parsed_once_per_process(scenarios_dir, monkeypatch):
     changed = dataclasses.replace(ltl_robot, ltl="F a12")
     assert ltl_parser.parse("F a12") == ltl_task.robot_formula(changed)
     assert ltl_task.robot_formula(changed) != ltl_task.robot_formula(ltl_robot)
+
+
+def test_loading_and_building_the_agents_parse_and_translate_each_ltl_task_once(monkeypatch):
+    """Loading Scenario 1 and building both LTL agents as `tlfleet check` and `run` do (plan
+    included): each formula parsed once and translated once — the emptiness check's automaton
+    is the one the agent plans with (three parses a formula a load before)."""
+    from tlfleet.agent.ltl import buchi, task
+    from tlfleet.agent.policy.preflight import check_launch
+    from tlfleet.agent.scenario import validation
+
+    parses: list[str] = []
+    translations: list[object] = []
+    real_parse, real_translate = task.parse, buchi.translate
+
+    def counting_parse(text, *args, **kwargs):
+        parses.append(text)
+        return real_parse(text, *args, **kwargs)
+
+    def counting_translate(formula, *args, **kwargs):
+        translations.append(formula)
+        return real_translate(formula, *args, **kwargs)
+
+    monkeypatch.setattr(task, "parse", counting_parse)
+    monkeypatch.setattr(buchi, "parse", counting_parse)
+    monkeypatch.setattr(task, "translate", counting_translate)
+    for cached in (task.task_formula, task.text_automaton, validation._ltl_empty):
+        cached.cache_clear()
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" /
+                             "scenario1.toml")
+    check_launch(scenario)
+    texts = sorted(r.ltl for r in scenario.robots if r.ltl is not None)
+    assert sorted(parses) == texts
+    assert len(translations) == len(texts)
+
+
+def test_loading_and_building_the_agents_parse_each_stl_sub_task_once(monkeypatch):
+    """The loader's checks and every agent share one tree a sub-task (two parses a sub-task a
+    load before: the syntax check and the window check)."""
+    from tlfleet.agent.policy.preflight import check_launch
+    from tlfleet.agent.stl import parser
+
+    parsed: list[str] = []
+    real = parser._Parser.task
+
+    def counting(self):
+        parsed.append(self.text)
+        return real(self)
+
+    monkeypatch.setattr(parser._Parser, "task", counting)
+    parser.parsed_task.cache_clear()
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" /
+                             "scenario1.toml")
+    check_launch(scenario)
+    assert sorted(parsed) == sorted(t for r in scenario.robots for t in r.stl)

@@ -32,6 +32,9 @@ def test_run_without_secure_says_the_links_are_plain_tcp(captured, capsys):
 
 
 def test_run_with_secure_passes_the_key_directory(captured, capsys, tmp_path):
+    # the keys are checked before the launch (tlfleet run loads and checks the file once)
+    assert cli_main(["keys", str(SCENARIO1), "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
     with pytest.raises(Launched):
         cli_main(["run", str(SCENARIO1), "--quiet", "--secure", str(tmp_path)])
     assert captured[0].secure == tmp_path

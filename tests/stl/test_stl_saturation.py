@@ -39,27 +39,34 @@ def lower_curve(f: Funnel, t0: float, t1: float, n: int = 1201) -> tuple[np.ndar
        deadline=st.one_of(st.none(), st.floats(0.0, 90.0)))
 def test_saturated_funnel_never_climbs_faster_than_the_rate(kind, rho_opt, rho0, rate, a, length,
                                                              t_r, deadline):
-    """Invariants of §3: inside at t_r, lower boundary non-decreasing, climbing at most at v,
-    at or above r from t* on, γ continuous and C¹ at the knee; r = r_frac·ρ_max exactly when the
-    ramp reaches it by the deadline."""
+    """Invariants of §3: inside at t_r, lower boundary non-decreasing, climbing at most at v
+    (κ·c, or what the deadline needs up to saturation_cap·c), at or above r from t* on, γ
+    continuous and C¹ at the knee; r = r_frac·ρ_max exactly when the ramp reaches it by the
+    deadline."""
     assume(rho0 < rho_opt)
     b = a + length
     f = Funnel.init(kind, a, b, rho_opt, rho0, t_r, FP, rate=rate, deadline=deadline)
     assert -1.0 < f.zeta(rho0, t_r) < 0.0
-    assert f.climb() == pytest.approx(rate)
-    t, low = lower_curve(f, t_r, t_r + 200.0)
-    slope = np.diff(low) / np.diff(t)
-    assert np.all(slope >= -1e-9) and np.all(slope <= rate * (1 + 1e-6) + 1e-9)
-    assert np.all(low[t >= f.t_star] >= f.r - 1e-9)
     due = a if kind == "G" else (b if deadline is None else min(b, deadline))
     r_goal = FP.r_frac * f.rho_max
+    lower0 = f.lower(t_r)
+    v = rate
+    if due - t_r > FP.tau_min and lower0 < r_goal:
+        needed = (r_goal - lower0) / (due - t_r)
+        v = min(max(rate, needed), FP.saturation_cap * rate / FP.saturation_share)
+    assert f.climb() == pytest.approx(v)
+    assert f.climb() <= FP.saturation_cap / FP.saturation_share * rate * (1 + 1e-12)
+    t, low = lower_curve(f, t_r, t_r + 200.0)
+    slope = np.diff(low) / np.diff(t)
+    assert np.all(slope >= -1e-9) and np.all(slope <= v * (1 + 1e-6) + 1e-9)
+    assert np.all(low[t >= f.t_star] >= f.r - 1e-9)
     if f.ramp > 0.0:
         h = 1e-6
         knee = f.t_knee
         assert f.gamma(knee - h) == pytest.approx(f.gamma(knee + h), abs=1e-5)
         left = (f.gamma(knee - h) - f.gamma(knee - 2 * h)) / h
         right = (f.gamma(knee + 2 * h) - f.gamma(knee + h)) / h
-        assert left == pytest.approx(-rate, rel=1e-3) and right == pytest.approx(-rate, rel=1e-3)
+        assert left == pytest.approx(-v, rel=1e-3) and right == pytest.approx(-v, rel=1e-3)
         assert f.lower(knee) == pytest.approx(r_goal, abs=1e-9)
         if knee <= due and due - t_r > FP.tau_min:
             assert f.r == pytest.approx(r_goal)

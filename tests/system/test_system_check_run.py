@@ -83,3 +83,26 @@ def test_check_exit_0_iff_the_run_starts_and_every_agent_commands(tmp_path):
                 disagreements.append((name, "run", run.returncode, run.stderr[-400:]))
     assert disagreements == []
     assert valid == len(list(CORPUS.glob("*.toml"))) + 4  # every valid file ran
+
+
+def test_tlfleet_run_reads_the_scenario_once(tmp_path, monkeypatch):
+    """`tlfleet run` loads and checks the file once and passes the Scenario down (the fault
+    plan, the launcher and the report reuse it; three loads before). The processes it starts
+    load it once each, in their own process."""
+    from tlfleet.agent.scenario import loader
+    from tlfleet.cli.main import main
+
+    loads: list[str] = []
+    real = loader.parse_scenario
+
+    def counting(data, source="<scenario>"):
+        loads.append(source)
+        return real(data, source)
+
+    monkeypatch.setattr(loader, "parse_scenario", counting)
+    out = tmp_path / "run"
+    code = main(["run", str(ROOT / "tests" / "system" / "two_robots.toml"), "--lockstep",
+                 "--duration", "1", "--out", str(out), "--no-report", "--no-rrd", "--quiet"])
+    assert code == 0
+    assert loads == [str(ROOT / "tests" / "system" / "two_robots.toml")]
+    assert (out / "summary.txt").read_text().splitlines()[-1].startswith("outcome: clean")

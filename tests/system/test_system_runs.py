@@ -2,7 +2,7 @@
 
 Each test runs ``tlfleet run`` (``tlfleet.coordinator.run.run_fleet``) and asserts on the recorded
 run directory; robustness is recomputed here with numpy (``system_helpers``), not with the monitor
-the summary uses. Paper bounds: ``shared/design/scenarios.md``.
+the summary uses. Paper bounds: docs/scenarios.md.
 """
 
 from __future__ import annotations
