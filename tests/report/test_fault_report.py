@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.record.run_record import Detection
 from tlfleet.coordinator.report.fault_table import fault_rows
 
 
@@ -25,10 +26,10 @@ def test_a_cut_is_detected_by_the_coordinators_link_loss(scenarios_dir):
         start(20.0, spec, "cut", ["agent-3"]),
         Event(20.6, "coordinator", "link_lost", {"process": "agent-3", "wall": 1000.55}),
         end(23.1, spec, 3.1)], None)
-    assert row["detection"]["kind"] == "link_lost"
-    assert row["detection"]["after_sim"] == pytest.approx(0.6)
-    assert row["detection"]["after_wall"] == pytest.approx(0.55)
-    assert row["min_clearance"] is None  # no trajectory
+    assert row.detection.kind == "link_lost"
+    assert row.detection.after_sim == pytest.approx(0.6)
+    assert row.detection.after_wall == pytest.approx(0.55)
+    assert row.min_clearance is None  # no trajectory
 
 
 def test_a_partition_is_detected_by_its_targets_themselves(scenarios_dir):
@@ -42,16 +43,16 @@ def test_a_partition_is_detected_by_its_targets_themselves(scenarios_dir):
         Event(3.0, "agent/1", "stale_mocap", {"silence": 0.1}),  # not a target
         Event(3.02, "agent/2", "stale_mocap", {"silence": 0.16}),
         end(5.0, spec, 2.0)], None)
-    assert row["detection"] == {"kind": "stale_mocap", "t": pytest.approx(3.18),
-                                "after_sim": pytest.approx(0.18), "by": "agent/2"}
+    assert row.detection == Detection("stale_mocap", pytest.approx(3.18),
+                                      pytest.approx(0.18), after_wall=None, by="agent/2")
     spec = "partition:robot3,robot4@36+6"
     (row,) = fault_rows(scenario, [
         start(36.0, spec, "partition", ["agent-3", "agent-4"]),
         Event(36.2, "agent/4", "collab_follow", {"requester": 3, "previous": -1}),  # a follow
         Event(36.35, "agent/4", "collab_follow", {"requester": -1, "previous": 3}),
         end(39.0, spec, 6.0)], None)
-    assert row["detection"]["kind"] == "collab_follow"
-    assert row["detection"]["after_sim"] == pytest.approx(0.35)
+    assert row.detection.kind == "collab_follow"
+    assert row.detection.after_sim == pytest.approx(0.35)
     (row,) = fault_rows(scenario, [start(36.0, spec, "partition", ["agent-3", "agent-4"]),
                                    end(39.0, spec, 6.0)], None)
-    assert row["detection"] is None  # nobody noticed
+    assert row.detection is None  # nobody noticed
