@@ -4,6 +4,8 @@
     python bench/ltl_maps_bench.py --quick               # corpus seed 1, 30 maps, no baseline
     python bench/ltl_maps_bench.py --base-root /path/to/other/checkout   # step cost and maps
                                                          # of another tree beside this one's
+    python bench/ltl_maps_bench.py --corpus-root /path/to/other/checkout --skip maps,step,paper
+                                                         # the corpus driven by another tree
 
 Five measurements, each a row of the goal table (printed with its target and met / not met;
 JSON in ``bench/results/ltl_maps_bench.json``):
@@ -317,18 +319,24 @@ def _drive_in(root: Path | None, files: list[str], budget: dict) -> list[dict]:
 
 # ----------------------------------------------------------------------------- the corpus
 
-def run_corpus(seeds: list[int], out_dir: Path) -> dict:
+def run_corpus(seeds: list[int], out_dir: Path, root: Path | None = None,
+               rejudge: bool = False) -> dict:
+    """Every corpus file for every seed through ``tlfleet run --lockstep`` of this tree, or of
+    ``root``'s (its ``.venv``), judged by this tree's ``tests/ltl_corpus.py``; ``rejudge``: the
+    runs are in ``out_dir`` already (an earlier ``--runs-dir``), only judge them."""
     from ltl_corpus import CORPUS, analyse
 
+    python = str(root / ".venv" / "bin" / "python") if root else sys.executable
     rows = []
     for case in CORPUS:
         for seed in seeds:
             run_dir = out_dir / f"{case.name}-s{seed}"
             t0 = time.perf_counter()
-            proc = subprocess.run(
-                [sys.executable, "-m", "tlfleet.cli", "run", str(case.path), "--lockstep",
+            proc = subprocess.CompletedProcess([], 0) if rejudge else subprocess.run(
+                [python, "-m", "tlfleet.cli", "run", str(case.path), "--lockstep",
                  "--out", str(run_dir), "--quiet", "--no-rrd", "--no-figures",
-                 "--seed", str(seed)], capture_output=True, text=True, timeout=1800)
+                 "--seed", str(seed)], capture_output=True, text=True, timeout=1800,
+                cwd=root or ROOT)
             wall = time.perf_counter() - t0
             try:
                 outcome = analyse(run_dir)
@@ -483,6 +491,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--map-seed", type=int, default=2024)
     parser.add_argument("--base-root", type=Path, default=None,
                         help="another checkout (with its .venv) to compare maps and step cost")
+    parser.add_argument("--corpus-root", type=Path, default=None,
+                        help="run the corpus with another checkout's tlfleet (its .venv), "
+                             "e.g. to measure the table before a change")
+    parser.add_argument("--rejudge", action="store_true",
+                        help="judge the corpus runs already in --runs-dir instead of running "
+                             "them again")
     parser.add_argument("--skip", default="", help="comma list of corpus,maps,step,paper")
     parser.add_argument("--runs-dir", type=Path, default=None,
                         help="keep the run directories here (default: a temporary directory)")
@@ -507,7 +521,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = args.runs_dir or Path(tmp)
         if "corpus" not in skip:
             print(f"corpus, seeds {seeds}:", flush=True)
-            results["corpus"] = run_corpus(seeds, runs / "corpus")
+            results["corpus"] = run_corpus(seeds, runs / "corpus", args.corpus_root,
+                                           rejudge=args.rejudge)
         if "maps" not in skip:
             print(f"{n_maps} random maps:", flush=True)
             results["maps"] = run_maps(n_maps, args.map_seed, args.base_root)

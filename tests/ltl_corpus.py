@@ -15,8 +15,9 @@ and computes, without the coordinator's report code:
   from its last status row before the entry;
 * **contacts** (the simulator's ``contact`` events) and **standstills**: 5 s or more in which
   the robot moved less than 5 cm and turned less than 0.1 rad before its plan finished (or its
-  task was lost); a standstill inside a yield (between its ``yield`` begin and end events) is
-  waiting for the right of way and counts only when it lasts longer than ``YIELD_LIMIT``.
+  task was lost); time spent yielding (between a ``yield`` begin and end event) is waiting for
+  the right of way, so a standstill counts when it lasted 5 s or more outside its yields, or
+  when it waited longer than ``YIELD_LIMIT`` inside them.
 """
 
 from __future__ import annotations
@@ -209,8 +210,8 @@ def _standstills(t: np.ndarray, pose: np.ndarray, until: float,
         while j + 1 < len(still) and still[j + 1]:
             j += 1
         start, end = float(t[k]), float(t[j + n])
-        waiting = any(a - 0.5 <= start and end <= b + 0.5 for a, b in yields)
-        if not (waiting and end - start <= YIELD_LIMIT):
+        waited = sum(max(0.0, min(end, b) - max(start, a)) for a, b in yields)
+        if end - start - waited >= STILL_WINDOW or waited > YIELD_LIMIT:
             out.append((start, end))
         k = j + 1
     return out

@@ -8,19 +8,26 @@ What the LTL agent runtime uses::
     state, out = executor.step(state, ExecutorInputs(t, (x, y, θ), others))   # at 5 Hz
     # others: (K, 4) rows (id, x, y, θ) of the mocap frame (own row ignored); out.v, out.omega:
     # the command [m/s, rad/s];
-    # out.events: RegionVisited, CycleCompleted, PlanFinished, Stuck, ReplanRequest, ...;
+    # out.events: RegionVisited, RegionEntered, CycleCompleted, PlanFinished, Stuck,
+    # Recovered, Yielding, ReplanRequest, ...;
     # out.progress: target, visits per region, GF rounds, suffix cycles, mode.
     # Answer a ReplanRequest with ExecutorInputs(..., new_plan=(prefix, suffix)).
 
-Edge weights for the LTL transition system (ltl-planning.md §3)::
+Edge weights for the LTL transition system (docs/ltl-navigation.md §2: a transition enters no
+third region)::
 
-    from tlfleet.agent.nav.grid_planner import path_length_function
-    distance = path_length_function(scenario)     # distance(p, q) -> path length [m], cached
+    from tlfleet.agent.nav.keep_out import RegionPaths
+    paths = RegionPaths.from_scenario(scenario, robot_id)   # keep-out grids, cached
+    paths.length("a", "b")    # [m], inf when every way enters another region
+    paths.edge_length         # the transition system's edge_length(source, target)
 
 Modules:
 
 * ``grid``          occupancy grid with clearance layer, inflation, stamping other robots
-* ``grid_planner``  A* + line-of-sight smoothing, ``plan_path``, ``path_length_function``
+* ``grid_planner``  A* (with a clearance preference) + line-of-sight smoothing, ``plan_path``,
+  ``path_length_function``
+* ``keep_out``      paths between regions that enter no third region, the keep-out grids
+* ``traffic``       right of way: narrow passages and crossings, the yield's refuge
 * ``dwa``           dynamic window approach (Fox, Burgard & Thrun 1997), vectorised
 * ``executor``      plan executor: visits, cycles, re-planning, stuck recovery (pure step)
 * ``events``        the executor's events and progress record

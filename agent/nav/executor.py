@@ -1,42 +1,54 @@
 """Plan executor: drives a unicycle along its LTL plan, one pure step per control tick.
 
-ltl-planning.md §6 and paper §III-A. The plan is the projection on regions of the optimal
-prefix–suffix run (ltl-planning.md §5): targets ``τ = prefix · suffix^ω``, with the planner's
-conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` may be the virtual ``"start"`` state, and
-a name equal to the previous one means "stay". Each step (5 Hz):
+docs/ltl-navigation.md and paper §III-A. The plan is the projection on regions of the optimal
+prefix–suffix run (paper Algorithm 1): targets ``τ = prefix · suffix^ω``, with the planner's
+conventions (``tlfleet.agent.ltl.planner``): ``prefix[0]`` (``suffix[0]`` when the prefix is
+empty) is where the robot is, possibly the virtual ``"start"`` state, and a name equal to the
+previous one means "stay". Each step (5 Hz):
 
-1. **Visits.** The current target counts as visited when the robot is inside the region or within
-   ``xy_goal_tolerance`` of its centre; the executor then advances (stays pass at once, without a
-   new visit). A suffix that loops on one region ends the motion (``PlanFinished``): the robot
-   drives on to that region's centre and holds there.
-2. **Global path** (``grid_planner.plan_path``) from the pose to the target centre, on the
-   static grid with the other robots within ``local_range`` stamped in as inflated discs — the
-   paper's local cost map — re-planned every ``replan_period`` and whenever the target changes.
-   Robots ahead are stamped a second time shifted to our left, so paths keep right. The
-   periodic re-plans (and the re-plan around blocking robots of step 4) are *deferred*
-   (``deferred_replan``): the step that finds one due keeps following the current
-   path and records a :class:`PathRequest` (its pose and stamped robots); the runtime runs it
-   with :meth:`Executor.refresh` after the command is on its way, and the path is followed from
-   the next step on — move_base's global planner, which runs beside the controller at 1 Hz, has
-   the same one-period lag. A step that finds a request still pending runs it first, so the
-   trajectory is the same whether or not the caller refreshes between steps. A new target (a
-   region reached, a new plan) has no path to follow yet and is planned at once.
-3. **DWA** (``dwa.dwa_control``) follows the path, with the other robots as discs moving at the
-   velocity estimated from two consecutive pose frames.
-4. **Stuck detection.** Progress is a decrease of the remaining path length by at least
-   ``progress_epsilon``. With none for ``blocked_after`` the global path is re-planned with the
-   nearby robots stamped at full size (they become obstacles of the global plan, so a robot
-   blocking the way is passed around); with none for ``stuck_timeout`` the executor emits
-   ``Stuck``, rotates in
-   place (``rotate_time``), backs off (``back_off_time``, only if the space behind is free), then
-   emits ``ReplanRequest`` with the edge (last region → target) and resumes. The runtime may
-   answer with a new plan (``ExecutorInputs.new_plan``); its ``prefix[0]``, when it is the last
-   region visited, counts as reached.
+1. **The run's word** (docs/ltl-navigation.md §1). The regions whose disc the centre entered
+   since the last step (the segment between the two poses meets the disc; re-entry only after
+   leaving by ``region_hysteresis``): an entry into the target is a visit (``RegionVisited``)
+   and the plan advances (stays pass at once, without a new visit); an entry into the word's last
+   letter is a stutter; any other entry is a letter the plan did not schedule
+   (``RegionEntered``: the plan does not advance, the agent decides). A suffix that loops on one
+   region ends the motion (``PlanFinished``): the robot drives on to that region's centre and
+   holds there.
+2. **Global path** (``grid_planner.plan_path``, preferring ``path_clearance`` from obstacles)
+   from the pose to the target centre, on the keep-out grid of the transition (the word's last
+   letter → the target: every other region is an obstacle, docs/ltl-navigation.md §2) with the
+   other robots within ``local_range`` stamped in as inflated discs — the paper's local cost map
+   — re-planned every ``replan_period`` and whenever the target changes. Robots ahead are stamped
+   a second time shifted to our left, so paths keep right. The periodic re-plans (and the
+   re-plan around blocking robots of step 5) are *deferred* (``deferred_replan``): the step that
+   finds one due keeps following the current path and records a :class:`PathRequest` (its pose
+   and the robots to stamp); the runtime runs it with :meth:`Executor.refresh` after the command
+   is on its way, and the path is followed from the next step on — move_base's global planner,
+   which runs beside the controller at 1 Hz, has the same one-period lag. A step that finds a
+   request still pending runs it first, so the trajectory is the same whether or not the caller
+   refreshes between steps. A new target (a region reached, a new plan) has no path to follow
+   yet and is planned at once.
+3. **Right of way** (``traffic``, docs/ltl-navigation.md §6): in a narrow passage or at a
+   crossing, the robot without the right of way yields (mode ``yield``, ``Yielding`` events),
+   in a passage from a refuge beside its path.
+4. **DWA** (``dwa.dwa_control``) follows the path on the same keep-out grid, with the other
+   robots as discs moving at the velocity estimated from two consecutive pose frames.
+5. **Stuck detection and recovery** (docs/ltl-navigation.md §5). Progress is a decrease of the
+   remaining path length by at least ``progress_epsilon``. With none for ``blocked_after`` the
+   global path is re-planned with the nearby robots stamped at full size (a robot that blocks
+   the way is passed around); with none for ``stuck_timeout`` the executor emits ``Stuck``,
+   rotates in place (``rotate_time``), backs off (``back_off_time``, only if the space behind is
+   free), waits (``wait_time``), and drives on to the same target (``Recovered``) while a path to
+   it exists with the robots stamped at full size, at most ``max_recoveries`` times; otherwise it
+   emits ``ReplanRequest`` with the edge (last letter → target). The runtime may answer with a
+   new plan (``ExecutorInputs.new_plan``); its first state, when it is the word's last letter,
+   counts as reached.
 
-Progress: visits per region, ``rounds`` (GF progress: visits of the least visited suffix
-region), ``cycles`` (complete passes through the suffix), the target and the mode. Every command
-respects the unicycle's velocity and acceleration limits relative to the previous command (the
-dynamic window of one controller period).
+Progress: visits per region (entries of the word), ``rounds`` (GF progress: visits of the least
+visited suffix region), ``cycles`` (complete passes through the suffix), the target and the mode
+(frozen once the agent has declared the task lost, :meth:`Executor.lose`). Every command respects
+the unicycle's velocity and acceleration limits relative to the previous command (the dynamic
+window of one controller period).
 """
 
 from __future__ import annotations
@@ -536,54 +548,52 @@ class Executor:
     ) -> tuple[MovingDiscs, Traffic | None]:
         """Other robots of the pose frame (K, 4) within ``local_range`` as moving discs (the local
         cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
-        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``:
-        within its ``crossing_range``, or all of them when the path has a narrow stretch), or
-        None with the rule off.
+        Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``):
+        with a narrow stretch on the path every robot, else the moving ones within its
+        ``crossing_range`` (a standing robot is no crossing); None with the rule off.
 
         Plain floats over the few rows, with the array form's operations:
         ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
         px, py = float(pose[0]), float(pose[1])
         local_range = self.config.local_range
         rule = self.config.traffic
-        reach = (math.inf if s.path_narrow else rule.crossing_range) if rule.enabled else -1.0
-        rows = []
+        narrow = bool(s.path_narrow)
+        reach = (math.inf if narrow else rule.crossing_range) if rule.enabled else -1.0
+        previous = None
+        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
+            dt = t - s.prev_time
+            cap = self.config.max_other_speed
+            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
+        radii_by_id = dict(self.other_radii)
+        default = self.config.default_other_radius
+        centers, velocities, radii, rows = [], [], [], []
         for row in frame.tolist():
             if row[0] == self.robot_id:
                 continue
             dx, dy = row[1] - px, row[2] - py
             distance = math.sqrt(dx * dx + dy * dy)
-            if distance <= local_range or distance <= reach:
-                rows.append((row, distance))
-        if not rows:
-            return MovingDiscs.empty(), (Traffic(()) if rule.enabled else None)
-        velocities = [(0.0, 0.0)] * len(rows)
-        if s.prev_others is not None and s.prev_time is not None and t > s.prev_time:
-            dt = t - s.prev_time
-            cap = self.config.max_other_speed
-            previous = {int(row[0]): (row[1], row[2]) for row in s.prev_others.tolist()}
-            for k, (row, _) in enumerate(rows):
-                before = previous.get(int(row[0]))
-                if before is not None:
-                    ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
-                    speed = math.sqrt(ux * ux + uy * uy)
-                    if speed > cap:
-                        ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
-                    velocities[k] = (ux, uy)
-        radii_by_id = dict(self.other_radii)
-        default = self.config.default_other_radius
-        near = [k for k, (_, d) in enumerate(rows) if d <= local_range]
-        traffic = None
-        if rule.enabled:
-            traffic = Traffic(tuple(
-                (int(row[0]), row[1], row[2], *velocities[k],
-                 radii_by_id.get(int(row[0]), default), int(row[0]) in self.ruled)
-                for k, (row, d) in enumerate(rows) if d <= reach))
-        if not near:
+            local = distance <= local_range
+            if not (local or distance <= reach):
+                continue
+            rid = int(row[0])
+            ux = uy = 0.0
+            before = previous.get(rid) if previous is not None else None
+            if before is not None:
+                ux, uy = (row[1] - before[0]) / dt, (row[2] - before[1]) / dt
+                speed = math.sqrt(ux * ux + uy * uy)
+                if speed > cap:
+                    ux, uy = ux * cap / max(speed, 1e-12), uy * cap / max(speed, 1e-12)
+            radius = radii_by_id.get(rid, default)
+            if local:
+                centers.append((row[1], row[2]))
+                velocities.append((ux, uy))
+                radii.append(radius)
+            if distance <= reach and (narrow or ux * ux + uy * uy >= 4e-4):
+                rows.append((rid, row[1], row[2], ux, uy, radius, rid in self.ruled))
+        traffic = Traffic(tuple(rows)) if rule.enabled else None
+        if not centers:
             return MovingDiscs.empty(), traffic
-        return (MovingDiscs(np.array([(rows[k][0][1], rows[k][0][2]) for k in near]),
-                            np.array([velocities[k] for k in near]),
-                            np.array([radii_by_id.get(int(rows[k][0][0]), default)
-                                      for k in near])),
+        return (MovingDiscs(np.array(centers), np.array(velocities), np.array(radii)),
                 traffic)
 
     def _ramp(self, current: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
@@ -682,9 +692,8 @@ class Executor:
         narrow = False
         rule = self.config.traffic
         spent = s.yielded + (t - s.mode_since if s.mode == YIELD else 0.0)
-        if (not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait
-                or (not s.path_narrow and not any(row[3] or row[4] for row in traffic.rows))):
-            other = None  # nobody near, or only standing robots and no passage: no conflict
+        if not rule.enabled or s.path is None or not traffic or spent >= rule.max_wait:
+            other = None  # nobody that could conflict (``_local_obstacles``)
         else:
             px, py = float(pose[0]), float(pose[1])
             rid = self.robot_id if self.robot_id is not None else 0
@@ -919,6 +928,10 @@ class Executor:
             limits,
         )
         return s, (result.v, result.omega)
+
+    def progress(self, s: ExecutorState) -> Progress:
+        """The progress record of state ``s`` (the one each step reports)."""
+        return self._progress(s)
 
     def _progress(self, s: ExecutorState) -> Progress:
         return Progress(

@@ -148,7 +148,7 @@ def penalised(edge_length: EdgeLength, penalties: Sequence[tuple[str, str, float
               ) -> EdgeLength:
     """``edge_length`` with ``penalty`` [m] added on the directed edges ``(source, target)``
     given by region name (``"start"`` for the start point): how a ``ReplanRequest`` (a blocked
-    edge) becomes weights for the replanning (ltl-planning.md §5)."""
+    edge) becomes weights for the replanning (docs/ltl-navigation.md §5)."""
     extra: dict[tuple[str, str], float] = {}
     for source, target, penalty in penalties:
         extra[(source, target)] = extra.get((source, target), 0.0) + float(penalty)
@@ -177,14 +177,6 @@ def plan_on_map(scenario: Scenario, robot_id: int, *, buchi: Buchi | None = None
             raise
         raise UnsatisfiableTask(robot_id, scenario.robot(robot_id).ltl or exc.formula,
                                 reason) from None
-
-
-def plan_all(scenario: Scenario) -> dict[int, Plan]:
-    """:func:`plan_on_map` for every LTL robot of the scenario, by id: what ``tlfleet check``
-    and ``tlfleet run`` do before anything starts, so a task with no plan under the agent's
-    rules stops them with the same one-line :class:`UnsatisfiableTask` as ``tlfleet plan``."""
-    return {robot.id: plan_on_map(scenario, robot.id)
-            for robot in sorted(scenario.robots, key=lambda r: r.id) if robot.ltl is not None}
 
 
 def keep_out_reason(scenario: Scenario, robot_id: int, paths: RegionPaths,
@@ -346,9 +338,12 @@ class LtlAgent:
         if first_step and not entered and state.word_last is None:
             state = evolve(state, word_last=START)  # started in no region: the letter ∅
         ex_state = state.executor
-        report = LtlProgress(t, ex_state.prefix, ex_state.suffix, ex_state.target,
-                             tuple(sorted(state.buchi_states)), ex_state.visits,
-                             ex_state.rounds, ex_state.mode)
+        progress = ex_out.progress
+        if progress.mode != ex_state.mode:  # the agent stopped it this step (task lost)
+            progress = self.executor.progress(ex_state)
+        report = LtlProgress(t, ex_state.prefix, ex_state.suffix, progress.target,
+                             tuple(sorted(state.buchi_states)), progress.visits,
+                             progress.rounds, progress.mode)
         return state, LtlStepOutput((ex_out.v, ex_out.omega), report, tuple(notices))
 
     def _label(self, name: str | None) -> frozenset[str]:
@@ -419,8 +414,8 @@ class LtlAgent:
 
     def replan(self, state: LtlState, request: ReplanRequest, t: float
                ) -> tuple[LtlState, Notice]:
-        """A new plan with the edge ``from_region → to_region`` penalised (ltl-planning.md §5):
-        the target stayed out of reach through the executor's recoveries."""
+        """A new plan with the edge ``from_region → to_region`` penalised: the target stayed out
+        of reach through the executor's recoveries (docs/ltl-navigation.md §5)."""
         source = request.from_region if request.from_region is not None else START
         penalties = (*state.penalties, (source, request.to_region, float(request.penalty)))
         state = evolve(state, penalties=penalties)

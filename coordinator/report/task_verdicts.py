@@ -11,9 +11,12 @@ Beside it: ``held`` — the fraction of the samples of [a, min(b, t_end)] at whi
 ψ held (ρ^ψ ≥ 0, standard semantics), the figure that tells a formation kept 95 % of the time
 from one never formed; ``stationary`` — episodes in which a robot stood still (moved < 5 cm and
 turned < 0.1 rad over ``window`` seconds) while its task wanted it to move (LTL: before its plan
-finished; STL: ρ^ψ < −0.1 throughout, inside the window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving
-would help), the symptom of a navigation deadlock; and the run's switches: coupling-aware
-leaders (``[navigation] coupling_aware``, docs/coupling.md) and robustness recovery
+finished or its task was lost; time inside a ``yield`` is waiting for the right of way, so the
+episode counts when it lasted ``window`` or more outside yields or waited longer than
+``YIELD_LIMIT`` in them, docs/ltl-navigation.md §6; STL: ρ^ψ < −0.1 throughout, inside the
+window, with ‖∂ρ^ψ/∂z_i‖ ≥ 0.5 so that moving would help), the symptom of a navigation
+deadlock; and the run's switches: coupling-aware leaders (``[navigation] coupling_aware``,
+docs/coupling.md) and robustness recovery
 (``[stl] recovery``) with the number of recoveries.
 """
 
@@ -41,6 +44,7 @@ STILL_DISTANCE = 0.05  # [m]
 STILL_TURN = 0.1  # [rad]
 STL_WANTS_MOTION = -0.1  # ρ^ψ below this: the STL robot's task wants it to move
 DEADLOCK_WINDOW = 5.0  # [s]
+YIELD_LIMIT = 15.0  # [s] a head-on yield may wait this long: waiting, not a deadlock
 STL_MIN_SLOPE = 0.5  # ‖∂ρ^ψ/∂z_i‖ (smooth ρ, per metre) at or above which moving helps
 
 
@@ -97,13 +101,24 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
     """Episodes of a robot standing still for more than ``window``
     seconds while its task wants it to move (module docstring)."""
     finished: dict[int, float] = {}
+    yields: dict[int, list[tuple[float, float]]] = {}
+    begun: dict[int, float] = {}
     for e in events:
-        if e.kind == "plan_finished" and e.source.startswith("agent/"):
-            try:
-                robot = int(e.source.split("/", 1)[1])
-            except ValueError:
-                continue
+        if not e.source.startswith("agent/"):
+            continue
+        try:
+            robot = int(e.source.split("/", 1)[1])
+        except ValueError:
+            continue
+        if e.kind in ("plan_finished", "task_lost"):
             finished.setdefault(robot, e.t)
+        elif e.kind == "yield" and isinstance(e.data, dict):
+            if e.data.get("state") == "begin":
+                begun[robot] = e.t
+            elif e.data.get("state") == "end" and robot in begun:
+                yields.setdefault(robot, []).append((begun.pop(robot), e.t))
+    for robot, start in begun.items():  # still yielding when the run ended
+        yields.setdefault(robot, []).append((start, math.inf))
     t = traj.t
     if len(t) < 2:
         return []
@@ -146,7 +161,11 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
             j = k
             while j + 1 < len(flagged) and flagged[j + 1]:
                 j += 1
-            out.append(StationaryEpisode(robot.id, float(t[k]), float(t[j + n])))
+            start, end = float(t[k]), float(t[j + n])
+            waited = sum(max(0.0, min(end, b) - max(start, a))
+                         for a, b in yields.get(robot.id, ()))
+            if end - start - waited >= window or waited > YIELD_LIMIT:
+                out.append(StationaryEpisode(robot.id, start, end))
             k = j + 1
     return out
 

@@ -80,6 +80,37 @@ def test_stationary_episodes_flag_a_robot_that_stands_while_its_task_wants_motio
     assert [e.robot for e in flagged] == [1]
 
 
+def test_waiting_for_the_right_of_way_is_no_stationary_episode_up_to_its_limit():
+    """An LTL robot standing inside a ``yield`` (begin/end events) waits, not stalls — up to
+    15 s; a longer wait, a stand outside the yield, or after the yield ended is flagged."""
+    t = np.arange(201) * 0.1
+    # robot 1 drives, stands from 4 s to 16 s, drives on; the STL robot 2 keeps 0.2 m beside it
+    # (its task holds: it is never flagged)
+    x1 = np.where(t < 4.0, t * 0.1, np.where(t < 16.0, 0.4, 0.4 + (t - 16.0) * 0.1))
+    traj = Trajectory(t, {1: np.stack([x1, np.zeros(201), np.zeros(201)], axis=1),
+                          2: np.stack([x1 + 0.2, np.zeros(201), np.zeros(201)], axis=1)})
+    yielded = [Event(4.0, "agent/1", "yield", {"state": "begin", "other": 2}),
+               Event(16.0, "agent/1", "yield", {"state": "end", "other": 2})]
+    assert stationary_episodes(SCENARIO, traj, yielded) == []
+    stalled = stationary_episodes(SCENARIO, traj, [])
+    assert [e.robot for e in stalled] == [1]
+    assert stalled[0].t_start == pytest.approx(4.0, abs=0.6)
+    # a yield shorter than the stand does not cover it
+    short = [Event(4.0, "agent/1", "yield", {"state": "begin", "other": 2}),
+             Event(8.0, "agent/1", "yield", {"state": "end", "other": 2})]
+    assert [e.robot for e in stationary_episodes(SCENARIO, traj, short)] == [1]
+    # nor does one beyond the limit (a 30 s stand inside a 30 s yield)
+    long_t = np.arange(401) * 0.1
+    x_long = np.where(long_t < 4.0, long_t * 0.1, np.where(long_t < 34.0, 0.4,
+                                                            0.4 + (long_t - 34.0) * 0.1))
+    long_traj = Trajectory(long_t, {1: np.stack([x_long, np.zeros(401), np.zeros(401)], axis=1),
+                                    2: np.stack([x_long + 0.2, np.zeros(401), np.zeros(401)],
+                                                axis=1)})
+    long_yield = [Event(4.0, "agent/1", "yield", {"state": "begin", "other": 2}),
+                  Event(34.0, "agent/1", "yield", {"state": "end", "other": 2})]
+    assert [e.robot for e in stationary_episodes(SCENARIO, long_traj, long_yield)] == [1]
+
+
 def test_render_lines_name_the_switches():
     v = Verdicts(coupling_aware=False, coupling_share=0.9, recovery=True, recoveries={"3": 2},
                  subtasks={3: (SubtaskVerdict("violated", by=0.25, held=0.5, label="φ3"),)},
