@@ -58,6 +58,8 @@ from tlfleet.agent.stl.monitor import read_trajectory_csv  # noqa: E402
 from tlfleet.agent.stl.parser import robot_subtasks  # noqa: E402
 from tlfleet.agent.stl.robustness import participants, psi_array  # noqa: E402
 from tlfleet.coordinator.live.supervisor import SupervisorConfig  # noqa: E402
+from tlfleet.coordinator.record.rundir import json_ready  # noqa: E402
+from tlfleet.coordinator.record.typed_json import to_json  # noqa: E402
 from tlfleet.coordinator.report.joint_optimum import find_pinches  # noqa: E402
 from tlfleet.coordinator.report.run_report import build_report  # noqa: E402
 from tlfleet.coordinator.run import RunConfig, run_fleet  # noqa: E402
@@ -156,7 +158,7 @@ def one_run(case: str, seed: int, mode: str, coupling: bool, tmp: Path) -> dict:
 def evaluate(out: Path, meta: dict) -> dict:
     """The row of one run directory: its bench metadata and the goals from its report."""
     number = meta["scenario"]
-    data = build_report(out).data
+    data = json_ready(to_json(build_report(out)))  # report.json's data
     row = {**meta, **goals(number, data)}
     scenario = load_scenario(out / "scenario.toml")
     traj = read_trajectory_csv(out / "trajectory.csv")

@@ -58,6 +58,7 @@ from tlfleet.coordinator.live.verdict import (
     mission_event_kinds,
 )
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.run_record import Report, RunSummary
 from tlfleet.coordinator.record.rundir import (
     RunDirLock,
     RunFiles,
@@ -132,9 +133,9 @@ class RunResult:
     exit_codes: dict[str, int | None]  # the launched children's final codes (supervise: none)
     clean: bool
     summary_text: str = ""
-    summary: dict[str, Any] = field(default_factory=dict)
+    summary: RunSummary | None = None  # None: the run ended before its summary was written
     info: dict[str, Any] = field(default_factory=dict)
-    report: Any = None  # tlfleet.coordinator.report.run_report.Report, when written
+    report: Report | None = None  # when written
     rrd: Path | None = None  # run.rrd, when written
     viewer: Any = None  # tlfleet.coordinator.report.viewer.LiveView, still serving (close() it)
     verdict: Verdict = field(default_factory=lambda: Verdict("failed", ("no verdict",)))
@@ -345,13 +346,13 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
     note(f"writing summary.json{', report.md/json' if config.report else ''}"
          f"{' and figures' if config.report and config.figures else ''} in {prepared.run_dir} …")
 
-    def judge(files: RunFiles, data: dict[str, Any]) -> Verdict:
+    def judge(files: RunFiles, summary: RunSummary) -> Verdict:
         events = [{"t": e.t, "kind": e.kind, "source": e.source, "data": e.data}
                   for e in files.events]  # read once (lenient)
         extra = list(findings or []) + [f"clean-up: {e}" for e in info.get("cleanup_errors", [])]
         return classify(reason=outcome.reason, deaths=[d.process for d in outcome.deaths],
                         exit_codes=codes, router_clean=router_clean, mode=str(info.get("mode")),
-                        deadlines=data.get("deadlines") or {},
+                        deadlines=summary.deadlines,
                         event_kinds=mission_event_kinds(events, outcome.t_end,
                                                         periods=control_periods(scenario)),
                         findings=extra, lingering=lingering,
@@ -360,13 +361,13 @@ def finish_run(prepared: PreparedRun, config: OutputSettings, outcome: Outcome, 
                         sim_reached=outcome.sim_reached)
 
     try:
-        text, data, report, rrd, verdict, tally = write_outputs(
+        text, summary, report, rrd, verdict, tally = write_outputs(
             prepared.run_dir, prepared.scenario, config, info, recorder.write_run_info, note,
             say, judge=judge)
     finally:
         if prepared.lock is not None:
             prepared.lock.release()
-    return RunResult(prepared.run_dir, outcome, final, clean, text, data, info, report, rrd,
+    return RunResult(prepared.run_dir, outcome, final, clean, text, summary, info, report, rrd,
                      viewer, verdict, tally)
 
 

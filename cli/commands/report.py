@@ -40,17 +40,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from tlfleet.coordinator.record.rundir import damage, json_ready, read_run
+    from tlfleet.coordinator.record.typed_json import to_json
+    from tlfleet.coordinator.report.render import render_table
     from tlfleet.coordinator.report.run_report import write_report
 
     files = read_run(args.run_dir)
     report = write_report(files, figures=not args.no_figures, figure_format=args.figure_format)
     if args.json:
-        print(json.dumps(json_ready(report.data), indent=2, ensure_ascii=False))
+        print(json.dumps(json_ready(to_json(report)), indent=2, ensure_ascii=False))
     else:
-        print(report.table)
+        print(render_table(report))
         print(f"wrote {report.run_dir / 'report.md'}")
         print(f"wrote {report.run_dir / 'report.json'}")
-        for path in report.figures:
+        for path in report.figure_paths:
             print(f"wrote {path}" if not args.no_figures else f"kept {path}")
     damaged = damage(files)
     if damaged:  # written from what could be read, but the directory is not whole

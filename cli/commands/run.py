@@ -208,19 +208,23 @@ def _linger(viewer: LiveView, interrupted: bool) -> None:
 
 def result_json(result: RunResult) -> dict:
     """``--json``: what :func:`print_outputs` prints, as data: the verdict, the run directory, the
-    files written and the report's data (``report.json``), or the summary's without a report."""
-    report_path = result.run_dir / "report.json"
+    files written and the report (as ``report.json`` holds it), or the summary (as
+    ``summary.json``) without a report."""
+    from tlfleet.coordinator.record.rundir import json_ready
+    from tlfleet.coordinator.record.typed_json import to_json
+
+    record = result.report if result.report is not None else result.summary
     return {
         "verdict": result.verdict.to_json(),
         "tasks": None if result.tasks is None else result.tasks.to_json(),
         "end": {"reason": result.outcome.reason, "t_end": result.outcome.t_end},
         "run_dir": str(result.run_dir),
-        "report": str(report_path) if result.report is not None else None,
-        "figures": [str(p) for p in result.report.figures] if result.report is not None else [],
+        "report": str(result.run_dir / "report.json") if result.report is not None else None,
+        "figures": ([str(p) for p in result.report.figure_paths] if result.report is not None
+                    else []),
         "rrd": None if result.rrd is None else str(result.rrd),
         "exit_codes": result.exit_codes,
-        "data": (json.loads(report_path.read_text()) if result.report is not None
-                 and report_path.is_file() else result.summary),
+        "data": None if record is None else json_ready(to_json(record)),
     }
 
 
@@ -242,9 +246,11 @@ def print_outputs(result: RunResult, as_json: bool = False) -> None:
         print(json.dumps(result_json(result), indent=2, default=str), flush=True)
         return
     if result.report is not None:
-        print(result.report.table)
+        from tlfleet.coordinator.report.render import render_table
+
+        print(render_table(result.report))
         print(f"report:  {result.run_dir / 'report.md'}  (and report.json)")
-        for path in result.report.figures:
+        for path in result.report.figure_paths:
             print(f"figure:  {path}")
     else:
         print(result.summary_text)

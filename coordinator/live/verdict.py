@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tlfleet.agent.model.scenario import Scenario
+from tlfleet.coordinator.record.run_record import Deadlines
 from tlfleet.coordinator.record.rundir import AFTER_SIM_DONE
 
 EXIT_CODES = {"clean": 0, "failed": 3, "degraded": 4, "interrupted": 130}
@@ -73,7 +74,7 @@ class Verdict:
 
 
 def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
-             router_clean: bool, mode: str, deadlines: Mapping[str, Any],
+             router_clean: bool, mode: str, deadlines: Deadlines | None,
              event_kinds: Mapping[str, int], findings: Iterable[str] = (),
              lingering: Iterable[str] = (),
              max_missed_fraction: float = MAX_MISSED_FRACTION,
@@ -83,7 +84,7 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
 
     ``reason``: how supervision ended; ``deaths``: processes reported dead (recovered ones
     excluded); ``exit_codes``: the children's codes after ``Control(stop)``; ``deadlines``: the
-    summary's ``deadlines`` section (sim_stats, malformed, watchdog_stop…); ``event_kinds``:
+    summary's deadline counts (None: no summary); ``event_kinds``:
     events per kind *during the mission*; ``findings``: extra degradations already worded
     (silent agents, recoveries, flagged sim_done…); ``lingering``: processes this coordinator
     did not start (``tlfleet supervise``) whose liveliness token outlived ``Control(stop)``.
@@ -112,7 +113,7 @@ def classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int
 
 
 def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, int | None],
-              router_clean: bool, mode: str, deadlines: Mapping[str, Any],
+              router_clean: bool, mode: str, deadlines: Deadlines | None,
               event_kinds: Mapping[str, int], findings: Iterable[str],
               lingering: Iterable[str], max_missed_fraction: float) -> Verdict:
     if reason == "interrupted":
@@ -135,9 +136,9 @@ def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, in
     if failures:
         return Verdict("failed", tuple(failures))
     degraded: list[str] = []
-    stats = deadlines.get("sim_stats") or {}
-    missed, due = int(stats.get("missed", 0) or 0), int(stats.get("due", 0) or 0)
-    lockstep_misses = int(deadlines.get("deadline_miss", 0) or 0)
+    stats = deadlines.sim_stats if deadlines is not None else None
+    missed, due = (stats.missed, stats.due) if stats is not None else (0, 0)
+    lockstep_misses = deadlines.deadline_miss if deadlines is not None else 0
     if mode == "lockstep" and lockstep_misses:
         degraded.append(f"{lockstep_misses} missed deadline(s)")
     elif due and missed / due > max_missed_fraction:
@@ -161,9 +162,9 @@ def _classify(*, reason: str, deaths: Iterable[str], exit_codes: Mapping[str, in
                        ("link_lost", "link loss(es)")):
         if kinds[kind]:
             degraded.append(f"{kinds[kind]} {what}")
-    malformed = int(deadlines.get("malformed", 0) or 0)
+    malformed = deadlines.malformed if deadlines is not None else 0
     if malformed:
-        by_source = deadlines.get("malformed_by_source") or {}
+        by_source = deadlines.malformed_by_source if deadlines is not None else {}
         degraded.append(f"{malformed} malformed or implausible message(s)"
                         + (f" ({', '.join(f'{k}: {v}' for k, v in sorted(by_source.items()))})"
                            if by_source else ""))

@@ -16,12 +16,12 @@ last frame's time plus the silence it measured) or a target agent releasing a pa
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from tlfleet.agent.model import Scenario
 from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.record.run_record import Detection, FaultRow
 from tlfleet.coordinator.record.rundir import Trajectory
 
 RECOVERY_WINDOW = 5.0  # [s] sim time after an instantaneous fault (kill, restart)
@@ -68,19 +68,21 @@ def min_clearance(traj: Trajectory | None, radii: dict[int, float], a: float, b:
 
 
 def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | None
-               ) -> list[dict[str, Any]]:
+               ) -> list[FaultRow]:
     """One row per ``fault_start`` (see the module docstring)."""
     events = list(events)
     radii = {r.id: r.radius for r in scenario.robots}
     rows = []
     for n, start in enumerate(events):
-        if start.kind == "fault_skipped":
+        if start.kind == "fault_skipped":  # never injected: a row with the reason, no times
             data = start.data if isinstance(start.data, dict) else {}
-            rows.append({"spec": data.get("spec"), "kind": data.get("kind"),
-                         "targets": [t for t in data.get("targets", []) if isinstance(t, str)],
-                         "start_t": None, "end_t": None, "lasted": None,
-                         "error": f"skipped: {data.get('reason', '')}", "detection": None,
-                         "min_clearance": None})
+            kind = data.get("kind")
+            rows.append(FaultRow(
+                spec=str(data.get("spec")), kind=kind if isinstance(kind, str) else None,
+                targets=tuple(t for t in _list(data.get("targets")) if isinstance(t, str)),
+                start_t=None, end_t=None, lasted=None,
+                error=f"skipped: {data.get('reason', '')}", detection=None,
+                min_clearance=None))
             continue
         if start.kind != "fault_start":
             continue
@@ -88,55 +90,66 @@ def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | N
         spec = data.get("spec")
         end = next((e for e in events[n + 1:] if e.kind == "fault_end"
                     and isinstance(e.data, dict) and e.data.get("spec") == spec), None)
-        targets = [t for t in data.get("targets", []) if isinstance(t, str)]
+        targets = [t for t in _list(data.get("targets")) if isinstance(t, str)]
         found = next((e for e in events[n + 1:] if e.kind in DETECTIONS and e.t >= start.t
                       and any(_about(e, t) for t in targets)), None)
         end_t = end.t if end is not None else None
         until = end_t if end_t is not None and end_t > start.t else start.t + RECOVERY_WINDOW
-        detection: dict[str, Any] | None = None
+        detection: Detection | None = None
         if found is not None:
-            detection = {"kind": found.kind, "t": found.t, "after_sim": found.t - start.t}
-            wall = found.data.get("wall") if isinstance(found.data, dict) else None
-            if isinstance(wall, int | float) and isinstance(data.get("wall"), int | float):
-                detection["after_wall"] = float(wall) - float(data["wall"])
+            wall = _float(found.data.get("wall") if isinstance(found.data, dict) else None)
+            started = _float(data.get("wall"))
+            detection = Detection(found.kind, found.t, found.t - start.t, after_wall=(
+                wall - started if wall is not None and started is not None else None))
         if data.get("kind") == "partition":
             signs = [(t, e) for e in events[n + 1:]
                      if (t := _partition_sign(e, targets)) is not None and t >= start.t]
             if signs:
                 t, sign = min(signs, key=lambda pair: pair[0])
-                if detection is None or t < detection["t"]:
-                    detection = {"kind": sign.kind, "t": t, "after_sim": t - start.t,
-                                 "by": sign.source}
-        rows.append({
-            "spec": spec, "kind": data.get("kind"), "targets": targets, "start_t": start.t,
-            "end_t": end_t,
-            "lasted": end.data.get("lasted") if end is not None else None,
-            "error": data.get("error"), "detection": detection,
-            "min_clearance": min_clearance(traj, radii, start.t, until),
-        })
+                if detection is None or t < detection.t:
+                    detection = Detection(sign.kind, t, t - start.t, by=sign.source)
+        lasted = end.data.get("lasted") if end is not None else None
+        kind, error = data.get("kind"), data.get("error")
+        rows.append(FaultRow(
+            spec=str(spec), kind=kind if isinstance(kind, str) else None,
+            targets=tuple(targets), start_t=start.t, end_t=end_t,
+            lasted=_float(lasted),
+            error=None if error is None else str(error), detection=detection,
+            min_clearance=min_clearance(traj, radii, start.t, until)))
     return rows
 
 
-def render_fault_lines(rows: list[dict[str, Any]]) -> list[str]:
+def _float(value: object) -> float | None:
+    """A number of an event's data as a float; None for anything else."""
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) \
+        else None
+
+
+def _list(value: object) -> list[object]:
+    return value if isinstance(value, list) else []
+
+
+def render_fault_lines(rows: Sequence[FaultRow]) -> list[str]:
     """Markdown of the report's "Faults" section (empty without faults)."""
     if not rows:
         return []
 
-    def num(value: Any, spec: str) -> str:
+    def num(value: float | None, spec: str) -> str:
         return "—" if value is None else format(value, spec)
 
     out = ["## Faults", "",
            "| fault | start t [s] | end t [s] | lasted [s wall] | detected as | after [s] | "
            "min clearance [m] |", "|---|---|---|---|---|---|---|"]
     for r in rows:
-        d = r["detection"] or {}
-        after = d.get("after_wall", d.get("after_sim"))
-        why = "" if not r["error"] else f" ({r['error']})" \
-            if r["error"].startswith("skipped") else f" (failed: {r['error']})"
-        out.append(f"| `{r['spec']}`{why} | "
-                   f"{num(r['start_t'], '.2f')} | {num(r['end_t'], '.2f')} | "
-                   f"{num(r['lasted'], '.2f')} | {d.get('kind', 'not detected')} | "
-                   f"{num(after, '.2f')} | {num(r['min_clearance'], '+.3f')} |")
+        d = r.detection
+        after = None if d is None else (d.after_wall if d.after_wall is not None
+                                        else d.after_sim)
+        why = "" if not r.error else f" ({r.error})" if r.error.startswith("skipped") \
+            else f" (failed: {r.error})"
+        out.append(f"| `{r.spec}`{why} | "
+                   f"{num(r.start_t, '.2f')} | {num(r.end_t, '.2f')} | "
+                   f"{num(r.lasted, '.2f')} | {d.kind if d else 'not detected'} | "
+                   f"{num(after, '.2f')} | {num(r.min_clearance, '+.3f')} |")
     return [*out, "", "Detection: the coordinator's first link_lost / process_died / "
             "agent_silent about the fault's target after its start (delay in wall time where both "
             "events carry it, else sim time); clearance: centre distance minus both radii over "

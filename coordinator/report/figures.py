@@ -30,6 +30,7 @@ from matplotlib.patches import Circle, Rectangle
 from tlfleet.agent.model import Scenario
 from tlfleet.agent.model.scenario import DiscObstacle, RectObstacle
 from tlfleet.agent.stl.monitor import Trajectory
+from tlfleet.coordinator.report.paper_comparison import RepairEvent
 
 DPI = 200  # PNG resolution; PDF and SVG are vector
 FORMATS = ("png", "pdf", "svg")
@@ -140,11 +141,11 @@ def _break_between_subtasks(series: Mapping[str, np.ndarray]) -> dict[str, np.nd
 
 def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
                       subtasks: Sequence[tuple[str, float, float]],
-                      repairs: Sequence[Mapping[str, Any]], path: Path, *, t_end: float,
+                      repairs: Sequence[RepairEvent], path: Path, *, t_end: float,
                       dpi: int = DPI) -> Path:
     """ρ^ψ(t), ρ_max, lower, r of STL robot ``robot_id`` (``series``: arrays ``t, rho, rho_max,
-    lower, r, subtask`` (N,), NaN when idle), ``subtasks`` as ``(label, a, b)`` [s], ``repairs`` as
-    ``{t, stage, r}`` (stage "recovery" for a robustness recovery); writes ``path``."""
+    lower, r, subtask`` (N,), NaN when idle), ``subtasks`` as ``(label, a, b)`` [s], ``repairs``
+    its repair events (stage "recovery" for a robustness recovery); writes ``path``."""
     fig = _new_figure((8.4, 3.6))
     ax = fig.add_subplot()
     for k, (label, a, b) in enumerate(subtasks):
@@ -174,11 +175,11 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
                 va="center", color="gray")
     ax.axhline(0.0, color="black", linewidth=0.6)
     for stage, (marker, colour) in STAGE_STYLE.items():
-        hits = [e for e in repairs if e.get("stage") == stage]
+        hits = [e for e in repairs if e.stage == stage]
         if not hits:
             continue
-        ts = np.array([e["t"] for e in hits], dtype=float)
-        ys = np.array([e["r"] if e.get("r") is not None else np.nan for e in hits], dtype=float)
+        ts = np.array([e.t for e in hits], dtype=float)
+        ys = np.array([e.r if e.r is not None else np.nan for e in hits], dtype=float)
         if has_data:  # no r in the event: put the marker on ρ at that time
             missing = ~np.isfinite(ys)
             finite = np.isfinite(series["rho"])
@@ -187,10 +188,10 @@ def robustness_figure(robot_id: int, series: Mapping[str, np.ndarray],
         ys = np.where(np.isfinite(ys), ys, 0.0)
         ax.scatter(ts, ys, marker=marker, s=22, color=colour, zorder=5,
                    label=f"stage {stage} repair ({len(hits)})")
-    recoveries = [e for e in repairs if e.get("stage") == "recovery"]
+    recoveries = [e for e in repairs if e.stage == "recovery"]
     if recoveries:  # robustness recovery (tlfleet.agent.stl.recovery): the raised r
-        ts = np.array([e["t"] for e in recoveries], dtype=float)
-        ys = np.array([e["r"] if e.get("r") is not None else 0.0 for e in recoveries], dtype=float)
+        ts = np.array([e.t for e in recoveries], dtype=float)
+        ys = np.array([e.r if e.r is not None else 0.0 for e in recoveries], dtype=float)
         ax.scatter(ts, ys, marker="^", s=26, color="tab:green", zorder=5,
                    label=f"recovery ({len(recoveries)})")
     ax.set_xlim(0.0, t_end)

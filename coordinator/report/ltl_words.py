@@ -30,7 +30,7 @@ the planner's transition system):
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 from tlfleet.agent.ltl.emptiness import accepts_lasso
@@ -41,6 +41,15 @@ from tlfleet.agent.policy.ltl import plan_on_map
 from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.bus.errors import UnsatisfiableTask
 from tlfleet.bus.protocol.messages import LtlStatus
+from tlfleet.coordinator.record.run_record import (
+    Accepting,
+    Lasso,
+    LtlRobotReport,
+    LtlRobotSummary,
+    Plan,
+    Visits,
+    WordLetter,
+)
 from tlfleet.coordinator.report.summary import REGION_HYSTERESIS, region_entry_indices
 
 START = "start"  # the planner's name of the state outside every region (ltl-planning.md §3)
@@ -88,39 +97,35 @@ def _labels(scenario: Scenario, name: str) -> frozenset[str]:
 
 
 def ltl_robot_report(scenario: Scenario, robot_id: int, traj: Trajectory | None,
-                     status: LtlStatus | None, summary_entry: dict[str, Any]) -> dict[str, Any]:
+                     status: LtlStatus | None, summary: LtlRobotSummary) -> LtlRobotReport:
     """The report entry of LTL robot ``robot_id``: plan, visits, word, cycles, lasso and the
     accepting condition (module docstring); ``status`` is its last status."""
     robot = scenario.robot(robot_id)
     formula = robot.ltl or ""
-    plan: dict[str, Any]
     if status is not None:
-        plan = {"prefix": list(status.prefix), "suffix": list(status.suffix),
-                "source": "status.csv (last LTL status row)"}
+        plan = Plan(tuple(status.prefix), tuple(status.suffix),
+                    "status.csv (last LTL status row)")
     else:
         try:
             p = plan_on_map(scenario, robot_id)
-            plan = {"prefix": list(p.prefix), "suffix": list(p.suffix),
-                    "source": "recomputed (no LTL status row)"}
+            plan = Plan(tuple(p.prefix), tuple(p.suffix), "recomputed (no LTL status row)")
         except UnsatisfiableTask as exc:
-            plan = {"prefix": [], "suffix": [], "source": f"none ({exc})"}
-    visits = {name: {"agent": summary_entry["visits_reported"].get(name, 0),
-                     "trajectory": summary_entry["visits_trajectory"].get(name)}
-              for name in summary_entry["plan_regions"]}
-    entry: dict[str, Any] = {
-        "task": formula, "plan": plan, "visits": visits, "rounds": summary_entry["rounds"],
-        "word": [], "cycle": plan_cycle(plan["suffix"]), "cycles_completed": 0,
-        "cycle_times": [], "cycle_time_mean": None, "lasso": None,
-        "accepting": {"lasso": None, "buchi": None, "agree": None, "met": False},
-        "note": "",
-    }
+            plan = Plan((), (), f"none ({exc})")
+    visits = {name: Visits(summary.visits_reported.get(name, 0),
+                           summary.visits_trajectory.get(name))
+              for name in summary.plan_regions}
+    cycle = plan_cycle(list(plan.suffix))
+    unevaluated = LtlRobotReport(
+        task=formula, plan=plan, visits=visits, rounds=summary.rounds, word=(),
+        cycle=tuple(cycle), cycles_completed=0, cycle_times=(), cycle_time_mean=None,
+        lasso=None, accepting=Accepting(lasso=None, buchi=None, agree=None, met=False),
+        note="")
     if traj is None or robot_id not in traj.states:
-        entry["note"] = "no trajectory for this robot: accepting condition not evaluated"
-        return entry
+        return replace(unevaluated, note="no trajectory for this robot: accepting condition "
+                                         "not evaluated")
     word = region_word(traj.t, traj.states[robot_id][:, :2], scenario)
     names = [name for _t, name in word]
     times = [t for t, _name in word]
-    cycle = entry["cycle"]
     ends = completed_cycles(names, cycle)
     cycle_times = [times[j] - times[j - len(cycle)] for j in ends]
     if ends:
@@ -135,15 +140,14 @@ def ltl_robot_report(scenario: Scenario, robot_id: int, traj: Trajectory | None,
     loop = [_labels(scenario, n) for n in v]
     by_lasso = holds(robot_formula(robot), prefix, loop)
     by_buchi = accepts_lasso(task_automaton(robot_formula(robot)), prefix, loop)
-    entry.update({
-        "word": [{"t": t, "region": name} for t, name in word],
-        "cycles_completed": len(ends),
-        "cycle_times": cycle_times,
-        "cycle_time_mean": float(np.mean(cycle_times)) if cycle_times else None,
-        "lasso": {"prefix": u, "loop": v, "closed_by": closed_by},
-        "accepting": {"lasso": by_lasso, "buchi": by_buchi, "agree": by_lasso == by_buchi,
-                      "met": by_lasso and by_buchi},
-    })
-    if by_lasso != by_buchi:
-        entry["note"] = "the lasso evaluator and the Büchi automaton disagree: a bug to report"
-    return entry
+    return replace(
+        unevaluated,
+        word=tuple(WordLetter(t, name) for t, name in word),
+        cycles_completed=len(ends),
+        cycle_times=tuple(cycle_times),
+        cycle_time_mean=float(np.mean(cycle_times)) if cycle_times else None,
+        lasso=Lasso(tuple(u), tuple(v), closed_by),
+        accepting=Accepting(lasso=by_lasso, buchi=by_buchi, agree=by_lasso == by_buchi,
+                            met=by_lasso and by_buchi),
+        note=("the lasso evaluator and the Büchi automaton disagree: a bug to report"
+              if by_lasso != by_buchi else ""))

@@ -14,12 +14,13 @@ from typing import Any, Protocol
 from tlfleet.agent.model import Scenario
 from tlfleet.coordinator.live.verdict import Verdict
 from tlfleet.coordinator.record import rundir
+from tlfleet.coordinator.record.run_record import Report, RunSummary, TaskTally
 from tlfleet.coordinator.record.rundir import RunFiles
 from tlfleet.coordinator.report.summary import write_summary
-from tlfleet.coordinator.report.task_tally import TaskTally, task_tally
+from tlfleet.coordinator.report.task_tally import task_tally
 
 Say = Callable[[str], None]
-Judge = Callable[[RunFiles, dict[str, Any]], Verdict]
+Judge = Callable[[RunFiles, RunSummary], Verdict]
 
 
 class OutputSettings(Protocol):
@@ -52,9 +53,9 @@ def start_viewer(scenario: Scenario, config: OutputSettings, say: Say) -> Any:
     return view
 
 
-def write_report(files: RunFiles, summary: dict[str, Any], figures: bool,
+def write_report(files: RunFiles, summary: RunSummary, figures: bool,
                  say: Say, tally: TaskTally | None = None,
-                 figure_format: str = "png") -> tuple[Any, str]:
+                 figure_format: str = "png") -> tuple[Report | None, str]:
     """Step 7: report.md/json (+ figures); failures are reported, never raised → (Report, error)."""
     try:
         from tlfleet.coordinator.report.run_report import write_report as write
@@ -82,7 +83,7 @@ def write_rrd(run: RunFiles | Path, every: int, say: Say) -> dict[str, Any]:
 def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
                   info: dict[str, Any], write_info: Callable[[dict[str, Any]], None],
                   note: Say, say: Say, judge: Judge | None = None,
-                  ) -> tuple[str, dict[str, Any], Any, Path | None, Verdict | None,
+                  ) -> tuple[str, RunSummary, Report | None, Path | None, Verdict | None,
                              TaskTally | None]:
     """Steps 6–8 after the fleet stopped: the run directory is read once
     (:func:`rundir.read_run`) and the summary (computed once), the task tally
@@ -92,14 +93,14 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
     the report's and the recording's paths or errors; ``summary.txt`` ends with the tally's line
     and the verdict's."""
     files = rundir.read_run(run_dir, scenario=scenario)
-    text, data = write_summary(files)
-    tally = tally_or_none(files, data, say)
+    text, summary = write_summary(files)
+    tally = tally_or_none(files, summary, say)
     closing = [tally.line] if tally is not None else []
     if tally is not None:
         info["tasks"] = tally.to_json()
     verdict = None
     if judge is not None:
-        verdict = judge(files, data)
+        verdict = judge(files, summary)
         info["outcome"] = verdict.to_json()
         closing.append(verdict.line)
     write_info(info)
@@ -109,11 +110,11 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
             summary_file.write("".join(line + "\n" for line in closing))
     report_result = None
     if config.report:
-        report_result, error = write_report(files, data, config.figures, say, tally,
+        report_result, error = write_report(files, summary, config.figures, say, tally,
                                             getattr(config, "figure_format", "png"))
-        info["report"] = {"error": error} if error else {
+        info["report"] = {"error": error} if report_result is None else {
             "path": str(run_dir / rundir.REPORT_MD),
-            "figures": [str(path) for path in report_result.figures]}
+            "figures": [str(path) for path in report_result.figure_paths]}
         write_info(info)
     rrd_path: Path | None = None
     if config.rrd:
@@ -121,10 +122,10 @@ def write_outputs(run_dir: Path, scenario: Scenario, config: OutputSettings,
         info["rrd"] = write_rrd(files, config.rrd_every, say)
         rrd_path = Path(info["rrd"]["path"]) if "path" in info["rrd"] else None
         write_info(info)
-    return text, data, report_result, rrd_path, verdict, tally
+    return text, summary, report_result, rrd_path, verdict, tally
 
 
-def tally_or_none(files: RunFiles, summary: dict[str, Any], say: Say) -> TaskTally | None:
+def tally_or_none(files: RunFiles, summary: RunSummary, say: Say) -> TaskTally | None:
     """The task tally; a failure is reported and never fails the run (the process verdict
     still stands)."""
     try:

@@ -20,8 +20,8 @@ process deaths) is the summary's.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,31 +31,31 @@ from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.agent.stl.parser import robot_subtasks
 from tlfleet.bus.protocol.messages import LtlStatus, StlStatus
 from tlfleet.coordinator.record import rundir
+from tlfleet.coordinator.record.run_record import (
+    Deadlines,
+    LostFrames,
+    Report,
+    RunSummary,
+    StlRobotReport,
+    SubtaskVerdict,
+    TaskTally,
+    Timing,
+    write_record,
+)
 from tlfleet.coordinator.record.rundir import RunDirectoryError, RunFiles
 from tlfleet.coordinator.report import paper_values, task_verdicts
 from tlfleet.coordinator.report.fault_table import fault_rows
 from tlfleet.coordinator.report.ltl_words import ltl_robot_report
-from tlfleet.coordinator.report.paper_comparison import repair_events, stl_robot_report
-from tlfleet.coordinator.report.render import render_markdown, render_table
+from tlfleet.coordinator.report.paper_comparison import (
+    RepairEvent,
+    repair_events,
+    stl_robot_report,
+)
+from tlfleet.coordinator.report.render import render_markdown
 from tlfleet.coordinator.report.summary import summarise
-from tlfleet.coordinator.report.task_tally import TaskTally, task_tally
+from tlfleet.coordinator.report.task_tally import task_tally
 
 __all__ = ["Report", "RunDirectoryError", "build_report", "write_report"]
-
-SCHEMA = 3  # 3: "tasks", the task tally; 2: r_bar is the least r in force (was the last
-#            status r, now r_final)
-
-
-@dataclass
-class Report:
-    """A run's report: ``data`` is report.json, ``markdown`` report.md, ``table`` the console
-    table, ``figures`` the PNG files (written, or already present for :func:`build_report`)."""
-
-    run_dir: Path
-    data: dict[str, Any]
-    markdown: str
-    table: str
-    figures: list[Path] = field(default_factory=list)
 
 
 def stl_series(statuses: Iterable[LtlStatus | StlStatus], robot_id: int
@@ -85,20 +85,20 @@ def trajectory_windows(scenario: Scenario, t_end: float) -> list[tuple[float, fl
     return [(a, b) for a, b in itertools.pairwise(edges) if b > a]
 
 
-def figure_names(data: dict[str, Any], fmt: str = "png") -> list[str]:
-    """The figure files a report with ``data`` has in format ``fmt`` (trajectory windows, then
-    robustness per robot)."""
-    names = [f"trajectories_{a:g}-{b:g}s.{fmt}" for a, b in data["figure_windows"]]
-    names += [f"robustness_r{rid}.{fmt}" for rid in data["stl"]]
+def figure_names(report: Report, fmt: str = "png") -> list[str]:
+    """The figure files ``report`` has in format ``fmt`` (trajectory windows, then robustness per
+    robot)."""
+    names = [f"trajectories_{a:g}-{b:g}s.{fmt}" for a, b in report.figure_windows]
+    names += [f"robustness_r{rid}.{fmt}" for rid in report.stl]
     return names
 
 
-def _present_figures(run_dir: Path, data: dict[str, Any]) -> list[Path]:
-    """The report's figures already in ``run_dir``, whatever their format."""
+def _present_figures(report: Report) -> tuple[str, ...]:
+    """The report's figures already in its run directory, whatever their format."""
     from tlfleet.coordinator.report.figures import FORMATS
 
-    return [run_dir / name for fmt in FORMATS for name in figure_names(data, fmt)
-            if (run_dir / name).is_file()]
+    return tuple(name for fmt in FORMATS for name in figure_names(report, fmt)
+                 if (report.run_dir / name).is_file())
 
 
 def stl_goals(scenario: Scenario, window: tuple[float, float]
@@ -149,125 +149,121 @@ def subtask_goals(scenario: Scenario
             for tree in robot_subtasks(robot) for goal in goals_of(tree.body)]
 
 
-def _collect(files: RunFiles, summary: dict[str, Any] | None = None,
-             tally: TaskTally | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(report data, what the figures need) from the files read once, their summary and task
-    tally (each computed here when not given)."""
-    run_dir = files.run_dir
+def _collect(files: RunFiles, summary: RunSummary | None = None,
+             tally: TaskTally | None = None) -> tuple[Report, dict[int, list[RepairEvent]]]:
+    """The report (no figures yet) from the files read once, their summary and task tally
+    (each computed here when not given), and the repair events the figures mark."""
     scenario, events, statuses, traj = (files.scenario, files.events, files.statuses,
                                         files.trajectory)
-    skipped = files.skipped_event_lines
     if summary is None:
         _text, summary = summarise(files)
-    run = summary["run"] or {}
     repairs = repair_events(events)
     last_ltl = {s.robot: s for s in statuses if isinstance(s, LtlStatus)}
-
-    t_end = summary["t_end"] if traj is not None else scenario.duration
-    data: dict[str, Any] = {
-        "schema": SCHEMA,
-        "scenario": scenario.name,
-        "description": scenario.description,
-        "run_dir": str(run_dir),
-        "duration": scenario.duration,
-        "mode": run.get("mode"),
-        "frames": summary["frames"],
-        "t_end": summary["t_end"],
-        "trajectory_error": summary["trajectory_error"],
-        "events_skipped_lines": skipped,
-        "paper_note": paper_values.scenario_note(scenario.name),
-        "stl": {str(rid): stl_robot_report(scenario.name, rid, entry, repairs.get(rid, []))
-                for rid, entry in summary["stl"].items()},
-        "ltl": {str(rid): ltl_robot_report(scenario, rid, traj, last_ltl.get(rid), entry)
-                for rid, entry in summary["ltl"].items()},
-        "contacts": summary["contacts"],
-        "closest_approach": summary["closest_approach"],
-        "timing": _timing(summary["deadlines"]),
-        "process_deaths": summary["process_deaths"],
-        "faults": fault_rows(scenario, events, traj),
-        "lost_frames": lost_frames(traj, scenario.duration if run.get("duration") is None
-                                   else float(run["duration"]), scenario.sim.mocap_rate),
-        "figure_windows": [list(w) for w in trajectory_windows(scenario, t_end)],
-    }
-    data["verdicts"] = task_verdicts.collect(scenario, traj, events, t_end, data["stl"])
-    for rid, rows in data["verdicts"]["subtasks"].items():  # a window the run never closed
-        for sub, row in zip(data["stl"][rid]["subtasks"], rows, strict=True):  # is not "met"
-            if row["verdict"] == "not evaluated" and sub["paper"] is not None:
-                sub["paper"]["met"] = None
-    data["tasks"] = (tally or task_tally(files, summary)).to_json()
-    context = {"scenario": scenario, "traj": traj, "statuses": statuses, "repairs": repairs,
-               "t_end": t_end if t_end > 0 else scenario.duration}
-    return data, context
+    t_end = summary.t_end if traj is not None else scenario.duration
+    stl = {rid: stl_robot_report(scenario.name, rid, entry, repairs.get(rid, []))
+           for rid, entry in summary.stl.items()}
+    verdicts = task_verdicts.collect(scenario, traj, events, t_end, stl)
+    stl = {rid: _unevaluated_not_met(entry, verdicts.subtasks[rid]) for rid, entry in stl.items()}
+    report = Report(
+        scenario=scenario.name,
+        description=scenario.description,
+        run_dir=files.run_dir,
+        duration=scenario.duration,
+        mode=summary.mode,
+        frames=summary.frames,
+        t_end=summary.t_end,
+        trajectory_error=summary.trajectory_error,
+        events_skipped_lines=tuple(files.skipped_event_lines),
+        paper_note=paper_values.scenario_note(scenario.name),
+        stl=stl,
+        ltl={rid: ltl_robot_report(scenario, rid, traj, last_ltl.get(rid), entry)
+             for rid, entry in summary.ltl.items()},
+        contacts=summary.contacts,
+        closest_approach=summary.closest_approach,
+        timing=_timing(summary.deadlines),
+        process_deaths=summary.process_deaths,
+        faults=tuple(fault_rows(scenario, events, traj)),
+        figure_windows=tuple(trajectory_windows(scenario, t_end)),
+        verdicts=verdicts,
+        tasks=tally or task_tally(files, summary),
+        lost_frames=lost_frames(traj, float(files.info.get("duration", scenario.duration)),
+                                scenario.sim.mocap_rate))
+    return report, repairs
 
 
 def lost_frames(traj: Trajectory | None, duration: float, rate: float,
-                gap: float = 1.5) -> list[dict[str, Any]]:
+                gap: float = 1.5) -> tuple[LostFrames, ...]:
     """The stretches of sim time ``trajectory.csv`` has no frame for, read off the file itself:
     a gap between two rows longer than ``gap`` mocap periods, and the end of the run (its
     ``duration`` [s]) when the last row falls short of it — frames lost on a link and never
-    backfilled, or the end of a run whose simulator the coordinator lost. Each ``{"t_from",
-    "t_to" [s], "frames"}`` (the frames missing)."""
+    backfilled, or the end of a run whose simulator the coordinator lost."""
     if traj is None or len(traj.t) == 0:
-        return []
+        return ()
     period = 1.0 / rate
     t = np.asarray(traj.t)
-    out = []
-    for k in np.flatnonzero(np.diff(t) > gap * period):
-        out.append({"t_from": float(t[k]), "t_to": float(t[k + 1]),
-                    "frames": round(float(t[k + 1] - t[k]) / period) - 1})
+    out = [LostFrames(float(t[k]), float(t[k + 1]), round(float(t[k + 1] - t[k]) / period) - 1)
+           for k in np.flatnonzero(np.diff(t) > gap * period)]
     if t[-1] < duration - gap * period:
-        out.append({"t_from": float(t[-1]), "t_to": float(duration),
-                    "frames": round((duration - float(t[-1])) / period)})
-    return out
+        out.append(LostFrames(float(t[-1]), float(duration),
+                              round((duration - float(t[-1])) / period)))
+    return tuple(out)
 
 
-def _timing(deadlines: dict[str, Any]) -> dict[str, Any]:
-    stats = deadlines.get("sim_stats") or {}
-    return {
-        "deadline_miss_events": deadlines["deadline_miss"],
-        "deadline_miss_by_robot": deadlines["deadline_miss_by_robot"],
-        "control_due": stats.get("due"),
-        "control_missed": stats.get("missed"),
-        "latency_p50_ms": stats.get("latency_p50_ms"),
-        "latency_p99_ms": stats.get("latency_p99_ms"),
-        "latency_max_ms": stats.get("latency_max_ms"),
-        "watchdog_stop": deadlines["watchdog_stop"],
-        "stale_mocap": deadlines["stale_mocap"],
-        "malformed": deadlines["malformed"],
-        "sim_stats_present": bool(stats),
-    }
+def _unevaluated_not_met(entry: StlRobotReport, rows: tuple[SubtaskVerdict, ...]
+                         ) -> StlRobotReport:
+    """A sub-task whose window the run never closed is not "met" against the paper either."""
+    subtasks = tuple(
+        replace(sub, paper=replace(sub.paper, met=None))
+        if row.verdict == "not evaluated" and sub.paper is not None else sub
+        for sub, row in zip(entry.subtasks, rows, strict=True))
+    return replace(entry, subtasks=subtasks)
 
 
-def build_report(run: RunFiles | str | Path, summary: dict[str, Any] | None = None,
+def _timing(deadlines: Deadlines) -> Timing:
+    stats = deadlines.sim_stats
+    return Timing(
+        deadline_miss_events=deadlines.deadline_miss,
+        deadline_miss_by_robot=deadlines.deadline_miss_by_robot,
+        control_due=stats.due if stats and "due" in stats.counters else None,
+        control_missed=stats.missed if stats and "missed" in stats.counters else None,
+        latency_p50_ms=stats.latency_p50_ms if stats else None,
+        latency_p99_ms=stats.latency_p99_ms if stats else None,
+        latency_max_ms=stats.latency_max_ms if stats else None,
+        watchdog_stop=deadlines.watchdog_stop,
+        stale_mocap=deadlines.stale_mocap,
+        malformed=deadlines.malformed,
+        sim_stats_present=bool(stats and stats.counters))
+
+
+def build_report(run: RunFiles | str | Path, summary: RunSummary | None = None,
                  tally: TaskTally | None = None) -> Report:
     """The report of a run directory (its files as read by :func:`rundir.read_run`, or its path;
-    writes nothing); ``figures`` lists the report's PNG files already present in it."""
+    writes nothing); ``figures`` names the report's figures already present in it."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
-    data, _context = _collect(files, summary, tally)
-    return _finish(files.run_dir, data, _present_figures(files.run_dir, data))
+    report, _repairs = _collect(files, summary, tally)
+    return replace(report, figures=_present_figures(report))
 
 
 def write_report(run: RunFiles | str | Path, *, figures: bool = True,
-                 summary: dict[str, Any] | None = None, tally: TaskTally | None = None,
+                 summary: RunSummary | None = None, tally: TaskTally | None = None,
                  figure_format: str = "png") -> Report:
     """Build the report of a run directory (files read once, or its path; ``summary`` when the
     caller computed it already) and write ``report.md``, ``report.json`` and (unless ``figures``
     is false) the figures into it, as ``figure_format`` (png, pdf or svg)."""
     files = run if isinstance(run, RunFiles) else rundir.read_run(run)
     run_dir = files.run_dir
-    data, context = _collect(files, summary, tally)
-    written: list[Path] = []
+    report, repairs = _collect(files, summary, tally)
     if figures:
         try:
-            written = _write_figures(run_dir, data, context, figure_format)
+            written = _write_figures(report, files, repairs, figure_format)
         except OSError as exc:
             raise RunDirectoryError(Path(exc.filename or run_dir),
                                     f"cannot write a figure: {exc.strerror}") from None
     else:
-        written = _present_figures(run_dir, data)
-    report = _finish(run_dir, data, written)
-    for name, write in ((rundir.REPORT_JSON, lambda p: rundir.write_json(p, report.data)),
-                        (rundir.REPORT_MD, lambda p: p.write_text(report.markdown,
+        written = _present_figures(report)
+    report = replace(report, figures=written)
+    for name, write in ((rundir.REPORT_JSON, lambda p: write_record(p, report)),
+                        (rundir.REPORT_MD, lambda p: p.write_text(render_markdown(report),
                                                                   encoding="utf-8"))):
         try:
             write(run_dir / name)
@@ -276,35 +272,25 @@ def write_report(run: RunFiles | str | Path, *, figures: bool = True,
     return report
 
 
-def _write_figures(run_dir: Path, data: dict[str, Any], context: dict[str, Any],
-                   fmt: str = "png") -> list[Path]:
+def _write_figures(report: Report, files: RunFiles, repairs: Mapping[int, list[RepairEvent]],
+                   fmt: str = "png") -> tuple[str, ...]:
     from tlfleet.coordinator.report import figures  # matplotlib only when figures are drawn
 
     if fmt not in figures.FORMATS:
         raise ValueError(f"figure format {fmt!r}: expected one of {', '.join(figures.FORMATS)}")
-    scenario: Scenario = context["scenario"]
+    scenario, traj, run_dir = files.scenario, files.trajectory, report.run_dir
+    t_end = report.t_end if traj is not None else scenario.duration
     written: list[Path] = []
-    traj = context["traj"]
     if traj is not None:
-        for a, b in data["figure_windows"]:
+        for a, b in report.figure_windows:
             path = run_dir / f"trajectories_{a:g}-{b:g}s.{fmt}"
             written.append(figures.trajectory_figure(scenario, traj, (a, b), path,
                                                      goals=stl_goals(scenario, (a, b))))
-    for rid, entry in data["stl"].items():
-        subtasks = [(s["label"], s["window"][0], s["window"][1]) for s in entry["subtasks"]
-                    if s["window"] is not None]
+    for rid, entry in report.stl.items():
+        subtasks = [(s.label, s.window[0], s.window[1]) for s in entry.subtasks
+                    if s.window is not None]
         path = run_dir / f"robustness_r{rid}.{fmt}"
         written.append(figures.robustness_figure(
-            int(rid), stl_series(context["statuses"], int(rid)), subtasks,
-            context["repairs"].get(int(rid), []), path, t_end=context["t_end"]))
-    return written
-
-
-def _finish(run_dir: Path, data: dict[str, Any], figure_paths: list[Path]) -> Report:
-    data = {**data, "figures": [p.name for p in figure_paths]}
-    return Report(run_dir=run_dir, data=data, markdown=render_markdown(data),
-                  table=render_table(data), figures=figure_paths)
-
-
-# ----------------------------------------------------------------------------------------------
-# rendering
+            rid, stl_series(files.statuses, rid), subtasks, repairs.get(rid, []), path,
+            t_end=t_end if t_end > 0 else scenario.duration))
+    return tuple(p.name for p in written)

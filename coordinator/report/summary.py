@@ -31,8 +31,8 @@ import logging
 import math
 import re
 from collections import Counter, defaultdict
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from tlfleet.agent.model import Scenario
@@ -40,6 +40,18 @@ from tlfleet.agent.stl.monitor import Trajectory, evaluate_trajectory
 from tlfleet.bus.errors import TlfleetError
 from tlfleet.bus.protocol.messages import Event, LtlStatus, StlStatus
 from tlfleet.coordinator.record import rundir
+from tlfleet.coordinator.record.run_record import (
+    ClosestApproach,
+    Contacts,
+    Deadlines,
+    LtlRobotSummary,
+    ProcessDeath,
+    RunSummary,
+    SimStats,
+    StlRobotSummary,
+    StlSubtaskSummary,
+    write_record,
+)
 from tlfleet.coordinator.record.rundir import RunFiles
 
 logger = logging.getLogger(__name__)
@@ -71,17 +83,17 @@ def region_entry_indices(xy: np.ndarray, center: tuple[float, float], radius: fl
     return entries
 
 
-def closest_approach(traj: Trajectory, radii: dict[int, float]) -> dict[str, Any] | None:
+def closest_approach(traj: Trajectory, radii: dict[int, float]) -> ClosestApproach | None:
     """Min over samples and pairs of ‖p_i − p_j‖ − r_i − r_j [m], with the pair and time."""
     ids = [r for r in traj.robot_ids if r in radii]
-    best: dict[str, Any] | None = None
+    best: ClosestApproach | None = None
     for k, i in enumerate(ids):
         for j in ids[k + 1:]:
             gap = (np.hypot(*(traj.states[i][:, :2] - traj.states[j][:, :2]).T)
                    - radii[i] - radii[j])
             n = int(np.argmin(gap))
-            if best is None or gap[n] < best["gap"]:
-                best = {"pair": [i, j], "gap": float(gap[n]), "t": float(traj.t[n])}
+            if best is None or gap[n] < best.gap:
+                best = ClosestApproach((i, j), float(gap[n]), float(traj.t[n]))
     return best
 
 
@@ -101,35 +113,48 @@ def _ltl_regions(scenario: Scenario, formula: str) -> list[str]:
     return sorted({tok for tok in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", formula) if tok in names})
 
 
-def summarise_run(run_dir: str | Path) -> tuple[str, dict[str, Any]]:
-    """(text, data) summary of the run in ``run_dir``; see the module docstring."""
+def summarise_run(run_dir: str | Path) -> tuple[str, RunSummary]:
+    """(text, record) summary of the run in ``run_dir``; see the module docstring."""
     return summarise(rundir.read_run(run_dir))
 
 
-def summarise(files: RunFiles) -> tuple[str, dict[str, Any]]:
-    """(text, data) summary of a run directory's files (read by :func:`rundir.read_run`)."""
+def summarise(files: RunFiles) -> tuple[str, RunSummary]:
+    """(text, record) summary of a run directory's files (read by :func:`rundir.read_run`)."""
     run_dir, scenario, info = files.run_dir, files.scenario, files.info
     events, statuses = files.events, files.statuses
-    traj, traj_error = files.trajectory, files.trajectory_error
-    data: dict[str, Any] = {
-        "scenario": scenario.name, "run_dir": str(run_dir), "run": info,
-        "frames": 0 if traj is None else len(traj.t),
-        "t_end": 0.0 if traj is None else float(traj.t[-1]),
-        "trajectory_error": traj_error,
-    }
-    data["stl"] = _stl_section(scenario, run_dir, traj, statuses, events)
-    data["ltl"] = _ltl_section(scenario, traj, statuses)
-    data["contacts"] = _contacts(events)
+    traj = files.trajectory
+    t_end = 0.0 if traj is None else float(traj.t[-1])
+    mode, wall_time = info.get("mode"), info.get("wall_time")
     radii = {r.id: r.radius for r in scenario.robots}
-    data["closest_approach"] = None if traj is None else closest_approach(traj, radii)
-    data["deadlines"] = _deadlines(events, info, scenario, float(info.get("t_end") or
-                                                                 data["t_end"]))
-    data["process_deaths"] = [{"t": e.t, **e.data} for e in events if e.kind == "process_died"]
-    return format_summary(data), data
+    info_t_end = info.get("t_end")
+    summary = RunSummary(
+        scenario=scenario.name, run_dir=run_dir,
+        mode=mode if isinstance(mode, str) else None,
+        wall_time=float(wall_time) if _finite(wall_time) else None,
+        frames=0 if traj is None else len(traj.t), t_end=t_end,
+        trajectory_error=files.trajectory_error,
+        stl=_stl_section(scenario, run_dir, traj, statuses, events),
+        ltl=_ltl_section(scenario, traj, statuses),
+        contacts=_contacts(events),
+        closest_approach=None if traj is None else closest_approach(traj, radii),
+        deadlines=_deadlines(events, info, scenario,
+                             float(info_t_end) if _finite(info_t_end) and info_t_end else t_end),
+        process_deaths=tuple(_death(e) for e in events if e.kind == "process_died"))
+    return format_summary(summary), summary
+
+
+def _death(event: Event) -> ProcessDeath:
+    data = event.data
+    process, how = data.get("process"), data.get("how")
+    code, wall = data.get("returncode"), data.get("wall")
+    return ProcessDeath(event.t, str(process), how if isinstance(how, str) else "",
+                        code if isinstance(code, int) and not isinstance(code, bool) else None,
+                        float(wall) if _finite(wall) else None)
 
 
 def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
-                 statuses: tuple[LtlStatus | StlStatus, ...], events: tuple[Event, ...]) -> dict:
+                 statuses: tuple[LtlStatus | StlStatus, ...], events: tuple[Event, ...]
+                 ) -> dict[int, StlRobotSummary]:
     last: dict[tuple[int, int], StlStatus] = {}
     least: dict[tuple[int, int], float] = {}
     for status in statuses:
@@ -145,8 +170,9 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
         value = {"repair": "r", "recovery": "r_before", "subtask_done": "r"}.get(e.kind)
         if value is not None:
             _lower(least, (robot, sub), e.data.get(value))
-        if e.kind == "subtask_done" and _finite(e.data.get("r")):
-            done[(robot, sub)] = float(e.data["r"])
+        r = e.data.get("r")
+        if e.kind == "subtask_done" and _finite(r):
+            done[(robot, sub)] = float(r)  # type: ignore[arg-type]
     repairs: dict[int, Counter[int]] = defaultdict(Counter)
     for e in events:
         if e.kind == "repair" and e.source.startswith("agent/"):
@@ -154,14 +180,14 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
             stage = e.data.get("stage")
             if robot is not None and isinstance(stage, int):
                 repairs[robot][stage] += 1
-    robust: dict[int, Any] = {}
+    robust: dict = {}
     error = ""
     if traj is not None:
         try:
             robust = evaluate_trajectory(scenario, traj, run_dir / rundir.TRAJECTORY)
         except (TlfleetError, KeyError) as exc:
             error = str(exc)
-    out: dict[int, Any] = {}
+    out: dict[int, StlRobotSummary] = {}
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         if not robot.is_stl:
             continue
@@ -171,27 +197,26 @@ def _stl_section(scenario: Scenario, run_dir: Path, traj: Trajectory | None,
                                                   "robustness": math.nan} for t in robot.stl]
         for index, sub in enumerate(texts):
             status = last.get((robot.id, index))
-            subtasks.append({
-                "task": sub["task"], "window": sub["window"],
-                "robustness": _evaluated(sub["robustness"]),
-                "r_least": done.get((robot.id, index), least.get((robot.id, index))),
-                "r_last": _evaluated(status.r) if status else None,
-                "repairs_status": list(status.events) if status else [0, 0, 0],
-            })
-        out[robot.id] = {
-            "robustness": _evaluated(entry["robustness"]) if entry else None,
-            "subtasks": subtasks,
-            "repair_events": {str(s): n for s, n in sorted(repairs[robot.id].items())},
-            "error": error,
-        }
+            window = sub["window"]
+            subtasks.append(StlSubtaskSummary(
+                task=sub["task"],
+                window=None if window is None else (float(window[0]), float(window[1])),
+                robustness=_evaluated(sub["robustness"]),
+                r_least=done.get((robot.id, index), least.get((robot.id, index))),
+                r_last=_evaluated(status.r) if status else None,
+                repairs_status=tuple(status.events) if status else (0, 0, 0)))
+        out[robot.id] = StlRobotSummary(
+            robustness=_evaluated(entry["robustness"]) if entry else None,
+            subtasks=tuple(subtasks),
+            repair_events=dict(sorted(repairs[robot.id].items())), error=error)
     return out
 
 
-def _finite(value: Any) -> bool:
+def _finite(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def _lower(least: dict[tuple[int, int], float], key: tuple[int, int], value: Any) -> None:
+def _lower(least: dict[tuple[int, int], float], key: tuple[int, int], value: object) -> None:
     """least[key] = min(least[key], value) for a finite number ``value`` (NaN: idle, skipped)."""
     if _finite(value):
         least[key] = min(least.get(key, math.inf), float(value))
@@ -204,18 +229,18 @@ def _agent_id(source: str) -> int | None:
 
 
 def _ltl_section(scenario: Scenario, traj: Trajectory | None,
-                 statuses: tuple[LtlStatus | StlStatus, ...]) -> dict:
+                 statuses: tuple[LtlStatus | StlStatus, ...]) -> dict[int, LtlRobotSummary]:
     last: dict[int, LtlStatus] = {}
     for status in statuses:
         if isinstance(status, LtlStatus):
             last[status.robot] = status
     regions = {r.name: r for r in scenario.regions}
-    out: dict[int, Any] = {}
+    out: dict[int, LtlRobotSummary] = {}
     for robot in sorted(scenario.robots, key=lambda r: r.id):
         if robot.ltl is None:
             continue
         status = last.get(robot.id)
-        reported = {}
+        reported: dict[str, int] = {}
         plan: list[str] = []
         rounds = None
         if status:
@@ -223,22 +248,21 @@ def _ltl_section(scenario: Scenario, traj: Trajectory | None,
             plan = [name for name in status.prefix + status.suffix if name in regions]
             rounds = status.rounds
         names = sorted(set(plan) | set(_ltl_regions(scenario, robot.ltl)))
-        recount = {}
+        recount: dict[str, int] = {}
         if traj is not None and robot.id in traj.states:
             xy = traj.states[robot.id][:, :2]
             recount = {n: region_entries(xy, regions[n].center, regions[n].radius)
                        for n in names}
         plan_regions = sorted(set(plan)) or names
-        out[robot.id] = {
-            "task": robot.ltl, "plan_regions": plan_regions, "visits_reported": reported,
-            "visits_trajectory": recount, "rounds": rounds,
-            "all_plan_regions_visited": bool(plan_regions) and all(
-                max(reported.get(n, 0), recount.get(n, 0)) > 0 for n in plan_regions),
-        }
+        out[robot.id] = LtlRobotSummary(
+            task=robot.ltl, plan_regions=tuple(plan_regions), visits_reported=reported,
+            visits_trajectory=recount, rounds=rounds,
+            all_plan_regions_visited=bool(plan_regions) and all(
+                max(reported.get(n, 0), recount.get(n, 0)) > 0 for n in plan_regions))
     return out
 
 
-def _contacts(events: tuple[Event, ...]) -> dict[str, Any]:
+def _contacts(events: tuple[Event, ...]) -> Contacts:
     pairs: Counter[str] = Counter()
     robot_robot = robot_wall = 0
     for e in events:
@@ -251,11 +275,11 @@ def _contacts(events: tuple[Event, ...]) -> dict[str, Any]:
         else:
             robot_robot += 1
             pairs["-".join(str(x) for x in sorted((a, b), key=str))] += 1
-    return {"robot_robot": robot_robot, "robot_wall": robot_wall, "pairs": dict(pairs)}
+    return Contacts(robot_robot, robot_wall, dict(pairs))
 
 
-def _deadlines(events: tuple[Event, ...], info: dict[str, Any], scenario: Scenario,
-               t_end: float) -> dict[str, Any]:
+def _deadlines(events: tuple[Event, ...], info: Mapping[str, object], scenario: Scenario,
+               t_end: float) -> Deadlines:
     """Deadline, watchdog, stale-mocap and malformed counts; ``stale_mocap`` counts the episodes
     during the mission only, as the verdict does
     (:func:`tlfleet.coordinator.live.verdict.mission_event_kinds`), and ``stale_mocap_at_end``
@@ -282,99 +306,99 @@ def _deadlines(events: tuple[Event, ...], info: dict[str, Any], scenario: Scenar
             counts[kind] += 1
     for (source, _key), n in running.items():
         malformed[source] += n
-    for what, n in (info.get("malformed_received") or {}).items():
+    received = info.get("malformed_received")
+    for what, n in (received.items() if isinstance(received, Mapping) else ()):
         malformed[f"coordinator ({what})"] += int(n)
     stats = next((e.data for e in reversed(events) if e.kind == "sim_stats"), None)
     mission = mission_event_kinds(
         ({"t": e.t, "kind": e.kind, "source": e.source, "data": e.data} for e in events
          if e.kind == "stale_mocap"), t_end, periods=control_periods(scenario))["stale_mocap"]
-    return {"deadline_miss": sum(misses.values()), "deadline_miss_by_robot": dict(misses),
-            "sim_stats": stats,
-            "watchdog_stop": counts["watchdog_stop"], "stale_mocap": mission,
-            "stale_mocap_at_end": counts["stale_mocap"] - mission,
-            "malformed": sum(malformed.values()), "malformed_by_source": dict(malformed)}
+    return Deadlines(
+        deadline_miss=sum(misses.values()), deadline_miss_by_robot=dict(misses),
+        sim_stats=None if stats is None else SimStats.from_event(stats),
+        watchdog_stop=counts["watchdog_stop"], stale_mocap=mission,
+        stale_mocap_at_end=counts["stale_mocap"] - mission,
+        malformed=sum(malformed.values()), malformed_by_source=dict(malformed))
 
 
-def _fmt(value: Any, spec: str = "+.4f") -> str:
+def _fmt(value: object, spec: str = "+.4f") -> str:
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return format(value, spec) if math.isfinite(value) else str(value)
     return str(value)
 
 
-def format_summary(data: dict[str, Any]) -> str:
-    """The text of ``summary.txt`` from the dict of :func:`summarise_run`."""
-    run = data.get("run") or {}
-    lines = [f"run {data['scenario']}  ({data['run_dir']})"]
-    head = f"  {data['frames']} frames, t_end = {data['t_end']:.2f} s"
-    if run.get("mode"):
-        head += f", {run['mode']}"
-    if run.get("wall_time") is not None:
-        head += f", wall {run['wall_time']:.1f} s"
+def format_summary(summary: RunSummary) -> str:
+    """The text of ``summary.txt`` from the record of :func:`summarise`."""
+    lines = [f"run {summary.scenario}  ({summary.run_dir})"]
+    head = f"  {summary.frames} frames, t_end = {summary.t_end:.2f} s"
+    if summary.mode:
+        head += f", {summary.mode}"
+    if summary.wall_time is not None:
+        head += f", wall {summary.wall_time:.1f} s"
     lines.append(head)
-    if data["trajectory_error"]:
-        lines.append(f"  trajectory: {data['trajectory_error']}")
-    if data["stl"]:
+    if summary.trajectory_error:
+        lines.append(f"  trajectory: {summary.trajectory_error}")
+    if summary.stl:
         lines.append("STL robots (standard robustness from trajectory.csv):")
-    for rid, entry in data["stl"].items():
-        stages = ", ".join(f"stage {s}: {n}" for s, n in entry["repair_events"].items())
-        lines.append(f"  robot {rid}: rho = {_fmt(entry['robustness'])}"
+    for rid, stl in summary.stl.items():
+        stages = ", ".join(f"stage {s}: {n}" for s, n in stl.repair_events.items())
+        lines.append(f"  robot {rid}: rho = {_fmt(stl.robustness)}"
                      + (f"   repair events {stages}" if stages else ""))
-        for sub in entry["subtasks"]:
+        for sub in stl.subtasks:
             extra = ""
-            if sub["r_least"] is not None or sub["r_last"] is not None:
-                extra = (f"   r̄ (least r in force) = {_fmt(sub['r_least'])}, final r = "
-                         f"{_fmt(sub['r_last'])}   repairs per stage "
-                         f"{'/'.join(str(n) for n in sub['repairs_status'])}")
-            lines.append(f"    {_fmt(sub['robustness'])}  {sub['task']}{extra}")
-        if entry["error"]:
-            lines.append(f"    ({entry['error']})")
-    if data["ltl"]:
+            if sub.r_least is not None or sub.r_last is not None:
+                extra = (f"   r̄ (least r in force) = {_fmt(sub.r_least)}, final r = "
+                         f"{_fmt(sub.r_last)}   repairs per stage "
+                         f"{'/'.join(str(n) for n in sub.repairs_status)}")
+            lines.append(f"    {_fmt(sub.robustness)}  {sub.task}{extra}")
+        if stl.error:
+            lines.append(f"    ({stl.error})")
+    if summary.ltl:
         lines.append("LTL robots (visits: reported by the agent / entries in the trajectory):")
-    for rid, entry in data["ltl"].items():
-        visits = ", ".join(f"{n} {entry['visits_reported'].get(n, 0)}/"
-                           f"{entry['visits_trajectory'].get(n, '-')}"
-                           for n in entry["plan_regions"])
-        ok = "all plan regions visited" if entry["all_plan_regions_visited"] else \
+    for rid, ltl in summary.ltl.items():
+        visits = ", ".join(f"{n} {ltl.visits_reported.get(n, 0)}/"
+                           f"{ltl.visits_trajectory.get(n, '-')}"
+                           for n in ltl.plan_regions)
+        ok = "all plan regions visited" if ltl.all_plan_regions_visited else \
             "NOT all plan regions visited"
-        rounds = "" if entry["rounds"] is None else f", GF rounds {entry['rounds']}"
-        lines.append(f"  robot {rid}: {entry['task']}: {visits}{rounds}; {ok}")
-    c = data["contacts"]
-    lines.append(f"contacts: robot-robot {c['robot_robot']}, robot-wall {c['robot_wall']}"
-                 + (f" ({', '.join(f'{k}: {v}' for k, v in sorted(c['pairs'].items()))})"
-                    if c["pairs"] else ""))
-    if data["closest_approach"]:
-        ca = data["closest_approach"]
-        lines.append(f"closest approach: robots {ca['pair'][0]} and {ca['pair'][1]}, gap "
-                     f"{ca['gap']:+.3f} m at t = {ca['t']:.2f} s")
-    d = data["deadlines"]
-    by_robot = ", ".join(f"{k}: {v}" for k, v in sorted(d["deadline_miss_by_robot"].items()))
-    by_source = ", ".join(f"{k}: {v}" for k, v in sorted(d["malformed_by_source"].items()))
-    lines.append(f"deadlines: {d['deadline_miss']} missed" + (f" ({by_robot})" if by_robot else "")
-                 + f", watchdog stops {d['watchdog_stop']}, stale-mocap {d['stale_mocap']}"
-                 + (f" (and {d['stale_mocap_at_end']} once the frames stopped at the end)"
-                    if d.get("stale_mocap_at_end") else ""))
-    stats = d.get("sim_stats")
-    if stats and stats.get("due"):
-        timing = (f"control deadlines (sim): {stats.get('missed', 0)} of {stats['due']} missed "
-                  f"({100.0 * stats.get('missed', 0) / stats['due']:.3f} %)")
-        if "latency_p50_ms" in stats:
-            timing += (f", frame→command latency p50 {stats['latency_p50_ms']:.2f} ms, "
-                       f"p99 {stats['latency_p99_ms']:.2f} ms")
+        rounds = "" if ltl.rounds is None else f", GF rounds {ltl.rounds}"
+        lines.append(f"  robot {rid}: {ltl.task}: {visits}{rounds}; {ok}")
+    c = summary.contacts
+    lines.append(f"contacts: robot-robot {c.robot_robot}, robot-wall {c.robot_wall}"
+                 + (f" ({', '.join(f'{k}: {v}' for k, v in sorted(c.pairs.items()))})"
+                    if c.pairs else ""))
+    ca = summary.closest_approach
+    if ca:
+        lines.append(f"closest approach: robots {ca.pair[0]} and {ca.pair[1]}, gap "
+                     f"{ca.gap:+.3f} m at t = {ca.t:.2f} s")
+    d = summary.deadlines
+    by_robot = ", ".join(f"{k}: {v}" for k, v in sorted(d.deadline_miss_by_robot.items()))
+    by_source = ", ".join(f"{k}: {v}" for k, v in sorted(d.malformed_by_source.items()))
+    lines.append(f"deadlines: {d.deadline_miss} missed" + (f" ({by_robot})" if by_robot else "")
+                 + f", watchdog stops {d.watchdog_stop}, stale-mocap {d.stale_mocap}"
+                 + (f" (and {d.stale_mocap_at_end} once the frames stopped at the end)"
+                    if d.stale_mocap_at_end else ""))
+    stats = d.sim_stats
+    if stats and stats.due:
+        timing = (f"control deadlines (sim): {stats.missed} of {stats.due} missed "
+                  f"({100.0 * stats.missed / stats.due:.3f} %)")
+        if stats.latency_p50_ms is not None:
+            timing += (f", frame→command latency p50 {stats.latency_p50_ms:.2f} ms, "
+                       f"p99 {_fmt(stats.latency_p99_ms, '.2f')} ms")
         lines.append(timing)
-    lines.append(f"malformed messages: {d['malformed']}" + (f" ({by_source})" if by_source else ""))
-    deaths = data["process_deaths"]
+    lines.append(f"malformed messages: {d.malformed}" + (f" ({by_source})" if by_source else ""))
+    deaths = summary.process_deaths
     lines.append(f"process deaths: {len(deaths)}" + "".join(
-        f"\n  {x.get('process')} at t = {_fmt(x.get('t'), '.2f')} s ({x.get('how', '')})"
-        for x in deaths))
+        f"\n  {x.process} at t = {_fmt(x.t, '.2f')} s ({x.how})" for x in deaths))
     return "\n".join(lines)
 
 
-def write_summary(files: RunFiles | str | Path) -> tuple[str, dict[str, Any]]:
+def write_summary(files: RunFiles | str | Path) -> tuple[str, RunSummary]:
     """Compute the summary of a run directory (its files as read by :func:`rundir.read_run`,
     or its path) and write ``summary.txt`` and ``summary.json`` into it."""
     if not isinstance(files, RunFiles):
         files = rundir.read_run(files)
-    text, data = summarise(files)
+    text, summary = summarise(files)
     (files.run_dir / rundir.SUMMARY_TEXT).write_text(text + "\n", encoding="utf-8")
-    rundir.write_json(files.run_dir / rundir.SUMMARY_JSON, data)
-    return text, data
+    write_record(files.run_dir / rundir.SUMMARY_JSON, summary)
+    return text, summary

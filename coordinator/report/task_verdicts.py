@@ -23,8 +23,8 @@ docs/coupling.md) and robustness recovery
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Iterable, Mapping
+from dataclasses import replace
 
 import numpy as np
 from tlfleet.agent.model.scenario import Scenario
@@ -32,6 +32,13 @@ from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.agent.stl.parser import parse_task
 from tlfleet.agent.stl.robustness import psi_array
 from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.record.run_record import (
+    StationaryEpisode,
+    StlDesign,
+    StlRobotReport,
+    SubtaskVerdict,
+    Verdicts,
+)
 
 STILL_DISTANCE = 0.05  # [m]
 STILL_TURN = 0.1  # [rad]
@@ -58,22 +65,21 @@ def _own_slope(phi, traj: Trajectory, robot: int, eta: float) -> np.ndarray:
     return np.hypot(*grads)
 
 
-def verdict(op: str, a: float, b: float, rho: float | None, t_end: float) -> dict[str, Any]:
-    """``{"verdict", "by"}`` of one sub-task with robustness ``rho`` over a run ending at
+def verdict(op: str, a: float, b: float, rho: float | None, t_end: float) -> SubtaskVerdict:
+    """The verdict of one sub-task ``op[a, b]`` with robustness ``rho`` over a run ending at
     ``t_end`` [s] (module docstring)."""
     covered = t_end >= b - 1e-9
     if rho is None or (isinstance(rho, float) and math.isnan(rho)):
-        return {"verdict": "not evaluated", "by": None,
-                "reason": "no robustness (no trajectory)"}
+        return SubtaskVerdict("not evaluated", reason="no robustness (no trajectory)")
     if op == "F" and not covered and rho > 0.0 and t_end >= a:
-        return {"verdict": "satisfied", "by": None, "reason": ""}
+        return SubtaskVerdict("satisfied")
     if not covered:
-        return {"verdict": "not evaluated", "by": None,
-                "reason": f"the run ended at t = {t_end:.2f} s, before the window "
-                          f"[{a:g}, {b:g}] closed"}
+        return SubtaskVerdict("not evaluated",
+                              reason=f"the run ended at t = {t_end:.2f} s, before the window "
+                                     f"[{a:g}, {b:g}] closed")
     if rho > 0.0:
-        return {"verdict": "satisfied", "by": None, "reason": ""}
-    return {"verdict": "violated", "by": float(-rho), "reason": ""}
+        return SubtaskVerdict("satisfied")
+    return SubtaskVerdict("violated", by=float(-rho))
 
 
 def held_fraction(scenario_task: str, traj: Trajectory, t_end: float) -> float | None:
@@ -91,8 +97,8 @@ def held_fraction(scenario_task: str, traj: Trajectory, t_end: float) -> float |
 
 
 def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[Event],
-                        window: float = DEADLOCK_WINDOW) -> list[dict[str, Any]]:
-    """Episodes ``{robot, t_start, t_end}`` of a robot standing still for more than ``window``
+                        window: float = DEADLOCK_WINDOW) -> list[StationaryEpisode]:
+    """Episodes of a robot standing still for more than ``window``
     seconds while its task wants it to move (module docstring)."""
     finished: dict[int, float] = {}
     yields: dict[int, list[tuple[float, float]]] = {}
@@ -159,13 +165,13 @@ def stationary_episodes(scenario: Scenario, traj: Trajectory, events: Iterable[E
             waited = sum(max(0.0, min(end, b) - max(start, a))
                          for a, b in yields.get(robot.id, ()))
             if end - start - waited >= window or waited > YIELD_LIMIT:
-                out.append({"robot": robot.id, "t_start": start, "t_end": end})
+                out.append(StationaryEpisode(robot.id, start, end))
             k = j + 1
     return out
 
 
 def collect(scenario: Scenario, traj: Trajectory | None, events: Iterable[Event],
-            t_end: float, stl: dict[str, Any]) -> dict[str, Any]:
+            t_end: float, stl: Mapping[int, StlRobotReport]) -> Verdicts:
     """Verdicts of every STL sub-task of the report's ``stl`` section, the switches and the
     stationary episodes (module docstring)."""
     recoveries: dict[str, int] = {}
@@ -173,31 +179,28 @@ def collect(scenario: Scenario, traj: Trajectory | None, events: Iterable[Event]
         if e.kind == "recovery":
             robot = e.source.split("/", 1)[-1]
             recoveries[robot] = recoveries.get(robot, 0) + 1
-    subtasks: dict[str, list[dict[str, Any]]] = {}
+    subtasks: dict[int, tuple[SubtaskVerdict, ...]] = {}
     for rid, entry in stl.items():
         rows = []
-        for s in entry["subtasks"]:
-            window = s["window"]
-            rho = s["robustness"]
-            rho = float(rho) if isinstance(rho, (int, float)) else None
+        for s in entry.subtasks:
+            window = s.window
             if window is None:
-                row = {"verdict": "not evaluated", "by": None, "reason": "no window"}
+                row = SubtaskVerdict("not evaluated", reason="no window")
             else:
-                row = verdict(s["op"], window[0], window[1], rho, t_end)
-            row["held"] = (held_fraction(s["task"], traj, t_end)
-                           if traj is not None and window is not None else None)
-            row["label"] = s["label"]
-            rows.append(row)
-        subtasks[rid] = rows
-    return {
-        "coupling_aware": scenario.navigation.coupling_aware,
-        "coupling_share": scenario.navigation.coupling_share,
-        "recovery": scenario.stl.recovery,
-        "recoveries": recoveries,
-        "subtasks": subtasks,
-        "stationary": stationary_episodes(scenario, traj, events) if traj is not None else [],
-        "stl_design": stl_design(scenario),
-    }
+                row = verdict(s.op, window[0], window[1], s.robustness, t_end)
+            rows.append(replace(row, label=s.label, held=(
+                held_fraction(s.task, traj, t_end)
+                if traj is not None and window is not None else None)))
+        subtasks[rid] = tuple(rows)
+    return Verdicts(
+        coupling_aware=scenario.navigation.coupling_aware,
+        coupling_share=scenario.navigation.coupling_share,
+        recovery=scenario.stl.recovery,
+        recoveries=recoveries,
+        subtasks=subtasks,
+        stationary=tuple(stationary_episodes(scenario, traj, events))
+        if traj is not None else (),
+        stl_design=stl_design(scenario))
 
 
 def f_semantics(stl) -> str:
@@ -212,7 +215,7 @@ def f_semantics(stl) -> str:
             + (", hold above r" if stl.hold_f_above_r else "") + ")")
 
 
-def stl_design(scenario) -> dict[str, Any]:
+def stl_design(scenario: Scenario) -> StlDesign:
     """The STL switches in force (docs/stl-saturation.md §9): funnels, F semantics, ρ_opt, the
     avoidance radii (per coupled pair) and the static term."""
     from tlfleet.agent.scenario import stl_setup
@@ -222,44 +225,44 @@ def stl_design(scenario) -> dict[str, Any]:
     if p.coupled_radii and any(r.is_stl for r in scenario.robots):
         for i, j in sorted(stl_setup.coupled_pairs(scenario)):
             pairs[f"{i}-{j}"] = stl_setup.pair_radii(scenario, i, j)
-    return {"saturation_aware": p.saturation_aware, "saturation_share": p.saturation_share,
-            "f_semantics": f_semantics(p), "rho_opt_from_arena": p.rho_opt_from_arena,
-            "r1": p.r1, "r_sense": p.r_sense, "coupled_radii": pairs,
-            "wall_avoidance": p.wall_avoidance, "route_around": p.route_around}
+    return StlDesign(saturation_aware=p.saturation_aware, saturation_share=p.saturation_share,
+                     f_semantics=f_semantics(p), rho_opt_from_arena=p.rho_opt_from_arena,
+                     r1=p.r1, r_sense=p.r_sense, coupled_radii=pairs,
+                     wall_avoidance=p.wall_avoidance, route_around=p.route_around)
 
 
-def render_lines(v: dict[str, Any]) -> list[str]:
+def render_lines(v: Verdicts) -> list[str]:
     """A few console/markdown lines: switches, verdicts with held fractions, stationary."""
-    total = sum(v["recoveries"].values())
-    lines = [f"navigation: coupling-aware leaders {'on' if v['coupling_aware'] else 'off'}"
-             + (f" (share {v['coupling_share']:g})" if v["coupling_aware"] else "")
-             + f"; robustness recovery {'on' if v['recovery'] else 'off'}, "
+    total = sum(v.recoveries.values())
+    lines = [f"navigation: coupling-aware leaders {'on' if v.coupling_aware else 'off'}"
+             + (f" (share {v.coupling_share:g})" if v.coupling_aware else "")
+             + f"; robustness recovery {'on' if v.recovery else 'off'}, "
              f"{total} recover{'y' if total == 1 else 'ies'}"]
-    d = v.get("stl_design")
+    d = v.stl_design
     if d:
-        radii = "; ".join(f"{pair} {r1:g}/{r:g} m" for pair, (r1, r) in d["coupled_radii"].items())
+        radii = "; ".join(f"{pair} {r1:g}/{r:g} m" for pair, (r1, r) in d.coupled_radii.items())
         lines.append(
-            f"STL design: saturation-aware funnels {'on' if d['saturation_aware'] else 'off'}"
-            + (f" (share {d['saturation_share']:g})" if d["saturation_aware"] else "")
-            + f"; F sub-tasks: {d['f_semantics']}; ρ_opt "
-            + ("from the arena" if d["rho_opt_from_arena"] else "from the literals")
-            + f"; avoidance R1/R {d['r1']:g}/{d['r_sense']:g} m"
+            f"STL design: saturation-aware funnels {'on' if d.saturation_aware else 'off'}"
+            + (f" (share {d.saturation_share:g})" if d.saturation_aware else "")
+            + f"; F sub-tasks: {d.f_semantics}; ρ_opt "
+            + ("from the arena" if d.rho_opt_from_arena else "from the literals")
+            + f"; avoidance R1/R {d.r1:g}/{d.r_sense:g} m"
             + (f", coupled pairs {radii}" if radii else "")
-            + f"; walls and obstacles in eq. (6) {'on' if d['wall_avoidance'] else 'off'}, "
-            f"routes {'on' if d['route_around'] else 'off'}")
+            + f"; walls and obstacles in eq. (6) {'on' if d.wall_avoidance else 'off'}, "
+            f"routes {'on' if d.route_around else 'off'}")
     parts = []
-    for rows in v["subtasks"].values():
+    for rows in v.subtasks.values():
         for row in rows:
-            text = row["verdict"]
-            if row["verdict"] == "violated":
-                text += f" by {row['by']:.3f}"
-            if row["held"] is not None:
-                text += f", held {100 * row['held']:.0f} %"
-            parts.append(f"{row['label']} {text}")
+            text = row.verdict
+            if row.verdict == "violated":
+                text += f" by {row.by:.3f}"
+            if row.held is not None:
+                text += f", held {100 * row.held:.0f} %"
+            parts.append(f"{row.label} {text}")
     if parts:
         lines.append("verdicts: " + "; ".join(parts))
-    stationary = v["stationary"]
+    stationary = v.stationary
     lines.append("stationary > 5 s while the task wants motion: "
-                 + (", ".join(f"r{e['robot']} {e['t_start']:.1f}–{e['t_end']:.1f} s"
+                 + (", ".join(f"r{e.robot} {e.t_start:.1f}–{e.t_end:.1f} s"
                               for e in stationary) if stationary else "none"))
     return lines

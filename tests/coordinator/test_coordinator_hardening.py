@@ -19,11 +19,21 @@ from tlfleet.coordinator.launch.cleanup import Cleanup
 from tlfleet.coordinator.live.health import Health
 from tlfleet.coordinator.live.verdict import EXIT_CODES, classify, mission_event_kinds
 from tlfleet.coordinator.record.recorder import Recorder, RecorderTap
+from tlfleet.coordinator.record.run_record import Deadlines, SimStats
 from tlfleet.coordinator.record.trust import Malformed, event_problem, sim_done_plausible
 
 POSES = ((1, 0.0, 0.0, 0.0), (2, 0.0, 1.0, 0.0))
 OK = dict(reason="sim_done", deaths=[], exit_codes={"sim": 0, "agent-1": 0},
-          router_clean=True, mode="lockstep", deadlines={}, event_kinds={})
+          router_clean=True, mode="lockstep", deadlines=None, event_kinds={})
+
+
+def deadlines(deadline_miss=0, malformed_by_source=None, sim=None) -> Deadlines:
+    """The summary's deadline counts with these values and nothing else."""
+    by_source = malformed_by_source or {}
+    return Deadlines(deadline_miss=deadline_miss, deadline_miss_by_robot={},
+                     sim_stats=None if sim is None else SimStats.from_event(sim),
+                     watchdog_stop=0, stale_mocap=0, stale_mocap_at_end=0,
+                     malformed=sum(by_source.values()), malformed_by_source=by_source)
 
 
 def verdict(**changes):
@@ -46,14 +56,14 @@ def test_the_verdict_and_its_exit_code():
     assert stopped.label == "degraded" and stopped.exit_code == 4
     assert stopped.reasons == ("3 watchdog stop(s)",
                                "1 flagged event(s): claimed identity does not hold")
-    assert verdict(deadlines={"deadline_miss": 1}).reasons == ("1 missed deadline(s)",)
+    assert verdict(deadlines=deadlines(deadline_miss=1)).reasons == ("1 missed deadline(s)",)
     # realtime: a few misses are the machine, many are a degraded run (issue: 85–93 % was clean)
-    few = {"sim_stats": {"missed": 4, "due": 1000}}
-    many = {"sim_stats": {"missed": 900, "due": 1000}}
+    few = deadlines(sim={"missed": 4, "due": 1000})
+    many = deadlines(sim={"missed": 900, "due": 1000})
     assert verdict(mode="realtime", deadlines=few).label == "clean"
     assert "900 of 1000 control deadlines missed" in verdict(mode="realtime",
                                                              deadlines=many).reasons[0]
-    malformed = verdict(deadlines={"malformed": 5, "malformed_by_source": {"sim": 5}})
+    malformed = verdict(deadlines=deadlines(malformed_by_source={"sim": 5}))
     assert malformed.line == "outcome: degraded (5 malformed or implausible message(s) (sim: 5))"
     assert verdict(findings=["agent-2 silent from t = 3.00 s (back at t = 6.00 s)"]).label == \
         "degraded"
@@ -336,7 +346,7 @@ def _judge(t_end, duration=45.0, reason="sim_done", sim_reached=None, **extra):
     from tlfleet.coordinator.live.verdict import RunEnd
 
     return classify(reason=reason, deaths=[], exit_codes={"sim": 0}, router_clean=True,
-                    mode="lockstep", deadlines={}, event_kinds={}, end=RunEnd(
+                    mode="lockstep", deadlines=None, event_kinds={}, end=RunEnd(
                         t_end, duration, reason), tolerance=0.015, sim_reached=sim_reached,
                     **extra)
 

@@ -82,7 +82,7 @@ def test_clean_run_records_and_summarises(tmp_path, scenario_path):
     kinds = [json.loads(line)["kind"] for line in (run / "events.jsonl").read_text().splitlines()]
     assert "sim_done" in kinds
     assert "robot-wall 1" in result.summary_text
-    assert result.summary["stl"][2]["robustness"] is not None
+    assert result.summary.stl[2].robustness is not None
     assert processes_mentioning(str(scenario_path)) == []
 
 

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from tlfleet.coordinator.record.run_record import Contacts
 from tlfleet.coordinator.report.summary import region_entries, summarise_run, write_summary
 
 SCENARIO = """
@@ -100,38 +101,38 @@ STATUSES = [
 
 def test_stl_robustness_recomputed_independently(tmp_path):
     t, s = write_run_dir(tmp_path, EVENTS, STATUSES)
-    _text, data = summarise_run(tmp_path)
+    _text, summary = summarise_run(tmp_path)
     w = (t >= 0) & (t <= 6)
     rho2 = np.min(0.8 - np.hypot(*(s[2][w, :2] - s[1][w, :2]).T))
     w1, w2 = (t >= 1) & (t <= 4), (t >= 6) & (t <= 9)
     rho3a = np.min(0.8 - np.hypot(s[3][w1, 0] - 0.0, s[3][w1, 1] + 2.0))
     rho3b = np.max(0.1 - np.hypot(s[3][w2, 0] - 2.5, s[3][w2, 1] + 1.5))
-    assert data["stl"][2]["robustness"] == pytest.approx(rho2, abs=1e-12)
-    sub = data["stl"][3]["subtasks"]
-    assert [x["robustness"] for x in sub] == pytest.approx([rho3a, rho3b], abs=1e-12)
-    assert data["stl"][3]["robustness"] == pytest.approx(min(rho3a, rho3b), abs=1e-12)
+    assert summary.stl[2].robustness == pytest.approx(rho2, abs=1e-12)
+    sub = summary.stl[3].subtasks
+    assert [x.robustness for x in sub] == pytest.approx([rho3a, rho3b], abs=1e-12)
+    assert summary.stl[3].robustness == pytest.approx(min(rho3a, rho3b), abs=1e-12)
     assert rho3b < 0 < rho3a  # the synthetic data makes the two signs differ
 
 
 def test_repairs_ltl_contacts_deadlines_deaths(tmp_path):
     write_run_dir(tmp_path, EVENTS, STATUSES)
-    text, data = summarise_run(tmp_path)
-    sub = data["stl"][3]["subtasks"]
-    assert [x["r_last"] for x in sub] == [0.12, 0.07]
-    assert sub[0]["repairs_status"] == [1, 0, 2]
-    assert data["stl"][3]["repair_events"] == {"1": 1, "3": 2}
-    assert data["stl"][2]["subtasks"][0]["r_last"] is None
-    ltl = data["ltl"][1]
-    assert ltl["visits_reported"] == {"a1": 3, "a2": 2} and ltl["rounds"] == 2
-    assert ltl["plan_regions"] == ["a1", "a2"] and ltl["all_plan_regions_visited"]
+    text, summary = summarise_run(tmp_path)
+    sub = summary.stl[3].subtasks
+    assert [x.r_last for x in sub] == [0.12, 0.07]
+    assert sub[0].repairs_status == (1, 0, 2)
+    assert summary.stl[3].repair_events == {1: 1, 3: 2}
+    assert summary.stl[2].subtasks[0].r_last is None
+    ltl = summary.ltl[1]
+    assert ltl.visits_reported == {"a1": 3, "a2": 2} and ltl.rounds == 2
+    assert ltl.plan_regions == ("a1", "a2") and ltl.all_plan_regions_visited
     # robot 1 is at a1 at t = 0, 4, 8 and at a2 at t = 2, 6, 10
-    assert ltl["visits_trajectory"] == {"a1": 3, "a2": 3}
-    assert data["contacts"] == {"robot_robot": 1, "robot_wall": 1,
-                                "pairs": {"1-2": 1, "3-wall": 1}}
-    d = data["deadlines"]
-    assert d["deadline_miss"] == 3 and d["deadline_miss_by_robot"] == {"2": 2, "3": 1}
-    assert d["malformed"] == 4 + 1 + 2 and d["watchdog_stop"] == 1
-    assert [x["process"] for x in data["process_deaths"]] == ["agent-2"]
+    assert ltl.visits_trajectory == {"a1": 3, "a2": 3}
+    assert summary.contacts == Contacts(robot_robot=1, robot_wall=1,
+                                        pairs={"1-2": 1, "3-wall": 1})
+    d = summary.deadlines
+    assert d.deadline_miss == 3 and d.deadline_miss_by_robot == {"2": 2, "3": 1}
+    assert d.malformed == 4 + 1 + 2 and d.watchdog_stop == 1
+    assert [x.process for x in summary.process_deaths] == ["agent-2"]
     for needle in ("robot 3: rho = ", "a1 3/3", "robot-robot 1, robot-wall 1", "3 missed",
                    "malformed messages: 7", "process deaths: 1", "agent-2",
                    "3 of 2000 missed (0.150 %)", "p99 1.52 ms"):
@@ -140,20 +141,20 @@ def test_repairs_ltl_contacts_deadlines_deaths(tmp_path):
 
 def test_closest_approach(tmp_path):
     _t, s = write_run_dir(tmp_path)
-    _text, data = summarise_run(tmp_path)
+    _text, summary = summarise_run(tmp_path)
     gaps = {(i, j): np.hypot(*(s[i][:, :2] - s[j][:, :2]).T) - 0.4
             for i, j in ((1, 2), (1, 3), (2, 3))}
     pair = min(gaps, key=lambda p: gaps[p].min())
-    assert data["closest_approach"]["pair"] == list(pair)
-    assert data["closest_approach"]["gap"] == pytest.approx(gaps[pair].min())
+    assert summary.closest_approach.pair == pair
+    assert summary.closest_approach.gap == pytest.approx(gaps[pair].min())
 
 
 def test_missing_or_broken_trajectory_is_reported_not_raised(tmp_path):
     write_run_dir(tmp_path)
     (tmp_path / "trajectory.csv").write_text("t,x1,y1,th1\n")
-    text, data = write_summary(tmp_path)
-    assert "no samples" in data["trajectory_error"]
-    assert data["stl"][2]["robustness"] is None
+    text, summary = write_summary(tmp_path)
+    assert "no samples" in summary.trajectory_error
+    assert summary.stl[2].robustness is None
     assert (tmp_path / "summary.txt").read_text().startswith("run synthetic")
     assert json.loads((tmp_path / "summary.json").read_text())["frames"] == 0
     assert "trajectory:" in text

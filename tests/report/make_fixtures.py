@@ -10,6 +10,14 @@ decimals; ``events.jsonl`` drops the kinds the report does not read (``DROPPED_E
 ``stage``, ``r`` and ``subtask`` of ``repair`` events; ``scenario.toml`` and ``run.json`` are
 copied unchanged. The tests recompute everything from the
 thinned files, so the thinning changes numbers but not what is checked.
+
+``fixtures/s1-report-v3`` is different: ``report.json`` as tlfleet wrote it at report schema 3
+from ``fixtures/s1`` (run directory renamed ``runs/scenario1-fixture``, the figure names put in),
+with the ``report.md`` and console table (``table.txt``) that version rendered from it. It is
+never rewritten: the test reads that old JSON with today's record and renderer. After a
+deliberate change of the rendered text, re-render the two text files from it:
+
+    .venv/bin/python tests/report/make_fixtures.py --render-report-v3
 """
 
 from __future__ import annotations
@@ -90,7 +98,21 @@ def thin(source: Path, target: Path) -> None:
                              for k, v in row.items()})
 
 
+def render_report_v3() -> None:
+    """``report.md`` and ``table.txt`` of ``s1-report-v3`` from its report.json, as rendered now."""
+    from tlfleet.coordinator.record.run_record import read_report
+    from tlfleet.coordinator.report.render import render_markdown, render_table
+
+    folder = HERE / "s1-report-v3"
+    report = read_report(folder / "report.json")
+    (folder / "report.md").write_text(render_markdown(report), encoding="utf-8")
+    (folder / "table.txt").write_text(render_table(report) + "\n", encoding="utf-8")
+
+
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--render-report-v3"]:
+        render_report_v3()
+        sys.exit(0)
     root = Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/samples")
     for name in ("s1", "s2", "s3"):
         thin(root / name, HERE / name)

@@ -25,9 +25,12 @@ from tlfleet.agent.ltl.buchi import translate
 from tlfleet.agent.ltl.emptiness import accepts_lasso
 from tlfleet.agent.ltl.lasso import holds
 from tlfleet.cli.main import main as cli_main
+from tlfleet.coordinator.record.run_record import Visits
 from tlfleet.coordinator.report import paper_values
 from tlfleet.coordinator.report.figures import robustness_figure
 from tlfleet.coordinator.report.ltl_words import completed_cycles, plan_cycle
+from tlfleet.coordinator.report.paper_comparison import RepairEvent
+from tlfleet.coordinator.report.render import render_markdown, render_table
 from tlfleet.coordinator.report.run_report import RunDirectoryError, build_report, write_report
 from tlfleet.coordinator.report.summary import summarise_run
 
@@ -243,10 +246,11 @@ def test_r_bar_is_the_least_r_in_force_after_repairs_and_recovery(tmp_path: Path
     assert "| r̄ (least) | r final |" in md
     row = next(line for line in md.splitlines() if "`F[10,12]" in line)
     assert f"| {R_DIP:+.4f} | {R0:+.4f} |" in row
-    table = next(line for line in report.table.splitlines() if line.lstrip().startswith("r4.2"))
+    table = next(line for line in render_table(report).splitlines()
+                 if line.lstrip().startswith("r4.2"))
     assert table.split()[2:4] == [f"{R_DIP:+.4f}", f"{R0:+.4f}"]
-    text, data = summarise_run(run_dir)
-    assert data["stl"][4]["subtasks"][1]["r_least"] == pytest.approx(R_DIP)
+    text, summary = summarise_run(run_dir)
+    assert summary.stl[4].subtasks[1].r_least == pytest.approx(R_DIP)
     assert f"r̄ (least r in force) = {R_DIP:+.4f}, final r = {R0:+.4f}" in text
 
 
@@ -301,11 +305,11 @@ def test_ltl_robot_that_never_completes_its_cycle_does_not_meet_the_task(synthet
 
 def test_plan_recomputed_without_status_rows(tmp_path: Path) -> None:
     write_synthetic(tmp_path, status=False)
-    data = build_report(tmp_path).data
-    r1 = data["ltl"]["1"]
-    assert r1["plan"]["source"].startswith("recomputed")
-    assert set(r1["cycle"]) == {"a", "b"} and r1["cycles_completed"] >= 2
-    assert r1["accepting"]["met"] and not data["ltl"]["2"]["accepting"]["met"]
+    report = build_report(tmp_path)
+    r1 = report.ltl[1]
+    assert r1.plan.source.startswith("recomputed")
+    assert set(r1.cycle) == {"a", "b"} and r1.cycles_completed >= 2
+    assert r1.accepting.met and not report.ltl[2].accepting.met
 
 
 @pytest.mark.parametrize(("suffix", "cycle"), [
@@ -342,36 +346,35 @@ def scenarios(tmp_path_factory) -> dict[str, tuple[Path, object]]:
 
 def test_scenario1_paper_values_and_sic_note(scenarios) -> None:
     run_dir, report = scenarios["s1"]
-    subs = {s["label"]: s for e in report.data["stl"].values() for s in e["subtasks"]}
+    subs = {s.label: s for e in report.stl.values() for s in e.subtasks}
     assert set(subs) == {"φ′3", "φ″3", "φ′4", "φ″4", "φ′5", "φ″5"}
-    assert subs["φ″5"]["paper"]["bound"] == 0.05 and "0.5 (sic)" in subs["φ″5"]["paper"]["printed"]
-    assert subs["φ′4"]["paper"]["best"] == -0.9
+    assert subs["φ″5"].paper.bound == 0.05 and "0.5 (sic)" in subs["φ″5"].paper.printed
+    assert subs["φ′4"].paper.best == -0.9
     for s in subs.values():
-        assert s["paper"]["met"] == (s["robustness"] >= s["paper"]["bound"])
-    assert "judged against 0.05" in report.markdown and "φ″5" in report.table
+        assert s.paper.met == (s.robustness >= s.paper.bound)
+    assert "judged against 0.05" in render_markdown(report) and "φ″5" in render_table(report)
     # the standard robustness of φ′3 recomputed from the CSV: min over [21, 30] of 0.1 − ‖p3 − c‖
     data = np.loadtxt(run_dir / "trajectory.csv", delimiter=",", skiprows=1)
     t, p3 = data[:, 0], data[:, 7:9]
     w = (t >= 21) & (t <= 30)
-    assert subs["φ′3"]["robustness"] == pytest.approx(
+    assert subs["φ′3"].robustness == pytest.approx(
         np.min(0.1 - np.hypot(p3[w, 0], p3[w, 1] + 2)), abs=1e-12)
-    assert all(e["accepting"]["met"] for e in report.data["ltl"].values())
-    assert report.data["figure_windows"] == [[0.0, 30.0], [30.0, 90.0]]
+    assert all(e.accepting.met for e in report.ltl.values())
+    assert report.figure_windows == ((0.0, 30.0), (30.0, 90.0))
 
 
 def test_scenario2_and_3_labels(scenarios) -> None:
-    labels = [s["label"] for e in scenarios["s2"][1].data["stl"].values() for s in e["subtasks"]]
+    labels = [s.label for e in scenarios["s2"][1].stl.values() for s in e.subtasks]
     assert labels == ["φ3", "φ4"]
     s3 = scenarios["s3"][1]
-    assert all(s["paper"] is None for e in s3.data["stl"].values() for s in e["subtasks"])
+    assert all(s.paper is None for e in s3.stl.values() for s in e.subtasks)
     # the paper names the formation tasks φ2–φ4 (no bound); the table adds the robot
-    assert [s["label"] for e in s3.data["stl"].values() for s in e["subtasks"]] == [
-        "φ2", "φ3", "φ4"]
-    assert "φ3 (r3)" in s3.table
-    assert "reports no robustness bound" in s3.markdown
-    assert "reports no robustness bound" in s3.table
-    r1 = s3.data["ltl"]["1"]
-    assert r1["cycle"] == ["a2"] and r1["cycles_completed"] == 0 and r1["accepting"]["met"]
+    assert [s.label for e in s3.stl.values() for s in e.subtasks] == ["φ2", "φ3", "φ4"]
+    assert "φ3 (r3)" in render_table(s3)
+    assert "reports no robustness bound" in render_markdown(s3)
+    assert "reports no robustness bound" in render_table(s3)
+    r1 = s3.ltl[1]
+    assert r1.cycle == ("a2",) and r1.cycles_completed == 0 and r1.accepting.met
 
 
 def test_edited_task_under_a_paper_name_gets_no_paper_value() -> None:
@@ -395,16 +398,14 @@ def non_background_fraction(path: Path) -> float:
 @pytest.mark.parametrize("name", ["s1", "s2", "s3"])
 def test_figures_written_and_not_blank(scenarios, name) -> None:
     run_dir, report = scenarios[name]
-    stl = report.data["stl"]
-    assert {p.name for p in report.figures} >= {f"robustness_r{r}.png" for r in stl}
-    assert sum(p.name.startswith("trajectories_") for p in report.figures) == 2
-    for path in report.figures:
+    assert set(report.figures) >= {f"robustness_r{r}.png" for r in report.stl}
+    assert sum(name.startswith("trajectories_") for name in report.figures) == 2
+    for path in report.figure_paths:
         assert path.parent == run_dir and path.stat().st_size > 20_000
         assert imread(path).std() > 0.05
         assert non_background_fraction(path) > 0.03
         assert f"]({path.name})" in (run_dir / "report.md").read_text(encoding="utf-8")
-    assert json.loads((run_dir / "report.json").read_text())["figures"] == [
-        p.name for p in report.figures]
+    assert json.loads((run_dir / "report.json").read_text())["figures"] == list(report.figures)
 
 
 def test_robustness_figure_of_a_run_shorter_than_its_subtask(tmp_path: Path) -> None:
@@ -416,7 +417,7 @@ def test_robustness_figure_of_a_run_shorter_than_its_subtask(tmp_path: Path) -> 
     path = tmp_path / "robustness_r2.png"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        robustness_figure(2, series, [("r2.1", 0.0, 20.0)], [{"t": 1.0, "stage": 1, "r": 0.05}],
+        robustness_figure(2, series, [("r2.1", 0.0, 20.0)], [RepairEvent(1.0, 1, 0, 0.05)],
                           path, t_end=2.0)
     assert non_background_fraction(path) > 0.03
 
@@ -425,8 +426,8 @@ def test_build_report_writes_nothing(tmp_path: Path) -> None:
     shutil.copytree(FIXTURES / "s2", tmp_path, dirs_exist_ok=True)
     before = sorted(p.name for p in tmp_path.iterdir())
     report = build_report(tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == before and report.figures == []
-    assert report.data["ltl"]["2"]["visits"]["a22"] == {"agent": 2, "trajectory": 2}
+    assert sorted(p.name for p in tmp_path.iterdir()) == before and report.figures == ()
+    assert report.ltl[2].visits["a22"] == Visits(agent=2, trajectory=2)
 
 
 # -- bad input ----------------------------------------------------------------------------------
@@ -459,9 +460,9 @@ def test_torn_last_event_line_is_skipped_and_reported(tmp_path: Path) -> None:
     with open(tmp_path / "events.jsonl", "a") as f:
         f.write('{"t": 61.0, "source": "agent/3", "kind": "rep')
     report = write_report(tmp_path, figures=False)
-    assert report.data["events_skipped_lines"] == [6]
-    assert "line(s) 6 not JSON" in report.markdown
-    assert report.data["stl"]["3"]["subtasks"][0]["repair_events"]["stage1"] == 1
+    assert report.events_skipped_lines == (6,)
+    assert "line(s) 6 not JSON" in render_markdown(report)
+    assert report.stl[3].subtasks[0].repair_events.stage1 == 1
 
 
 @pytest.mark.parametrize("content", ["", "t,x1,y1,th1,x2,y2,th2,x3,y3,th3,x4,y4,th4\n"])
@@ -469,17 +470,18 @@ def test_empty_trajectory_is_reported_not_fatal(tmp_path: Path, content: str) ->
     write_synthetic(tmp_path)
     (tmp_path / "trajectory.csv").write_text(content)
     report = write_report(tmp_path)
-    assert report.data["trajectory_error"]
-    assert "trajectory unusable" in report.markdown and "trajectory:" in report.table
-    assert report.data["ltl"]["1"]["accepting"]["met"] is False
-    assert "no trajectory" in report.data["ltl"]["1"]["note"]
-    assert all(s["robustness"] is None for s in report.data["stl"]["3"]["subtasks"])
-    assert all(s["paper"] is None for s in report.data["stl"]["3"]["subtasks"])
-    assert {p.name for p in report.figures} == {"robustness_r3.png", "robustness_r4.png"}
+    assert report.trajectory_error
+    assert "trajectory unusable" in render_markdown(report)
+    assert "trajectory:" in render_table(report)
+    assert report.ltl[1].accepting.met is False
+    assert "no trajectory" in report.ltl[1].note
+    assert all(s.robustness is None for s in report.stl[3].subtasks)
+    assert all(s.paper is None for s in report.stl[3].subtasks)
+    assert set(report.figures) == {"robustness_r3.png", "robustness_r4.png"}
 
 
 def test_missing_trajectory_file(tmp_path: Path) -> None:
     write_synthetic(tmp_path)
     (tmp_path / "trajectory.csv").unlink()
     report = build_report(tmp_path)
-    assert "cannot open" in report.data["trajectory_error"]
+    assert "cannot open" in report.trajectory_error

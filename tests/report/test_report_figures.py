@@ -21,11 +21,11 @@ MAGIC = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}
 def test_every_format_is_written_and_found_again(tmp_path: Path, fmt: str) -> None:
     write_synthetic(tmp_path)
     report = write_report(tmp_path, figure_format=fmt)
-    assert report.figures and all(p.suffix == f".{fmt}" for p in report.figures)
-    for path in report.figures:
+    assert report.figures and all(p.suffix == f".{fmt}" for p in report.figure_paths)
+    for path in report.figure_paths:
         assert path.read_bytes()[:len(MAGIC[fmt])] == MAGIC[fmt], path
-    assert {p.name for p in build_report(tmp_path).figures} == {p.name for p in report.figures}
-    assert f"]({report.figures[0].name})" in (tmp_path / "report.md").read_text()
+    assert set(build_report(tmp_path).figures) == set(report.figures)
+    assert f"]({report.figures[0]})" in (tmp_path / "report.md").read_text()
 
 
 def test_svg_text_is_mathtext_and_the_format_flag(tmp_path: Path, capsys) -> None:

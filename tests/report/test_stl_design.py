@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from tlfleet.agent.scenario import load_scenario, parse_scenario
+from tlfleet.coordinator.record.run_record import Verdicts
 from tlfleet.coordinator.report.task_verdicts import render_lines, stl_design
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -21,20 +22,18 @@ def _scenario(**stl):
 
 
 def test_each_switch_combination_names_its_f_semantics():
-    assert stl_design(_scenario())["f_semantics"].startswith("tlfleet's")
+    assert stl_design(_scenario()).f_semantics.startswith("tlfleet's")
     authors = stl_design(_scenario(hold_f_above_r=True, complete_f_at_goal=False))
-    assert authors["f_semantics"].startswith("the authors' code")
+    assert authors.f_semantics.startswith("the authors' code")
     paper = stl_design(load_scenario(ROOT / "scenarios" / "scenario1.toml"))
-    assert paper["f_semantics"].startswith("the paper's Algorithm 2")
-    assert not paper["saturation_aware"] and not paper["coupled_radii"]
+    assert paper.f_semantics.startswith("the paper's Algorithm 2")
+    assert not paper.saturation_aware and not paper.coupled_radii
 
 
 def test_the_coupled_pair_and_its_radii_are_reported():
     design = stl_design(_scenario())
-    assert design["coupled_radii"] == {"2-3": pytest.approx((0.43, 0.48))}
-    (line,) = [x for x in render_lines({"coupling_aware": False, "coupling_share": 0.9,
-                                         "recovery": True, "recoveries": {}, "subtasks": {},
-                                         "stationary": [], "stl_design": design})
+    assert design.coupled_radii == {"2-3": pytest.approx((0.43, 0.48))}
+    (line,) = [x for x in render_lines(Verdicts(False, 0.9, True, {}, {}, (), design))
                if x.startswith("STL design")]
     assert "coupled pairs 2-3 0.43/0.48 m" in line and "R1/R 0.6/0.7 m" in line
-    assert stl_design(_scenario(coupled_radii=False))["coupled_radii"] == {}
+    assert stl_design(_scenario(coupled_radii=False)).coupled_radii == {}

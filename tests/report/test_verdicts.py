@@ -10,6 +10,7 @@ import pytest
 from tlfleet.agent.scenario import parse_scenario
 from tlfleet.agent.stl.monitor import Trajectory
 from tlfleet.bus.protocol.messages import Event
+from tlfleet.coordinator.record.run_record import SubtaskVerdict, Verdicts
 from tlfleet.coordinator.report.task_verdicts import (
     held_fraction,
     render_lines,
@@ -29,8 +30,8 @@ from tlfleet.coordinator.report.task_verdicts import (
 ])
 def test_verdict(op, rho, t_end, expected, by):
     v = verdict(op, 10.0, 100.0, rho, t_end)
-    assert v["verdict"] == expected
-    assert v["by"] == (pytest.approx(by) if by is not None else None)
+    assert v.verdict == expected
+    assert v.by == (pytest.approx(by) if by is not None else None)
 
 
 SCENARIO = parse_scenario({
@@ -68,15 +69,15 @@ def test_stationary_episodes_flag_a_robot_that_stands_while_its_task_wants_motio
     x1 = np.linspace(0.0, 4.0, n)  # the LTL robot drives all the time: never flagged
     x2 = np.full(n, -1.0)  # the STL robot stands 1 m .. 5 m away (ρ^ψ < −0.1): flagged
     episodes = stationary_episodes(SCENARIO, _traj(x2, x1), [])
-    assert [e["robot"] for e in episodes] == [2]
-    assert episodes[0]["t_start"] == pytest.approx(0.0)
-    assert episodes[0]["t_end"] == pytest.approx(20.0)
+    assert [e.robot for e in episodes] == [2]
+    assert episodes[0].t_start == pytest.approx(0.0)
+    assert episodes[0].t_end == pytest.approx(20.0)
     # close enough (ρ^ψ ≥ −0.1) it may stand; the LTL robot parked after plan_finished may too
     still = np.zeros(n)
     events = [Event(0.0, "agent/1", "plan_finished", {})]
     assert stationary_episodes(SCENARIO, _traj(still + 0.55, still), events) == []
     flagged = stationary_episodes(SCENARIO, _traj(still + 0.55, still), [])
-    assert [e["robot"] for e in flagged] == [1]
+    assert [e.robot for e in flagged] == [1]
 
 
 def test_waiting_for_the_right_of_way_is_no_stationary_episode_up_to_its_limit():
@@ -92,12 +93,12 @@ def test_waiting_for_the_right_of_way_is_no_stationary_episode_up_to_its_limit()
                Event(16.0, "agent/1", "yield", {"state": "end", "other": 2})]
     assert stationary_episodes(SCENARIO, traj, yielded) == []
     stalled = stationary_episodes(SCENARIO, traj, [])
-    assert [e["robot"] for e in stalled] == [1]
-    assert stalled[0]["t_start"] == pytest.approx(4.0, abs=0.6)
+    assert [e.robot for e in stalled] == [1]
+    assert stalled[0].t_start == pytest.approx(4.0, abs=0.6)
     # a yield shorter than the stand does not cover it
     short = [Event(4.0, "agent/1", "yield", {"state": "begin", "other": 2}),
              Event(8.0, "agent/1", "yield", {"state": "end", "other": 2})]
-    assert [e["robot"] for e in stationary_episodes(SCENARIO, traj, short)] == [1]
+    assert [e.robot for e in stationary_episodes(SCENARIO, traj, short)] == [1]
     # nor does one beyond the limit (a 30 s stand inside a 30 s yield)
     long_t = np.arange(401) * 0.1
     x_long = np.where(long_t < 4.0, long_t * 0.1, np.where(long_t < 34.0, 0.4,
@@ -107,14 +108,13 @@ def test_waiting_for_the_right_of_way_is_no_stationary_episode_up_to_its_limit()
                                                 axis=1)})
     long_yield = [Event(4.0, "agent/1", "yield", {"state": "begin", "other": 2}),
                   Event(34.0, "agent/1", "yield", {"state": "end", "other": 2})]
-    assert [e["robot"] for e in stationary_episodes(SCENARIO, long_traj, long_yield)] == [1]
+    assert [e.robot for e in stationary_episodes(SCENARIO, long_traj, long_yield)] == [1]
 
 
 def test_render_lines_name_the_switches():
-    v = {"coupling_aware": False, "coupling_share": 0.9, "recovery": True,
-         "recoveries": {"3": 2}, "subtasks": {"3": [
-             {"label": "φ3", "verdict": "violated", "by": 0.25, "held": 0.5}]},
-         "stationary": []}
+    v = Verdicts(coupling_aware=False, coupling_share=0.9, recovery=True, recoveries={"3": 2},
+                 subtasks={3: (SubtaskVerdict("violated", by=0.25, held=0.5, label="φ3"),)},
+                 stationary=())
     text = "\n".join(render_lines(v))
     assert "coupling-aware leaders off" in text and "2 recoveries" in text
     assert "φ3 violated by 0.250, held 50 %" in text

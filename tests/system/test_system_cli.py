@@ -11,6 +11,7 @@ import time
 import pytest
 from process_helpers import processes_mentioning
 from system_helpers import HERE, ROOT, leftover_in_groups
+from tlfleet.coordinator.report.render import render_table
 from tlfleet.coordinator.report.run_report import build_report
 
 pytestmark = pytest.mark.system
@@ -32,7 +33,7 @@ def test_run_prints_the_summary_and_the_run_directory(tmp_path):
     run_dir = tmp_path / "run"
     assert out.startswith("report two_robots")
     # the printed table is the one the run directory's files give when the report is rebuilt
-    assert build_report(run_dir).table in out
+    assert render_table(build_report(run_dir)) in out
     assert f"report:  {run_dir / 'report.md'}" in out
     figures = sorted(run_dir.glob("*.png"))
     assert figures and all(f"figure:  {path}" in out for path in figures)

@@ -62,7 +62,7 @@ def test_a_scheduled_freeze_stops_the_robot_and_the_agent_resumes_on_the_newest_
     resumed = [e for e in events(run_dir) if e["kind"] == "resumed"]
     assert resumed and resumed[0]["data"]["gap"] >= 2.5
     # no burst: the simulator ignored at most the one command computed on the pre-freeze frame
-    sim_stats = result.summary["deadlines"]["sim_stats"]
+    sim_stats = result.summary.deadlines.sim_stats.counters
     assert sim_stats["stale_commands"] <= 1, sim_stats
     after = (t > end["t"] + 0.5)
     assert np.ptp(states[2][after, 0]) + np.ptp(states[2][after, 1]) > 0.05  # it moves again

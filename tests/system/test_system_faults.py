@@ -144,11 +144,11 @@ def test_malformed_payloads_on_every_key_crash_nothing_and_are_counted(tmp_path)
         intruder.close()
     result = bg.join()
     assert result.outcome.deaths == [] and result.clean, result.summary_text
-    malformed = result.summary["deadlines"]["malformed_by_source"]
+    malformed = result.summary.deadlines.malformed_by_source
     assert malformed.get("sim", 0) >= 3 * 2 * len(GARBAGE) - 3  # on cmd keys (≈ all of them)
     assert malformed.get("agent/2", 0) > 0 and malformed.get("agent/1", 0) > 0
     assert any(k.startswith("coordinator") for k in malformed)
-    assert result.summary["deadlines"]["malformed"] == sum(malformed.values())
+    assert result.summary.deadlines.malformed == sum(malformed.values())
     assert "malformed messages:" in result.summary_text
     assert leftover_in_groups(run_dir) == []
 

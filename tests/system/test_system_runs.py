@@ -50,7 +50,7 @@ def test_two_robot_fleet(tmp_path, mode):
         assert len(t) > 1800  # realtime: a few frames may be lost on a busy machine
     assert np.all(np.diff(t) > 0)
     rho = g_rob(t, 0.8 - dist_to(s, 2, 1), 0, 20)
-    assert result.summary["stl"][2]["robustness"] == pytest.approx(rho, abs=1e-9)
+    assert result.summary.stl[2].robustness == pytest.approx(rho, abs=1e-9)
     assert rho > -0.5  # the omni follows the unicycle (0.2 m/s against 0.3 m/s)
     reg = regions(TWO)
     for name in ("a1", "a2"):
@@ -133,8 +133,8 @@ def test_recovery_case_escort_back_within_10_s_of_the_leader_stop(tmp_path):
     assert 10.0 < t_stop < 30.0  # it drove, then parked in its region
     psi = 1.0 - dist_to(s, 2, 1)
     assert psi[t <= t_stop].min() < -1.0  # the escort had fallen far behind
-    (sub,) = result.summary["stl"][2]["subtasks"]
-    assert sub["r_least"] < -1.0 < sub["r_last"]  # repairs lowered r, recoveries raised it
+    (sub,) = result.summary.stl[2].subtasks
+    assert sub.r_least < -1.0 < sub.r_last  # repairs lowered r, recoveries raised it
     back = t[(t >= t_stop) & (psi >= 0.0)]
     assert back.size and back[0] - t_stop <= 10.0, (t_stop, back[:1])
     assert psi[t >= back[0]].min() >= 0.0
@@ -154,7 +154,7 @@ def test_scenario3_formation_and_all_regions(tmp_path):
         assert entries(s[1][:, :2], reg[name].center, reg[name].radius) >= 1, name
     assert robot_robot_contacts(tmp_path / "run") == []
     for robot in (2, 3, 4):  # the summary's robustness is the trajectory's, and finite
-        assert math.isfinite(result.summary["stl"][robot]["robustness"])
+        assert math.isfinite(result.summary.stl[robot].robustness)
     # goals (coupling-aware leader): every formation task ρ ≥ −0.1 and held ≥ 90 %
     t, s = load_trajectory(tmp_path / "run")
     window = (t >= 10.0) & (t <= 100.0)
@@ -162,5 +162,5 @@ def test_scenario3_formation_and_all_regions(tmp_path):
         psi = formation_psi(s, robot, 1, side)[window]
         assert psi.min() >= -0.1, (robot, psi.min())
         assert np.mean(psi >= 0.0) >= 0.9, (robot, np.mean(psi >= 0.0))
-        assert result.summary["stl"][robot]["robustness"] == pytest.approx(psi.min(), abs=1e-9)
+        assert result.summary.stl[robot].robustness == pytest.approx(psi.min(), abs=1e-9)
     assert leftover_in_groups(tmp_path / "run") == []
