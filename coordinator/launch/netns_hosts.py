@@ -112,17 +112,26 @@ class NetnsHosts:
 
     # ------------------------------------------------------------ lifetime
 
+    def _add_namespace(self, ns: str) -> None:
+        """``ip netns add ns``; a namespace of that name left by a run that was killed before
+        its ``down`` (SIGKILL, a lost CI runner) is deleted first: the names carry this
+        object's prefix, so a leftover is a dead run's, and without this every later run of the
+        same prefix would fail with "File exists"."""
+        if os.path.exists(f"/run/netns/{ns}"):
+            subprocess.run(["ip", "netns", "del", ns], capture_output=True)
+        _ip("netns", "add", ns)
+
     def up(self) -> NetnsHosts:
         require_root()
         try:
-            _ip("netns", "add", self.bridge)
+            self._add_namespace(self.bridge)
             self.created.append(self.bridge)
             _ip("-n", self.bridge, "link", "set", "lo", "up")
             _ip("-n", self.bridge, "link", "add", "br0", "type", "bridge")
             _ip("-n", self.bridge, "link", "set", "br0", "up")
             for host in range(self.count):
                 ns = self.name(host)
-                _ip("netns", "add", ns)
+                self._add_namespace(ns)
                 self.created.append(ns)
                 _ip("link", "add", "veth0", "netns", ns, "type", "veth", "peer", "name",
                     f"p{host}", "netns", self.bridge)
