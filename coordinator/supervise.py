@@ -28,7 +28,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -151,13 +151,18 @@ class RunResult:
         return code
 
 
-def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
+#: the identities whose keys ``tlfleet supervise`` needs: its own
+COORDINATOR_KEYS = ("coordinator",)
+
+
+def load_checked(scenario_path: Path, secure: Path | None = None,
+                 identities: Sequence[str] | None = None) -> Scenario:
     """The scenario (``ScenarioError`` names file and field; every agent built as its process
     would, :func:`tlfleet.agent.policy.preflight.check_launch`, an LTL robot's plan included:
     the reason names the region in the way when the keep-out rule leaves none,
     docs/ltl-navigation.md §2); with ``secure``, its key directory checked against it
-    (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`): all before anything
-    starts."""
+    (``KeyError`` of :mod:`tlfleet.coordinator.security.authority`) for ``identities``
+    (default: every process's, which ``tlfleet run`` starts): all before anything starts."""
     with bounded(str(scenario_path)):  # a task may ask for exponential work: bounded
         scenario = load_scenario(scenario_path)
         check_launch(scenario)  # what would stop an agent at launch, refused before any starts
@@ -166,7 +171,7 @@ def load_checked(scenario_path: Path, secure: Path | None = None) -> Scenario:
             check_keys,  # cryptography: imported for secured runs only
         )
 
-        check_keys(scenario, secure)
+        check_keys(scenario, secure, identities)
     return scenario
 
 
@@ -195,7 +200,10 @@ def prepare_run(scenario: Scenario, scenario_path: Path, out: Path | None, *, mo
         from tlfleet.coordinator.security.policy import identities
 
         info["keys"] = str(Path(secure).resolve())
-        info["fingerprints"] = fingerprints(secure, identities(scenario))
+        # the certificates at hand: all of them for `tlfleet run`, the coordinator's (and any
+        # other public one present) for `tlfleet supervise`, which needs no other key
+        info["fingerprints"] = fingerprints(secure, [
+            name for name in identities(scenario) if (Path(secure) / f"{name}.pem").is_file()])
     if lease_ms:
         info["lease_ms"] = lease_ms
     recorder.write_run_info(info)
@@ -413,7 +421,8 @@ def supervise_fleet(config: SuperviseConfig, stop: threading.Event | None = None
     say = report or (lambda text: logger.warning("%s", text))
     note = report or (lambda text: logger.info("%s", text))
     if scenario is None:
-        scenario = load_checked(config.scenario_path, config.secure)  # before connecting
+        # before connecting; least privilege: the CA and the coordinator's own pair only
+        scenario = load_checked(config.scenario_path, config.secure, COORDINATOR_KEYS)
     faults = fault_plan_checked(scenario, config)  # bad faults fail here too
     transport = open_client(client_config(config.connect, secure=config.secure,
                                           lease_ms=config.lease_ms,

@@ -27,6 +27,7 @@ discover   —                                                     ``declare_sub
 subscribe  ``declare_subscriber``                                ``put``
 serve      ``declare_queryable``, ``reply``                      ``query``
 query      ``query``                                             ``reply``, ``declare_queryable``
+find       —                                                     ``declare_queryable``
 token      ``liveliness_token``                                  —
 watch      ``declare_liveliness_subscriber``, ``liveliness_query``  ``liveliness_token``
 =========  ====================================================  ============================
@@ -36,7 +37,11 @@ publisher sends only while it knows a matching subscriber, so it must receive th
 declarations *as declared* — the sim's ``robot/*/cmd``, the recorder's ``tlfleet/<fleet>/**`` —
 and a rule on its own concrete key does not include those wildcards. It reveals which
 subscriptions exist, never data: a ``put`` reaches a process only through its ``subscribe``
-grant.
+grant. ``find`` is the same for queries between peers: a querier linked straight to the
+queryable's process (the peer layout of namespace hosts) learns it from its declaration *as
+declared* — robot 4's ``robot/4/collab/*`` — which the querier's concrete key does not include;
+through a router a client needs no declaration. It reveals which queryables exist, never a reply:
+a query reaches a process only through the querier's ``query`` grant.
 
 The scenario-specific grants (who may put, serve and query what) are computed by
 :mod:`tlfleet.coordinator.security.policy`; the keys and certificates are written by
@@ -70,6 +75,7 @@ CAPABILITIES: dict[str, dict[str, tuple[str, ...]]] = {
     "subscribe": {"ingress": ("declare_subscriber",), "egress": ("put",)},
     "serve": {"ingress": ("declare_queryable", "reply"), "egress": ("query",)},
     "query": {"ingress": ("query",), "egress": ("reply", "declare_queryable")},
+    "find": {"egress": ("declare_queryable",)},
     "token": {"ingress": ("liveliness_token",)},
     "watch": {"ingress": ("declare_liveliness_subscriber", "liveliness_query"),
               "egress": ("liveliness_token",)},
@@ -175,12 +181,18 @@ def secure_endpoint(endpoint: str) -> str:
 
 def secure_transport(config: TransportConfig, keydir: Path, name: str) -> TransportConfig:
     """``config`` with every endpoint on TLS, the mutual-TLS entries of ``name`` and, for a
-    router, the access-control policy of the key directory (``acl.json``)."""
-    router = config.mode == "router"
+    router or a peer, the access-control policy of the key directory (``acl.json``).
+
+    Every node that accepts links enforces the policy on what arrives over them: a peer too,
+    since peers link to each other directly and a router never sees that traffic (measured
+    with robot 2's certificate on a direct link to the simulator's peer: without the policy
+    there, 20 of 20 puts on robot 1's command key arrived; with it, none, and 20 of 20 on its
+    own key). A client links only to its router, which enforces it."""
+    enforce = config.mode in ("router", "peer")
     kd = KeyDir(Path(keydir))
     extra = dict(config.extra)
-    extra.update(tls_entries(kd, name, listen=router or bool(config.listen)))
-    if router:
+    extra.update(tls_entries(kd, name, listen=config.mode == "router" or bool(config.listen)))
+    if enforce:
         extra["access_control"] = load_policy(kd.policy)
     return replace(config, connect=tuple(secure_endpoint(e) for e in config.connect),
                    listen=tuple(secure_endpoint(e) for e in config.listen), extra=extra)
@@ -198,6 +210,7 @@ class Grant:
     subscribe: tuple[str, ...] = ()
     serve: tuple[str, ...] = ()
     query: tuple[str, ...] = ()
+    find: tuple[str, ...] = ()
     token: tuple[str, ...] = ()
     watch: tuple[str, ...] = ()
 

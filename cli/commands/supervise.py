@@ -78,9 +78,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tlfleet.coordinator.supervise import load_checked  # exit 1 before connecting
+    from tlfleet.coordinator.supervise import (  # exit 1 before connecting
+        COORDINATOR_KEYS,
+        load_checked,
+    )
 
-    scenario = load_checked(Path(args.scenario), args.secure)  # the one load of the file
+    # the one load of the file; with --secure only the CA and the coordinator's pair needed
+    scenario = load_checked(Path(args.scenario), args.secure, COORDINATOR_KEYS)
     duration = args.duration or scenario.duration
     wall_timeout = args.wall_timeout if args.wall_timeout is not None else 3.0 * duration + 60.0
     connect = tuple(args.connect) or ("tcp/127.0.0.1:7447",)

@@ -184,14 +184,20 @@ def write_keys(scenario: Scenario, out: Path, *, force: bool = False,
     return KeySet(out, names, prints, files)
 
 
-def check_keys(scenario: Scenario, keydir: Path) -> None:
-    """Raise :class:`tlfleet.bus.zenoh.security.SecurityError` unless ``keydir`` was written for
-    ``scenario``'s fleet and holds the CA, the policy and every process's key and certificate."""
+def check_keys(scenario: Scenario, keydir: Path, names: Sequence[str] | None = None) -> None:
+    """Raise :class:`tlfleet.bus.zenoh.security.SecurityError` unless ``keydir`` holds the CA
+    and the key and certificate of each identity of ``names`` (default: every process of
+    ``scenario``, as ``tlfleet run`` starts them all) — and the router's access policy when the
+    router is among them. Least privilege: ``tlfleet supervise`` asks only for
+    ``("coordinator",)``, so the coordinator's machine needs ``ca.pem`` and its own pair, no
+    other process's private key. ``fleet.json``, where present, must name the scenario's fleet."""
     kd = KeyDir(Path(keydir))
-    for name in identities(scenario):
+    for name in identities(scenario) if names is None else names:
         kd.require(name)
-    info = manifest(kd.path)
-    if info.get("fleet") != scenario.fleet:
-        raise SecurityError(f"{kd.path / MANIFEST}: keys of fleet {info.get('fleet')!r}, the "
-                            f"scenario's fleet is {scenario.fleet!r}")
-    load_policy(kd.policy)
+    if (kd.path / MANIFEST).is_file():
+        info = manifest(kd.path)
+        if info.get("fleet") != scenario.fleet:
+            raise SecurityError(f"{kd.path / MANIFEST}: keys of fleet {info.get('fleet')!r}, "
+                                f"the scenario's fleet is {scenario.fleet!r}")
+    if names is None or "router" in names:
+        load_policy(kd.policy)

@@ -97,6 +97,7 @@ def fleet_grants(scenario: Scenario, *, mesh: bool = False) -> tuple[Grant, ...]
             subscribe=(frames, keys.clock(fleet), keys.control(fleet)),
             serve=(keys.collab_all(fleet, i),) if robot.is_stl else (),
             query=tuple(keys.collab_from(fleet, j, i) for j in coupled.get(i, ())),
+            find=tuple(keys.collab_all(fleet, j) for j in coupled.get(i, ())),
             token=(keys.alive(fleet, "agent", i),), watch=everyone_alive))
     return tuple(grants)
 

@@ -212,6 +212,9 @@ def test_robot3_serves_only_its_collab_and_queries_only_coupled_robots(policy):
     assert allowed(policy, "robot3", "egress", "query", keys.collab_from(F, 3, 4))
     assert not allowed(policy, "robot3", "egress", "query", keys.collab_from(F, 4, 5))
     assert not allowed(policy, "robot1", "ingress", "declare_queryable", keys.collab_all(F, 1))
+    # on a direct peer link robot 3 learns robot 4's queryable as declared, no one else's
+    assert allowed(policy, "robot3", "egress", "declare_queryable", keys.collab_all(F, 4))
+    assert not allowed(policy, "robot3", "egress", "declare_queryable", keys.collab_all(F, 5))
 
 
 def test_robot3_token_and_subscriptions(policy):

@@ -24,22 +24,24 @@ Prefix = Callable[[str], Sequence[str]]  # process name -> argv prefix
 def start_by_hand(launcher: Launcher, scenario: Path, listen: str, connect: str | None = None,
                   *, prefix: Prefix = lambda name: (), sim_args: Sequence[str] = (),
                   agent_args: Sequence[str] = (), wait_host: str | None = "127.0.0.1",
-                  common: Sequence[str] = ()) -> None:
+                  common: Sequence[str] | Callable[[str], Sequence[str]] = ()) -> None:
     """Router listening on ``listen``; sim and agents connecting to ``connect`` (default the
-    same endpoint); ``common``: flags every process gets (``--secure DIR``)."""
+    same endpoint); ``common``: flags every process gets (``--secure DIR``), or a function of
+    the process's name giving its own."""
     fleet = load_scenario(scenario).fleet
+    flags = common if callable(common) else (lambda _name, given=tuple(common): given)
     connect = connect or listen
     router = launcher.start("router", [*prefix("router"), *tlfleet_command(
-        "router", "--fleet", fleet, "--listen", listen, *common)])
+        "router", "--fleet", fleet, "--listen", listen, *flags("router"))])
     if wait_host is not None:
         wait_for_port(wait_host, int(listen.rsplit(":", 1)[1]), 15.0, router)
     launcher.start("sim", [*prefix("sim"), *tlfleet_command(
-        "sim", str(scenario), "--connect", connect, *sim_args, *common)])
+        "sim", str(scenario), "--connect", connect, *sim_args, *flags("sim"))])
     for robot in sorted(load_scenario(scenario).robot_ids):
         name = f"agent-{robot}"
         launcher.start(name, [*prefix(name), *tlfleet_command(
             "agent", str(scenario), "--robot", str(robot), "--connect", connect, *agent_args,
-            *common)])
+            *flags(name))])
 
 
 def supervise(scenario: Path, connect: str, out: Path, *args: str, prefix: Sequence[str] = (),

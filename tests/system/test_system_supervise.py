@@ -94,6 +94,40 @@ def test_a_secured_fleet_by_hand_is_supervised_with_its_keys(tmp_path):
     assert info["outcome"]["label"] == "clean", info["outcome"]
 
 
+def test_each_process_of_a_secured_fleet_needs_only_the_ca_and_its_own_pair(tmp_path):
+    """Least privilege: every process, the coordinator included, gets a directory with
+    ``ca.pem`` and its own certificate and private key (the router also ``acl.json``) — no other
+    process's private key anywhere — and the secured fleet runs clean."""
+    import shutil
+
+    from tlfleet.coordinator.security.authority import write_keys
+
+    keydir = tmp_path / "keys"
+    write_keys(load_scenario(TWO), keydir)
+
+    def own(identity: str, *extra: str):
+        path = tmp_path / f"keys-{identity}"
+        path.mkdir()
+        for name in ("ca.pem", f"{identity}.pem", f"{identity}.key", *extra):
+            shutil.copy2(keydir / name, path / name)
+        return path
+
+    dirs = {"router": own("router", "acl.json"), "sim": own("sim"), "agent-1": own("robot1"),
+            "agent-2": own("robot2"), "coordinator": own("coordinator")}
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    with Launcher(tmp_path / "logs") as launcher:
+        start_by_hand(launcher, TWO, endpoint, sim_args=("--duration", "3"),
+                      common=lambda name: ("--secure", str(dirs[name])))
+        done = supervise(TWO, endpoint, tmp_path / "run", "--duration", "3", "--no-rrd",
+                         "--no-figures", "--secure", str(dirs["coordinator"]), timeout=120)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    info = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert info["outcome"]["label"] == "clean", info["outcome"]
+    assert set(info["fingerprints"]) == {"ca", "coordinator"}  # the certificates it holds
+    keys_held = sorted(p.name for p in dirs["coordinator"].iterdir() if p.suffix == ".key")
+    assert keys_held == ["coordinator.key"]
+
+
 @pytest.mark.slow
 def test_scenario1_by_hand_plus_supervise_is_byte_identical_to_tlfleet_run(tmp_path,
                                                                           scenario1_run):
