@@ -280,10 +280,13 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
     return "\n".join(lines)
 
 
-def compose_text(config: ComposeConfig) -> str:
+def compose_text(config: ComposeConfig, scenario: Scenario | None = None) -> str:
     """The file :func:`write_compose` writes (paths in its header relative to the working
-    directory); ``ScenarioError`` for an invalid scenario."""
-    scenario = load_scenario(config.scenario_path)
+    directory); ``ScenarioError`` for an invalid scenario. ``scenario``: the file of
+    ``config.scenario_path`` as the caller already loaded it (``tlfleet compose`` reads it
+    once)."""
+    if scenario is None:
+        scenario = load_scenario(config.scenario_path)
     if config.mode not in ("lockstep", "realtime"):
         raise ValueError(f"mode {config.mode!r}: expected lockstep or realtime")
     faults = compose_faults(scenario, config)
@@ -322,9 +325,10 @@ def compose_faults(scenario: Scenario, config: ComposeConfig) -> tuple[Fault, ..
     return faults
 
 
-def write_compose(config: ComposeConfig) -> Path:
-    """Validate the scenario (``ScenarioError`` before anything is written), write the file."""
-    text = compose_text(config)
+def write_compose(config: ComposeConfig, scenario: Scenario | None = None) -> Path:
+    """Validate the scenario (``ScenarioError`` before anything is written; ``scenario``: as the
+    caller loaded it), write the file."""
+    text = compose_text(config, scenario)
     path = compose_path(Path(config.out))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8")
