@@ -144,14 +144,7 @@ def run_on_hosts(scenario_path: Path, hosts: int, *, out: Path | None = None,
     with net:
         try:
             if own_keys is not None:
-                from tlfleet.coordinator.security.authority import (
-                    write_keys,  # cryptography: secured runs only
-                )
-
-                write_keys(scenario, own_keys, force=True, mesh=True,
-                           hosts=tuple(net.address(h) for h in range(hosts)),
-                           addresses={certificate_name(p): [net.address(placement.host_of[p])]
-                                      for p in placement.peers})
+                _write_own_keys(scenario, own_keys, links)
             keydir = own_keys or secure
             # with faults, agents that read only every d-th frame watch the sim's clock key
             # too, so they notice a lost simulator within --stale-after like the others
@@ -209,6 +202,19 @@ def _fault_placement(scenario: Scenario, hosts: int, faults: Sequence[Fault],
         for fault in all_faults:
             check_hosts_fault(fault, placement)
     return all_faults, placement
+
+
+def _write_own_keys(scenario: Scenario, keys: Path, links: _Links) -> None:
+    """A key directory for this run: the routers' certificates name their hosts' addresses,
+    a peer's its own host's (the mesh policy of
+    :func:`tlfleet.coordinator.security.policy.fleet_grants`)."""
+    from tlfleet.coordinator.security.authority import write_keys  # cryptography: secured only
+
+    net, placement = links.net, links.placement
+    write_keys(scenario, keys, force=True, mesh=True,
+               hosts=tuple(net.address(h) for h in range(net.count)),
+               addresses={certificate_name(p): [net.address(placement.host_of[p])]
+                          for p in placement.peers})
 
 
 def _zenoh_configs(run_dir: Path, injecting: bool, peers: bool) -> tuple[Path, Path | None]:
