@@ -173,15 +173,52 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
     of a file that carries faults; ``leased``: the services that get ``config.lease_ms``
     (:func:`leased_services`)."""
     secure = not config.insecure
-    scheme = "tls" if secure else "tcp"
-    endpoint = f"{scheme}/router:{ROUTER_PORT}"
-    volume = f"{scenario_ref}:{SCENARIO_IN}:ro"
-    keys_volume = [f"      - {json.dumps(f'{KEYS}:{KEYS_IN}:ro')}"] if secure else []
     faulty = zenoh_ref is not None
+    volumes = [f"      - {json.dumps(f'{KEYS}:{KEYS_IN}:ro')}"] if secure else []
     if faulty:
-        keys_volume.append(f"      - {json.dumps(f'{zenoh_ref}:{ZENOH_IN}:ro')}")
-        keys_volume.append(f"      - {json.dumps(f'{hosts_ref}:/etc/hosts:ro')}")
-        router_ip = router_address(config.fault_subnet, len(scenario.robots) + 3)
+        volumes.append(f"      - {json.dumps(f'{zenoh_ref}:{ZENOH_IN}:ro')}")
+        volumes.append(f"      - {json.dumps(f'{hosts_ref}:/etc/hosts:ro')}")
+    plan = _compose_plan(scenario, config, faulty)
+
+    def command(spec: ProcessSpec) -> list[str]:
+        return _service_argv(spec, config, leased)
+
+    router_ip = (router_address(config.fault_subnet, len(scenario.robots) + 3) if faulty
+                 else None)
+    lines = [*_header(scenario, config, generated_by),
+             "services:",
+             *_router_service(command(plan.pop("router")), volumes[:1] if secure else [],
+                              router_ip)]
+    # with faults the clients find the router in their own hosts file (module docstring); any
+    # other name lookup started while a container's network is cut hangs 1 s at most, not 10 s
+    client_volumes = [f"      - {json.dumps(f'{scenario_ref}:{SCENARIO_IN}:ro')}", *volumes]
+    dns = ['    dns_opt: ["timeout:1", "attempts:1"]'] if faulty else []
+    coordinator = plan.pop("coordinator")
+    for spec in plan.values():  # the sim, then the agents (ids ascending)
+        lines += _client_service(_service(spec.name), command(spec), [*client_volumes], dns)
+    lines += _client_service(
+        "coordinator", command(coordinator),
+        [*client_volumes, '      - "${TLFLEET_OUT:-../runs/compose}:/out"'], dns,
+        image=COORDINATOR_IMAGE)
+    lines += ["networks:",
+              "  fleet:",
+              "    internal: true",
+              *(["    ipam:", "      config:", f"        - subnet: {config.fault_subnet}"]
+                if faulty else []),
+              ""]
+    return "\n".join(lines)
+
+
+def _service(name: str) -> str:
+    """A process's service name: ``agent-3`` → ``robot3``, the others as they are."""
+    return f"robot{name.split('-')[1]}" if name.startswith("agent-") else name
+
+
+def _compose_plan(scenario: Scenario, config: ComposeConfig, faulty: bool
+                  ) -> dict[str, ProcessSpec]:
+    """The fleet's launch plan as the containers see it: the scenario, keys and zenoh config at
+    their mount points; the coordinator writing ``/out`` and, with faults, handing them to the
+    host's executor."""
     tail = ["--out", "/out", "--wait", f"{config.wait:g}", "--quiet"]
     if faulty:
         from tlfleet.coordinator.faults.handoff import HANDOFF_IN
@@ -189,38 +226,35 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         tail += ["--fault-handoff", HANDOFF_IN]
         for fault in config.faults:
             tail += ["--fault", fault.text or fault.spec]
-    plan = by_name(plan_fleet(scenario, PlanConfig(
+    return by_name(plan_fleet(scenario, PlanConfig(
         scenario_ref=SCENARIO_IN, mode=config.mode, duration=config.duration,
-        secure=Path(KEYS_IN) if secure else None, lease_ms=config.lease_ms,
+        secure=None if config.insecure else Path(KEYS_IN), lease_ms=config.lease_ms,
         zenoh_config=Path(ZENOH_IN) if faulty else None, supervise=(),
         supervise_tail=tuple(tail))))
 
-    def service(name: str) -> str:
-        return f"robot{name.split('-')[1]}" if name.startswith("agent-") else name
 
-    def command(spec: ProcessSpec) -> list[str]:
-        """The spec placed in its container: linked to the router by name, the lease where
-        :func:`leased_services` says."""
-        name = service(spec.name)
-        lease = None if name == "coordinator" or (leased is not None and name not in leased) \
-            else config.lease_ms
-        if spec.role == "router":  # the clients' zenoh file is the clients'
-            spec = spec.placed(listen=(f"{scheme}/0.0.0.0:{ROUTER_PORT}",), zenoh_config=None,
-                               lease_ms=lease)
-        else:
-            spec = spec.placed(connect=(endpoint,), lease_ms=lease)
-        return list(spec.argv())
+def _service_argv(spec: ProcessSpec, config: ComposeConfig, leased: frozenset[str] | None
+                  ) -> list[str]:
+    """The spec placed in its container: linked to the router by name, the lease where
+    :func:`leased_services` says."""
+    scheme = "tcp" if config.insecure else "tls"
+    name = _service(spec.name)
+    lease = None if name == "coordinator" or (leased is not None and name not in leased) \
+        else config.lease_ms
+    if spec.role == "router":  # the clients' zenoh file is the clients'
+        spec = spec.placed(listen=(f"{scheme}/0.0.0.0:{ROUTER_PORT}",), zenoh_config=None,
+                           lease_ms=lease)
+    else:
+        spec = spec.placed(connect=(f"{scheme}/router:{ROUTER_PORT}",), lease_ms=lease)
+    return list(spec.argv())
 
-    router_volumes = keys_volume[:1] if secure else []
-    # with faults the clients find the router in their own hosts file (module docstring); any
-    # other name lookup started while a container's network is cut hangs 1 s at most, not 10 s
-    dns = ['    dns_opt: ["timeout:1", "attempts:1"]'] if faulty else []
-    router_network = (["    networks:", "      fleet:", f"        ipv4_address: {router_ip}"]
-                      if faulty else ["    networks: [fleet]"])
-    lines = [
+
+def _header(scenario: Scenario, config: ComposeConfig, generated_by: str) -> list[str]:
+    return [
         f"# Generated by `{generated_by}`: do not edit, regenerate.",
         f"# The fleet of scenario {scenario.name!r} ({len(scenario.robots)} robots, "
-        f"{config.mode}, {'mutual TLS + access control' if secure else 'plain TCP'}) "
+        f"{config.mode}, "
+        f"{'plain TCP' if config.insecure else 'mutual TLS + access control'}) "
         "as docker compose services. In a checkout: `make compose-run`",
         "# (README, \"docker compose\"); images by docker/build-image.sh (built offline). "
         "Elsewhere, with",
@@ -231,14 +265,22 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         "#     --abort-on-container-exit --exit-code-from coordinator; "
         "then docker compose -f <this file> down",
         "# The run directory is ${TLFLEET_OUT} (default ../runs/compose).",
-        "services:",
+    ]
+
+
+def _router_service(argv: list[str], volumes: list[str], address: str | None) -> list[str]:
+    """The router's service: healthy once it listens; at a fixed ``address`` in a file with
+    faults (the clients' hosts file names it)."""
+    network = (["    networks:", "      fleet:", f"        ipv4_address: {address}"]
+               if address is not None else ["    networks: [fleet]"])
+    return [
         "  router:",
         f"    image: {IMAGE}",
-        "    command: " + _flow(command(plan.pop("router"))),
+        "    command: " + _flow(argv),
         "    init: true",
         f"    user: {USER}",
-        *router_network,
-        *(["    volumes:", *router_volumes] if router_volumes else []),
+        *network,
+        *(["    volumes:", *volumes] if volumes else []),
         "    healthcheck:",
         "      test: " + _flow(["CMD", "python3", "-c", LISTENING.format(port=ROUTER_PORT)]),
         "      interval: 1s",
@@ -246,44 +288,34 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
         "      retries: 60",
     ]
 
-    def client(name: str, argv: list[str], extra: list[str] = (), image: str = IMAGE) -> None:
-        lines.extend([
-            f"  {name}:",
-            f"    image: {image}",
-            "    command: " + _flow(argv),
-            "    init: true",
-            f"    user: {USER}",
-            "    networks: [fleet]",
-            "    depends_on:",
-            "      router:",
-            "        condition: service_healthy",
-            "    volumes:",
-            f"      - {json.dumps(volume)}",
-            *keys_volume,
-            *extra,
-            *dns,
-        ])
 
-    coordinator = plan.pop("coordinator")
-    for spec in plan.values():  # the sim, then the agents (ids ascending)
-        client(service(spec.name), command(spec))
-    client("coordinator", command(coordinator), ['      - "${TLFLEET_OUT:-../runs/compose}:/out"'],
-           image=COORDINATOR_IMAGE)
-    lines.extend([
-        "networks:",
-        "  fleet:",
-        "    internal: true",
-        *(["    ipam:", "      config:", f"        - subnet: {config.fault_subnet}"]
-          if faulty else []),
-        "",
-    ])
-    return "\n".join(lines)
+def _client_service(name: str, argv: list[str], volumes: list[str], dns: list[str],
+                    image: str = IMAGE) -> list[str]:
+    """A client's service (simulator, agent, coordinator): started once the router is
+    healthy."""
+    return [
+        f"  {name}:",
+        f"    image: {image}",
+        "    command: " + _flow(argv),
+        "    init: true",
+        f"    user: {USER}",
+        "    networks: [fleet]",
+        "    depends_on:",
+        "      router:",
+        "        condition: service_healthy",
+        "    volumes:",
+        *volumes,
+        *dns,
+    ]
 
 
-def compose_text(config: ComposeConfig) -> str:
+def compose_text(config: ComposeConfig, scenario: Scenario | None = None) -> str:
     """The file :func:`write_compose` writes (paths in its header relative to the working
-    directory); ``ScenarioError`` for an invalid scenario."""
-    scenario = load_scenario(config.scenario_path)
+    directory); ``ScenarioError`` for an invalid scenario. ``scenario``: the file of
+    ``config.scenario_path`` as the caller already loaded it (``tlfleet compose`` reads it
+    once)."""
+    if scenario is None:
+        scenario = load_scenario(config.scenario_path)
     if config.mode not in ("lockstep", "realtime"):
         raise ValueError(f"mode {config.mode!r}: expected lockstep or realtime")
     faults = compose_faults(scenario, config)
@@ -322,9 +354,10 @@ def compose_faults(scenario: Scenario, config: ComposeConfig) -> tuple[Fault, ..
     return faults
 
 
-def write_compose(config: ComposeConfig) -> Path:
-    """Validate the scenario (``ScenarioError`` before anything is written), write the file."""
-    text = compose_text(config)
+def write_compose(config: ComposeConfig, scenario: Scenario | None = None) -> Path:
+    """Validate the scenario (``ScenarioError`` before anything is written; ``scenario``: as the
+    caller loaded it), write the file."""
+    text = compose_text(config, scenario)
     path = compose_path(Path(config.out))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8")

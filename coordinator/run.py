@@ -274,6 +274,36 @@ def supervisor_config(config: RunConfig) -> SupervisorConfig:
                    poll_period=min(config.supervisor.poll_period, LOCKSTEP_POLL_PERIOD))
 
 
+def _checked_before_launch(config: RunConfig, scenario: Scenario) -> tuple[Fault, ...]:
+    """What ``config`` asks of ``scenario`` that could fail, checked before anything is
+    written or started (``ValueError``, ``FaultSpecError``, ``FaultError``, a lab file or zenoh
+    config that does not fit); → the run's faults."""
+    child_sched(config)  # ValueError for a bad RunConfig.sched
+    check_hardware(config, scenario)
+    faults = run_faults(scenario, config.faults, config.duration)
+    ProcessActuator.check_all(faults)  # link cuts need namespace hosts (launch.netns_hosts)
+    if config.zenoh_config is not None:
+        check_config(TransportConfig(mode="client", zenoh_config=config.zenoh_config))
+    return faults
+
+
+def _config_for_faults(config: RunConfig, faults: tuple[Fault, ...], run_dir: Path
+                       ) -> RunConfig:
+    """``config`` as a run with ``faults`` needs it: router links only (the topology the fault
+    plans and their measurements were made for); after a router restart every client (the
+    coordinator's too) back within a retry period of the new router, instead of zenoh's
+    back-off of up to 4 s (fault-injection notes §5.3), through ``<run>/logs/client.json5``."""
+    if config.zenoh_config is None and any(f.kind == "restart" and f.target == "router"
+                                           for f in faults):
+        conf = run_dir / "logs" / "client.json5"
+        conf.parent.mkdir(parents=True, exist_ok=True)
+        conf.write_text(f"{{ {RECONNECT} }}\n")
+        config = replace(config, zenoh_config=conf)
+    if faults:
+        config = replace(config, direct_links=False)
+    return config
+
+
 def run_fleet(config: RunConfig, stop: threading.Event | None = None,
               progress: Callable[[float, float], None] | None = None,
               report: Callable[[str], None] | None = None,
@@ -286,28 +316,13 @@ def run_fleet(config: RunConfig, stop: threading.Event | None = None,
     note = report or (lambda text: logger.info("%s", text))
     if scenario is None:
         scenario = load_checked(config.scenario_path, config.secure)  # before anything else
-    child_sched(config)  # ValueError for a bad RunConfig.sched, before anything is started
-    check_hardware(config, scenario)  # a lab file that does not fit: before anything, too
-    faults = run_faults(scenario, config.faults, config.duration)  # FaultSpecError: the same
-    # link cuts need namespace hosts (tlfleet.coordinator.launch.netns_hosts)
-    ProcessActuator.check_all(faults)
-    if config.zenoh_config is not None:  # a bad file fails here, before anything is written
-        check_config(TransportConfig(mode="client", zenoh_config=config.zenoh_config))
+    faults = _checked_before_launch(config, scenario)
     endpoint = f"{'tls' if config.secure else 'tcp'}/{HOST}:{free_port(HOST)}"
     prepared = prepare_run(scenario, config.scenario_path, config.out, mode=config.mode,
                            duration=config.duration, seed=config.seed, endpoint=endpoint,
                            secure=config.secure, lease_ms=config.lease_ms)
     info = prepared.info
-    if config.zenoh_config is None and any(f.kind == "restart" and f.target == "router"
-                                           for f in faults):
-        # every client (the coordinator's too) back within a retry period of the new router,
-        # instead of zenoh's back-off of up to 4 s (fault-injection notes §5.3)
-        conf = prepared.run_dir / "logs" / "client.json5"
-        conf.parent.mkdir(parents=True, exist_ok=True)
-        conf.write_text(f"{{ {RECONNECT} }}\n")
-        config = replace(config, zenoh_config=conf)
-    if faults:  # fault runs keep the topology their plans and measurements were made for
-        config = replace(config, direct_links=False)
+    config = _config_for_faults(config, faults, prepared.run_dir)
     info["links"] = "peer" if peer_links(config) else "router"
     if config.hardware is not None:
         info["hardware"] = str(Path(config.hardware).resolve())

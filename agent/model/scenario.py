@@ -73,18 +73,19 @@ class Arena:
 class Region:
     """A region of interest for LTL robots: a disc (centre [m], radius [m]).
 
-    ``labels`` are the atomic propositions that hold while a robot is inside; by default just the
-    region's own name. A generic proposition may label several regions (ltl-planning.md §3).
+    :attr:`labels` are the atomic propositions that hold while a robot is inside: those declared
+    (the scenario file's ``labels``), or, when none are, just the region's own name. A generic
+    proposition may label several regions (ltl-planning.md §3).
     """
 
     name: str
-    center: tuple[float, float]
-    radius: float = 0.25
-    labels: frozenset[str] = frozenset()
+    center: tuple[float, float]  # [m]
+    radius: float = 0.25  # [m]
+    declared_labels: frozenset[str] = frozenset()  # none: the region's own name
 
-    def __post_init__(self) -> None:
-        if not self.labels:
-            object.__setattr__(self, "labels", frozenset({self.name}))
+    @property
+    def labels(self) -> frozenset[str]:
+        return self.declared_labels or frozenset({self.name})
 
     def contains(self, x: float, y: float) -> bool:
         return math.hypot(x - self.center[0], y - self.center[1]) <= self.radius

@@ -212,7 +212,7 @@ def _region(table: _Table, arena: Arena) -> Region:
         _check_atom(table, f"labels[{k}]", label)
     table.finish()
     return Region(name=name, center=(center[0], center[1]), radius=radius,
-                  labels=frozenset(labels_raw))
+                  declared_labels=frozenset(labels_raw))
 
 
 def _robot(table: _Table, arena: Arena, index: int) -> Robot:

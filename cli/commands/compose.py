@@ -55,9 +55,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tlfleet.coordinator.supervise import load_checked
+
+    # the one load of the file: checked as `tlfleet run` checks it (an agent that could not
+    # launch is refused here, not in its container), then rendered
+    scenario = load_checked(Path(args.scenario))
     path = write_compose(ComposeConfig(Path(args.scenario), args.out, args.mode, args.wait,
                                        args.duration, insecure=args.insecure,
                                        faults=tuple(args.faults), lease_ms=args.lease_ms,
-                                       fault_subnet=args.fault_subnet))
+                                       fault_subnet=args.fault_subnet), scenario)
     print(path)
     return 0

@@ -44,6 +44,7 @@ from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.run import SCHED_CHOICES, RunConfig, RunResult, run_fleet
 
 if TYPE_CHECKING:
+    from tlfleet.agent.model import Scenario
     from tlfleet.coordinator.report.viewer import LiveView
 
 NAME = "run"
@@ -264,9 +265,9 @@ def print_outputs(result: RunResult, as_json: bool = False) -> None:
     print(result.verdict.line, flush=True)
 
 
-def run_hosts(args: argparse.Namespace) -> int:
+def run_hosts(args: argparse.Namespace, scenario: Scenario) -> int:
     """``--hosts N``: launch on N namespace hosts, then ``tlfleet supervise`` on host 0 (it
-    prints the report and the run directory)."""
+    prints the report and the run directory); ``scenario``: the file, loaded and checked."""
     from tlfleet.coordinator.run_hosts import run_on_hosts
 
     extra = ["--quiet"] if args.quiet else []
@@ -286,7 +287,7 @@ def run_hosts(args: argparse.Namespace) -> int:
         result = run_on_hosts(Path(args.scenario), args.hosts, out=args.out, mode=args.mode,
                               secure=args.secure, insecure=args.insecure,
                               supervise_args=extra, sim_args=sim, lease_ms=args.lease_ms,
-                              faults=tuple(args.faults), stop=stop)
+                              faults=tuple(args.faults), stop=stop, scenario=scenario)
     return result.returncode
 
 
@@ -301,20 +302,21 @@ def run(args: argparse.Namespace) -> int:
                   "on the simulator's processes and links)", file=sys.stderr)
             return 2
     args.mode = args.mode or ("realtime" if args.hardware is not None else "lockstep")
-    scenario = None
+    from tlfleet.coordinator.supervise import load_checked
+
+    # the one load of the file in this process: checked here (exit 1 before anything starts),
+    # then passed down to the fault plan, the launcher (local or on namespace hosts) and the
+    # report
+    scenario = load_checked(Path(args.scenario), args.secure)
     if not args.hosts:
         from tlfleet.coordinator.faults.plan import hosts_for
-        from tlfleet.coordinator.supervise import load_checked
 
-        # the one load of the file in this process: checked here (exit 1 before anything
-        # starts), then passed down to the fault plan, the launcher and the report
-        scenario = load_checked(Path(args.scenario), args.secure)
         args.hosts = hosts_for(scenario, args.faults, args.duration)
         if args.hosts:
             print(f"tlfleet run: link faults: running on {args.hosts} namespace host(s) "
                   "(tlfleet.coordinator.launch.netns_hosts)", file=sys.stderr, flush=True)
     if args.hosts:
-        return run_hosts(args)
+        return run_hosts(args, scenario)
     duration = args.duration
     wall_timeout = args.wall_timeout
     if wall_timeout is None:
