@@ -28,7 +28,7 @@ JSON in ``bench/results/ltl_maps_bench.json``):
 3. **LTL step cost**: ``bench/nav_bench.py``'s replay of Scenario 1's LTL agents (CPU per step,
    median), this tree against ``--base-root``'s, runs interleaved.
 4. **Scenarios 1–3**: each once in lockstep: S1 every bound met, S2 robustness ≥ −0.2, S3 the
-   formation held ≥ 90 % of its window.
+   formation held ≥ 90 % of its window, and every LTL robot's task met on its word.
 
 CPU beside wall time and the load average are recorded; lockstep outcomes do not depend on the
 load, timings do.
@@ -479,6 +479,9 @@ def goal_rows(results: dict) -> list[tuple[str, str, str, bool | None]]:
         rows.append(("Scenario 3: formation held",
                      ", ".join(f"{100 * h:.0f} %" for h in p["S3"]["held"]), ">= 90 %",
                      p["S3"]["ok"]))
+        met = [m for k in ("S1", "S2", "S3") for m in p[k]["ltl_met"]]
+        rows.append(("Scenarios 1-3: LTL tasks met (accepting on the word)",
+                     f"{sum(met)}/{len(met)}", "all (as before)", all(met)))
     return rows
 
 

@@ -37,6 +37,15 @@ Each control period ``Δt`` [s] (0.2 s at 5 Hz):
    ``a_v·|v| + a_ω·|ω|`` exceeds a constraint's bound is inadmissible. When no collision-free
    sample meets them (the robot still moves faster than the limits), the collision-free samples
    of least excess are kept: the robot slows down as fast as its accelerations allow.
+6. **No standing still by choice** (ROS ``dwa_local_planner``'s ``min_vel_trans`` and
+   ``min_vel_theta``): a sample with ``|v| < min_trans_vel`` and ``|ω| < min_rot_vel`` moves
+   nothing; while any other sample is admissible (and within the coupling limits), those are
+   left out. Next to a wall end or a door frame the cost terms can make standing the cheapest
+   sample (the alignment point already lies on the path and every move forward is cut off), and
+   the robot stood there until the stuck timeout; now it turns in place and drives on. Under
+   coupling limits the thresholds are at most half the limits' largest |v| and |ω|: a leader its
+   formation holds to slow motions may still turn slowly in place, instead of being pushed to
+   drive on at ``min_trans_vel`` in whatever direction it faces.
 """
 
 from __future__ import annotations
@@ -361,7 +370,10 @@ def dwa_control(
             least = float(excess[valid].min())
             coupled = valid & (excess <= least + 1e-12)
         valid = coupled
-    moving = valid & ((np.abs(vs) >= config.min_trans_vel) | (np.abs(ws) >= config.min_rot_vel))
+    min_v, min_w = config.min_trans_vel, config.min_rot_vel
+    if limits:  # a leader held to slow motions still turns and creeps (step 6)
+        min_v, min_w = min(min_v, 0.5 * limits.v_max), min(min_w, 0.5 * limits.omega_max)
+    moving = valid & ((np.abs(vs) >= min_v) | (np.abs(ws) >= min_w))
     if moving.any():  # standing still only when nothing else is admissible (step 6)
         valid = moving
     n_valid = int(np.count_nonzero(valid))

@@ -417,16 +417,21 @@ int tl_dwa_control(const tl_dwa_params *p, const tl_dwa_grid *g,
             threshold = smallest + 1e-12;
         }
     }
-    /* 6. no standing still by choice: only the moving samples while one is admissible */
+    /* 6. no standing still by choice: only the moving samples while one is admissible; under
+     * coupling limits the thresholds are at most half their largest |v| and |w| */
+    double min_v = p->min_trans_vel, min_w = p->min_rot_vel;
+    if (n_limits > 0) {
+        min_v = py_min(min_v, 0.5 * v_cap);
+        min_w = py_min(min_w, 0.5 * w_cap);
+    }
     int any_moving = 0;
     for (int i = 0; i < s_count; i++)
         any_moving |= least[i] >= required && (!coupled || excess[i] <= threshold)
-                      && (fabs(sv[i]) >= p->min_trans_vel || fabs(sw[i]) >= p->min_rot_vel);
+                      && (fabs(sv[i]) >= min_v || fabs(sw[i]) >= min_w);
     int n_valid = 0, best = 0;
     for (int i = 0; i < s_count; i++) {
         const int valid = least[i] >= required && (!coupled || excess[i] <= threshold)
-                          && (!any_moving || fabs(sv[i]) >= p->min_trans_vel
-                              || fabs(sw[i]) >= p->min_rot_vel);
+                          && (!any_moving || fabs(sv[i]) >= min_v || fabs(sw[i]) >= min_w);
         n_valid += valid;
         if (!valid)
             cost[i] = INFINITY;

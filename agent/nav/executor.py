@@ -278,6 +278,9 @@ class Executor:
     robot_id: int | None = None
     ruled: frozenset[int] = frozenset()  # other robots that apply the right-of-way rule
     paths: RegionPaths | None = None  # keep-out grids (built from regions and grid if None)
+    # robots whose tasks couple them to this one (escorts, a formation): they move with it, so
+    # the right-of-way rule leaves them to the local planner (never yield to a follower)
+    followers: frozenset[int] = frozenset()
 
     def __post_init__(self) -> None:
         if self.paths is None:
@@ -550,7 +553,8 @@ class Executor:
         cost map's layer); velocities from the previous frame, capped at ``max_other_speed``.
         Beside them, in the same pass, the robots the right-of-way rule considers (``traffic``):
         with a narrow stretch on the path every robot, else the moving ones within its
-        ``crossing_range`` (a standing robot is no crossing); None with the rule off.
+        ``crossing_range`` (a standing robot is no crossing), never a follower; None with the
+        rule off.
 
         Plain floats over the few rows, with the array form's operations:
         ``‖·‖ = sqrt(x² + y²)``, ``u = Δp / Δt``, ``u·cap / ‖u‖``."""
@@ -588,7 +592,8 @@ class Executor:
                 centers.append((row[1], row[2]))
                 velocities.append((ux, uy))
                 radii.append(radius)
-            if distance <= reach and (narrow or ux * ux + uy * uy >= 4e-4):
+            if (distance <= reach and (narrow or ux * ux + uy * uy >= 4e-4)
+                    and rid not in self.followers):
                 rows.append((rid, row[1], row[2], ux, uy, radius, rid in self.ruled))
         traffic = Traffic(tuple(rows)) if rule.enabled else None
         if not centers:

@@ -18,13 +18,17 @@ way out of the passage, so it first steps aside to a *refuge* (:func:`refuge`): 
 point off its own path by ``r_self + r_other + 2·passing_margin + refuge_gap`` with room around
 it, reached in a straight line.
 
-**Crossing (open space).** Each robot is assumed to drive on at ``cruise`` speed along its path's
-direction (the own robot: towards its look-ahead point; another: its velocity from the last two
-frames). When the closest approach of two robots within ``horizon`` [s] is nearer than
-``r_i + r_j + crossing_gap`` [m], the one with the higher id waits while the lower id passes; the
+**Crossing (open space), between two robots that apply this rule.** Each robot is assumed to
+drive on at ``cruise`` speed along its path's direction (the own robot: towards its look-ahead
+point; another: its velocity from the last two frames). When the closest approach of two robots
+within ``horizon`` [s] is nearer than ``r_i + r_j + crossing_gap`` [m], the one with the higher id
+waits while the lower id passes; the
 ids order the robots totally, so no cycle of waiting robots (a deadlock) can form. A robot
 closer than ``min_distance`` [m] to the predicted meeting point goes on (stopping there would
-block the other), and a standing robot is no crossing; the local planner keeps them apart.
+block the other), and a standing robot is no crossing; the local planner keeps them apart, as it
+keeps an LTL robot apart from the STL robots, which steer by their own funnels and avoidance.
+Robots whose tasks couple them to this one (an escort, a formation: its *followers*) move with
+it and are left out of both rules: yielding to a follower would wait for itself.
 """
 
 from __future__ import annotations
@@ -211,8 +215,8 @@ def crossing_conflict(robot_id: int, position: Sequence[float], radius: float,
     vx, vy = hx / norm * config.cruise, hy / norm * config.cruise
     best: int | None = None
     for other, qx, qy, ux, uy, r_other, ruled in traffic.rows:
-        if ruled and other > robot_id:
-            continue  # we have the right of way over it
+        if not ruled or other > robot_id:
+            continue  # it applies no rule (the local planner's), or we have the right of way
         dpx, dpy = qx - px, qy - py
         if math.hypot(dpx, dpy) > config.crossing_range or math.hypot(ux, uy) < 0.02:
             continue  # far, or standing: the local planner's (or the passage rule's)

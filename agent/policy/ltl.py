@@ -67,6 +67,7 @@ from tlfleet.agent.nav.executor import Executor, ExecutorInputs, ExecutorState
 from tlfleet.agent.nav.grid_planner import path_length_function
 from tlfleet.agent.nav.keep_out import RegionPaths
 from tlfleet.agent.policy.coupling import CouplingModel
+from tlfleet.agent.scenario.stl_setup import naming
 from tlfleet.bus.errors import UnsatisfiableTask
 
 logger = logging.getLogger(__name__)
@@ -222,7 +223,11 @@ class LtlAgent:
         self.robot = robot
         self.formula = spec.ltl
         self.start_point: Point = (float(spec.pose[0]), float(spec.pose[1]))
-        self.executor = executor or Executor.from_scenario(scenario, robot)
+        executor = executor or Executor.from_scenario(scenario, robot)
+        if not executor.followers:  # escorts and formations: the right-of-way rule skips them
+            followers = naming(scenario, frozenset({robot})) - {robot}
+            executor = replace(executor, followers=frozenset(followers))
+        self.executor = executor
         self.paths = self.executor.paths
         # ``distance`` (over centre points) replaces the keep-out weights: tests and benches
         # that compare with the plain map's weights

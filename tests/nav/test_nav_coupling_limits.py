@@ -120,6 +120,30 @@ def test_dwa_keeps_the_command_inside_the_coupling_limits():
     assert result.v > 0.05  # still driving towards the goal
 
 
+@pytest.mark.parametrize("kernel", ["python", "native"])
+def test_a_leader_held_to_slow_motions_turns_towards_its_path_instead_of_driving_off(kernel):
+    """Facing away from the path (it goes north, the robot faces east) under a limit
+    |v| + 1 m·|ω| ≤ 0.18 (Scenario 3's formation): turning at 0.4 rad/s would break the limit, so
+    the rule against standing still must not force the only fast-enough samples — driving
+    east at 0.1 m/s — on the robot; it turns in place (slowly) and drives off only once it
+    faces the path."""
+    if kernel == "native" and not DwaConfig().native:
+        pytest.skip("the C kernel was not built")
+    config = DwaConfig(kernel=kernel)
+    limits = VelocityLimits((CouplingConstraint(1.0, 1.0, 0.18, "formation"),))
+    north = np.array([[0.0, 0.0], [0.0, 2.0]])
+    pose, command = [0.0, 0.0, 0.0], (0.0, 0.0)
+    for _ in range(100):  # 20 s at 5 Hz, integrated with Euler steps
+        result = dwa_control(pose, command, north, GRID, 0.2, None, config, limits)
+        command = (result.v, result.omega)
+        assert abs(result.v) + abs(result.omega) <= 0.18 + 1e-9
+        pose = [pose[0] + 0.2 * result.v * math.cos(pose[2]),
+                pose[1] + 0.2 * result.v * math.sin(pose[2]), pose[2] + 0.2 * result.omega]
+        if pose[2] < 1.0:  # still turning towards the path: in place, not off to the east
+            assert abs(pose[0]) < 0.02 and abs(pose[1]) < 0.02
+    assert pose[1] > 0.3 and abs(pose[2] - math.pi / 2) < 0.5  # it turned and went north
+
+
 def test_dwa_slows_down_as_fast_as_it_can_when_above_the_limits():
     limits = VelocityLimits((CouplingConstraint(1.0, 0.0, 0.05, "test"),))
     config = DwaConfig()

@@ -131,7 +131,10 @@ def ref_dwa(pose, velocity, path, others: MovingDiscs, config: DwaConfig,
         if not coupled.any():
             coupled = valid & (excess <= float(excess[valid].min()) + 1e-12)
         valid = coupled
-    moving = valid & ((np.abs(vs) >= config.min_trans_vel) | (np.abs(ws) >= config.min_rot_vel))
+    min_v, min_w = config.min_trans_vel, config.min_rot_vel
+    if limits:
+        min_v, min_w = min(min_v, 0.5 * limits.v_max), min(min_w, 0.5 * limits.omega_max)
+    moving = valid & ((np.abs(vs) >= min_v) | (np.abs(ws) >= min_w))
     if moving.any():
         valid = moving
     if not valid.any():
