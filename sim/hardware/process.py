@@ -6,8 +6,8 @@ frames on ``mocap``, ``mocap_every/<d>/<φ>`` and ``mocap_at/<s>`` at the scenar
 offsets, ``clock``, the events, ``sim_stats`` and ``sim_done``, the ``sim/backfill`` queryable,
 the ``alive/sim/0`` token — and agents and coordinator are unchanged. Its world is
 :class:`tlfleet.sim.hardware.world.HardwareWorld`: each frame carries every robot's newest
-motion-capture pose (sample and hold), taken from ROS 2 by
-:class:`tlfleet.sim.hardware.ros_link.RosLink`.
+motion-capture pose (sample and hold), which the loop takes from ROS 2 just before it reads the
+poses (:meth:`tlfleet.sim.hardware.ros_link.RosLink.poll`).
 
 Commands go out as they come, not at the loop's next tick: on the transport's thread a command
 is decoded and passes the simulator's checks (its key, :class:`FleetBounds`, the robot's
@@ -214,7 +214,7 @@ def main(config: BridgeProcessConfig) -> int:
     install_signal_handlers(stop)  # before rclpy: its handlers are off (SignalHandlerOptions.NO)
     world = HardwareWorld(scenario, lab)
     link = RosLink(lab, world.on_pose)
-    world.link = link
+    world.link, world.poll = link, link.poll
     process: BridgeProcess | None = None
     transport: Transport | None = None
     try:

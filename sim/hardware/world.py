@@ -2,15 +2,16 @@
 
 :class:`HardwareWorld` is what :class:`tlfleet.sim.process.SimProcess` drives when the bridge
 takes the simulator's place: it answers ``mocap_poses()`` with each robot's newest motion-capture
-pose (sample and hold), turns commands into twists on the robots' topics through a
-:class:`RobotLink`, runs the safety rules of :mod:`tlfleet.sim.hardware.safety` on every
-``step`` (keep-alive, tracking lost, geofence) and ``check_watchdog`` (the command watchdog), and
-reports contacts from the poses: a robot–robot contact begins when two discs of the scenario's
-radii overlap, a wall contact when a disc crosses the arena's boundary or an obstacle.
+pose (sample and hold; its ``poll``, the ROS link's, first hands it what came since), turns
+commands into twists on the robots' topics through a :class:`RobotLink`, runs the safety rules of
+:mod:`tlfleet.sim.hardware.safety` on every ``step`` (keep-alive, tracking lost, geofence) and
+``check_watchdog`` (the command watchdog), and reports contacts from the poses: a robot–robot
+contact begins when two discs of the scenario's radii overlap, a wall contact when a disc crosses
+the arena's boundary or an obstacle.
 
-Thread-safe: poses come on the ROS executor's thread, commands on a transport thread, the
-simulator loop ticks on its own; one lock guards the state, and a send happens under it (so the
-sends to one robot keep their order).
+Thread-safe: poses come through ``poll`` on the simulator loop's thread (or from whoever calls
+``on_pose``), commands on a transport thread; one lock guards the state, and a send happens
+under it (so the sends to one robot keep their order).
 """
 
 from __future__ import annotations
@@ -56,10 +57,14 @@ class HardwareWorld:
     """The fleet's real robots (see the module docstring). ``now``: the monotonic wall clock."""
 
     def __init__(self, scenario: Scenario, lab: Lab, link: RobotLink | None = None,
-                 now: Callable[[], float] = time.monotonic):
+                 now: Callable[[], float] = time.monotonic,
+                 poll: Callable[[], object] | None = None):
         self.scenario = scenario
         self.lab = lab
         self.link = link
+        # called (outside the lock) before the poses are read: hands what came since to
+        # on_pose (RosLink.poll); None when the poses are pushed to on_pose
+        self.poll = poll
         self._now = now
         self._lock = threading.Lock()
         self.ids = sorted(r.id for r in scenario.robots)
@@ -90,13 +95,19 @@ class HardwareWorld:
             self._poses[robot] = pose
             self.safety.pose(robot, *pose, now)
 
+    def _poll(self) -> None:
+        if self.poll is not None:
+            self.poll()
+
     def missing_poses(self) -> list[int]:
+        self._poll()
         with self._lock:
             return [r for r in self.ids if r not in self._poses]
 
     def mocap_poses(self) -> tuple[tuple[int, float, float, float], ...]:
         """Every robot's newest pose, ``(id, x, y, θ)`` by id (a robot never seen: NaN, which
         the bridge never publishes: it waits for every body before it starts)."""
+        self._poll()
         with self._lock:
             poses = dict(self._poses)
         nan = (math.nan, math.nan, math.nan)
@@ -146,6 +157,7 @@ class HardwareWorld:
         self._tick()
 
     def _tick(self) -> None:
+        self._poll()
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)
