@@ -9,11 +9,11 @@ publisher never matches the reliable subscriptions of ros2_controllers).
 
 **Poses are polled, not called back.** The frames sample and hold each body's newest pose, so
 the bridge's loop calls :meth:`RosLink.poll` just before it reads the poses: it takes every
-message that came since (serialized, a few µs each) and deserializes only the newest usable
-one per body. An executor thread instead woke for every pose and spent ≈ 0.1–0.2 ms of Python
-on it (rclpy's ``SingleThreadedExecutor``: 500 poses a second for five bodies at 100 Hz were
-about 9 % of a core, docs/hardware.md §Measured); polling costs a few µs per pose and adds no
-delay to the frames (the poll runs right before a frame is built).
+message that came since, serialized, and reads only the newest usable one per body — its seven
+numbers straight from the CDR bytes (:mod:`tlfleet.sim.hardware.cdr`; rclpy's
+``deserialize_message`` for an encoding that module does not read). An executor thread instead
+woke for every pose and ran ≈ 0.1–0.2 ms of Python on it (rclpy's ``SingleThreadedExecutor``);
+the poll adds no delay to the frames (it runs right before a frame is built).
 
 **Commands reuse one message per robot**: :meth:`RosLink.send` sets its fields and publishes
 (rclpy copies it into DDS at ``publish``), the stamp from the system clock, which is what the
@@ -45,6 +45,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from tlfleet.agent.scenario.lab import Lab
 from tlfleet.agent.scenario.rep103 import yaw_of_quaternion
+from tlfleet.sim.hardware.cdr import pose_fields
 
 logger = logging.getLogger(__name__)
 
@@ -72,6 +73,17 @@ def planar_pose(type_name: str, msg: Any) -> tuple[float, float, float]:
     else:  # PoseWithCovarianceStamped, Odometry
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
     return float(p.x), float(p.y), yaw_of_quaternion(q.x, q.y, q.z, q.w)
+
+
+def planar_pose_of(type_name: str, cls: Any, data: bytes) -> tuple[float, float, float]:
+    """``(x, y, yaw)`` [m, m, rad] of a serialized pose message: read from the CDR bytes, or
+    deserialized by rclpy when :func:`tlfleet.sim.hardware.cdr.pose_fields` cannot read them.
+    ``ValueError`` for an unusable pose (a zero quaternion...)."""
+    fields = pose_fields(type_name, data)
+    if fields is None:
+        return planar_pose(type_name, deserialize_message(data, cls))
+    x, y, _z, qx, qy, qz, qw = fields
+    return x, y, yaw_of_quaternion(qx, qy, qz, qw)
 
 
 def apply_ros_environment(lab: Lab) -> None:
@@ -141,8 +153,8 @@ class RosLink:
         unusable one (a zero quaternion, NaN) is counted and the one before it tried."""
         for data in reversed(batch):
             try:
-                x, y, yaw = planar_pose(body.type_name, deserialize_message(data, body.cls))
-            except (ValueError, AttributeError) as exc:
+                x, y, yaw = planar_pose_of(body.type_name, body.cls, data)
+            except Exception as exc:  # a zero quaternion, bytes rclpy cannot deserialize...
                 self.bad_poses += 1
                 if self.bad_poses == 1:
                     logger.warning("robot %d: unusable pose on %s: %s", body.robot, body.topic,

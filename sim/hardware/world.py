@@ -157,7 +157,7 @@ class HardwareWorld:
         self._tick()
 
     def _tick(self) -> None:
-        self._poll()
+        # (no poll here: the loop reads the poses for a frame, and polls, right before it ticks)
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)
