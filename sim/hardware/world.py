@@ -38,6 +38,8 @@ from tlfleet.sim.world import WALL, Contact
 
 logger = logging.getLogger(__name__)
 
+POLL_FRESH = 0.005  # [s] the safety rules poll again when the poses were polled longer ago
+
 
 class RobotLink(Protocol):
     """Where twists go: ``send(robot, (linear.x, linear.y, angular.z))`` in the robot's body
@@ -65,6 +67,7 @@ class HardwareWorld:
         # called (outside the lock) before the poses are read: hands what came since to
         # on_pose (RosLink.poll); None when the poses are pushed to on_pose
         self.poll = poll
+        self._polled_at = -math.inf  # [s] when poll was last asked
         self._now = now
         self._lock = threading.Lock()
         self.ids = sorted(r.id for r in scenario.robots)
@@ -95,8 +98,14 @@ class HardwareWorld:
             self._poses[robot] = pose
             self.safety.pose(robot, *pose, now)
 
-    def _poll(self) -> None:
-        if self.poll is not None:
+    def _poll(self, unless_within: float = 0.0) -> None:
+        """Ask ``poll`` for what came since, unless it was asked less than ``unless_within``
+        [s] ago."""
+        if self.poll is None:
+            return
+        now = self._now()
+        if now - self._polled_at >= unless_within:
+            self._polled_at = now
             self.poll()
 
     def missing_poses(self) -> list[int]:
@@ -157,7 +166,9 @@ class HardwareWorld:
         self._tick()
 
     def _tick(self) -> None:
-        # (no poll here: the loop reads the poses for a frame, and polls, right before it ticks)
+        # the loop polled for its frame just before, unless it stalled since: then the rules
+        # must judge the bodies on what came meanwhile, not call them lost
+        self._poll(unless_within=POLL_FRESH)
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)
