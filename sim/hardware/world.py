@@ -38,8 +38,6 @@ from tlfleet.sim.world import WALL, Contact
 
 logger = logging.getLogger(__name__)
 
-POLL_FRESH = 0.005  # [s] the safety rules poll again when the poses were polled longer ago
-
 
 class RobotLink(Protocol):
     """Where twists go: ``send(robot, (linear.x, linear.y, angular.z))`` in the robot's body
@@ -68,6 +66,9 @@ class HardwareWorld:
         # on_pose (RosLink.poll); None when the poses are pushed to on_pose
         self.poll = poll
         self._polled_at = -math.inf  # [s] when poll was last asked
+        # [s] the safety rules poll again when the loop's last poll (for a frame) is older: 1.5
+        # frame periods (a loop late for its frame), well within the lost limit
+        self.poll_fresh = min(1.5 / scenario.sim.mocap_rate, 0.25 * lab.lost_after)
         self._now = now
         self._lock = threading.Lock()
         self.ids = sorted(r.id for r in scenario.robots)
@@ -168,7 +169,7 @@ class HardwareWorld:
     def _tick(self) -> None:
         # the loop polled for its frame just before, unless it stalled since: then the rules
         # must judge the bodies on what came meanwhile, not call them lost
-        self._poll(unless_within=POLL_FRESH)
+        self._poll(unless_within=self.poll_fresh)
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)

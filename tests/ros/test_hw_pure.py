@@ -362,7 +362,7 @@ def test_contacts_from_the_poses_are_reported_at_their_onset(tmp_path):
 def test_polled_poses_reach_frames_and_rules_also_after_a_stalled_loop(tmp_path):
     """The bridge's poses are pulled (RosLink.poll): a frame's poses are polled for it, and the
     safety rules poll again when the loop stalled since — poses that came meanwhile are not
-    taken for a lost body. The rules do not poll again within POLL_FRESH of a frame's poll."""
+    taken for a lost body. The rules do not poll again soon after a frame's poll."""
     now = [0.0]
     world, _ = hardware(tmp_path, now)
     arrived: list[tuple[int, float, float, float]] = []
@@ -380,7 +380,9 @@ def test_polled_poses_reach_frames_and_rules_also_after_a_stalled_loop(tmp_path)
     arrived.append((2, 1.25, 0.0, 0.0))
     assert world.mocap_poses()[1] == (2, 1.25, 0.0, 0.0)
     n = len(polls)
-    world.step(0.01)  # right after the frame's poll: no second one
+    now[0] += 0.01  # 100 Hz frames: 1.5 periods, within a quarter of lost_after (0.5 s)
+    assert world.poll_fresh == pytest.approx(0.015)
+    world.step(0.01)  # one frame period after the frame's poll: no second one
     assert len(polls) == n
     for _ in range(10):  # the loop stalls 1 s (lost_after 0.5 s) while the bodies move on
         now[0] += 0.1
