@@ -125,9 +125,10 @@ class HardwareWorld:
 
     # ----------------------------------------------------------------- commands
 
-    def check_command(self, robot: int, u: tuple[float, ...]) -> None:
-        """``ValueError`` for a command the robot cannot take (length, non-finite)."""
-        clip_command(self._spec[robot], u)
+    def check_command(self, robot: int, u: tuple[float, ...]) -> tuple[float, ...]:
+        """``u`` clipped to the robot's limits; ``ValueError`` for a command the robot cannot
+        take (length, non-finite)."""
+        return clip_command(self._spec[robot], u)
 
     def start(self) -> None:
         """The mission starts now: commands may go out from here on."""
@@ -136,13 +137,15 @@ class HardwareWorld:
             self.t0 = now
             self.safety.start(now)
 
-    def command(self, robot: int, u: tuple[float, ...]) -> bool:
-        """Forward a fresh, checked command at once (clipped to the robot's limits); False when
-        the safety rules hold it back (before the start, after a halt or the stop)."""
-        clipped = clip_command(self._spec[robot], u)
+    def command(self, robot: int, u: tuple[float, ...], *, clipped: bool = False) -> bool:
+        """Forward a fresh, checked command at once (clipped to the robot's limits, unless
+        ``clipped`` says :meth:`check_command` did); False when the safety rules hold it back
+        (before the start, after a halt or the stop)."""
+        if not clipped:
+            u = clip_command(self._spec[robot], u)
         now = self._now()
         with self._lock:
-            sends = self.safety.command(robot, clipped, now)
+            sends = self.safety.command(robot, u, now)
             if sends and self.t0 is not None:
                 self.robots[robot].last_command_t = now - self.t0
             self._send(sends)
