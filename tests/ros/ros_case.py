@@ -139,6 +139,9 @@ def goto_command(kind: str, pose: tuple[float, float, float], goal: list[float],
 
 
 def main(case_path: str) -> int:
+    # SIGTERM (a test run ending early) unwinds through the finally below, which stops every
+    # process of the case
+    signal.signal(signal.SIGTERM, _terminated)
     case_file = Path(case_path)
     case = json.loads(case_file.read_text())
     tmp = case_file.parent
@@ -379,6 +382,10 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
     hw_log.close()
     result["hw_log"] = (tmp / "hw.log").read_text(errors="replace")[-6000:]
     return fleet
+
+
+def _terminated(_signum: int, _frame: object) -> None:
+    raise SystemExit(f"{Path(__file__).name}: terminated")
 
 
 if __name__ == "__main__":
