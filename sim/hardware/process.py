@@ -6,8 +6,8 @@ frames on ``mocap``, ``mocap_every/<d>/<φ>`` and ``mocap_at/<s>`` at the scenar
 offsets, ``clock``, the events, ``sim_stats`` and ``sim_done``, the ``sim/backfill`` queryable,
 the ``alive/sim/0`` token — and agents and coordinator are unchanged. Its world is
 :class:`tlfleet.sim.hardware.world.HardwareWorld`: each frame carries every robot's newest
-motion-capture pose (sample and hold), taken from ROS 2 by
-:class:`tlfleet.sim.hardware.ros_link.RosLink`.
+motion-capture pose (sample and hold), which the loop takes from ROS 2 just before it reads the
+poses (:meth:`tlfleet.sim.hardware.ros_link.RosLink.poll`).
 
 Commands go out as they come, not at the loop's next tick: on the transport's thread a command
 is decoded and passes the simulator's checks (its key, :class:`FleetBounds`, the robot's
@@ -86,27 +86,30 @@ class BridgeProcess(SimProcess):
     def _command_sample(self, key: str, payload: bytes) -> None:
         arrival = self._now()
         with self._forward_lock:  # one sample at a time: CommandAge counts
-            self._forward(key, payload, arrival)
-        self._inbox.put(("cmd", key, payload, arrival))
+            command = self._forward(key, payload, arrival)
+        # the loop's bookkeeping from the same sample: a command that failed a check is decoded
+        # and checked there again, to be counted as the simulator counts it
+        self._inbox.put(("checked", key, command, arrival) if command is not None
+                        else ("cmd", key, payload, arrival))
 
-    def _forward(self, key: str, payload: bytes, arrival: float) -> None:
+    def _forward(self, key: str, payload: bytes, arrival: float) -> Command | None:
         """The simulator's checks on one command, then the safety rules and the robot's topic.
-        A command that fails a check is counted by the loop, from the same sample."""
+        Returns the command when it passed the checks (sent or not), else None."""
         try:
             command = decode(Command, payload)
         except ProtocolError:
-            return
+            return None
         robot = self._cmd_robot.get(key)
         if robot is None or robot != command.robot or self.bounds.command_problem(command):
-            return
+            return None
         try:
-            self.world.check_command(robot, command.u)
+            u = self.world.check_command(robot, command.u)
         except ValueError:
-            return
+            return None
         t0 = self.world.t0
         if t0 is None:  # before the start: the safety rules count it and send nothing
-            self.world.command(robot, command.u)
-            return
+            self.world.command(robot, u, clipped=True)
+            return command
         # [s] sim time now on the frames' clock: the newest tick's time plus the wall time
         # since it went out (after an overrun the loop's schedule restarts, and sim time lags
         # wall time since the start; the agents stamp their commands with frame times)
@@ -119,10 +122,11 @@ class BridgeProcess(SimProcess):
             self._event_at(t, "stale_command", robot=stale.robot, command_t=stale.t,
                            age=t - stale.t)
         if fresh:
-            if self.world.command(robot, command.u):
+            if self.world.command(robot, u, clipped=True):
                 self.forwarded += 1
             else:
                 self.held_back += 1
+        return command
 
     def _apply(self, commands: list[Command], t: float) -> None:
         """The loop's apply step: the commands went out when they came (:meth:`_forward`)."""
@@ -214,7 +218,7 @@ def main(config: BridgeProcessConfig) -> int:
     install_signal_handlers(stop)  # before rclpy: its handlers are off (SignalHandlerOptions.NO)
     world = HardwareWorld(scenario, lab)
     link = RosLink(lab, world.on_pose)
-    world.link = link
+    world.link, world.poll = link, link.poll
     process: BridgeProcess | None = None
     transport: Transport | None = None
     try:

@@ -1,15 +1,28 @@
 """The hardware bridge's ROS 2 side (docs/hardware.md): the only bridge module that imports
 rclpy (tests/project/test_layering.py).
 
-:class:`RosLink` holds one rclpy node in its own context, spun by a ``SingleThreadedExecutor`` on
-a daemon thread. Per robot of the lab file it subscribes to the rigid body's pose topic
-(best-effort: matches best-effort and reliable publishers, as mocap drivers such as vrpn_mocap
-publish sensor data) and publishes the velocity command (reliable, volatile: matches reliable and
-best-effort subscribers; a best-effort publisher never matches the reliable subscriptions of
-ros2_controllers). rclpy's own signal handlers are off (``SignalHandlerOptions.NO``): by default
-they shut the context at SIGTERM, before the bridge could send its final zero commands; the
-bridge's own handlers stop it, it sends the zeros, waits for the robots to acknowledge them, and
-only then closes this link.
+:class:`RosLink` holds one rclpy node in its own context, and no executor. Per robot of the lab
+file it subscribes to the rigid body's pose topic (best-effort: matches best-effort and reliable
+publishers, as mocap drivers such as vrpn_mocap publish sensor data) and publishes the velocity
+command (reliable, volatile: matches reliable and best-effort subscribers; a best-effort
+publisher never matches the reliable subscriptions of ros2_controllers).
+
+**Poses are polled, not called back.** The frames sample and hold each body's newest pose, so
+the bridge's loop calls :meth:`RosLink.poll` just before it reads the poses: it takes every
+message that came since, serialized, and reads only the newest usable one per body — its seven
+numbers straight from the CDR bytes (:mod:`tlfleet.sim.hardware.cdr`; rclpy's
+``deserialize_message`` for an encoding that module does not read). An executor thread instead
+woke for every pose and ran ≈ 0.1–0.2 ms of Python on it (rclpy's ``SingleThreadedExecutor``);
+the poll adds no delay to the frames (it runs right before a frame is built).
+
+**Commands reuse one message per robot**: :meth:`RosLink.send` sets its fields and publishes
+(rclpy copies it into DDS at ``publish``), the stamp from the system clock, which is what the
+node's ROS clock reads without simulated time.
+
+rclpy's own signal handlers are off (``SignalHandlerOptions.NO``): by default they shut the
+context at SIGTERM, before the bridge could send its final zero commands; the bridge's own
+handlers stop it, it sends the zeros, waits for the robots to acknowledge them, and only then
+closes this link.
 
 :func:`graph_report` is ``tlfleet hw --check``: what the lab's topics look like on the ROS graph.
 """
@@ -27,11 +40,12 @@ from typing import Any
 
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
-from tlfleet.agent.scenario.lab import Lab, LabRobot
+from tlfleet.agent.scenario.lab import Lab
 from tlfleet.agent.scenario.rep103 import yaw_of_quaternion
+from tlfleet.sim.hardware.cdr import pose_fields
 
 logger = logging.getLogger(__name__)
 
@@ -40,8 +54,6 @@ MOCAP_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT,
                        depth=5)
 CMD_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                      history=HistoryPolicy.KEEP_LAST, depth=10)
-
-SPIN_SLICE = 0.1  # [s] longest wait of the executor before it looks at the closing flag
 
 PoseCallback = Callable[[int, float, float, float], None]
 
@@ -63,6 +75,17 @@ def planar_pose(type_name: str, msg: Any) -> tuple[float, float, float]:
     return float(p.x), float(p.y), yaw_of_quaternion(q.x, q.y, q.z, q.w)
 
 
+def planar_pose_of(type_name: str, cls: Any, data: bytes) -> tuple[float, float, float]:
+    """``(x, y, yaw)`` [m, m, rad] of a serialized pose message: read from the CDR bytes, or
+    deserialized by rclpy when :func:`tlfleet.sim.hardware.cdr.pose_fields` cannot read them.
+    ``ValueError`` for an unusable pose (a zero quaternion...)."""
+    fields = pose_fields(type_name, data)
+    if fields is None:
+        return planar_pose(type_name, deserialize_message(data, cls))
+    x, y, _z, qx, qy, qz, qw = fields
+    return x, y, yaw_of_quaternion(qx, qy, qz, qw)
+
+
 def apply_ros_environment(lab: Lab) -> None:
     """Put this process on the lab's ROS graph (before rclpy initialises)."""
     for name, value in lab.ros_environment().items():
@@ -79,64 +102,80 @@ class RosLink:
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=lab.domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(lab.node_name, context=self.context)
-        self._twist: dict[int, tuple[Any, bool, str]] = {}
+        # no executor serves this node, so it offers no parameter services
+        self.node = rclpy.create_node(lab.node_name, context=self.context,
+                                      start_parameter_services=False)
+        self._mocap: list[_Mocap] = []
+        self._twist: dict[int, tuple[Any, Any, bool]] = {}  # robot -> (message, body, stamped)
         self._publishers: dict[int, Any] = {}
+        self._polling = threading.Lock()
         self.poses_received = 0
         self.bad_poses = 0
         for robot in lab.robots:
-            self._subscribe(robot)
-            cls = message_class(robot.cmd_type)
+            cls = message_class(robot.mocap_type)
+            subscription = self.node.create_subscription(cls, robot.mocap_topic, _unused,
+                                                         MOCAP_QOS, raw=True)
+            self._mocap.append(_Mocap(robot.id, robot.mocap_topic, robot.mocap_type, cls,
+                                      subscription))
+            cmd_cls = message_class(robot.cmd_type)
             stamped = robot.cmd_type.endswith("TwistStamped")
-            self._twist[robot.id] = (cls, stamped, robot.frame_id)
-            self._publishers[robot.id] = self.node.create_publisher(cls, robot.cmd_topic, CMD_QOS)
-        self._closing = threading.Event()
-        self.executor = _executor(self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name="ros-executor", daemon=True)
-        self._thread.start()
+            msg = cmd_cls()
+            if stamped:
+                msg.header.frame_id = robot.frame_id
+            self._twist[robot.id] = (msg, msg.twist if stamped else msg, stamped)
+            self._publishers[robot.id] = self.node.create_publisher(cmd_cls, robot.cmd_topic,
+                                                                    CMD_QOS)
 
-    def _subscribe(self, robot: LabRobot) -> None:
-        type_name, robot_id = robot.mocap_type, robot.id
+    def poll(self) -> int:
+        """Take every pose that came since the last call; hand each body's newest usable one
+        to ``on_pose``. Returns how many poses were taken. Called by the bridge's loop before
+        it reads the poses (a second caller meanwhile returns at once)."""
+        if not self._polling.acquire(blocking=False):
+            return 0
+        taken = 0
+        try:
+            for body in self._mocap:
+                batch = []
+                handle = body.subscription.handle
+                with handle:
+                    while (got := handle.take_message(body.cls, True)) is not None:
+                        batch.append(got[0])
+                if batch:
+                    taken += len(batch)
+                    self._newest(body, batch)
+        finally:
+            self._polling.release()
+        self.poses_received += taken
+        return taken
 
-        def on_message(msg: Any) -> None:
+    def _newest(self, body: _Mocap, batch: list[bytes]) -> None:
+        """The newest usable pose of ``batch`` (serialized, oldest first) to ``on_pose``; an
+        unusable one (a zero quaternion, NaN) is counted and the one before it tried."""
+        for data in reversed(batch):
             try:
-                x, y, yaw = planar_pose(type_name, msg)
-            except (ValueError, AttributeError) as exc:  # a zero quaternion, NaN...
+                x, y, yaw = planar_pose_of(body.type_name, body.cls, data)
+            except Exception as exc:  # a zero quaternion, bytes rclpy cannot deserialize...
                 self.bad_poses += 1
                 if self.bad_poses == 1:
-                    logger.warning("robot %d: unusable pose on %s: %s", robot_id,
-                                   robot.mocap_topic, exc)
-                return
-            self.poses_received += 1
+                    logger.warning("robot %d: unusable pose on %s: %s", body.robot, body.topic,
+                                   exc)
+                continue
             try:
-                self._on_pose(robot_id, x, y, yaw)
-            except Exception:  # never let one pose stop the executor
-                logger.exception("robot %d: handling a pose failed", robot_id)
-
-        self.node.create_subscription(message_class(type_name), robot.mocap_topic, on_message,
-                                      MOCAP_QOS)
-
-    def _spin(self) -> None:
-        while not self._closing.is_set() and self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=SPIN_SLICE)
-            except Exception:  # the context shut down under it: the link is closing
-                if self._closing.is_set() or not self.context.ok():
-                    return
-                logger.exception("the ROS executor failed; going on")
+                self._on_pose(body.robot, x, y, yaw)
+            except Exception:  # one pose must never stop the loop
+                logger.exception("robot %d: handling a pose failed", body.robot)
+            return
 
     def send(self, robot: int, twist: tuple[float, float, float]) -> None:
         """Publish ``(linear.x, linear.y, angular.z)`` [m/s, m/s, rad/s] on ``robot``'s command
-        topic (a TwistStamped stamped now or zero, after the lab's ``cmd_stamp``)."""
-        cls, stamped, frame_id = self._twist[robot]
-        msg = cls()
-        body = msg.twist if stamped else msg
+        topic (a TwistStamped stamped now or zero, after the lab's ``cmd_stamp``). The sends
+        to one robot must not overlap (the bridge sends under its world's lock): they share
+        one message."""
+        msg, body, stamped = self._twist[robot]
         body.linear.x, body.linear.y, body.angular.z = (float(v) for v in twist)
-        if stamped:
-            msg.header.frame_id = frame_id
-            if self.lab.cmd_stamp == "now":
-                msg.header.stamp = self.node.get_clock().now().to_msg()
+        if stamped and self.lab.cmd_stamp == "now":
+            stamp = msg.header.stamp
+            stamp.sec, stamp.nanosec = divmod(time.time_ns(), 1_000_000_000)
         self._publishers[robot].publish(msg)
 
     def wait_acked(self, timeout: float) -> bool:
@@ -153,24 +192,30 @@ class RosLink:
         return {r: p.get_subscription_count() for r, p in self._publishers.items()}
 
     def close(self) -> None:
-        """Stop the executor's thread, then shut the node and the context down (after the final
-        zeros)."""
-        self._closing.set()
-        self._thread.join(timeout=2.0 + SPIN_SLICE)
-        try:
-            self.executor.shutdown(timeout_sec=1.0)
-            self.node.destroy_node()
-        except Exception:
-            logger.exception("shutting the ROS node down failed")
-        finally:
-            if self.context.ok():
-                rclpy.shutdown(context=self.context)
+        """Shut the node and the context down (after the final zeros)."""
+        with self._polling:
+            try:
+                self.node.destroy_node()
+            except Exception:
+                logger.exception("shutting the ROS node down failed")
+            finally:
+                if self.context.ok():
+                    rclpy.shutdown(context=self.context)
 
 
-def _executor(context: Any) -> Any:
-    # rclpy.experimental.EventsExecutor would halve the executor's CPU, but in its own context
-    # (Kilted wheels) it delivered no pose and spun a core; the plain executor it is
-    return SingleThreadedExecutor(context=context)
+@dataclass(frozen=True)
+class _Mocap:
+    """One rigid body's pose subscription (raw: its messages stay serialized until used)."""
+
+    robot: int
+    topic: str
+    type_name: str
+    cls: Any
+    subscription: Any
+
+
+def _unused(_msg: Any) -> None:
+    """The subscriptions' callback: no executor calls it (:meth:`RosLink.poll` takes)."""
 
 
 # --------------------------------------------------------------------------- tlfleet hw --check

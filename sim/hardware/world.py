@@ -2,15 +2,16 @@
 
 :class:`HardwareWorld` is what :class:`tlfleet.sim.process.SimProcess` drives when the bridge
 takes the simulator's place: it answers ``mocap_poses()`` with each robot's newest motion-capture
-pose (sample and hold), turns commands into twists on the robots' topics through a
-:class:`RobotLink`, runs the safety rules of :mod:`tlfleet.sim.hardware.safety` on every
-``step`` (keep-alive, tracking lost, geofence) and ``check_watchdog`` (the command watchdog), and
-reports contacts from the poses: a robot–robot contact begins when two discs of the scenario's
-radii overlap, a wall contact when a disc crosses the arena's boundary or an obstacle.
+pose (sample and hold; its ``poll``, the ROS link's, first hands it what came since), turns
+commands into twists on the robots' topics through a :class:`RobotLink`, runs the safety rules of
+:mod:`tlfleet.sim.hardware.safety` on every ``step`` (keep-alive, tracking lost, geofence) and
+``check_watchdog`` (the command watchdog), and reports contacts from the poses: a robot–robot
+contact begins when two discs of the scenario's radii overlap, a wall contact when a disc crosses
+the arena's boundary or an obstacle.
 
-Thread-safe: poses come on the ROS executor's thread, commands on a transport thread, the
-simulator loop ticks on its own; one lock guards the state, and a send happens under it (so the
-sends to one robot keep their order).
+Thread-safe: poses come through ``poll`` on the simulator loop's thread (or from whoever calls
+``on_pose``), commands on a transport thread; one lock guards the state, and a send happens
+under it (so the sends to one robot keep their order).
 """
 
 from __future__ import annotations
@@ -56,10 +57,18 @@ class HardwareWorld:
     """The fleet's real robots (see the module docstring). ``now``: the monotonic wall clock."""
 
     def __init__(self, scenario: Scenario, lab: Lab, link: RobotLink | None = None,
-                 now: Callable[[], float] = time.monotonic):
+                 now: Callable[[], float] = time.monotonic,
+                 poll: Callable[[], object] | None = None):
         self.scenario = scenario
         self.lab = lab
         self.link = link
+        # called (outside the lock) before the poses are read: hands what came since to
+        # on_pose (RosLink.poll); None when the poses are pushed to on_pose
+        self.poll = poll
+        self._polled_at = -math.inf  # [s] when poll was last asked
+        # [s] the safety rules poll again when the loop's last poll (for a frame) is older: 1.5
+        # frame periods (a loop late for its frame), well within the lost limit
+        self.poll_fresh = min(1.5 / scenario.sim.mocap_rate, 0.25 * lab.lost_after)
         self._now = now
         self._lock = threading.Lock()
         self.ids = sorted(r.id for r in scenario.robots)
@@ -90,13 +99,25 @@ class HardwareWorld:
             self._poses[robot] = pose
             self.safety.pose(robot, *pose, now)
 
+    def _poll(self, unless_within: float = 0.0) -> None:
+        """Ask ``poll`` for what came since, unless it was asked less than ``unless_within``
+        [s] ago."""
+        if self.poll is None:
+            return
+        now = self._now()
+        if now - self._polled_at >= unless_within:
+            self._polled_at = now
+            self.poll()
+
     def missing_poses(self) -> list[int]:
+        self._poll()
         with self._lock:
             return [r for r in self.ids if r not in self._poses]
 
     def mocap_poses(self) -> tuple[tuple[int, float, float, float], ...]:
         """Every robot's newest pose, ``(id, x, y, θ)`` by id (a robot never seen: NaN, which
         the bridge never publishes: it waits for every body before it starts)."""
+        self._poll()
         with self._lock:
             poses = dict(self._poses)
         nan = (math.nan, math.nan, math.nan)
@@ -104,9 +125,10 @@ class HardwareWorld:
 
     # ----------------------------------------------------------------- commands
 
-    def check_command(self, robot: int, u: tuple[float, ...]) -> None:
-        """``ValueError`` for a command the robot cannot take (length, non-finite)."""
-        clip_command(self._spec[robot], u)
+    def check_command(self, robot: int, u: tuple[float, ...]) -> tuple[float, ...]:
+        """``u`` clipped to the robot's limits; ``ValueError`` for a command the robot cannot
+        take (length, non-finite)."""
+        return clip_command(self._spec[robot], u)
 
     def start(self) -> None:
         """The mission starts now: commands may go out from here on."""
@@ -115,13 +137,15 @@ class HardwareWorld:
             self.t0 = now
             self.safety.start(now)
 
-    def command(self, robot: int, u: tuple[float, ...]) -> bool:
-        """Forward a fresh, checked command at once (clipped to the robot's limits); False when
-        the safety rules hold it back (before the start, after a halt or the stop)."""
-        clipped = clip_command(self._spec[robot], u)
+    def command(self, robot: int, u: tuple[float, ...], *, clipped: bool = False) -> bool:
+        """Forward a fresh, checked command at once (clipped to the robot's limits, unless
+        ``clipped`` says :meth:`check_command` did); False when the safety rules hold it back
+        (before the start, after a halt or the stop)."""
+        if not clipped:
+            u = clip_command(self._spec[robot], u)
         now = self._now()
         with self._lock:
-            sends = self.safety.command(robot, clipped, now)
+            sends = self.safety.command(robot, u, now)
             if sends and self.t0 is not None:
                 self.robots[robot].last_command_t = now - self.t0
             self._send(sends)
@@ -146,6 +170,9 @@ class HardwareWorld:
         self._tick()
 
     def _tick(self) -> None:
+        # the loop polled for its frame just before, unless it stalled since: then the rules
+        # must judge the bodies on what came meanwhile, not call them lost
+        self._poll(unless_within=self.poll_fresh)
         now = self._now()
         with self._lock:
             sends, stopped, events = self.safety.tick(now)

@@ -1,9 +1,10 @@
 """One ROS test case, run inside an isolated namespace by :func:`ros_harness.run_case`.
 
 ``python ros_case.py CASE.json`` starts the case's processes — the fake robots
-(:mod:`fake_robots`), and either ``tlfleet run SCENARIO --hardware LAB`` (``"kind": "run"``) or a
+(:mod:`fake_robots`), and either ``tlfleet run SCENARIO --hardware LAB`` (``"kind": "run"``), a
 zenoh router plus ``tlfleet hw`` driven by this script standing in for the coordinator and the
-agents (``"kind": "bridge"``) — performs the case's steps and writes ``result.json`` beside the
+agents (``"kind": "bridge"``), or a bench's probe process on the lab's topics (``"probe"``) —
+performs the case's steps and writes ``result.json`` beside the
 case file: what this script saw on zenoh (events, frames), when it did what (CLOCK_MONOTONIC),
 the bridge's exit code and time, and the commands the fake robots received. Every process is
 stopped in ``finally``; every wait is bounded.
@@ -138,6 +139,9 @@ def goto_command(kind: str, pose: tuple[float, float, float], goal: list[float],
 
 
 def main(case_path: str) -> int:
+    # SIGTERM (a test run ending early) unwinds through the finally below, which stops every
+    # process of the case
+    signal.signal(signal.SIGTERM, _terminated)
     case_file = Path(case_path)
     case = json.loads(case_file.read_text())
     tmp = case_file.parent
@@ -174,6 +178,8 @@ def main(case_path: str) -> int:
                           run_dir=str(tmp / "run"))
         elif case["kind"] == "mirror":
             mirror_case(case, tmp, procs, result)
+        elif case["kind"] == "probe":
+            probe_case(case, lab, procs, result)
         elif case["kind"] == "check":
             proc = subprocess.run(tlfleet("hw", case["scenario"], "--lab", str(lab), "--check",
                                           "--check-wait", "2"),
@@ -202,6 +208,19 @@ def main(case_path: str) -> int:
         result["robots_final"] = json.loads(final)["final"] if final.startswith("{") else None
         (tmp / "result.json").write_text(json.dumps(result))
     return 0
+
+
+def probe_case(case: dict, lab: Path, procs: dict, result: dict) -> None:
+    """``case["argv"] + [LAB]`` beside the fake robots (a bench's bare node on the lab's
+    topics): its CPU time over ``window`` [s] wall after ``warmup`` [s]."""
+    procs["probe"] = subprocess.Popen([*case["argv"], str(lab)])
+    time.sleep(float(case.get("warmup", 2.0)))
+    t0, cpu0 = time.monotonic(), cpu_seconds(procs).get("probe")
+    time.sleep(float(case["window"]))
+    t1, cpu1 = time.monotonic(), cpu_seconds(procs).get("probe")
+    if cpu0 is None or cpu1 is None or procs["probe"].poll() is not None:
+        raise RuntimeError(f"the probe exited early ({procs['probe'].poll()})")
+    result.update(probe_cpu_share=(cpu1 - cpu0) / (t1 - t0), window_s=t1 - t0)
 
 
 def mirror_case(case: dict, tmp: Path, procs: dict, result: dict) -> None:
@@ -363,6 +382,10 @@ def bridge_case(case: dict, scenario, lab: Path, procs: dict, result: dict,
     hw_log.close()
     result["hw_log"] = (tmp / "hw.log").read_text(errors="replace")[-6000:]
     return fleet
+
+
+def _terminated(_signum: int, _frame: object) -> None:
+    raise SystemExit(f"{Path(__file__).name}: terminated")
 
 
 if __name__ == "__main__":

@@ -31,16 +31,24 @@ FAKE_ROBOTS = HERE / "fake_robots.py"
 CASE = HERE / "ros_case.py"
 
 
+def missing_for_ros() -> str | None:
+    """Why the ROS tests cannot run here (None: they can)."""
+    if importlib.util.find_spec("rclpy") is None:
+        return "needs rclpy: the tlfleet[ros2] extra (make .venv/.installed-ros2)"
+    if os.geteuid() != 0:
+        return "needs root for a network namespace with a private /dev/shm"
+    for tool, package in (("unshare", "util-linux"), ("ip", "iproute2")):
+        if shutil.which(tool) is None:
+            return f"needs `{tool}` (Debian package {package})"
+    return None
+
+
 def need_ros() -> None:
     """Skip without rclpy (the tlfleet[ros2] extra) or without root for the namespace; the
     suite's conftest turns the skip into a failure under TLFLEET_REQUIRE_SYSTEM=1."""
-    if importlib.util.find_spec("rclpy") is None:
-        pytest.skip("needs rclpy: the tlfleet[ros2] extra (make .venv/.installed-ros2)")
-    if os.geteuid() != 0:
-        pytest.skip("needs root for a network namespace with a private /dev/shm")
-    for tool, package in (("unshare", "util-linux"), ("ip", "iproute2")):
-        if shutil.which(tool) is None:
-            pytest.skip(f"needs `{tool}` (Debian package {package})")
+    reason = missing_for_ros()
+    if reason is not None:
+        pytest.skip(reason)
 
 
 def isolated_argv(argv: list[str], shm_mb: int = 256) -> list[str]:
@@ -72,24 +80,56 @@ def unique_domain() -> int:
     return next(_domains)
 
 
+class CaseRun:
+    """One :mod:`ros_case` case running isolated in the background (:func:`start_case`)."""
+
+    def __init__(self, case: dict, tmp: Path, timeout: float):
+        tmp.mkdir(parents=True, exist_ok=True)
+        self.tmp = tmp
+        spec = tmp / "case.json"
+        spec.write_text(json.dumps(case))
+        self.log = tmp / "case.log"
+        self.deadline = time.monotonic() + timeout
+        self.timeout = timeout
+        with open(self.log, "w", encoding="utf-8") as out:
+            self.proc = subprocess.Popen(isolated_argv([sys.executable, str(CASE), str(spec)]),
+                                         stdout=out, stderr=subprocess.STDOUT,
+                                         env=ros_env(int(case["domain_id"])), cwd=str(ROOT))
+
+    def result(self) -> dict:
+        """Wait for the case (until its timeout); its JSON result (``AssertionError`` with its
+        log when it failed or timed out)."""
+        try:
+            self.proc.wait(timeout=max(0.0, self.deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            self.stop()
+            raise AssertionError(f"case timed out after {self.timeout} s:\n"
+                                 f"{_tail(self.log)}") from None
+        result_path = self.tmp / "result.json"
+        if self.proc.returncode != 0 or not result_path.exists():
+            raise AssertionError(f"case exited {self.proc.returncode}:\n{_tail(self.log)}")
+        return json.loads(result_path.read_text())
+
+    def stop(self) -> None:
+        """End the case early: SIGTERM (ros_case stops its processes), then SIGKILL."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+
+def start_case(case: dict, tmp: Path, timeout: float) -> CaseRun:
+    """Start one :mod:`ros_case` case isolated, in the background."""
+    return CaseRun(case, tmp, timeout)
+
+
 def run_case(case: dict, tmp: Path, timeout: float) -> dict:
     """Run one :mod:`ros_case` case isolated; its JSON result (``AssertionError`` with its log
     when it failed)."""
-    tmp.mkdir(parents=True, exist_ok=True)
-    spec = tmp / "case.json"
-    spec.write_text(json.dumps(case))
-    log = tmp / "case.log"
-    argv = isolated_argv([sys.executable, str(CASE), str(spec)])
-    with open(log, "w", encoding="utf-8") as out:
-        try:
-            proc = subprocess.run(argv, stdout=out, stderr=subprocess.STDOUT, timeout=timeout,
-                                  env=ros_env(int(case["domain_id"])), cwd=str(ROOT))
-        except subprocess.TimeoutExpired:
-            raise AssertionError(f"case timed out after {timeout} s:\n{_tail(log)}") from None
-    result_path = tmp / "result.json"
-    if proc.returncode != 0 or not result_path.exists():
-        raise AssertionError(f"case exited {proc.returncode}:\n{_tail(log)}")
-    return json.loads(result_path.read_text())
+    return start_case(case, tmp, timeout).result()
 
 
 def _tail(path: Path, lines: int = 80) -> str:

@@ -359,6 +359,42 @@ def test_contacts_from_the_poses_are_reported_at_their_onset(tmp_path):
     assert [(c.a, c.b) for c in world.drain_contacts()] == [(1, 2)]  # a new onset
 
 
+def test_polled_poses_reach_frames_and_rules_also_after_a_stalled_loop(tmp_path):
+    """The bridge's poses are pulled (RosLink.poll): a frame's poses are polled for it, and the
+    safety rules poll again when the loop stalled since — poses that came meanwhile are not
+    taken for a lost body. The rules do not poll again soon after a frame's poll."""
+    now = [0.0]
+    world, _ = hardware(tmp_path, now)
+    arrived: list[tuple[int, float, float, float]] = []
+    polls = []
+
+    def poll():
+        polls.append(now[0])
+        while arrived:
+            world.on_pose(*arrived.pop(0))
+
+    world.poll = poll
+    arrived.extend((r, 0.5 * r, 0.0, 0.0) for r in (1, 2, 3, 4))
+    assert world.missing_poses() == []
+    world.start()
+    arrived.append((2, 1.25, 0.0, 0.0))
+    assert world.mocap_poses()[1] == (2, 1.25, 0.0, 0.0)
+    n = len(polls)
+    now[0] += 0.01  # 100 Hz frames: 1.5 periods, within a quarter of lost_after (0.5 s)
+    assert world.poll_fresh == pytest.approx(0.015)
+    world.step(0.01)  # one frame period after the frame's poll: no second one
+    assert len(polls) == n
+    for _ in range(10):  # the loop stalls 1 s (lost_after 0.5 s) while the bodies move on
+        now[0] += 0.1
+        arrived.extend((r, 0.5 * r, 0.1, 0.0) for r in (1, 2, 3, 4))
+    assert world.check_watchdog(now[0]) == []
+    assert world.drain_events() == [] and world.safety.halted is None
+    assert world.mocap_poses()[0] == (1, 0.5, 0.1, 0.0)
+    now[0] += 1.0  # nothing came for 1 s: lost
+    world.step(0.01)
+    assert [e.kind for e in world.drain_events()] == ["tracking_lost"]
+
+
 def test_the_documented_lab_fits_scenario_1():
     root = HERE.parent.parent
     lab = load_lab(root / "docs" / "labs" / "turtlebot4_vrpn.toml")

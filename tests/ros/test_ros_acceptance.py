@@ -2,7 +2,8 @@
 (two unicycles, three mecanum cars with their own command timeouts, vrpn-style poses) gives the
 simulator's verdicts: every STL sub-task at or above the paper's reported robustness (recomputed
 here with numpy from the recorded trajectory, as tests/system does for the simulator), both LTL
-robots visiting each of their regions again and again, no robot–robot contact."""
+robots visiting each of their regions again and again, no robot–robot contact. The mission runs
+while the other ROS tests do (tests/ros/conftest.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ros_harness import need_ros, run_case, unique_domain
+from ros_harness import need_ros
 from system.system_helpers import dist_to as dist
 from system.system_helpers import entries
 from system.system_helpers import f_rob as f
@@ -28,11 +29,10 @@ BOUNDS = {"phi'3": -0.18, "phi'4": -1.11, "phi'5": -0.12, "phi''3": 0.02, "phi''
           "phi''5": 0.05}
 
 
-def test_scenario1_over_the_bridge_has_the_simulators_verdicts(tmp_path):
+def test_scenario1_over_the_bridge_has_the_simulators_verdicts(request):
     need_ros()
-    scenario = ROOT / "scenarios" / "scenario1.toml"
-    result = run_case({"kind": "run", "scenario": str(scenario), "domain_id": unique_domain(),
-                       "timeout": 400}, tmp_path, timeout=480)
+    # started with the first ROS test and run beside the others (conftest.py)
+    result = request.getfixturevalue("acceptance_mission").result()
     run_dir = Path(result["run_dir"])
     summary = json.loads((run_dir / "summary.json").read_text())
     info = json.loads((run_dir / "run.json").read_text())

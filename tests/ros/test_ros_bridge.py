@@ -149,9 +149,12 @@ def test_a_lost_body_halts_every_robot(tmp_path):
     (event,) = events_of(result, "tracking_lost")
     assert event["data"]["robots"] == [2]
     for robot in ("1", "2", "3", "4"):
-        zeros = [r for r in rows[robot] if is_zero(r) and r["t"] > lost_at]
-        assert zeros and zeros[0]["t"] - lost_at <= LOST_AFTER + SLACK, robot
-        assert not [r for r in rows[robot] if r["t"] > zeros[0]["t"] and not is_zero(r)], robot
+        # stopped for good: the zero after the last moving command came within the limit (not
+        # "the first zero after the loss": when this loaded machine stalls the stand-in agents,
+        # the watchdog zeroes 5 Hz robots 1 and 2 and their next command moves them again)
+        moving = [r["t"] for r in rows[robot] if not is_zero(r)]
+        stopped = [r["t"] for r in rows[robot] if is_zero(r) and r["t"] > max(moving)]
+        assert stopped and stopped[0] - lost_at <= LOST_AFTER + SLACK, robot
     assert result["bridge_rc"] == 0, result["hw_log"]
 
 
