@@ -30,7 +30,8 @@ import gc
 from collections import deque
 from collections.abc import Iterable
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 from tlfleet.agent.ltl.bdd import TRUE, disjoin
 from tlfleet.agent.ltl.branching import postpone_branching
@@ -86,12 +87,18 @@ class Buchi:
     initial: tuple[int, ...]
     accepting: frozenset[int]
     edges: tuple[tuple[Edge, ...], ...]
-    index: dict[str, int] = field(init=False, repr=False, compare=False)
-    alphabet: Alphabet = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "index", {a: i for i, a in enumerate(self.atoms)})
-        object.__setattr__(self, "alphabet", Alphabet(len(self.atoms)))
+    # derived from ``atoms``, computed on first use and kept in the instance's __dict__ (not
+    # fields: they take no part in equality, hashing or repr)
+    @cached_property
+    def index(self) -> dict[str, int]:
+        """Guard bit of every atom."""
+        return {a: i for i, a in enumerate(self.atoms)}
+
+    @cached_property
+    def alphabet(self) -> Alphabet:
+        """The letters over ``atoms`` (guard operations)."""
+        return Alphabet(len(self.atoms))
 
     @property
     def num_states(self) -> int:

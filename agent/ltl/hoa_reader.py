@@ -106,60 +106,92 @@ def read_hoa(text: str, source: str = "<hoa>"):
     lines = text.splitlines()
     if not any(line.strip().startswith("HOA:") for line in lines):
         raise _fail(source, 1, "not a HOA file (no 'HOA: v1' header)")
+    header, body_start = _header_lines(lines, source)
+    head = _Header(header, source)
+    states = _read_body(lines, body_start, head, source)
+    if head.declared is not None and not head.declared[1].isdigit():
+        raise _fail(source, head.declared[0], f"States: {head.declared[1]!r}")
+    if not head.starts:
+        raise _fail(source, 1, "no Start: state")
+    initial, accepting, edges = _state_based(states, head.starts, head.all_accept)
+    name = head.one("name", required=False)
+    formula = name[1].strip('"') if name else f"HOA automaton {source}"
+    return Buchi(formula, tuple(head.names), initial, accepting, edges)
+
+
+def _header_lines(lines: list[str], source: str) -> tuple[dict[str, list[tuple[int, str]]], int]:
+    """The header's items by name, each ``(line number, value)``, and the line number of
+    ``--BODY--``."""
     header: dict[str, list[tuple[int, str]]] = {}
-    body_start = None
     for number, raw in enumerate(lines, 1):
         line = raw.strip()
         if line == "--BODY--":
-            body_start = number
-            break
+            return header, number
         if not line:
             continue
         name, _, value = line.partition(":")
         header.setdefault(name.strip(), []).append((number, value.strip()))
-    if body_start is None:
-        raise _fail(source, len(lines), "missing --BODY--")
+    raise _fail(source, len(lines), "missing --BODY--")
 
-    def one(name: str, required: bool = True) -> tuple[int, str] | None:
-        entries = header.get(name)
+
+class _Header:
+    """What the header says: the atomic propositions (``names``), whether every run accepts
+    (``0 t``) or Büchi ``Inf(0)`` applies, the start states, the aliases' guards and the
+    ``States:`` line; anything unsupported is refused with its line number."""
+
+    def __init__(self, header: dict[str, list[tuple[int, str]]], source: str):
+        self.header = header
+        self.source = source
+        ap_line, ap_text = self.one("AP")
+        ap_tokens = re.findall(r'"((?:[^"\\]|\\.)*)"|(\d+)', ap_text)
+        if not ap_tokens:
+            raise _fail(source, ap_line, "AP: expected a count and names")
+        self.num_ap = int(ap_tokens[0][1])
+        self.names = [re.sub(r"\\(.)", r"\1", s) for s, _n in ap_tokens[1:]]
+        if len(self.names) != self.num_ap:
+            raise _fail(source, ap_line,
+                        f"AP: {self.num_ap} announced, {len(self.names)} names given")
+        acc_line, acc_text = self.one("Acceptance")
+        acceptance = " ".join(acc_text.split())
+        if acceptance in ("0 t", "1 t"):
+            self.all_accept = True
+        elif acceptance == "1 Inf(0)":
+            self.all_accept = False
+        else:
+            raise _fail(source, acc_line, f"acceptance {acc_text!r} is not supported "
+                                          "(Büchi 'Acceptance: 1 Inf(0)' only; use autfilt -B)")
+        self.starts: list[int] = []
+        for number, value in header.get("Start", []):
+            if not value.isdigit():
+                raise _fail(source, number, f"Start: {value!r} (alternating automata are not "
+                                            "supported)")
+            self.starts.append(int(value))
+        self.aliases: dict[str, Bdd] = {}
+        for number, value in header.get("Alias", []):
+            alias, _, expression = value.partition(" ")
+            self.aliases[alias] = _Label(expression, self.aliases, self.num_ap,
+                                         lambda what, n=number: _fail(source, n, what)).parse()
+        self.declared = self.one("States", required=False)
+
+    def one(self, name: str, required: bool = True) -> tuple[int, str] | None:
+        """The first ``name:`` item; a missing required one is an error."""
+        entries = self.header.get(name)
         if not entries:
             if required:
-                raise _fail(source, 1, f"missing header {name}:")
+                raise _fail(self.source, 1, f"missing header {name}:")
             return None
         return entries[0]
 
-    ap_line, ap_text = one("AP")
-    ap_tokens = re.findall(r'"((?:[^"\\]|\\.)*)"|(\d+)', ap_text)
-    if not ap_tokens:
-        raise _fail(source, ap_line, "AP: expected a count and names")
-    num_ap = int(ap_tokens[0][1])
-    names = [re.sub(r"\\(.)", r"\1", s) for s, _n in ap_tokens[1:]]
-    if len(names) != num_ap:
-        raise _fail(source, ap_line, f"AP: {num_ap} announced, {len(names)} names given")
-    acc_line, acc_text = one("Acceptance")
-    acceptance = " ".join(acc_text.split())
-    if acceptance in ("0 t", "1 t"):
-        all_accept = True
-    elif acceptance == "1 Inf(0)":
-        all_accept = False
-    else:
-        raise _fail(source, acc_line, f"acceptance {acc_text!r} is not supported "
-                                      "(Büchi 'Acceptance: 1 Inf(0)' only; use autfilt -B)")
-    starts = []
-    for number, value in header.get("Start", []):
-        if not value.isdigit():
-            raise _fail(source, number, f"Start: {value!r} (alternating automata are not "
-                                        "supported)")
-        starts.append(int(value))
-    aliases: dict[str, Bdd] = {}
-    for number, value in header.get("Alias", []):
-        alias, _, expression = value.partition(" ")
-        aliases[alias] = _Label(expression, aliases, num_ap,
-                                lambda what, n=number: _fail(source, n, what)).parse()
-    declared = one("States", required=False)
 
-    # Body: State: n ["name"] [{marks}] then edges "[label] dst [{marks}]" or implicit "dst".
-    states: dict[int, dict] = {}
+_StateSpec = dict  # {"acc": state mark 0, "edges": [(dst, guard, edge mark 0), …]}
+_Edges = tuple[tuple[tuple[int, Bdd], ...], ...]  # per state, (destination, guard)
+
+
+def _read_body(lines: list[str], body_start: int, head: _Header, source: str
+               ) -> dict[int, _StateSpec]:
+    """The body's states: ``State: n ["name"] [{marks}]`` then edges ``[label] dst [{marks}]``
+    or implicit ``dst`` (the k-th edge reads the k-th valuation)."""
+    states: dict[int, _StateSpec] = {}
     current = None
     implicit_index = 0
     for number in range(body_start + 1, len(lines) + 1):
@@ -193,19 +225,22 @@ def read_hoa(text: str, source: str = "<hoa>"):
         if "&" in m.group("dst"):
             raise fail("universal branching (alternating automata) is not supported")
         if m.group("label") is not None:
-            guard = _Label(m.group("label"), aliases, num_ap, fail).parse()
+            guard = _Label(m.group("label"), head.aliases, head.num_ap, fail).parse()
         else:  # implicit labels: the k-th edge reads the k-th valuation
             v = implicit_index
             implicit_index += 1
-            guard = bdd.cube(v, ((1 << num_ap) - 1) & ~v)
+            guard = bdd.cube(v, ((1 << head.num_ap) - 1) & ~v)
         marks = set(map(int, (m.group("marks") or "").split()))
         states[current]["edges"].append((int(m.group("dst")), guard, 0 in marks))
-    if declared is not None and not declared[1].isdigit():
-        raise _fail(source, declared[0], f"States: {declared[1]!r}")
-    if not starts:
-        raise _fail(source, 1, "no Start: state")
-    # State-based Büchi: a state copy (q, 1) stands for "entered q by a marked edge".
-    # A state's mark is a mark on all its outgoing edges (HOA semantics).
+    return states
+
+
+def _state_based(states: dict[int, _StateSpec], starts: list[int], all_accept: bool
+                 ) -> tuple[tuple[int, ...], frozenset[int], _Edges]:
+    """``(initial, accepting, edges)`` of the state-based automaton reachable from ``starts``.
+
+    A state copy (q, 1) stands for "entered q by a marked edge"; a state's mark is a mark on
+    all its outgoing edges (HOA semantics)."""
     transition_marks = any(m for s in states.values() for _d, _g, m in s["edges"])
     ids: dict[tuple[int, bool], int] = {}
     order: list[tuple[int, bool]] = []
@@ -217,7 +252,7 @@ def read_hoa(text: str, source: str = "<hoa>"):
         return ids[key]
 
     initial = tuple(intern((q, False)) for q in starts)
-    edges: list[list[tuple[int, Bdd]]] = []
+    edges: list[tuple[tuple[int, Bdd], ...]] = []
     k = 0
     while k < len(order):
         q, _marked = order[k]
@@ -226,15 +261,13 @@ def read_hoa(text: str, source: str = "<hoa>"):
         for dst, guard, mark in spec["edges"]:
             d = intern((dst, transition_marks and (mark or spec["acc"])))
             grouped[d] = grouped.get(d, FALSE) | guard
-        edges.append([(d, g) for d, g in grouped.items() if g is not FALSE])
+        edges.append(tuple((d, g) for d, g in grouped.items() if g is not FALSE))
         k += 1
     accepting = frozenset(
         i for i, (q, marked) in enumerate(order)
         if all_accept or marked or (not transition_marks and states.get(q, {}).get("acc"))
     )
-    name = one("name", required=False)
-    formula = name[1].strip('"') if name else f"HOA automaton {source}"
-    return Buchi(formula, tuple(names), initial, accepting, tuple(tuple(e) for e in edges))
+    return initial, accepting, tuple(edges)
 
 
 HOA_TASK_PREFIX = "hoa:"

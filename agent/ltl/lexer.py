@@ -165,6 +165,40 @@ def _repeat(text: str, i: int, letter: str, column: int) -> tuple[Token, int]:
     return Token(REPEAT, text[column - 1 : i], column, (letter, low, high)), i
 
 
+def _comment_end(text: str, i: int) -> int:
+    """The index after the comment that opens at ``text[i]`` (``/* … */``, nested ones too)."""
+    depth, j, n = 0, i, len(text)
+    while j < n:
+        if text.startswith("/*", j):
+            depth += 1
+            j += 2
+        elif text.startswith("*/", j):
+            depth -= 1
+            j += 2
+            if depth == 0:
+                break
+        else:
+            j += 1
+    if depth:
+        raise LtlSyntaxError(text, i + 1, "unclosed comment")
+    return j
+
+
+def _quoted_atom(text: str, i: int) -> tuple[Token, int]:
+    """The atom quoted from ``text[i]`` (a ``"``; a backslash takes the next character as it
+    is) and the index after its closing quote."""
+    j, n = i + 1, len(text)
+    name = []
+    while j < n and text[j] != '"':
+        if text[j] == "\\" and j + 1 < n:
+            j += 1
+        name.append(text[j])
+        j += 1
+    if j >= n:
+        raise LtlSyntaxError(text, i + 1, "unclosed string (missing '\"')")
+    return Token(ATOM, text[i : j + 1], i + 1, "".join(name)), j + 1
+
+
 def tokenize(text: str) -> list[Token]:
     """Split ``text`` into tokens (Spot's scanner, see module docstring), ending with ``END``."""
     tokens: list[Token] = []
@@ -177,36 +211,13 @@ def tokenize(text: str) -> list[Token]:
             i += 1
             continue
         if text.startswith("/*", i):
-            depth, j = 0, i
-            while j < n:
-                if text.startswith("/*", j):
-                    depth += 1
-                    j += 2
-                elif text.startswith("*/", j):
-                    depth -= 1
-                    j += 2
-                    if depth == 0:
-                        break
-                else:
-                    j += 1
-            if depth:
-                raise LtlSyntaxError(text, i + 1, "unclosed comment")
-            i = j
+            i = _comment_end(text, i)
             continue
         column = i + 1
         if ch == '"':
-            j = i + 1
-            name = []
-            while j < n and text[j] != '"':
-                if text[j] == "\\" and j + 1 < n:
-                    j += 1
-                name.append(text[j])
-                j += 1
-            if j >= n:
-                raise LtlSyntaxError(text, column, "unclosed string (missing '\"')")
-            tokens.append(Token(ATOM, text[i : j + 1], column, "".join(name)))
+            token, i = _quoted_atom(text, i)
+            tokens.append(token)
             after_operand = True
-            i = j + 1
             continue
         if ch == "1" or ch == "0":
             tokens.append(Token(TRUE if ch == "1" else FALSE, ch, column))

@@ -129,112 +129,143 @@ def _done(f: object) -> Formula:
 
 
 class _Parser:
+    """Operator precedence (shunting-yard) over the tokens: ``operands`` holds ``(tree,
+    depth)``, ``operators`` the unary, binary and ``(`` tokens not yet reduced."""
+
     def __init__(self, text: str):
         self.text = text
         self.tokens = tokenize(text)
+        self.operands: list[tuple[Formula, int]] = []
+        self.operators: list[Token] = []
 
     def fail(self, token: Token, message: str) -> LtlSyntaxError:
         return LtlSyntaxError(self.text, token.column, message)
 
     def parse(self) -> Formula:
-        operands: list[tuple[Formula, int]] = []  # (tree, depth)
-        operators: list[Token] = []  # unary, binary and '(' tokens
         expect_operand = True
         previous: Token | None = None
-
-        def push(tree: Formula, depth: int, where: Token) -> None:
-            if depth > MAX_DEPTH:
-                raise self.fail(where, f"formula nested more than {MAX_DEPTH} levels deep "
-                                       f"(split it or use fewer nested operators)")
-            operands.append((tree, depth))
-
-        def reduce_top() -> None:
-            op = operators.pop()
-            if op.kind in _UNARY:
-                arg, depth = operands.pop()
-                arg = _done(arg)
-                if op.kind == lx.REPEAT:
-                    letter, low, high = op.value
-                    tree = _expand_repeat(letter, low, high, arg)
-                    push(tree, depth + _depth_of_repeat(letter, low, high), op)
-                else:
-                    push(_UNARY[op.kind](arg), depth + 1, op)
-                return
-            right, rd = operands.pop()
-            left, ld = operands.pop()
-            make = BINARY_PRECEDENCE[op.kind][2]
-            if make is conj or make is disj:
-                # flattened: a same-kind operand adds no level; the operands are gathered in
-                # one list, so a chain of n operators costs O(n), not O(n²) tuple copies
-                cls = And if make is conj else Or
-                ld += not _of_kind(left, cls)
-                rd += not _of_kind(right, cls)
-                items = left.items if isinstance(left, _Chain) and left.cls is cls \
-                    else list(_flat(left, cls))
-                items.extend(_flat(right, cls))
-                push(_Chain(cls, items), max(ld, rd), op)
-            else:
-                push(make(_done(left), _done(right)), 1 + max(ld, rd), op)
-
         for token in self.tokens:
             kind = token.kind
             if expect_operand:
-                if kind in _UNARY or kind == lx.LPAR:
-                    operators.append(token)
-                elif kind == lx.ATOM:
-                    push(Atom(token.value), 1, token)
-                    expect_operand = False
-                elif kind == lx.TRUE or kind == lx.FALSE:
-                    push(TRUE if kind == lx.TRUE else FALSE, 1, token)
-                    expect_operand = False
-                elif previous is None:
-                    raise self.fail(token, f"expected a formula, got {_describe(token)}")
-                elif previous.kind == lx.LPAR and kind == lx.RPAR:
-                    raise self.fail(token, "expected a formula inside '(', got ')'")
-                elif previous.kind == lx.LPAR:
-                    raise self.fail(token, f"expected a formula, got {_describe(token)}")
-                else:
-                    raise self.fail(token, f"expected a formula after {previous.text!r}, "
-                                           f"got {_describe(token)}")
+                expect_operand = not self.operand(token, previous)
             elif kind in (lx.POST_NEG, lx.POST_POS):
-                if previous is None or previous.kind != lx.ATOM:
-                    raise self.fail(token, f"{token.text!r} may only follow an atom")
-                if kind == lx.POST_NEG:
-                    tree, depth = operands.pop()
-                    push(Not(tree), depth + 1, token)
+                self.postfix(token, previous)
             elif kind in BINARY_PRECEDENCE:
-                level, _right, _make = BINARY_PRECEDENCE[kind]
-                while operators and operators[-1].kind != lx.LPAR:
-                    top = operators[-1].kind
-                    if top in _UNARY:
-                        reduce_top()
-                        continue
-                    top_level, top_right, _ = BINARY_PRECEDENCE[top]
-                    if top_level > level or (top_level == level and not top_right):
-                        reduce_top()
-                    else:
-                        break
-                operators.append(token)
+                self.binary(token)
                 expect_operand = True
             elif kind == lx.RPAR:
-                while operators and operators[-1].kind != lx.LPAR:
-                    reduce_top()
-                if not operators:
-                    raise self.fail(token, "expected an operator or end of input, got ')'")
-                operators.pop()
+                self.close(token)
             elif kind == lx.END:
-                while operators:
-                    if operators[-1].kind == lx.LPAR:
-                        opening = operators[-1]
-                        raise self.fail(token, f"expected ')' to close '(' at column "
-                                               f"{opening.column}, got end of input")
-                    reduce_top()
+                self.end(token)
             else:
                 raise self.fail(token, f"expected an operator or end of input, "
                                        f"got {_describe(token)}")
             previous = token
-        (tree, _depth), = operands
+        (tree, _depth), = self.operands
         return _done(tree)
+
+    def operand(self, token: Token, previous: Token | None) -> bool:
+        """Read a token where a formula starts: a prefix operator or ``(`` (False: a formula
+        is still expected) or an atom or constant (True); anything else is an error."""
+        kind = token.kind
+        if kind in _UNARY or kind == lx.LPAR:
+            self.operators.append(token)
+            return False
+        if kind == lx.ATOM:
+            self.push(Atom(token.value), 1, token)
+            return True
+        if kind == lx.TRUE or kind == lx.FALSE:
+            self.push(TRUE if kind == lx.TRUE else FALSE, 1, token)
+            return True
+        if previous is None:
+            raise self.fail(token, f"expected a formula, got {_describe(token)}")
+        if previous.kind == lx.LPAR and kind == lx.RPAR:
+            raise self.fail(token, "expected a formula inside '(', got ')'")
+        if previous.kind == lx.LPAR:
+            raise self.fail(token, f"expected a formula, got {_describe(token)}")
+        raise self.fail(token, f"expected a formula after {previous.text!r}, "
+                               f"got {_describe(token)}")
+
+    def postfix(self, token: Token, previous: Token | None) -> None:
+        """A postfix ``=0`` (the atom is false: its negation) or ``=1`` (the atom itself), allowed
+        after an atom only."""
+        if previous is None or previous.kind != lx.ATOM:
+            raise self.fail(token, f"{token.text!r} may only follow an atom")
+        if token.kind == lx.POST_NEG:
+            tree, depth = self.operands.pop()
+            self.push(Not(tree), depth + 1, token)
+
+    def binary(self, token: Token) -> None:
+        """A binary operator: first reduce the pending operators that bind at least as tightly
+        (all unary ones; equal precedence only when left-associative)."""
+        operators = self.operators
+        level, _right, _make = BINARY_PRECEDENCE[token.kind]
+        while operators and operators[-1].kind != lx.LPAR:
+            top = operators[-1].kind
+            if top in _UNARY:
+                self.reduce_top()
+                continue
+            top_level, top_right, _ = BINARY_PRECEDENCE[top]
+            if top_level > level or (top_level == level and not top_right):
+                self.reduce_top()
+            else:
+                break
+        operators.append(token)
+
+    def close(self, token: Token) -> None:
+        """``)``: reduce back to the matching ``(``."""
+        operators = self.operators
+        while operators and operators[-1].kind != lx.LPAR:
+            self.reduce_top()
+        if not operators:
+            raise self.fail(token, "expected an operator or end of input, got ')'")
+        operators.pop()
+
+    def end(self, token: Token) -> None:
+        """End of input: reduce everything; a ``(`` left open is an error."""
+        operators = self.operators
+        while operators:
+            if operators[-1].kind == lx.LPAR:
+                opening = operators[-1]
+                raise self.fail(token, f"expected ')' to close '(' at column "
+                                       f"{opening.column}, got end of input")
+            self.reduce_top()
+
+    def push(self, tree: Formula, depth: int, where: Token) -> None:
+        if depth > MAX_DEPTH:
+            raise self.fail(where, f"formula nested more than {MAX_DEPTH} levels deep "
+                                   f"(split it or use fewer nested operators)")
+        self.operands.append((tree, depth))
+
+    def reduce_top(self) -> None:
+        """Apply the top operator to its operands."""
+        op = self.operators.pop()
+        operands = self.operands
+        if op.kind in _UNARY:
+            arg, depth = operands.pop()
+            arg = _done(arg)
+            if op.kind == lx.REPEAT:
+                letter, low, high = op.value
+                tree = _expand_repeat(letter, low, high, arg)
+                self.push(tree, depth + _depth_of_repeat(letter, low, high), op)
+            else:
+                self.push(_UNARY[op.kind](arg), depth + 1, op)
+            return
+        right, rd = operands.pop()
+        left, ld = operands.pop()
+        make = BINARY_PRECEDENCE[op.kind][2]
+        if make is conj or make is disj:
+            # flattened: a same-kind operand adds no level; the operands are gathered in
+            # one list, so a chain of n operators costs O(n), not O(n²) tuple copies
+            cls = And if make is conj else Or
+            ld += not _of_kind(left, cls)
+            rd += not _of_kind(right, cls)
+            items = left.items if isinstance(left, _Chain) and left.cls is cls \
+                else list(_flat(left, cls))
+            items.extend(_flat(right, cls))
+            self.push(_Chain(cls, items), max(ld, rd), op)
+        else:
+            self.push(make(_done(left), _done(right)), 1 + max(ld, rd), op)
 
 
 def parse(text: str) -> Formula:

@@ -172,19 +172,51 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
     acceptance state the variants coincide and only one is returned; beyond
     :data:`EAGER_MAX_STATES` states or :data:`EAGER_MAX_EDGES` edges only the lazy one is.
     """
-    vwaa = Vwaa(index)
-    layout = _Layout(len(index), _acceptance_bound(formula))
-    # Guards as truth tables over few atoms (the same automaton, faster), else BDDs.
-    algebra = guard_algebra(len(index))
-    mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
-    state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
-    raw_edges: list[list[tuple[int, Guard, int]]] = []
-    queue: deque[int] = deque()
-    names: list[str] = []  # printed VWAA states: a hash-independent order
+    exploration = _Exploration(formula, index)
+    exploration.run()
+    return _marked_variants(exploration)
 
-    def ordered(s: int) -> list[int]:
-        while len(names) < len(vwaa.states):
-            names.append(str(vwaa.states[len(names)]))
+
+class _Exploration:
+    """The reachable TGBA states (sets of VWAA states, as bitmasks) and their edges ``(dst,
+    guard, bad)``, ``bad`` the marks whose chosen transition was not good; states are numbered
+    in the order they are reached, breadth first from the initial ones."""
+
+    def __init__(self, formula: Formula, index: dict[str, int]):
+        self.vwaa = Vwaa(index)
+        self.layout = _Layout(len(index), _acceptance_bound(formula))
+        # Guards as truth tables over few atoms (the same automaton, faster), else BDDs.
+        self.algebra = guard_algebra(len(index))
+        self.mark_of: dict[int, int] = {}  # VWAA state number -> acceptance mark
+        self.state_id: dict[int, int] = {}  # TGBA state (bitmask of VWAA states) -> number
+        self.raw_edges: list[list[tuple[int, Guard, int]]] = []
+        self.queue: deque[int] = deque()
+        self.names: list[str] = []  # printed VWAA states: a hash-independent order
+        self.members_of: list[list[int]] = []  # per TGBA state, its VWAA states in printed order
+        # Conjunctions of VWAA states that no word satisfies (G !p & F p, p & !p, …) are never
+        # entered: their states could not reach an accepting cycle anyway, and on formulas full
+        # of <-> and xor they were most of the construction (e.g. 274 of 329 states). Partial
+        # products are dropped as soon as their targets contain a contradiction (about half of
+        # them on those formulas), before the domination steps, which they would not change.
+        self.conflicts = Conflicts(self.vwaa.states, index)
+        initial_sets = self.vwaa.bar(formula)
+        for s in initial_sets:
+            self.conflicts.register(s)
+        self.initial = tuple(dict.fromkeys(
+            self.intern(s) for s in initial_sets if not self.conflicts.empty(s)))
+        self.option_cache: dict[int, tuple[list[_Group], bool]] = {}
+        # The product after the first k members of a state, keyed by those members (a
+        # bitmask): states share prefixes (every state of G(…) starts with the G state), and
+        # the product of a prefix depends on nothing else.
+        self.prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
+        self.delta_cache: dict[int, tuple[int, list[tuple[_Partial, int]]]] = {}
+        self.deterministic = len(self.initial) <= 1  # so far: every state's groups disjoint
+
+    def ordered(self, s: int) -> list[int]:
+        """The VWAA states of TGBA state ``s`` in printed order."""
+        names, states = self.names, self.vwaa.states
+        while len(names) < len(states):
+            names.append(str(states[len(names)]))
         members = []
         while s:
             low = s & -s
@@ -192,83 +224,86 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             s ^= low
         return sorted(members, key=names.__getitem__)
 
-    members_of: list[list[int]] = []  # per TGBA state, its VWAA states in printed order
-
-    def intern(s: int) -> int:
-        sid = state_id.get(s)
+    def intern(self, s: int) -> int:
+        """The number of TGBA state ``s``, queued for exploration when new; its acceptance
+        states get their marks."""
+        sid = self.state_id.get(s)
         if sid is None:
-            sid = len(state_id)
-            state_id[s] = sid
-            raw_edges.append([])
-            queue.append(s)
-            members = ordered(s)
-            members_of.append(members)
+            sid = len(self.state_id)
+            self.state_id[s] = sid
+            self.raw_edges.append([])
+            self.queue.append(s)
+            members = self.ordered(s)
+            self.members_of.append(members)
+            mark_of = self.mark_of
             for q in members:
-                if is_acceptance_state(vwaa.states[q]) and q not in mark_of:
-                    if len(mark_of) == layout.marks:
+                if is_acceptance_state(self.vwaa.states[q]) and q not in mark_of:
+                    if len(mark_of) == self.layout.marks:
                         raise RuntimeError("build_tgba: more acceptance states than "
                                            "subformulas")
                     mark_of[q] = len(mark_of)
         return sid
 
-    # Conjunctions of VWAA states that no word satisfies (G !p & F p, p & !p, …) are never
-    # entered: their states could not reach an accepting cycle anyway, and on formulas full of
-    # <-> and xor they were most of the construction (e.g. 274 of 329 states). Partial
-    # products are dropped as soon as their targets contain a contradiction (about half of
-    # them on those formulas), before the domination steps, which they would not change.
-    conflicts = Conflicts(vwaa.states, index)
-    initial_sets = vwaa.bar(formula)
-    for s in initial_sets:
-        conflicts.register(s)
-    initial = tuple(dict.fromkeys(intern(s) for s in initial_sets if not conflicts.empty(s)))
-    option_cache: dict[int, tuple[list[_Group], bool]] = {}
-    # The product after the first k members of a state, keyed by those members (a bitmask):
-    # states share prefixes (every state of G(…) starts with the G state), and the product of
-    # a prefix depends on nothing else.
-    prefix_cache: dict[int, tuple[list[_Partial], list[_Group] | None, bool]] = {}
-
-    delta_cache: dict[int, tuple[int, list[tuple[_Partial, int]]]] = {}
-
-    def packed_delta(q: int) -> list[tuple[_Partial, int]]:
+    def packed_delta(self, q: int) -> list[tuple[_Partial, int]]:
         """VWAA state ``q``'s transitions as packed partials, each with the states that
         contradict its targets (shifted to the targets' place; recomputed when a registered
         state brought a new contradiction); transitions into a contradiction are left out."""
-        entry = delta_cache.get(q)
+        conflicts, layout = self.conflicts, self.layout
+        entry = self.delta_cache.get(q)
         if entry is None or entry[0] != conflicts.version:
-            transitions = vwaa.state_delta(q)
+            transitions = self.vwaa.state_delta(q)
             for _cube, targets, _good in transitions:
                 conflicts.register(targets)
-            bad_bit = 1 << mark_of[q] if q in mark_of else 0
+            bad_bit = 1 << self.mark_of[q] if q in self.mark_of else 0
             packed = []
             for (pos, neg), targets, good in transitions:
                 clash = conflicts.of(targets)
                 if not clash & targets:
                     packed.append((layout.pack(pos, neg, targets, 0 if good else bad_bit),
                                    clash << layout.targets_shift))
-            entry = delta_cache[q] = (conflicts.version, packed)
+            entry = self.delta_cache[q] = (conflicts.version, packed)
         return entry[1]
 
-    def options_of(q: int) -> tuple[list[_Group], bool]:
+    def options_of(self, q: int) -> tuple[list[_Group], bool]:
         """The groups of VWAA state ``q``'s transitions and whether they are disjoint."""
-        options = option_cache.get(q)
+        options = self.option_cache.get(q)
         if options is None:
-            transitions = vwaa.state_delta(q)
+            transitions = self.vwaa.state_delta(q)
             for _cube, targets, _good in transitions:
-                conflicts.register(targets)
-            bad_bit = 1 << mark_of[q] if q in mark_of else 0
-            options = option_cache[q] = _state_options(transitions, bad_bit, algebra)
+                self.conflicts.register(targets)
+            bad_bit = 1 << self.mark_of[q] if q in self.mark_of else 0
+            options = self.option_cache[q] = _state_options(transitions, bad_bit, self.algebra)
         return options
-    deterministic = len(initial) <= 1  # so far: every state's groups pairwise disjoint
-    while queue:
-        s = queue.popleft()
-        sid = state_id[s]
-        # Cube by cube (GO's products with domination pruning) while few; symbolic groups
-        # (one BDD guard per (targets, bad)) once the products pile up, e.g. the 2^n
-        # transitions of G F a1 & … & G F an, where pairwise pruning would cost 4^n.
+
+    def run(self) -> None:
+        """Explore every reachable state: its groups become its edges, whose targets are
+        interned (and queued) unless they are a contradiction."""
+        state_id, conflicts = self.state_id, self.conflicts
+        while self.queue:
+            sid = state_id[self.queue.popleft()]
+            groups, disjoint = self.groups(self.members_of[sid])
+            self.deterministic = self.deterministic and disjoint
+            out = self.raw_edges[sid]
+            for targets, bad, guard, _l in groups:
+                dst = state_id.get(targets)
+                if dst is None:
+                    if conflicts.empty(targets):
+                        continue
+                    dst = self.intern(targets)
+                out.append((dst, guard, bad))
+
+    def groups(self, members: list[int]) -> tuple[list[_Group], bool]:
+        """The product ⊗_{q ∈ members} δ(q) as undominated groups (targets, bad, guard,
+        literals), and whether their guards are pairwise disjoint (only looked for while the
+        automaton is still deterministic).
+
+        Cube by cube (GO's products with domination pruning) while few; symbolic groups (one
+        BDD guard per (targets, bad)) once the products pile up, e.g. the 2^n transitions of
+        G F a1 & … & G F an, where pairwise pruning would cost 4^n."""
+        algebra, layout, prefix_cache = self.algebra, self.layout, self.prefix_cache
         partials: list[_Partial] = [0]  # the true cube, no target, nothing unfulfilled
         groups: list[_Group] | None = None
         disjoint = False
-        members = members_of[sid]
         start, prefix = 0, 0
         masks = [0]
         for q in members:
@@ -280,7 +315,7 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
                 start, prefix = k, masks[k]
                 break
         else:
-            if members and all(options_of(q)[1] for q in members):
+            if members and all(self.options_of(q)[1] for q in members):
                 # Every member's options partition the letters (F a1 & … & F an): their
                 # product is a partition too, built symbolically with nothing to prune.
                 groups, disjoint = [(0, 0, algebra.true, 0)], True
@@ -288,14 +323,14 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             q = members[k]
             prefix |= 1 << q
             if groups is None:
-                partials = layout.product(partials, packed_delta(q))
+                partials = layout.product(partials, self.packed_delta(q))
                 if len(partials) > _CUBE_LIMIT:
                     groups = _minimal_per_letter(layout.groups_of(partials, algebra))
                     disjoint = _disjoint(groups, algebra)
                     groups.sort(key=_group_order)
                 prefix_cache[prefix] = (partials, groups, disjoint)
                 continue
-            options = options_of(q)
+            options = self.options_of(q)
             groups = _combine(groups, options[0])
             disjoint = disjoint and options[1]
             # Dominated groups are removed at the end, and on the way when they pile up.
@@ -306,23 +341,26 @@ def build_tgba(formula: Formula, index: dict[str, int]) -> tuple[Tgba, ...]:
             prefix_cache[prefix] = (partials, groups, disjoint)
         if groups is None:
             groups = _minimal_per_letter(layout.groups_of(partials, algebra))
-            disjoint = deterministic and _disjoint(groups, algebra)
+            disjoint = self.deterministic and _disjoint(groups, algebra)
         elif not disjoint:  # (idempotent: a no-op on groups already minimal per letter)
             groups = _minimal_per_letter(groups)
             groups.sort(key=_group_order)
-            disjoint = deterministic and _disjoint(groups, algebra)
-        deterministic = deterministic and disjoint
-        out = raw_edges[sid]
-        for targets, bad, guard, _l in groups:
-            dst = state_id.get(targets)
-            if dst is None:
-                if conflicts.empty(targets):
-                    continue
-                dst = intern(targets)
-            out.append((dst, guard, bad))
+            disjoint = self.deterministic and _disjoint(groups, algebra)
+        return groups, disjoint
+
+
+def _marked_variants(exploration: _Exploration) -> tuple[Tgba, ...]:
+    """The lazy and (when it differs and the automaton is small) the eager marking of the
+    explored edges (see :func:`build_tgba`), each with bisimilar states merged and BDD guards.
+
+    An edge gets mark j unless its chosen transition for φ_j was bad; the lazy marking also
+    leaves out the marks of the acceptance states the edge spawns afresh (pending in the
+    target, not in the source)."""
+    raw_edges, mark_of, algebra = exploration.raw_edges, exploration.mark_of, exploration.algebra
+    initial, deterministic = exploration.initial, exploration.deterministic
     all_marks = (1 << len(mark_of)) - 1
-    pending = [0] * len(state_id)  # acceptance states in each TGBA state, as mark bits
-    for s, sid in state_id.items():
+    pending = [0] * len(exploration.state_id)  # acceptance states in each state, as mark bits
+    for s, sid in exploration.state_id.items():
         for q, mark in mark_of.items():
             if s >> q & 1:
                 pending[sid] |= 1 << mark

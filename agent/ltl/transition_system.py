@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 from tlfleet.agent.model.scenario import Region, Scenario
 
@@ -37,10 +38,11 @@ class TransitionSystem:
     labels: tuple[frozenset[str], ...]
     edges: tuple[tuple[tuple[int, float], ...], ...]
     initial: int
-    _index: dict[str, int] = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_index", {name: i for i, name in enumerate(self.names)})
+    @cached_property
+    def _index(self) -> dict[str, int]:
+        """State index by name, built on first use (not a field: no part in equality)."""
+        return {name: i for i, name in enumerate(self.names)}
 
     @property
     def num_states(self) -> int:

@@ -352,30 +352,13 @@ def dwa_control(
     reach = float(np.abs(vs).max()) * horizon
     near = _near_discs(others, px, py, reach, horizon, config)
     current_static = grid.clearance_point(px, py)
-    current, current_robots = current_static, math.inf
-    for cx0, cy0, _, _, r in near:
-        ex, ey = cx0 - px, cy0 - py
-        gap = math.sqrt(ex * ex + ey * ey) - r
-        current = min(current, gap)
-        current_robots = min(current_robots, gap)
+    current_robots = _robots_gap(px, py, near)
+    current = min(current_static, current_robots)
     required = min(robot_radius + config.collision_margin, current - 1e-6)
 
     x, y, cos_t, sin_t, min_clearance, least_static, least_robots = _clearances(
         pose, vs, ws, times, grid, near, reach)
-    valid = min_clearance >= required
-    if limits and valid.any():
-        excess = limits.excess(vs, ws)
-        coupled = valid & (excess <= 1e-12)
-        if not coupled.any():
-            least = float(excess[valid].min())
-            coupled = valid & (excess <= least + 1e-12)
-        valid = coupled
-    min_v, min_w = config.min_trans_vel, config.min_rot_vel
-    if limits:  # a leader held to slow motions still turns and creeps (step 6)
-        min_v, min_w = min(min_v, 0.5 * limits.v_max), min(min_w, 0.5 * limits.omega_max)
-    moving = valid & ((np.abs(vs) >= min_v) | (np.abs(ws) >= min_w))
-    if moving.any():  # standing still only when nothing else is admissible (step 6)
-        valid = moving
+    valid = _admissible(vs, ws, min_clearance >= required, limits, config)
     n_valid = int(np.count_nonzero(valid))
     if n_valid == 0:
         v, w = braking_command(v0, w0, config)
@@ -390,6 +373,38 @@ def dwa_control(
         float(vs[best]), float(ws[best]), float(cost[best]), n_valid, False,
         np.stack([x[best], y[best]], axis=-1),
     )
+
+
+def _robots_gap(px: float, py: float, near: Sequence[tuple[float, ...]]) -> float:
+    """The smallest gap [m] between the point ``(px, py)`` and the discs ``near`` (rows
+    ``(x, y, vx, vy, radius)``), ``inf`` without any."""
+    gap = math.inf
+    for cx0, cy0, _, _, r in near:
+        ex, ey = cx0 - px, cy0 - py
+        gap = min(gap, math.sqrt(ex * ex + ey * ey) - r)
+    return gap
+
+
+def _admissible(vs: np.ndarray, ws: np.ndarray, clear: np.ndarray,
+                limits: VelocityLimits | None, config: DwaConfig) -> np.ndarray:
+    """Which samples ``(vs, ws)`` (N,) may be chosen among the ``clear`` ones (N,) (module
+    docstring, steps 5-6): those within the coupling ``limits`` (or, when none is, those that
+    exceed them least), then the moving ones unless none is."""
+    valid = clear
+    if limits and valid.any():
+        excess = limits.excess(vs, ws)
+        coupled = valid & (excess <= 1e-12)
+        if not coupled.any():
+            least = float(excess[valid].min())
+            coupled = valid & (excess <= least + 1e-12)
+        valid = coupled
+    min_v, min_w = config.min_trans_vel, config.min_rot_vel
+    if limits:  # a leader held to slow motions still turns and creeps (step 6)
+        min_v, min_w = min(min_v, 0.5 * limits.v_max), min(min_w, 0.5 * limits.omega_max)
+    moving = valid & ((np.abs(vs) >= min_v) | (np.abs(ws) >= min_w))
+    if moving.any():  # standing still only when nothing else is admissible (step 6)
+        return moving
+    return valid
 
 
 _PathTargets = tuple[list[list[float]], tuple[float, float], list[list[float]],

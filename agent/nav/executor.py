@@ -57,6 +57,7 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from tlfleet.agent.evolve import evolve
@@ -277,19 +278,27 @@ class Executor:
     other_radii: tuple[tuple[int, float], ...] = ()
     robot_id: int | None = None
     ruled: frozenset[int] = frozenset()  # other robots that apply the right-of-way rule
-    paths: RegionPaths | None = None  # keep-out grids (built from regions and grid if None)
+    # keep-out grids the caller already built over these regions and grid (the LTL planner
+    # weighs its transitions with the same ones); None: built on first use
+    shared_paths: RegionPaths | None = None
     # robots whose tasks couple them to this one (escorts, a formation): they move with it, so
     # the right-of-way rule leaves them to the local planner (never yield to a follower)
     followers: frozenset[int] = frozenset()
 
-    def __post_init__(self) -> None:
-        if self.paths is None:
-            object.__setattr__(self, "paths", RegionPaths(
-                tuple(self.regions), self.grid, self.config.path_clearance))
-        # (name, x, y, radius, radius + hysteresis) [m] of every region, for the word's entries
-        object.__setattr__(self, "_discs", tuple(
-            (r.name, float(r.center[0]), float(r.center[1]), float(r.radius),
-             float(r.radius) + self.config.region_hysteresis) for r in self.regions))
+    @cached_property
+    def paths(self) -> RegionPaths:
+        """The keep-out paths between the regions: ``shared_paths``, or built from ``regions``
+        and ``grid`` with the configured clearance preference."""
+        if self.shared_paths is not None:
+            return self.shared_paths
+        return RegionPaths(tuple(self.regions), self.grid, self.config.path_clearance)
+
+    @cached_property
+    def _discs(self) -> tuple[tuple[str, float, float, float, float], ...]:
+        """(name, x, y, radius, radius + hysteresis) [m] of every region, for the word's
+        entries."""
+        return tuple((r.name, float(r.center[0]), float(r.center[1]), float(r.radius),
+                      float(r.radius) + self.config.region_hysteresis) for r in self.regions)
 
     @property
     def _passing_width(self) -> float:

@@ -104,23 +104,48 @@ def astar_cells(
     cannot be reached. No corner cutting past blocked cells.
     """
     blocked = np.asarray(blocked, dtype=bool)
-    ny, nx = blocked.shape
-    width = nx + 2
-    # the padded free mask as bytes (a copy, not a 20 000-element list) and g / parent
-    # as dicts of the cells reached (a search of a re-plan touches a few hundred).
-    padded = np.zeros((ny + 2, width), dtype=bool)
-    np.logical_not(blocked, out=padded[1:-1, 1:-1])
-    free = padded.tobytes()
-    factor = None
-    if penalty is not None:
-        grown = np.ones((ny + 2, width))
-        grown[1:-1, 1:-1] += penalty
-        factor = grown.ravel().tolist()
+    width = blocked.shape[1] + 2
+    free, factor = _padded(blocked, penalty)
     s = (start[1] + 1) * width + start[0] + 1
     g_idx = (goal[1] + 1) * width + goal[0] + 1
     if not (free[s] and free[g_idx]):
         return None
-    gx, gy = goal[0] + 1, goal[1] + 1
+    found = _search(free, factor, width, s, g_idx)
+    if found is None:
+        return None
+    parent, cost = found
+    cells = []
+    u = g_idx
+    while u != -1:
+        uy, ux = divmod(u, width)
+        cells.append((ux - 1, uy - 1))
+        u = parent[u]
+    cells.reverse()
+    return cells, cost
+
+
+def _padded(blocked: np.ndarray, penalty: np.ndarray | None) -> tuple[bytes, list[float] | None]:
+    """The free mask with a blocked border of one cell, flattened row by row into bytes (a
+    copy, not a 20 000-element list), and the move cost factor ``1 + penalty`` of every cell
+    in the same layout (None without ``penalty``). The border spares the search its bounds
+    tests: a neighbour off the grid is a blocked cell."""
+    ny, nx = blocked.shape
+    padded = np.zeros((ny + 2, nx + 2), dtype=bool)
+    np.logical_not(blocked, out=padded[1:-1, 1:-1])
+    if penalty is None:
+        return padded.tobytes(), None
+    grown = np.ones((ny + 2, nx + 2))
+    grown[1:-1, 1:-1] += penalty
+    return padded.tobytes(), grown.ravel().tolist()
+
+
+def _search(free: bytes, factor: list[float] | None, width: int, s: int, g_idx: int
+            ) -> tuple[dict[int, int], float] | None:
+    """A* from flat cell ``s`` to ``g_idx`` of the padded grid (``width`` cells a row) under
+    the octile heuristic: the parent of every cell reached (the start's is -1) and the goal's
+    cost [cells], or None when the goal cannot be reached. One loop, its names local: it is
+    the global planner's whole cost."""
+    gy, gx = divmod(g_idx, width)
     # (flat offset, dx, dy, cost, the two orthogonal offsets a diagonal must not cut)
     moves = [
         (1, 1, 0, 1.0, 0, 0),
@@ -133,6 +158,7 @@ def astar_cells(
         (-width - 1, -1, -1, SQRT2, -1, -width),
     ]
     inf = math.inf
+    # g and parent as dicts of the cells reached (a search of a re-plan touches a few hundred)
     g = {}
     parent = {}
     openable = bytearray(free)  # free and not yet closed (one lookup instead of two per neighbour)
@@ -145,14 +171,12 @@ def astar_cells(
     g_of = g.get
     heap = [(h0, h0, s, sx, sy)]
     push, pop = heapq.heappush, heapq.heappop
-    found = False
     while heap:
         _, _, u, ux, uy = pop(heap)
         if not openable[u]:
             continue
         if u == g_idx:
-            found = True
-            break
+            return parent, g[g_idx]
         openable[u] = False
         gu = g[u]
         for du, ddx, ddy, cost, o1, o2 in moves:
@@ -170,16 +194,7 @@ def astar_cells(
                 dy = vy - gy if vy > gy else gy - vy
                 h = dx + k * dy if dx > dy else dy + k * dx
                 push(heap, (ng + h, h, v, vx, vy))
-    if not found:
-        return None
-    cells = []
-    u = g_idx
-    while u != -1:
-        uy, ux = divmod(u, width)
-        cells.append((ux - 1, uy - 1))
-        u = parent[u]
-    cells.reverse()
-    return cells, g[g_idx]
+    return None
 
 
 def line_of_sight(grid: OccupancyGrid, a: np.ndarray, b: np.ndarray,

@@ -22,6 +22,7 @@ import math
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from tlfleet.agent.model.scenario import Region, Scenario
@@ -53,30 +54,28 @@ class RegionPaths:
     regions: tuple[Region, ...]
     grid: OccupancyGrid
     prefer: float = DEFAULT_PREFER
-    _order: np.ndarray = field(init=False, repr=False)  # (k, ny, nx) region indices, nearest first
-    _dist: np.ndarray = field(init=False, repr=False)  # (k, ny, nx) [m] to those regions' discs
-    _grids: OrderedDict = field(init=False, repr=False)
-    _lengths: dict = field(init=False, repr=False)
+    # caches that fill as the paths are asked for: no part in repr or comparison
+    _grids: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False,
+                                compare=False)
+    _lengths: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
-    def __post_init__(self) -> None:
+    @cached_property
+    def _nearest(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(order, dist)``, both ``(k, ny, nx)``: the indices of every cell's ``k =
+        min(NEAREST, regions)`` nearest regions, nearest first, and its distances [m] to their
+        discs (computed once: a pair's keep-out grid is then one pass over the cells)."""
         ny, nx = self.grid.shape
         ox, oy = self.grid.origin
         res = self.grid.resolution
         xs = ox + (np.arange(nx) + 0.5) * res
         ys = oy + (np.arange(ny) + 0.5) * res
-        if self.regions:
-            dist = np.stack([np.hypot(xs[None, :] - r.center[0], ys[:, None] - r.center[1])
-                             - r.radius for r in self.regions])
-            k = min(NEAREST, len(self.regions))
-            order = np.argsort(dist, axis=0, kind="stable")[:k]
-            nearest = np.take_along_axis(dist, order, axis=0)
-        else:
-            order = np.zeros((0, ny, nx), dtype=np.int64)
-            nearest = np.zeros((0, ny, nx))
-        object.__setattr__(self, "_order", order)
-        object.__setattr__(self, "_dist", nearest)
-        object.__setattr__(self, "_grids", OrderedDict())
-        object.__setattr__(self, "_lengths", {})
+        if not self.regions:
+            return np.zeros((0, ny, nx), dtype=np.int64), np.zeros((0, ny, nx))
+        dist = np.stack([np.hypot(xs[None, :] - r.center[0], ys[:, None] - r.center[1])
+                         - r.radius for r in self.regions])
+        k = min(NEAREST, len(self.regions))
+        order = np.argsort(dist, axis=0, kind="stable")[:k]
+        return order, np.take_along_axis(dist, order, axis=0)
 
     @staticmethod
     def from_scenario(scenario: Scenario, robot_id: int, margin: float = DEFAULT_MARGIN,
@@ -124,12 +123,13 @@ class RegionPaths:
             return base
         index = {r.name: k for k, r in enumerate(self.regions)}
         skip = [index[name] for name in allowed if name in index]
-        if len(skip) < len(self._order):
+        order, dist = self._nearest
+        if len(skip) < len(order):
             # the nearest region of every cell that is not allowed (at most len(skip) are)
             chosen = np.full(base.shape, np.inf)
-            for layer in range(len(self._order) - 1, -1, -1):
-                keep = ~np.isin(self._order[layer], skip)
-                chosen = np.where(keep, self._dist[layer], chosen)
+            for layer in range(len(order) - 1, -1, -1):
+                keep = ~np.isin(order[layer], skip)
+                chosen = np.where(keep, dist[layer], chosen)
         else:  # more allowed regions than kept layers: every region's disc, the long way
             chosen = np.full(base.shape, np.inf)
             ny, nx = base.shape
