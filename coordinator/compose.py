@@ -11,7 +11,10 @@ service per process of ``tlfleet run``, each with ``init: true`` and run as the 
 * ``sim`` — ``tlfleet sim`` in the chosen time mode;
 * ``robot<ID>`` — ``tlfleet agent --robot ID``, one per robot;
 * ``coordinator`` — ``tlfleet supervise`` (:mod:`tlfleet.coordinator.supervise`), writing the run
-  directory to ``/out``, a bind mount of ``${TLFLEET_OUT}`` (default ``runs/compose``).
+  directory to ``/out``, a bind mount of ``${TLFLEET_OUT}`` (default ``runs/compose``). A new
+  or empty directory: a run is never written over another. ``docker/compose-run.sh`` writes the
+  services' logs into it too, so it claims the directory itself (``run.lock``) and tells the
+  coordinator so through ``${TLFLEET_RUN_DIR_CLAIMED}`` (empty otherwise).
 
 Every client waits for the router's health check (``depends_on: condition: service_healthy``),
 so none dies because the router is not up yet (a zenoh client fails at once without one:
@@ -61,6 +64,7 @@ from tlfleet.agent.model.faults import Fault
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.bus.errors import TlfleetError
 from tlfleet.coordinator.launch.plan import PlanConfig, ProcessSpec, by_name, plan_fleet
+from tlfleet.coordinator.record.rundir import CLAIMED_ENV
 
 ROUTER_PORT = 7447
 IMAGE = "${TLFLEET_IMAGE:-tlfleet:local}"  # docker/Dockerfile's runtime: router, sim, agents
@@ -199,7 +203,7 @@ def render(scenario: Scenario, scenario_ref: str, config: ComposeConfig,
     lines += _client_service(
         "coordinator", command(coordinator),
         [*client_volumes, '      - "${TLFLEET_OUT:-../runs/compose}:/out"'], dns,
-        image=COORDINATOR_IMAGE)
+        image=COORDINATOR_IMAGE, environment=(f"{CLAIMED_ENV}=${{{CLAIMED_ENV}:-}}",))
     lines += ["networks:",
               "  fleet:",
               "    internal: true",
@@ -290,9 +294,11 @@ def _router_service(argv: list[str], volumes: list[str], address: str | None) ->
 
 
 def _client_service(name: str, argv: list[str], volumes: list[str], dns: list[str],
-                    image: str = IMAGE) -> list[str]:
+                    image: str = IMAGE, environment: tuple[str, ...] = ()) -> list[str]:
     """A client's service (simulator, agent, coordinator): started once the router is
     healthy."""
+    env = ["    environment:", *(f"      - {json.dumps(e)}" for e in environment)] \
+        if environment else []
     return [
         f"  {name}:",
         f"    image: {image}",
@@ -305,6 +311,7 @@ def _client_service(name: str, argv: list[str], volumes: list[str], dns: list[st
         "        condition: service_healthy",
         "    volumes:",
         *volumes,
+        *env,
         *dns,
     ]
 

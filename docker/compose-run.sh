@@ -34,6 +34,7 @@ fi
 OWN_KEYS=
 EXECUTOR=
 OUT_ABS=
+CLAIMED=0
 # The containers run as the invoking user (the compose file's `user:`), so the run directory and
 # the keys are theirs; root on the host runs them as the images' own user 10001 instead, and gets
 # the run directory back at the end.
@@ -57,6 +58,7 @@ cleanup() {
        "($(du -sh "$TLFLEET_DOCKER_WORK" 2>/dev/null | cut -f1)). \`make clean\` removes them." >&2
   if [[ $STARTED == 1 ]]; then docker/dockerd-stop.sh "$TLFLEET_DOCKER_WORK"; fi
   if [[ -n $OWN_KEYS ]]; then rm -rf "$OWN_KEYS"; fi
+  if [[ $CLAIMED == 1 ]]; then rm -f "$OUT_ABS/run.lock"; fi
   if [[ -n $OUT_ABS && $(id -u) == 0 ]]; then chown -R "$HOST_IDS" "$OUT_ABS"; fi
 }
 trap cleanup EXIT
@@ -76,8 +78,24 @@ if grep -q '"--secure", "/fleet/keys"' "$FILE" && { [[ -z ${TLFLEET_KEYS:-} ]] |
 fi
 
 docker/build-image.sh
-mkdir -p "$OUT/logs"
+# the run directory: new or empty (a run is never written over another), claimed for this run
+# with run.lock, which the coordinator is told of (it would otherwise refuse the logs/ below)
+if [[ -e $OUT && ! -d $OUT ]]; then
+  echo "compose-run: $OUT exists and is not a directory: give OUT a directory for the run" >&2; exit 1
+fi
+if [[ -d $OUT && -n $(ls -A "$OUT") ]]; then
+  echo "compose-run: $OUT holds files already: a run directory is never overwritten; give another OUT or remove it" >&2
+  exit 1
+fi
+# logs/faults too: the fault executor runs as this user, the coordinator as the containers' one,
+# and both write there (the chown below hands it to the containers)
+mkdir -p "$OUT/logs/faults"
 OUT_ABS=$(cd "$OUT" && pwd)
+exec 9>"$OUT_ABS/run.lock"
+flock -n 9 || { echo "compose-run: another run is writing into $OUT_ABS" >&2; exit 1; }
+echo $$ >&9
+CLAIMED=1
+export TLFLEET_RUN_DIR_CLAIMED=/out   # the coordinator's view of $OUT_ABS
 chown -R "$TLFLEET_UID:$TLFLEET_GID" "$OUT_ABS" 2>/dev/null || true
 export TLFLEET_OUT=$OUT_ABS   # the coordinator's /out: the run directory
 if grep -q '"--fault-handoff", "/out/logs/faults"' "$FILE"; then

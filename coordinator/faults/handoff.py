@@ -201,6 +201,13 @@ class ComposeActuator:
         except FaultError:
             self._mark(fault.target, -1.0)  # nothing was cut: a lost token is a death again
             raise
+        if (fault.kind in ("kill", "restart") and self.supervisor is not None
+                and fault.target != "router"):
+            # the host killed the container and waited for it: a death now, whatever its token
+            # does meanwhile (without this the stand-in below made it "unreachable", and the
+            # restarted agent's token a return from silence instead of a recovery)
+            self.supervisor.process_killed(fault.target,
+                                           f"killed by fault {fault.text or fault.spec}")
         if fault.kind == "restart" and self.supervisor is not None:
             self.supervisor.children[fault.target] = RestartedContainer(fault.target)
             self.start_again.add(fault.target)

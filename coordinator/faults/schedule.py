@@ -148,8 +148,11 @@ class FaultScheduler:
             entry["error"] = str(exc)
         self._report(f"fault {entry['spec']} at t = {self.sim_time:.2f} s"
                      + (f" FAILED: {entry['error']}" if "error" in entry else ""))
-        self._event("fault_start", fault, {k: v for k, v in entry.items()
-                                           if k not in ("started", "start_t", "start_wall")})
+        # stamped with the wall time it began: a kill's death is recorded while the actuator
+        # works, before this event, and its detection delay is measured from here
+        self._event("fault_start", fault, {**{k: v for k, v in entry.items()
+                                              if k not in ("started", "start_t", "start_wall")},
+                                           "wall": entry["start_wall"]})
         active = _Active(fault, self._clock(), entry)
         if fault.duration is None or "error" in entry:  # kill / restart: over once done
             self._finish(active, {})

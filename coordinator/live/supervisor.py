@@ -220,13 +220,19 @@ class Supervisor:
         still runs (frozen, starved, cut off past the lease) is *unreachable* until it exits or
         comes back. The simulator's lost token waits ``end_grace`` first (its own end: its
         ``sim_done`` may still be in flight). Without a handle on the process (``tlfleet
-        supervise``) the token is all there is: a death, recovered if the token returns."""
+        supervise``) the token is all there is: a token back within ``end_grace`` was a blip
+        of a link (a compose run whose coordinator's session lapsed lost every token at once
+        and had them back 0.05 s later: five deaths and recoveries twice over), one that stays
+        away is a death, recovered if the token returns."""
+        runs = self._runs(name)
         if self._router_lost():  # everybody's token went with it: one router loss
             self._died(name, "liveliness token lost", None)
         elif name in FINISHERS:
             self._suspect(name, "liveliness token lost", None)
-        elif self._runs(name):
+        elif runs:
             self._unreachable(name)
+        elif runs is None:
+            self._suspect(name, "liveliness token lost", None, grace=True)
         else:
             self._suspect(name, "liveliness token lost", None)
 
@@ -305,12 +311,14 @@ class Supervisor:
                                          data={"process": "sim", "returncode": 0,
                                                "wall": time.time()}))
 
-    def _suspect(self, name: str, how: str, returncode: int | None) -> None:
+    def _suspect(self, name: str, how: str, returncode: int | None,
+                 grace: bool = False) -> None:
         """The simulator exits by itself right after ``sim_done``, which may still be in flight:
-        its end is a death only if ``sim_done`` has not arrived within ``end_grace``."""
+        its end is a death only if ``sim_done`` has not arrived within ``end_grace``. ``grace``:
+        any other process whose token is all there is to go by waits ``end_grace`` too."""
         if name in self.deaths:
             return
-        if name not in FINISHERS:
+        if name not in FINISHERS and not grace:
             self._died(name, how, returncode)
         elif not self.sim_done:
             since, first_how, code, t = self._suspects.get(

@@ -91,14 +91,16 @@ def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | N
         end = next((e for e in events[n + 1:] if e.kind == "fault_end"
                     and isinstance(e.data, dict) and e.data.get("spec") == spec), None)
         targets = [t for t in _list(data.get("targets")) if isinstance(t, str)]
-        found = next((e for e in events[n + 1:] if e.kind in DETECTIONS and e.t >= start.t
-                      and any(_about(e, t) for t in targets)), None)
+        started = _float(data.get("wall"))
+        # the whole record: a kill's death is written while the fault starts, before its
+        # fault_start (same sim time; later in wall time when both carry it)
+        found = next((e for e in events if e.kind in DETECTIONS and e.t >= start.t
+                      and any(_about(e, t) for t in targets) and _not_before(e, started)), None)
         end_t = end.t if end is not None else None
         until = end_t if end_t is not None and end_t > start.t else start.t + RECOVERY_WINDOW
         detection: Detection | None = None
         if found is not None:
             wall = _float(found.data.get("wall") if isinstance(found.data, dict) else None)
-            started = _float(data.get("wall"))
             detection = Detection(found.kind, found.t, found.t - start.t, after_wall=(
                 wall - started if wall is not None and started is not None else None))
         if data.get("kind") == "partition":
@@ -117,6 +119,13 @@ def fault_rows(scenario: Scenario, events: Iterable[Event], traj: Trajectory | N
             error=None if error is None else str(error), detection=detection,
             min_clearance=min_clearance(traj, radii, start.t, until)))
     return rows
+
+
+def _not_before(event: Event, started_wall: float | None) -> bool:
+    """Whether ``event`` did not happen before a fault that began at ``started_wall`` [s, wall
+    clock] (true when either time is unknown)."""
+    wall = _float(event.data.get("wall") if isinstance(event.data, dict) else None)
+    return wall is None or started_wall is None or wall >= started_wall
 
 
 def _float(value: object) -> float | None:

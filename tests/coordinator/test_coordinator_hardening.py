@@ -263,7 +263,10 @@ def test_an_agent_back_after_a_partition_is_recovered_not_dead(fleet, launched):
     if launched:  # its process still runs: unreachable, never dead
         assert "agent-2" not in sup.deaths and "agent-2" in sup.unreachable
         assert kinds["process_unreachable"] == 1 and "unreachable" in reports[-1]
-    else:  # the token is all there is
+    else:  # the token is all there is: a death once it has stayed away end_grace
+        assert "agent-2" not in sup.deaths
+        time.sleep(sup.config.end_grace + 0.05)
+        sup.check()
         assert "agent-2" in sup.deaths
     net.transport("agent-2-again").declare_alive(keys.alive(scenario.fleet, "agent", 2))
     sup.check()

@@ -82,6 +82,10 @@ class FakeSupervisor:
         self.tokens = {"a/router": "router", "a/sim": "sim", "a/1": "agent-1",
                        "a/3": "agent-3"}
         self.transport = FakeTransport()
+        self.killed: list[tuple[str, str]] = []
+
+    def process_killed(self, name: str, how: str) -> None:
+        self.killed.append((name, how))
 
 
 @pytest.fixture
@@ -200,6 +204,8 @@ def test_a_restarted_agent_recovers_and_gets_the_start_again(executor):
     record = actuator.start(parse_fault("restart:robot3@5"))
     assert record["how"] == "docker kill id-robot3; docker wait id-robot3"
     assert record["then"] == "docker start id-robot3"  # after the ack
+    # the container killed and waited for: a death the supervisor hears of from the fault
+    assert supervisor.killed == [("agent-3", "killed by fault restart:robot3@5")]
     deadline = time.monotonic() + 5.0
     while len(docker.actions()) < 3 and time.monotonic() < deadline:
         time.sleep(0.01)
