@@ -300,27 +300,6 @@ def test_the_sims_token_back_after_its_process_exited_is_still_a_death(fleet):
     assert sup.tap.recorder.event_kinds["token_blip"] == 0
 
 
-@pytest.fixture
-def handless(tmp_path):
-    """A supervisor with no handle on any process, as ``tlfleet supervise`` (by hand, compose):
-    the tokens are all there is to go by."""
-    path = tmp_path / "sup.toml"
-    path.write_text(SCENARIO)
-    scenario = load_scenario(path)
-    net = FakeNetwork()
-    coord = net.transport("coordinator")
-    recorder = Recorder(tmp_path / "run", [1, 2])
-    reports: list[str] = []
-    sup = Supervisor(coord, scenario, RecorderTap(coord, scenario.fleet, recorder), {},
-                     duration=5.0,
-                     config=SupervisorConfig(ready_timeout=0.3, wall_timeout=10.0,
-                                             poll_period=0.01, stop_grace=0.2),
-                     report=reports.append)
-    yield scenario, net, sup, reports
-    sup.close()
-    recorder.close()
-
-
 def _checks_for(sup, seconds: float) -> None:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
@@ -329,11 +308,13 @@ def _checks_for(sup, seconds: float) -> None:
 
 
 @pytest.mark.parametrize("away", [0.1, None])
-def test_without_a_handle_an_agents_token_back_within_the_grace_is_a_blip(handless, away):
+def test_without_a_handle_an_agents_token_back_within_the_grace_is_a_blip(fleet, away):
     """A compose run's coordinator lost every token at once and had them back 0.05 s later:
     each agent was a death and a recovery. Back within ``end_grace``: a blip; gone for good:
-    a death once the grace is over."""
-    scenario, net, sup, reports = handless
+    a death once the grace is over. No handle on any process, as under ``tlfleet supervise``
+    (by hand, compose): the tokens are all there is to go by."""
+    scenario, net, sup, _children, reports = fleet
+    sup.children.clear()
     peers = _started(net, scenario, sup)
     peers["agent-1"].kill()
     sup.check()
