@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from tlfleet.agent.ltl.lasso import holds
 from tlfleet.agent.scenario import load_scenario
+from trajectory_csv import load_trajectory
 
 ROOT = Path(__file__).resolve().parent.parent
 CORPUS_DIR = ROOT / "scenarios" / "ltl_maps"
@@ -118,14 +119,6 @@ class RunOutcome:
                 f"{[(round(a, 1), round(b, 1)) for a, b in r.standstills]}, "
                 f"yields {[(round(a, 1), round(b, 1)) for a, b in r.yields]}")
         return "\n".join(lines)
-
-
-def _trajectory(run_dir: Path) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    with open(run_dir / "trajectory.csv", newline="") as handle:
-        rows = list(csv.reader(handle))
-    header, data = rows[0], np.array(rows[1:], dtype=float)
-    ids = [int(h[1:]) for h in header[1::3]]
-    return data[:, 0], {r: data[:, 1 + 3 * k:4 + 3 * k] for k, r in enumerate(ids)}
 
 
 def _events(run_dir: Path) -> list[dict]:
@@ -220,7 +213,7 @@ def _standstills(t: np.ndarray, pose: np.ndarray, until: float,
 def analyse(run_dir: Path) -> RunOutcome:
     """The outcome of the run in ``run_dir`` (module docstring)."""
     scenario = load_scenario(run_dir / "scenario.toml")
-    t, states = _trajectory(run_dir)
+    t, states = load_trajectory(run_dir)
     events = _events(run_dir)
     statuses = _statuses(run_dir)
     labels = {r.name: frozenset(r.labels) for r in scenario.regions}

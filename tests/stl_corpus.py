@@ -14,7 +14,6 @@ second.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from dataclasses import dataclass, field
@@ -25,6 +24,7 @@ from tlfleet.agent.nav.grid import arena_clearance
 from tlfleet.agent.scenario import load_scenario
 from tlfleet.agent.stl.evaluate import evaluate_array
 from tlfleet.agent.stl.syntax import Not, literals, predicate_function
+from trajectory_csv import load_trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 CORPUS_DIR = ROOT / "scenarios" / "stl"
@@ -70,14 +70,6 @@ class RunJudgement:
     def ok(self) -> bool:
         return (all(s.ok for s in self.subtasks) and self.robot_contacts == 0
                 and self.wall_beyond_1s == 0)
-
-
-def load_trajectory(run_dir: Path) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    with open(run_dir / "trajectory.csv", newline="") as handle:
-        rows = list(csv.reader(handle))
-    header, data = rows[0], np.array(rows[1:], dtype=float)
-    ids = [int(h[1:]) for h in header[1::3]]
-    return data[:, 0], {r: data[:, 1 + 3 * k:4 + 3 * k] for k, r in enumerate(ids)}
 
 
 def _psi(task, states: dict[int, np.ndarray]) -> np.ndarray:

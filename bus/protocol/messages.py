@@ -1,4 +1,5 @@
-"""Messages that travel over Zenoh (architecture.md §2): frozen dataclasses, one per payload kind.
+"""Messages that travel over Zenoh (docs/architecture.md §2): frozen dataclasses, one per payload
+kind.
 
 Units: times [s] of the mission clock (t = 0 at ``Control(start)``), positions [m], angles [rad],
 velocities [m/s] and [rad/s]. Commands are world-frame ``(vx, vy, ω)`` for omni robots and
@@ -69,7 +70,8 @@ class LtlStatus:
 
 @dataclass(frozen=True, slots=True)
 class StlStatus:
-    """What an STL agent reports (≤ 10 Hz): funnel, robustness and repair state (stl-funnel.md §8).
+    """What an STL agent reports (≤ 10 Hz): funnel, robustness and repair state
+    (docs/stl-funnel.md §8).
 
     ``rho``/``rho_max``/``lower``/``r`` are NaN while the agent is idle; ``follow`` is −1 when the
     agent follows nobody; ``events`` counts critical events per stage (1, 2, 3).
@@ -91,7 +93,7 @@ class StlStatus:
 
 @dataclass(frozen=True, slots=True)
 class FunnelWire:
-    """The funnel of a task as sent in stage-2 messages (stl-funnel.md §5, §7.5; t_r included):
+    """The funnel of a task as sent in stage-2 messages (docs/stl-funnel.md §5, §7.5; t_r included):
     the wire form of :class:`tlfleet.agent.stl.funnel.Funnel`, field for field (not to be confused
     with :class:`tlfleet.agent.stl.funnel.FunnelParams`, the funnel *design* parameters of a
     robot)."""
@@ -117,7 +119,7 @@ CollabKind = Literal["request", "update", "release", "status"]
 
 @dataclass(frozen=True, slots=True)
 class CollabMessage:
-    """One stage-2 message from ``sender`` to ``receiver`` (stl-funnel.md §7.5).
+    """One stage-2 message from ``sender`` to ``receiver`` (docs/stl-funnel.md §7.5).
 
     ``request``/``update`` carry the requester's ``funnel``; ``release`` none; ``status`` announces
     the sender's ``c`` and active sub-task (``task_kind``, ``a``, ``b``) for the stage-2 rule.

@@ -5,7 +5,7 @@ A process's zenoh session is built in two layers:
 1. the user's file, as zenoh reads it (``zenoh.Config.from_json5``): anything zenoh can configure
    — TLS or QUIC endpoints and their certificates, access control, shared memory, timeouts;
 2. on top, tlfleet's own settings from the transport flags (:func:`own_settings`): the session
-   mode, multicast scouting (off unless ``--multicast-scouting``; stack-notes.md §0), the lease
+   mode, multicast scouting (off unless ``--multicast-scouting``; docs/stack-notes.md §0), the lease
    when ``--lease-ms`` is given (and, as long, the wait before a link with a blocked send queue
    is closed), and the endpoints **when the flags give any** — with no
    ``--listen``/``--connect`` flag, the file's endpoints stay.

@@ -14,8 +14,8 @@ same dictionaries can go into a :class:`~tlfleet.bus.transport.TransportConfig` 
   (``cert_common_names``: the certificate's CN *is* the process identity — ``router``, ``sim``,
   ``coordinator``, ``robot3``…) and policies binding them; ``default_permission: "deny"``.
 
-Every client talks through the router (stack-notes.md §0), so the router's interceptors see every
-message twice: *ingress* (from the sender's link) and *egress* (towards each receiver's link).
+Every client talks through the router (docs/stack-notes.md §0), so the router's interceptors see
+every message twice: *ingress* (from the sender's link) and *egress* (towards each receiver's link).
 With ``default_permission: "deny"`` zenoh filters both flows, so each capability of a
 :class:`Grant` allows the messages of both directions it needs:
 

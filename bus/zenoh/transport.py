@@ -1,9 +1,9 @@
-"""The Zenoh implementation of :class:`tlfleet.bus.transport.Transport` (stack-notes.md §0/§1).
+"""The Zenoh implementation of :class:`tlfleet.bus.transport.Transport` (docs/stack-notes.md §0/§1).
 
 This module is the only place in the tree that imports zenoh. It applies the verified rules of
-stack-notes.md: multicast scouting off unless asked, explicit endpoints, callbacks that only hand
-bytes on (guarded by a ``closing`` flag, since queued callbacks still run after ``close()``), and an
-explicit ``session.close()``.
+docs/stack-notes.md: multicast scouting off unless asked, explicit endpoints, callbacks that only
+hand bytes on (guarded by a ``closing`` flag, since queued callbacks still run after
+``close()``), and an explicit ``session.close()``.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def init_log(spec: str) -> None:
 
 
 class ZenohTransport:
-    """:class:`Transport` over an open zenoh session (stack-notes.md §1)."""
+    """:class:`Transport` over an open zenoh session (docs/stack-notes.md §1)."""
 
     def __init__(self, session: Any, direct_callbacks: bool = False,
                  block_when_congested: bool = False):
@@ -188,7 +188,7 @@ class ZenohTransport:
         replies at most the query timeout.
 
         The handler is a ``Callback(indirect=False)``: it runs on the network thread, so no extra
-        Python thread per query (stack-notes.md §1.7); ``on_done`` must be quick and must not
+        Python thread per query (docs/stack-notes.md §1.7); ``on_done`` must be quick and must not
         block on the session. Its ``drop`` fires when zenoh finalises the query, also without
         any reply (no matching queryable: at once).
         """

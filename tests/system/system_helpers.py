@@ -6,7 +6,6 @@ Robustness is recomputed here with numpy from ``trajectory.csv`` (independently 
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -16,6 +15,7 @@ import numpy as np
 import psutil
 from tlfleet.coordinator.live.supervisor import SupervisorConfig
 from tlfleet.coordinator.run import RunConfig, RunResult, run_fleet
+from trajectory_csv import load_trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "scenarios"
@@ -27,15 +27,6 @@ def run(scenario: Path, out: Path, mode: str = "lockstep", **kwargs) -> RunResul
     supervisor = kwargs.pop("supervisor", SupervisorConfig(ready_timeout=60.0,
                                                            wall_timeout=400.0))
     return run_fleet(RunConfig(scenario, mode=mode, out=out, supervisor=supervisor, **kwargs))
-
-
-def load_trajectory(run_dir: Path) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    """(t (N,), {robot: (N, 3) x, y, θ}) parsed with the csv module."""
-    with open(run_dir / "trajectory.csv", newline="") as handle:
-        rows = list(csv.reader(handle))
-    header, data = rows[0], np.array(rows[1:], dtype=float)
-    ids = [int(h[1:]) for h in header[1::3]]
-    return data[:, 0], {r: data[:, 1 + 3 * k:4 + 3 * k] for k, r in enumerate(ids)}
 
 
 def events(run_dir: Path) -> list[dict]:
